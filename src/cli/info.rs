@@ -1,0 +1,105 @@
+//! `kslab info`.
+
+use super::input::InputArgs;
+use anyhow::Result;
+use clap::Args;
+use keyshape_lab::sequence::Layout;
+use serde_json::json;
+
+/// Arguments of `kslab info`.
+#[derive(Debug, Args)]
+pub struct InfoArgs {
+    #[command(flatten)]
+    input: InputArgs,
+    /// Print JSON instead of text.
+    #[arg(long)]
+    json: bool,
+}
+
+pub fn run(a: &InfoArgs) -> Result<()> {
+    let seq = a.input.read()?;
+    let selected = match (&a.input.points, Layout::for_points(seq.points)) {
+        (Some(spec), Some(l)) => Some(l.select(spec)?.len()),
+        (Some(spec), None) => anyhow::bail!(
+            "--points {spec}: no built-in layout has {} points",
+            seq.points
+        ),
+        _ => None,
+    };
+    let layout = Layout::for_points(seq.points);
+    let ranges = seq.ranges();
+    let axes = ["x", "y", "z"];
+    if a.json {
+        let r: serde_json::Map<_, _> = ranges
+            .iter()
+            .zip(axes)
+            .map(|((lo, hi), ax)| (ax.to_string(), json!([lo, hi])))
+            .collect();
+        let v = json!({
+            "source": seq.source,
+            "format": seq.format.name(),
+            "frames": seq.n_frames(),
+            "failed_frames": seq.failed,
+            "points": seq.points,
+            "selected_points": selected,
+            "dims": seq.dims,
+            "layout": layout.as_ref().map(|l| l.name.clone()),
+            "groups": layout.as_ref().map(|l| l.names()),
+            "fps": seq.fps(),
+            "segments": seq.segments.as_ref().map(|s| count_segments(s)),
+            "ranges": r,
+        });
+        println!("{}", serde_json::to_string_pretty(&v)?);
+        return Ok(());
+    }
+    println!("source         {}", seq.source);
+    println!("format         {}", seq.format);
+    println!("frames         {} tracked", seq.n_frames());
+    let failed = if seq.failed.is_empty() {
+        "none".to_string()
+    } else {
+        let shown: Vec<String> = seq.failed.iter().take(12).map(i64::to_string).collect();
+        let more = if seq.failed.len() > 12 { ", …" } else { "" };
+        format!("{} ({}{more})", seq.failed.len(), shown.join(", "))
+    };
+    println!("failed frames  {failed}");
+    if let (Some(first), Some(last)) = (seq.frames.first(), seq.frames.last()) {
+        println!("frame numbers  {first}..={last}");
+    }
+    println!(
+        "points         {}{}",
+        seq.points,
+        selected
+            .map(|s| format!(" ({s} selected)"))
+            .unwrap_or_default()
+    );
+    println!("dims           {}", seq.dims);
+    match &layout {
+        Some(l) => println!(
+            "layout         {} (groups: {})",
+            l.name,
+            l.names().join(", ")
+        ),
+        None => println!(
+            "layout         none built in for {} points (--points unavailable)",
+            seq.points
+        ),
+    }
+    if let Some(fps) = seq.fps() {
+        println!("fps            {fps:.3}");
+    }
+    if let Some(s) = &seq.segments {
+        println!("segments       {}", count_segments(s));
+    }
+    for ((lo, hi), ax) in ranges.iter().zip(axes) {
+        println!("{ax} range        {lo:.3} .. {hi:.3}");
+    }
+    Ok(())
+}
+
+fn count_segments(s: &[String]) -> usize {
+    let mut v: Vec<&String> = s.iter().collect();
+    v.sort();
+    v.dedup();
+    v.len()
+}

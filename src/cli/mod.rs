@@ -1,0 +1,45 @@
+//! Command-line parsing and the subcommands. Only arranges library calls and prints.
+
+mod bench;
+mod info;
+mod input;
+mod solve;
+
+use clap::{Parser, Subcommand};
+use std::process::ExitCode;
+
+/// keyshape-lab: pick key shapes from a tracked facial performance, solve blend weights,
+/// and see how they retarget.
+#[derive(Debug, Parser)]
+#[command(name = "kslab", version, about, long_about = None)]
+pub struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Describe a tracked sequence: format, frames, points, failed frames, ranges.
+    Info(info::InfoArgs),
+    /// Solve blend weights of every frame on chosen key frames (paper 000 Eq. 3/4).
+    Solve(solve::SolveArgs),
+    /// Measure solver throughput (the figures in BENCHMARKS.md).
+    Bench(bench::BenchArgs),
+}
+
+/// Runs the CLI; errors print as `error: …` with exit code 1.
+pub fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Info(a) => info::run(&a),
+        Command::Solve(a) => solve::run(&a),
+        Command::Bench(a) => bench::run(&a),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}

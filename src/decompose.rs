@@ -1,0 +1,202 @@
+//! Facial decomposition (paper 000 §4.1): the frames of a prepared sequence as weighted
+//! combinations of key shapes taken from the sequence itself, absolute (Eq. 3/4) or as
+//! deltas from a neutral frame (`q − N = Σ wᵢ (Sᵢ − N)`).
+
+use crate::align::{procrustes, Similarity};
+use crate::error::{Error, Result};
+use crate::sequence::{Layout, Sequence};
+use crate::solve::{residuals, solve_batch, SolveOptions, Solver};
+use nalgebra::DMatrix;
+
+/// How to prepare a sequence before decomposing it.
+#[derive(Debug, Clone, Default)]
+pub struct PrepareOptions {
+    /// A group selection such as `lips` or `eyes,brows` (None = every point).
+    pub points: Option<String>,
+    /// Remove 2-D similarity head motion (generalised Procrustes).
+    pub align: bool,
+}
+
+/// A sequence ready for decomposition: points selected, head motion removed and kept.
+#[derive(Debug, Clone)]
+pub struct Prepared {
+    /// The selected (and, when asked, aligned) shapes.
+    pub seq: Sequence,
+    /// Per frame: aligned → image coordinates (None when not aligned).
+    pub head: Option<Vec<Similarity>>,
+    /// Indices of the kept points in the original layout.
+    pub point_indices: Vec<usize>,
+    /// The layout of the original points, when one is built in for the point count.
+    pub layout: Option<Layout>,
+}
+
+/// Aligns the whole face (more points give a steadier fit than the selected group alone),
+/// then keeps the selected points.
+pub fn prepare(seq: &Sequence, opts: &PrepareOptions) -> Result<Prepared> {
+    let layout = Layout::for_points(seq.points);
+    let point_indices = match (&opts.points, &layout) {
+        (None, _) => (0..seq.points).collect(),
+        (Some(spec), Some(l)) => l.select(spec)?,
+        (Some(spec), None) => {
+            return Err(Error::invalid(format!(
+                "--points {spec}: no built-in layout has {} points (MediaPipe has 468, iBUG 68)",
+                seq.points
+            )))
+        }
+    };
+    let mut base = seq.clone();
+    let head = if opts.align {
+        let al = procrustes(&seq.coords, seq.dims)?;
+        base.coords = al.coords;
+        Some(al.head)
+    } else {
+        None
+    };
+    let selected = if point_indices.len() == seq.points {
+        base
+    } else {
+        base.select_points(&point_indices)?
+    };
+    Ok(Prepared {
+        seq: selected,
+        head,
+        point_indices,
+        layout,
+    })
+}
+
+/// Weights of every frame on a set of key shapes, with the reconstruction error.
+#[derive(Debug, Clone)]
+pub struct Decomposition {
+    /// Column indices (into the prepared sequence) of the key shapes.
+    pub key_columns: Vec<usize>,
+    /// Column index of the neutral frame in delta mode.
+    pub neutral: Option<usize>,
+    /// The solver used.
+    pub solver: Solver,
+    /// k × frames.
+    pub weights: DMatrix<f64>,
+    /// Per frame `‖q − q̂‖²` (paper 000 Eq. 5 summed over frames).
+    pub sq_error: Vec<f64>,
+    /// Points per shape (for per-point RMS).
+    pub points: usize,
+    /// Numerical rank of the key-shape matrix.
+    pub rank: usize,
+    /// Its condition number.
+    pub condition: f64,
+    /// Frames the active-set solver stopped early on.
+    pub unconverged: usize,
+}
+
+impl Decomposition {
+    /// Per-frame RMS error per point, in the input's units: `sqrt(‖q − q̂‖² / points)`.
+    pub fn rms(&self) -> Vec<f64> {
+        self.sq_error
+            .iter()
+            .map(|e| (e / self.points as f64).sqrt())
+            .collect()
+    }
+
+    /// Paper 000 Eq. (5): `E = Σ_t ‖Q_t − F(w, S)‖²`.
+    pub fn total_sq_error(&self) -> f64 {
+        self.sq_error.iter().sum()
+    }
+
+    /// `sqrt(E / (frames · points))`.
+    pub fn overall_rms(&self) -> f64 {
+        (self.total_sq_error() / (self.sq_error.len() * self.points).max(1) as f64).sqrt()
+    }
+
+    /// Mean of the per-frame RMS.
+    pub fn mean_rms(&self) -> f64 {
+        let r = self.rms();
+        r.iter().sum::<f64>() / r.len().max(1) as f64
+    }
+
+    /// Share of weights below zero.
+    pub fn negative_share(&self) -> f64 {
+        let n = self.weights.len().max(1);
+        self.weights.iter().filter(|&&w| w < 0.0).count() as f64 / n as f64
+    }
+
+    /// Largest |w|.
+    pub fn max_abs_weight(&self) -> f64 {
+        self.weights.iter().fold(0.0, |m, w| m.max(w.abs()))
+    }
+}
+
+/// Solves weights for every column of `coords` (shapes with `points` points) on the key
+/// shapes at `key_columns`; with `neutral`, on deltas from that frame.
+pub fn decompose(
+    coords: &DMatrix<f64>,
+    points: usize,
+    key_columns: &[usize],
+    neutral: Option<usize>,
+    opts: &SolveOptions,
+) -> Result<Decomposition> {
+    let n = coords.ncols();
+    if key_columns.is_empty() {
+        return Err(Error::invalid("no key shapes given"));
+    }
+    if key_columns.len() > n {
+        return Err(Error::invalid(format!(
+            "{} key shapes asked for, but the sequence has only {n} valid frames",
+            key_columns.len()
+        )));
+    }
+    let mut seen = std::collections::HashSet::new();
+    for &c in key_columns.iter().chain(neutral.iter()) {
+        if c >= n {
+            return Err(Error::invalid(format!(
+                "key column {c} out of range (0..{n})"
+            )));
+        }
+    }
+    for &c in key_columns {
+        if !seen.insert(c) {
+            return Err(Error::invalid(format!(
+                "key frame column {c} is listed twice"
+            )));
+        }
+    }
+    if let Some(nc) = neutral {
+        if key_columns.contains(&nc) {
+            return Err(Error::invalid(
+                "the neutral frame cannot also be a key shape (its delta is zero)",
+            ));
+        }
+    }
+    let mut s = coords.select_columns(key_columns);
+    let solution = match neutral {
+        None => {
+            let sol = solve_batch(&s, coords, opts)?;
+            let err = residuals(&s, &sol.weights, coords);
+            (sol, err)
+        }
+        Some(nc) => {
+            let base = coords.column(nc).clone_owned();
+            for mut c in s.column_iter_mut() {
+                c -= &base;
+            }
+            let mut q = coords.clone();
+            for mut c in q.column_iter_mut() {
+                c -= &base;
+            }
+            let sol = solve_batch(&s, &q, opts)?;
+            let err = residuals(&s, &sol.weights, &q);
+            (sol, err)
+        }
+    };
+    let (sol, sq_error) = solution;
+    Ok(Decomposition {
+        key_columns: key_columns.to_vec(),
+        neutral,
+        solver: opts.solver,
+        weights: sol.weights,
+        sq_error,
+        points,
+        rank: sol.rank,
+        condition: sol.condition,
+        unconverged: sol.unconverged,
+    })
+}

@@ -1,0 +1,230 @@
+//! CSV landmark tables: MediaPipe tracks, OpenFace 2.x, py-feat tables and the plain CSV.
+//! One reader, configured per format by which columns hold what.
+
+use crate::error::{Error, Result};
+use crate::sequence::{Format, Sequence};
+use nalgebra::DMatrix;
+use std::collections::HashMap;
+use std::path::Path;
+
+/// Which columns a format keeps its data in.
+struct Columns {
+    /// Coordinate column name prefixes, per axis (`x_`, `y_`, `z_` or `x`, `y`, `z`).
+    axes: [&'static str; 3],
+    /// 1 = tracked, 0 = failed.
+    valid: Option<&'static str>,
+    frame: Option<&'static str>,
+    time: Option<&'static str>,
+    segment: Option<&'static str>,
+}
+
+fn columns(format: Format, dims: usize) -> Columns {
+    match format {
+        Format::Mediapipe => Columns {
+            axes: ["x_", "y_", "z_"],
+            valid: Some("detected"),
+            frame: Some("frame"),
+            time: Some("time_s"),
+            segment: None,
+        },
+        // OpenFace: 2-D pixels in x_/y_, 3-D millimetres (camera frame) in X_/Y_/Z_.
+        Format::Openface => Columns {
+            axes: if dims == 3 {
+                ["X_", "Y_", "Z_"]
+            } else {
+                ["x_", "y_", "z_"]
+            },
+            valid: Some("success"),
+            frame: Some("frame"),
+            time: Some("timestamp"),
+            segment: None,
+        },
+        // py-feat frames count within a clip, so frames are numbered by row instead.
+        Format::Pyfeat => Columns {
+            axes: ["x_", "y_", "z_"],
+            valid: None,
+            frame: None,
+            time: None,
+            segment: Some("clip"),
+        },
+        _ => Columns {
+            axes: ["x", "y", "z"],
+            valid: None,
+            frame: Some("frame"),
+            time: Some("time_s"),
+            segment: None,
+        },
+    }
+}
+
+/// Reads a landmark table of the given format.
+pub(super) fn read(path: &Path, text: &str, format: Format, dims: usize) -> Result<Sequence> {
+    let cols = columns(format, dims);
+    let mut rdr = csv::ReaderBuilder::new()
+        .trim(csv::Trim::All)
+        .flexible(true)
+        .has_headers(true)
+        .from_reader(text.as_bytes());
+    let header: Vec<String> = rdr
+        .headers()
+        .map_err(|e| csv_error(path, &e))?
+        .iter()
+        .map(str::to_string)
+        .collect();
+    let index: HashMap<&str, usize> = header
+        .iter()
+        .enumerate()
+        .map(|(i, h)| (h.as_str(), i))
+        .collect();
+    let coord_cols = coordinate_columns(path, &index, &cols, dims, format)?;
+    let find = |name: Option<&str>| name.and_then(|n| index.get(n).copied());
+    let (valid_col, frame_col) = (find(cols.valid), find(cols.frame));
+    let (time_col, seg_col) = (find(cols.time), find(cols.segment));
+
+    let mut data = Vec::new();
+    let (mut frames, mut failed) = (Vec::new(), Vec::new());
+    let (mut times, mut segments) = (Vec::new(), Vec::new());
+    let mut record = csv::StringRecord::new();
+    let mut row = 0i64;
+    while rdr
+        .read_record(&mut record)
+        .map_err(|e| csv_error(path, &e))?
+    {
+        let line = record.position().map_or(0, |p| p.line());
+        if record.len() == 1 && record.get(0) == Some("") {
+            continue; // blank line
+        }
+        if record.len() != header.len() {
+            let col = record.len().min(header.len()) as u64 + 1;
+            return Err(Error::parse(
+                path,
+                line,
+                col,
+                format!(
+                    "ragged row: {} fields, the header has {}",
+                    record.len(),
+                    header.len()
+                ),
+            ));
+        }
+        let frame = match frame_col {
+            Some(c) => parse_int(path, line, c, &header[c], &record[c])?,
+            None => row,
+        };
+        row += 1;
+        let ok = match valid_col {
+            Some(c) => parse_num(path, line, c, &header[c], &record[c])? != 0.0,
+            None => true,
+        };
+        if !ok {
+            failed.push(frame);
+            continue;
+        }
+        for &c in &coord_cols {
+            data.push(parse_num(path, line, c, &header[c], &record[c])?);
+        }
+        frames.push(frame);
+        if let Some(c) = time_col {
+            times.push(parse_num(path, line, c, &header[c], &record[c])?);
+        }
+        if let Some(c) = seg_col {
+            segments.push(record[c].to_string());
+        }
+    }
+    let points = coord_cols.len() / dims;
+    let n = frames.len();
+    Ok(Sequence {
+        source: path.display().to_string(),
+        format,
+        dims,
+        points,
+        coords: DMatrix::from_vec(dims * points, n, data),
+        frames,
+        times: time_col.map(|_| times),
+        segments: seg_col.map(|_| segments),
+        failed,
+    })
+}
+
+/// Column indices in shape order: x0, y0, (z0), x1, y1, …
+fn coordinate_columns(
+    path: &Path,
+    index: &HashMap<&str, usize>,
+    cols: &Columns,
+    dims: usize,
+    format: Format,
+) -> Result<Vec<usize>> {
+    let mut out = Vec::new();
+    for p in 0.. {
+        let Some(&x) = index.get(format!("{}{p}", cols.axes[0]).as_str()) else {
+            break;
+        };
+        out.push(x);
+        for axis in &cols.axes[1..dims] {
+            let name = format!("{axis}{p}");
+            match index.get(name.as_str()) {
+                Some(&c) => out.push(c),
+                None if dims == 3 && axis.starts_with(['z', 'Z']) && p == 0 => {
+                    return Err(Error::parse(
+                        path,
+                        1,
+                        0,
+                        format!("--dims 3 needs a column '{name}' and the {format} header has none; use --dims 2"),
+                    ))
+                }
+                None => {
+                    return Err(Error::parse(
+                        path,
+                        1,
+                        0,
+                        format!("header has '{}{p}' but no '{name}'", cols.axes[0]),
+                    ))
+                }
+            }
+        }
+    }
+    if out.is_empty() {
+        return Err(Error::parse(
+            path,
+            1,
+            1,
+            format!(
+                "header has no landmark columns for format {format} (expected {}0, {}0, …)",
+                cols.axes[0], cols.axes[1]
+            ),
+        ));
+    }
+    Ok(out)
+}
+
+fn csv_error(path: &Path, e: &csv::Error) -> Error {
+    let line = e.position().map_or(0, |p| p.line());
+    Error::parse(path, line, 0, format!("CSV error: {e}"))
+}
+
+fn parse_num(path: &Path, line: u64, col: usize, name: &str, cell: &str) -> Result<f64> {
+    let at = |msg: String| Error::parse(path, line, col as u64 + 1, msg);
+    if cell.is_empty() {
+        return Err(at(format!("empty cell in column '{name}'")));
+    }
+    let v: f64 = cell
+        .parse()
+        .map_err(|_| at(format!("not a number: '{cell}' in column '{name}'")))?;
+    if !v.is_finite() {
+        return Err(at(format!("non-finite value '{cell}' in column '{name}'")));
+    }
+    Ok(v)
+}
+
+fn parse_int(path: &Path, line: u64, col: usize, name: &str, cell: &str) -> Result<i64> {
+    let v = parse_num(path, line, col, name, cell)?;
+    if v.fract() != 0.0 || v.abs() > 1e15 {
+        return Err(Error::parse(
+            path,
+            line,
+            col as u64 + 1,
+            format!("frame number must be a whole number, got '{cell}' in column '{name}'"),
+        ));
+    }
+    Ok(v as i64)
+}

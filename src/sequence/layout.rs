@@ -1,0 +1,182 @@
+//! Landmark layouts: named groups of feature points with polylines for drawing.
+//!
+//! Two layouts are built in: MediaPipe Face Mesh 468 (index lists embedded from
+//! `assets/layout_mediapipe468.json`, derived from mediapipe 0.10.14's
+//! `face_mesh_connections.py`, Apache-2.0 — see `assets/NOTICE`) and iBUG 68.
+
+use crate::error::{Error, Result};
+use serde::Deserialize;
+use std::collections::BTreeMap;
+
+const MEDIAPIPE_JSON: &str = include_str!("../../assets/layout_mediapipe468.json");
+
+/// One named group of feature points.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+pub struct Group {
+    /// Point indices, ascending.
+    pub points: Vec<usize>,
+    /// Ordered polylines for drawing; a closed loop repeats its first index.
+    #[serde(default)]
+    pub polylines: Vec<Vec<usize>>,
+}
+
+/// A named set of groups over a fixed number of points.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+pub struct Layout {
+    /// Layout name, e.g. `mediapipe_face_mesh_468` or `ibug68`.
+    pub name: String,
+    /// Number of points the layout indexes.
+    pub points: usize,
+    /// Groups by name.
+    pub groups: BTreeMap<String, Group>,
+}
+
+/// Group names that stand for several groups, on any layout that has the parts.
+const ALIASES: [(&str, &[&str]); 4] = [
+    ("eyes", &["left_eye", "right_eye"]),
+    ("brows", &["left_eyebrow", "right_eyebrow"]),
+    ("eyebrows", &["left_eyebrow", "right_eyebrow"]),
+    ("mouth", &["lips"]),
+];
+
+impl Layout {
+    /// The MediaPipe Face Mesh 468-point layout.
+    pub fn mediapipe468() -> Layout {
+        // The embedded file is checked by a unit test; a failure here is a build defect.
+        match serde_json::from_str::<Layout>(MEDIAPIPE_JSON) {
+            Ok(l) => l,
+            Err(_) => Layout {
+                name: "mediapipe_face_mesh_468".into(),
+                points: 468,
+                groups: BTreeMap::new(),
+            },
+        }
+    }
+
+    /// The iBUG / Multi-PIE 68-point layout (0-based): jaw 0–16, brows 17–21 and 22–26
+    /// (subject's right, then left), nose 27–35, eyes 36–41 and 42–47, lips 48–67.
+    pub fn ibug68() -> Layout {
+        let run = |a: usize, b: usize| (a..=b).collect::<Vec<_>>();
+        let closed = |a: usize, b: usize| {
+            let mut v = run(a, b);
+            v.push(a);
+            v
+        };
+        let mut groups = BTreeMap::new();
+        let mut add = |name: &str, points: Vec<usize>, polylines: Vec<Vec<usize>>| {
+            groups.insert(name.to_string(), Group { points, polylines });
+        };
+        add("jaw", run(0, 16), vec![run(0, 16)]);
+        add("right_eyebrow", run(17, 21), vec![run(17, 21)]);
+        add("left_eyebrow", run(22, 26), vec![run(22, 26)]);
+        add("nose", run(27, 35), vec![run(27, 30), run(31, 35)]);
+        add("right_eye", run(36, 41), vec![closed(36, 41)]);
+        add("left_eye", run(42, 47), vec![closed(42, 47)]);
+        add("lips", run(48, 67), vec![closed(48, 59), closed(60, 67)]);
+        Layout {
+            name: "ibug68".into(),
+            points: 68,
+            groups,
+        }
+    }
+
+    /// The built-in layout for a point count (468 → MediaPipe, 68 → iBUG), if any.
+    pub fn for_points(points: usize) -> Option<Layout> {
+        match points {
+            468 => Some(Layout::mediapipe468()),
+            68 => Some(Layout::ibug68()),
+            _ => None,
+        }
+    }
+
+    /// Every group and alias name this layout answers to.
+    pub fn names(&self) -> Vec<String> {
+        let mut names: Vec<String> = self.groups.keys().cloned().collect();
+        for (alias, parts) in ALIASES {
+            if parts.iter().all(|p| self.groups.contains_key(*p)) {
+                names.push(alias.to_string());
+            }
+        }
+        names
+    }
+
+    /// Point indices (sorted, unique) of a comma-separated selection such as `lips` or
+    /// `eyes,brows`. `all` selects every point.
+    pub fn select(&self, spec: &str) -> Result<Vec<usize>> {
+        let mut out = Vec::new();
+        for name in spec.split(',').map(str::trim).filter(|s| !s.is_empty()) {
+            if name == "all" {
+                out.extend(0..self.points);
+                continue;
+            }
+            let parts: Vec<&str> = match ALIASES.iter().find(|(a, _)| *a == name) {
+                Some((_, parts)) => parts.to_vec(),
+                None => vec![name],
+            };
+            for part in parts {
+                let group = self.groups.get(part).ok_or_else(|| {
+                    Error::invalid(format!(
+                        "unknown point group '{name}' for layout {} (known: {}, all)",
+                        self.name,
+                        self.names().join(", ")
+                    ))
+                })?;
+                out.extend(group.points.iter().copied());
+            }
+        }
+        out.sort_unstable();
+        out.dedup();
+        if out.is_empty() {
+            return Err(Error::invalid(format!("point selection '{spec}' is empty")));
+        }
+        if let Some(&bad) = out.iter().find(|&&p| p >= self.points) {
+            return Err(Error::invalid(format!(
+                "layout {} names point {bad}, but it has {} points",
+                self.name, self.points
+            )));
+        }
+        Ok(out)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn embedded_mediapipe_layout_parses_with_all_groups() {
+        let l: Layout = serde_json::from_str(MEDIAPIPE_JSON).unwrap();
+        assert_eq!(l.points, 468);
+        for g in [
+            "face_oval",
+            "lips",
+            "left_eye",
+            "right_eye",
+            "left_eyebrow",
+            "right_eyebrow",
+            "nose",
+        ] {
+            let grp = &l.groups[g];
+            assert!(!grp.points.is_empty() && grp.points.iter().all(|&p| p < 468));
+            assert!(!grp.polylines.is_empty());
+        }
+        assert_eq!(l, Layout::mediapipe468());
+    }
+
+    #[test]
+    fn ibug_groups_cover_all_68_points_once() {
+        let l = Layout::ibug68();
+        let mut all: Vec<usize> = l.groups.values().flat_map(|g| g.points.clone()).collect();
+        all.sort_unstable();
+        assert_eq!(all, (0..68).collect::<Vec<_>>());
+    }
+
+    #[test]
+    fn aliases_expand_and_unknown_groups_name_the_choices() {
+        let l = Layout::ibug68();
+        assert_eq!(l.select("eyes").unwrap(), (36..48).collect::<Vec<_>>());
+        assert_eq!(l.select("mouth").unwrap(), l.select("lips").unwrap());
+        let e = l.select("lipz").unwrap_err().to_string();
+        assert!(e.contains("lipz") && e.contains("lips"), "{e}");
+    }
+}

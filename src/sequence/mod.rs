@@ -1,0 +1,231 @@
+//! Tracked sequences: frames × points × dims, stored as one shape per column.
+
+mod layout;
+
+pub use layout::{Group, Layout};
+
+use crate::error::{Error, Result};
+use nalgebra::DMatrix;
+
+/// The file formats keyshape-lab reads (see the README for each one's columns).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Format {
+    /// MediaPipe track CSV: `frame,time_s,detected,x_*,y_*,z_*`.
+    Mediapipe,
+    /// OpenFace 2.x CSV: `frame, timestamp, confidence, success, …, x_0.., y_0.., X_0..`.
+    Openface,
+    /// py-feat style table: `x_0..x_67,y_0..y_67` amid other columns, `clip` as segment.
+    Pyfeat,
+    /// iBUG `.pts` file, or a directory of them (one per frame, natural order).
+    Pts,
+    /// The lab's own JSON sequence (see [`crate::io::json`]).
+    Json,
+    /// Plain CSV: `frame,x0,y0,x1,y1,…` (optional `time_s`, optional `z*`).
+    Csv,
+}
+
+impl Format {
+    /// All formats, in the order `--format` lists them.
+    pub const ALL: [Format; 6] = [
+        Format::Mediapipe,
+        Format::Openface,
+        Format::Pyfeat,
+        Format::Pts,
+        Format::Json,
+        Format::Csv,
+    ];
+
+    /// The name used on the command line and in JSON.
+    pub fn name(self) -> &'static str {
+        match self {
+            Format::Mediapipe => "mediapipe",
+            Format::Openface => "openface",
+            Format::Pyfeat => "pyfeat",
+            Format::Pts => "pts",
+            Format::Json => "json",
+            Format::Csv => "csv",
+        }
+    }
+
+    /// Parses a format name as [`Format::name`] writes it.
+    pub fn parse(name: &str) -> Result<Format> {
+        Format::ALL
+            .into_iter()
+            .find(|f| f.name().eq_ignore_ascii_case(name.trim()))
+            .ok_or_else(|| {
+                let names: Vec<_> = Format::ALL.iter().map(|f| f.name()).collect();
+                Error::invalid(format!(
+                    "unknown format '{name}' (expected one of: {})",
+                    names.join(", ")
+                ))
+            })
+    }
+}
+
+impl std::fmt::Display for Format {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// A tracked performance: the valid frames' shapes plus what the file said about the rest.
+///
+/// `coords` has one column per valid frame; a column is the flat shape
+/// `[x1, y1, x2, y2, …]` (or `[x1, y1, z1, …]` when `dims` = 3), so key shapes are columns
+/// of the same matrix (paper 000, §4.1).
+#[derive(Debug, Clone)]
+pub struct Sequence {
+    /// Where it came from (a path, or `builtin:…`).
+    pub source: String,
+    /// The format it was read as.
+    pub format: Format,
+    /// 2 or 3.
+    pub dims: usize,
+    /// Number of feature points per frame.
+    pub points: usize,
+    /// (dims · points) × valid frames.
+    pub coords: DMatrix<f64>,
+    /// Frame number (as the file names it) of each column of `coords`.
+    pub frames: Vec<i64>,
+    /// Time in seconds of each valid frame, when the file has it.
+    pub times: Option<Vec<f64>>,
+    /// Segment id of each valid frame (py-feat `clip`), when the file has one.
+    pub segments: Option<Vec<String>>,
+    /// Frame numbers of the frames the tracker failed on (left out of `coords`).
+    pub failed: Vec<i64>,
+}
+
+impl Sequence {
+    /// Checks the invariants every reader promises: at least one valid frame, finite values,
+    /// one frame number per column, side tables of matching length.
+    pub fn validate(&self) -> Result<()> {
+        let src = &self.source;
+        if self.dims != 2 && self.dims != 3 {
+            return Err(Error::invalid(format!(
+                "{src}: dims must be 2 or 3, got {}",
+                self.dims
+            )));
+        }
+        if self.coords.nrows() != self.dims * self.points {
+            return Err(Error::invalid(format!(
+                "{src}: shape rows {} != dims {} × points {}",
+                self.coords.nrows(),
+                self.dims,
+                self.points
+            )));
+        }
+        if self.points == 0 {
+            return Err(Error::file(src, "no feature points"));
+        }
+        if self.coords.ncols() == 0 {
+            let why = if self.failed.is_empty() {
+                "no frames".to_string()
+            } else {
+                format!(
+                    "every frame failed ({} frames, none tracked)",
+                    self.failed.len()
+                )
+            };
+            return Err(Error::file(src, why));
+        }
+        if self.frames.len() != self.coords.ncols() {
+            return Err(Error::invalid(format!(
+                "{src}: frame numbers do not match frames"
+            )));
+        }
+        let n = self.coords.ncols();
+        if self.times.as_ref().is_some_and(|t| t.len() != n)
+            || self.segments.as_ref().is_some_and(|s| s.len() != n)
+        {
+            return Err(Error::invalid(format!(
+                "{src}: side tables do not match frames"
+            )));
+        }
+        if let Some((i, v)) = self.coords.iter().enumerate().find(|(_, v)| !v.is_finite()) {
+            let (row, col) = (i % self.coords.nrows(), i / self.coords.nrows());
+            return Err(Error::file(
+                src,
+                format!(
+                    "non-finite value {v} at frame {} point {} axis {}",
+                    self.frames[col],
+                    row / self.dims,
+                    row % self.dims
+                ),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Number of valid frames.
+    pub fn n_frames(&self) -> usize {
+        self.coords.ncols()
+    }
+
+    /// Column index of the frame the file numbers `frame`; an error names why not.
+    pub fn column_of_frame(&self, frame: i64) -> Result<usize> {
+        if let Some(c) = self.frames.iter().position(|&f| f == frame) {
+            return Ok(c);
+        }
+        if self.failed.contains(&frame) {
+            return Err(Error::invalid(format!(
+                "frame {frame} is a failed frame (the tracker found no face there); pick a tracked frame"
+            )));
+        }
+        let (lo, hi) = (self.frames.iter().min(), self.frames.iter().max());
+        Err(Error::invalid(match (lo, hi) {
+            (Some(lo), Some(hi)) => {
+                format!("frame {frame} is out of range: frames run {lo}..={hi}")
+            }
+            _ => format!("frame {frame} is out of range: the sequence is empty"),
+        }))
+    }
+
+    /// The same sequence restricted to the given point indices (in that order).
+    pub fn select_points(&self, indices: &[usize]) -> Result<Sequence> {
+        if indices.is_empty() {
+            return Err(Error::invalid("point selection is empty"));
+        }
+        if let Some(&bad) = indices.iter().find(|&&i| i >= self.points) {
+            return Err(Error::invalid(format!(
+                "point {bad} is out of range: the sequence has {} points",
+                self.points
+            )));
+        }
+        let rows: Vec<usize> = indices
+            .iter()
+            .flat_map(|&p| (0..self.dims).map(move |d| p * self.dims + d))
+            .collect();
+        Ok(Sequence {
+            coords: self.coords.select_rows(&rows),
+            points: indices.len(),
+            ..self.clone()
+        })
+    }
+
+    /// Per-axis (min, max) over all valid frames.
+    pub fn ranges(&self) -> Vec<(f64, f64)> {
+        (0..self.dims)
+            .map(|d| {
+                let mut lo = f64::INFINITY;
+                let mut hi = f64::NEG_INFINITY;
+                for col in self.coords.column_iter() {
+                    for v in col.iter().skip(d).step_by(self.dims) {
+                        lo = lo.min(*v);
+                        hi = hi.max(*v);
+                    }
+                }
+                (lo, hi)
+            })
+            .collect()
+    }
+
+    /// Frames per second from the time column: frame-number span over time span (robust
+    /// to rounded time stamps), if the file has times.
+    pub fn fps(&self) -> Option<f64> {
+        let t = self.times.as_ref()?;
+        let (t0, t1) = (*t.first()?, *t.last()?);
+        let (f0, f1) = (*self.frames.first()?, *self.frames.last()?);
+        (t1 > t0 && f1 > f0).then(|| (f1 - f0) as f64 / (t1 - t0))
+    }
+}

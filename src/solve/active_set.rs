@@ -1,0 +1,259 @@
+//! Lawson–Hanson active-set least squares with bounds `0 ≤ w ≤ u`, worked from the Gram
+//! matrix `G = SᵀS` and `b = Sᵀq` (Bro & De Jong's "fast NNLS"), so a batch of frames that
+//! share the key shapes S pays for S once. With `u = ∞` this is NNLS, paper 000 Eq. (4)
+//! (Lawson & Hanson 1974, ch. 23); with `u = 1` it is the bounded-variable variant
+//! (Stark & Parker's BVLS) that morph-target rigs want.
+//!
+//! Optimality (KKT) with `g = b − G w = Sᵀ(q − S w)`: `g_i ≤ tol` where `w_i = 0`,
+//! `g_i ≥ −tol` where `w_i = u`, `|g_i| ≤ tol` where `0 < w_i < u`.
+
+use super::chol::solve_spd;
+
+/// Where a variable sits.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Bound {
+    /// At 0.
+    Lower,
+    /// Strictly between the bounds (the "passive" set).
+    Free,
+    /// At the upper bound.
+    Upper,
+}
+
+/// The shared part of a batch: `G = SᵀS` row-major and the column norms of S.
+#[derive(Debug, Clone)]
+pub struct Gram {
+    /// k.
+    pub k: usize,
+    /// `SᵀS`, row-major.
+    pub g: Vec<f64>,
+    /// Largest column norm of S.
+    pub max_norm: f64,
+    /// Upper bound on every weight (`f64::INFINITY` for NNLS).
+    pub upper: f64,
+}
+
+impl Gram {
+    /// Builds the Gram form for key shapes `s` (one per column) and an upper bound.
+    pub fn new(s: &nalgebra::DMatrix<f64>, upper: f64) -> Gram {
+        let k = s.ncols();
+        let gm = s.tr_mul(s);
+        let g: Vec<f64> = (0..k * k).map(|i| gm[(i / k, i % k)]).collect();
+        let max_norm = (0..k).map(|i| g[i * k + i].sqrt()).fold(0.0, f64::max);
+        Gram {
+            k,
+            g,
+            max_norm,
+            upper,
+        }
+    }
+
+    /// The stopping tolerance on the gradient for a frame with `‖q‖ = qnorm`.
+    pub fn tolerance(&self, qnorm: f64) -> f64 {
+        1e3 * f64::EPSILON * self.k.max(1) as f64 * self.max_norm * qnorm.max(self.max_norm)
+    }
+}
+
+/// Scratch space reused across frames.
+#[derive(Debug, Clone)]
+pub struct Workspace {
+    a: Vec<f64>,
+    z: Vec<f64>,
+    grad: Vec<f64>,
+    free: Vec<usize>,
+    excluded: Vec<bool>,
+}
+
+impl Workspace {
+    /// Scratch for k key shapes.
+    pub fn new(k: usize) -> Workspace {
+        Workspace {
+            a: vec![0.0; k * k],
+            z: vec![0.0; k],
+            grad: vec![0.0; k],
+            free: Vec::with_capacity(k),
+            excluded: vec![false; k],
+        }
+    }
+}
+
+/// What one frame's solve did.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct FrameReport {
+    /// Outer iterations (variables freed).
+    pub iterations: u32,
+    /// False when the iteration cap stopped it (w is still feasible).
+    pub converged: bool,
+}
+
+/// Solves one frame. `w` and `state` carry a feasible warm start in (e.g. the previous
+/// frame's answer, or zeros / all-Lower) and the solution out.
+pub fn solve_frame(
+    gram: &Gram,
+    b: &[f64],
+    qnorm: f64,
+    w: &mut [f64],
+    state: &mut [Bound],
+    ws: &mut Workspace,
+) -> FrameReport {
+    let k = gram.k;
+    let tol = gram.tolerance(qnorm);
+    ws.excluded.iter_mut().for_each(|e| *e = false);
+    if state.iter().any(|s| *s != Bound::Lower) {
+        inner(gram, b, w, state, ws, None);
+    }
+    let cap = 3 * k as u32 + 20;
+    let mut report = FrameReport::default();
+    loop {
+        if report.iterations >= cap {
+            return report;
+        }
+        gradient(gram, b, w, &mut ws.grad);
+        let mut pick = None;
+        let mut best = tol;
+        for i in 0..k {
+            let v = match state[i] {
+                Bound::Lower => ws.grad[i],
+                Bound::Upper => -ws.grad[i],
+                Bound::Free => continue,
+            };
+            if v > best && !ws.excluded[i] {
+                best = v;
+                pick = Some(i);
+            }
+        }
+        let Some(j) = pick else {
+            report.converged = true;
+            return report;
+        };
+        report.iterations += 1;
+        let from = state[j];
+        state[j] = Bound::Free;
+        if inner(gram, b, w, state, ws, Some(j)) {
+            ws.excluded.iter_mut().for_each(|e| *e = false);
+        } else {
+            // Rounding made the freed variable step the wrong way: put it back and leave
+            // it out of the next pick (Lawson & Hanson's safeguard).
+            state[j] = from;
+            ws.excluded[j] = true;
+        }
+    }
+}
+
+/// `grad = b − G w`.
+fn gradient(gram: &Gram, b: &[f64], w: &[f64], grad: &mut [f64]) {
+    let k = gram.k;
+    for i in 0..k {
+        let row = &gram.g[i * k..(i + 1) * k];
+        let mut v = b[i];
+        for (g, x) in row.iter().zip(w) {
+            v -= g * x;
+        }
+        grad[i] = v;
+    }
+}
+
+/// The LH inner loop: solve on the free set, step back to the boundary while the solution
+/// leaves the box. Returns false if `added`'s first solve already pointed out of the box.
+fn inner(
+    gram: &Gram,
+    b: &[f64],
+    w: &mut [f64],
+    state: &mut [Bound],
+    ws: &mut Workspace,
+    added: Option<usize>,
+) -> bool {
+    let (k, u) = (gram.k, gram.upper);
+    for round in 0..=k + 1 {
+        ws.free.clear();
+        ws.free.extend((0..k).filter(|&i| state[i] == Bound::Free));
+        let p = ws.free.len();
+        if p == 0 {
+            return true;
+        }
+        sub_solve(gram, b, state, ws);
+        let z = &ws.z[..p];
+        if round == 0 {
+            if let Some(j) = added {
+                let pos = ws.free.iter().position(|&i| i == j).unwrap_or(0);
+                let wrong = if w[j] <= 0.0 {
+                    z[pos] <= w[j]
+                } else {
+                    z[pos] >= w[j]
+                };
+                if wrong {
+                    return false;
+                }
+            }
+        }
+        if z.iter().all(|&v| v > 0.0 && v < u) {
+            for (&i, &v) in ws.free.iter().zip(z) {
+                w[i] = v;
+            }
+            return true;
+        }
+        // Largest step from w towards z that stays in the box.
+        let (mut alpha, mut hit) = (1.0, ws.free[0]);
+        for (&i, &v) in ws.free.iter().zip(z) {
+            let a = if v <= 0.0 {
+                w[i] / (w[i] - v)
+            } else if v >= u {
+                (u - w[i]) / (v - w[i])
+            } else {
+                continue;
+            };
+            if a < alpha {
+                alpha = a;
+                hit = i;
+            }
+        }
+        let alpha = alpha.clamp(0.0, 1.0);
+        for (idx, &i) in ws.free.iter().enumerate() {
+            w[i] += alpha * (ws.z[idx] - w[i]);
+            if i == hit || w[i] <= 0.0 {
+                w[i] = if i == hit && ws.z[idx] >= u { u } else { 0.0 };
+                state[i] = if w[i] == u {
+                    Bound::Upper
+                } else {
+                    Bound::Lower
+                };
+            } else if w[i] >= u {
+                w[i] = u;
+                state[i] = Bound::Upper;
+            }
+        }
+    }
+    true
+}
+
+/// Solves `G_FF z = b_F − G_FU u` into `ws.z[..p]`; a singular `G_FF` (duplicate key shapes
+/// both free) gets a tiny ridge, 1e-12 then 1e-8 of its largest diagonal.
+fn sub_solve(gram: &Gram, b: &[f64], state: &[Bound], ws: &mut Workspace) {
+    let (k, p) = (gram.k, ws.free.len());
+    let g = &gram.g;
+    for ridge in [0.0, 1e-12, 1e-8, 1e-4] {
+        let mut dmax = 0.0f64;
+        for (r, &i) in ws.free.iter().enumerate() {
+            for (c, &j) in ws.free.iter().enumerate() {
+                ws.a[r * p + c] = g[i * k + j];
+            }
+            dmax = dmax.max(g[i * k + i]);
+            let mut v = b[i];
+            if gram.upper.is_finite() {
+                for j in 0..k {
+                    if state[j] == Bound::Upper {
+                        v -= g[i * k + j] * gram.upper;
+                    }
+                }
+            }
+            ws.z[r] = v;
+        }
+        for r in 0..p {
+            ws.a[r * p + r] += ridge * dmax.max(f64::MIN_POSITIVE);
+        }
+        if solve_spd(&mut ws.a[..p * p], p, &mut ws.z[..p]) {
+            return;
+        }
+    }
+    ws.z[..p].iter_mut().for_each(|v| *v = 0.0);
+}

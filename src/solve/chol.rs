@@ -1,0 +1,59 @@
+//! A small in-place Cholesky solve for the active-set sub-problems (p ≤ a few dozen), kept
+//! allocation-free because it runs millions of times in a batch.
+
+/// Solves `A x = rhs` for a symmetric positive definite `p × p` matrix stored row-major in
+/// `a` (overwritten by its Cholesky factor); `rhs` becomes `x`. Returns false when a pivot
+/// is not positive (A singular to working precision).
+pub fn solve_spd(a: &mut [f64], p: usize, rhs: &mut [f64]) -> bool {
+    let tiny = f64::EPSILON * (0..p).map(|i| a[i * p + i].abs()).fold(0.0, f64::max) * p as f64;
+    for j in 0..p {
+        let mut d = a[j * p + j];
+        for k in 0..j {
+            d -= a[j * p + k] * a[j * p + k];
+        }
+        if d <= tiny || !d.is_finite() {
+            return false;
+        }
+        let d = d.sqrt();
+        a[j * p + j] = d;
+        for i in j + 1..p {
+            let mut v = a[i * p + j];
+            for k in 0..j {
+                v -= a[i * p + k] * a[j * p + k];
+            }
+            a[i * p + j] = v / d;
+        }
+    }
+    // Forward: L y = rhs.
+    for i in 0..p {
+        let mut v = rhs[i];
+        for k in 0..i {
+            v -= a[i * p + k] * rhs[k];
+        }
+        rhs[i] = v / a[i * p + i];
+    }
+    // Backward: Lᵀ x = y.
+    for i in (0..p).rev() {
+        let mut v = rhs[i];
+        for k in i + 1..p {
+            v -= a[k * p + i] * rhs[k];
+        }
+        rhs[i] = v / a[i * p + i];
+    }
+    true
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn solves_a_known_system_and_rejects_a_singular_one() {
+        let mut a = vec![4.0, 2.0, 2.0, 3.0];
+        let mut b = vec![2.0, 1.0];
+        assert!(solve_spd(&mut a, 2, &mut b));
+        assert!((b[0] - 0.5).abs() < 1e-15 && b[1].abs() < 1e-15);
+        let mut s = vec![1.0, 1.0, 1.0, 1.0];
+        assert!(!solve_spd(&mut s, 2, &mut [1.0, 1.0]));
+    }
+}

@@ -1,0 +1,70 @@
+//! Unconstrained least squares, paper 000 Eq. (3): `min ‖S w − q‖²`.
+
+use crate::error::{Error, Result};
+use nalgebra::DMatrix;
+
+/// The pseudo-inverse of S by SVD with a rank cutoff, plus what the cutoff found.
+#[derive(Debug, Clone)]
+pub struct PseudoInverse {
+    /// `S⁺` (k × n).
+    pub pinv: DMatrix<f64>,
+    /// Singular values kept.
+    pub rank: usize,
+    /// σ_max / σ_min over all singular values (∞ when S is rank deficient).
+    pub condition: f64,
+}
+
+/// Default relative cutoff: singular values below `max(n, k) · ε · σ_max` count as zero,
+/// the convention of LAPACK's `gelsd` and NumPy's `lstsq`. Duplicate key shapes then share
+/// their weight (minimum-norm solution) instead of blowing up.
+pub fn default_rcond(n: usize, k: usize) -> f64 {
+    n.max(k) as f64 * f64::EPSILON
+}
+
+/// Rank-revealing pseudo-inverse of `s` (n × k).
+pub fn pseudo_inverse(s: &DMatrix<f64>, rcond: Option<f64>) -> Result<PseudoInverse> {
+    let (n, k) = s.shape();
+    let rcond = rcond.unwrap_or_else(|| default_rcond(n, k));
+    if !(0.0..1.0).contains(&rcond) {
+        return Err(Error::invalid(format!(
+            "rcond must be in [0, 1), got {rcond}"
+        )));
+    }
+    let svd = s.clone().svd(true, true);
+    let (Some(u), Some(vt)) = (svd.u.as_ref(), svd.v_t.as_ref()) else {
+        return Err(Error::invalid("SVD of the key shapes failed"));
+    };
+    let sv = &svd.singular_values;
+    let smax = sv.iter().copied().fold(0.0, f64::max);
+    let smin = sv.iter().copied().fold(f64::INFINITY, f64::min);
+    let cut = rcond * smax;
+    let mut pinv = DMatrix::zeros(k, n);
+    let mut rank = 0;
+    for (i, &sigma) in sv.iter().enumerate() {
+        if sigma > cut && sigma > 0.0 {
+            rank += 1;
+            // pinv += v_i (1/σ_i) u_iᵀ
+            pinv.ger(1.0 / sigma, &vt.row(i).transpose(), &u.column(i), 1.0);
+        }
+    }
+    let condition = if smin > 0.0 {
+        smax / smin
+    } else {
+        f64::INFINITY
+    };
+    Ok(PseudoInverse {
+        pinv,
+        rank,
+        condition,
+    })
+}
+
+/// The normal-equation solve `(SᵀS) w = Sᵀq` by Cholesky, for well-conditioned S only.
+/// It is the speed baseline for the batch solvers and a test oracle for LS.
+pub fn normal_equations(s: &DMatrix<f64>, q: &DMatrix<f64>) -> Result<DMatrix<f64>> {
+    let chol = s
+        .tr_mul(s)
+        .cholesky()
+        .ok_or_else(|| Error::invalid("SᵀS is not positive definite (dependent key shapes)"))?;
+    Ok(chol.solve(&s.tr_mul(q)))
+}

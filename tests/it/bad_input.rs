@@ -1,0 +1,251 @@
+//! Bad input through the real binary: a clear message naming file/line/column, a non-zero
+//! exit, no panic, and no half-written output.
+
+use crate::common::shared;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+struct Run {
+    code: i32,
+    stdout: String,
+    stderr: String,
+}
+
+fn kslab(args: &[&str]) -> Run {
+    let out = Command::new(env!("CARGO_BIN_EXE_kslab"))
+        .args(args)
+        .output()
+        .unwrap();
+    Run {
+        code: out.status.code().unwrap_or(-1),
+        stdout: String::from_utf8_lossy(&out.stdout).into_owned(),
+        stderr: String::from_utf8_lossy(&out.stderr).into_owned(),
+    }
+}
+
+fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
+    let p = dir.join(name);
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+/// Runs `kslab info FILE` and expects a failure whose message holds `needle`.
+fn fails_with(args: &[&str], needle: &str) {
+    let r = kslab(args);
+    assert_eq!(
+        r.code, 1,
+        "args {args:?}: stdout {} stderr {}",
+        r.stdout, r.stderr
+    );
+    assert!(r.stderr.starts_with("error: "), "{}", r.stderr);
+    assert!(
+        r.stderr.contains(needle),
+        "expected '{needle}' in: {}",
+        r.stderr
+    );
+    assert!(!r.stderr.contains("panicked"), "{}", r.stderr);
+}
+
+#[test]
+fn malformed_files_name_file_line_and_column() {
+    let d = tempfile::tempdir().unwrap();
+    let p = |n: &str, t: &str| write(d.path(), n, t).display().to_string();
+    let missing = d.path().join("nope.csv").display().to_string();
+    fails_with(&["info", &missing], "nope.csv: No such file");
+    fails_with(&["info", &p("empty.csv", "")], "empty.csv: file is empty");
+    fails_with(
+        &["info", &p("nolm.csv", "frame,a,b\n0,1,2\n")],
+        "nolm.csv:1:1: header has no landmark columns",
+    );
+    fails_with(
+        &[
+            "info",
+            &p("ragged.csv", "frame,x0,y0,x1,y1\n0,1,2,3,4\n1,1,2,3\n"),
+        ],
+        "ragged.csv:3:5: ragged row: 4 fields",
+    );
+    fails_with(
+        &["info", &p("text.csv", "frame,x0,y0\n0,1,2\n1,1,abc\n")],
+        "text.csv:3:3: not a number: 'abc' in column 'y0'",
+    );
+    fails_with(
+        &["info", &p("nan.csv", "frame,x0,y0\n0,NaN,2\n")],
+        "nan.csv:2:2: non-finite value 'NaN'",
+    );
+    fails_with(
+        &["info", &p("inf.csv", "frame,x0,y0\n0,1,inf\n")],
+        "inf.csv:2:3: non-finite value 'inf'",
+    );
+    fails_with(
+        &[
+            "info",
+            &p(
+                "mp.csv",
+                "frame,time_s,detected,x_0,y_0,z_0\n0,0,0,,,\n1,0.1,0,,,\n",
+            ),
+        ],
+        "mp.csv: every frame failed (2 frames",
+    );
+    fails_with(
+        &[
+            "info",
+            &p(
+                "bad.json",
+                "{\"kslab_sequence\": 1,\n \"dims\": 2, \"points\": x}",
+            ),
+        ],
+        "bad.json:2:",
+    );
+    fails_with(
+        &[
+            "info",
+            &p(
+                "count.json",
+                r#"{"kslab_sequence":1,"dims":2,"points":2,"frames":[{"frame":0,"coords":[1,2,3,4]},{"frame":1,"coords":[1,2]}]}"#,
+            ),
+        ],
+        "frames[1] (frame 1) has 2 coords",
+    );
+    let pts = d.path().join("pts");
+    std::fs::create_dir(&pts).unwrap();
+    write(&pts, "a1.pts", "n_points: 2\n{\n1 2\n3 4\n}\n");
+    write(&pts, "a2.pts", "n_points: 1\n{\n1 2\n}\n");
+    fails_with(
+        &["info", &pts.display().to_string()],
+        "a2.pts: has 1 points, the first file has 2",
+    );
+    fails_with(
+        &[
+            "info",
+            "--points",
+            "lips",
+            &p("tiny.csv", "frame,x0,y0\n0,1,2\n"),
+        ],
+        "no built-in layout has 1 points",
+    );
+}
+
+#[test]
+fn bad_key_choices_are_explained() {
+    let d = tempfile::tempdir().unwrap();
+    let mp = write(
+        d.path(),
+        "mp.csv",
+        "frame,time_s,detected,x_0,y_0,z_0,x_1,y_1,z_1,x_2,y_2,z_2\n\
+         0,0.0,1,0,0,0,1,0,0,0,1,0\n1,0.1,0,,,,,,,,,\n2,0.2,1,0,0,0,2,0,0,0,1,0\n3,0.3,1,0,0,0,1,0,0,0,2,0\n",
+    )
+    .display()
+    .to_string();
+    fails_with(
+        &["solve", &mp, "--keys", "0,7"],
+        "--keys 7: frame 7 is out of range: frames run 0..=3",
+    );
+    fails_with(
+        &["solve", &mp, "--keys", "0,1"],
+        "--keys 1: frame 1 is a failed frame",
+    );
+    fails_with(
+        &["solve", &mp, "--keys", "0,2,3,0"],
+        "4 key shapes asked for, but the sequence has only 3 valid frames",
+    );
+    fails_with(&["solve", &mp, "--keys", "0,2,2"], "listed twice");
+    fails_with(
+        &["solve", &mp, "--keys", "0,2", "--neutral", "2"],
+        "neutral frame cannot also be a key",
+    );
+    let ok = kslab(&["solve", &mp, "--no-align", "--keys", "0,2"]);
+    assert_eq!(ok.code, 0, "{}", ok.stderr);
+    assert!(
+        ok.stdout.starts_with("frame,rms,w_0,w_2\n0,"),
+        "{}",
+        ok.stdout
+    );
+}
+
+#[test]
+fn a_failed_run_leaves_no_output_file_and_keeps_an_old_one() {
+    let d = tempfile::tempdir().unwrap();
+    let out = d.path().join("w.csv");
+    let seq = shared("pyfeat_samples/openface_test.csv")
+        .display()
+        .to_string();
+    let r = kslab(&[
+        "solve",
+        &seq,
+        "--keys",
+        "1,500",
+        "--out",
+        &out.display().to_string(),
+    ]);
+    assert_eq!(r.code, 1);
+    assert!(!out.exists());
+    std::fs::write(&out, "old").unwrap();
+    let r = kslab(&[
+        "solve",
+        &seq,
+        "--keys",
+        "1,500",
+        "--out",
+        &out.display().to_string(),
+    ]);
+    assert_eq!(r.code, 1);
+    assert_eq!(std::fs::read_to_string(&out).unwrap(), "old");
+    assert_eq!(
+        std::fs::read_dir(d.path()).unwrap().count(),
+        1,
+        "no temp file left behind"
+    );
+}
+
+#[test]
+fn solve_writes_weights_and_a_json_summary_on_real_data() {
+    let d = tempfile::tempdir().unwrap();
+    let out = d.path().join("w.csv");
+    let seq = shared("mediapipe_face_tracks/liveportrait_d18.csv")
+        .display()
+        .to_string();
+    let outs = out.display().to_string();
+    let r = kslab(&[
+        "solve",
+        &seq,
+        "--points",
+        "lips",
+        "--keys",
+        "0,60,120,180,215",
+        "--solver",
+        "nnls",
+        "--out",
+        &outs,
+        "--json",
+    ]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let v: serde_json::Value = serde_json::from_str(&r.stdout).unwrap();
+    assert_eq!(v["frames"], 216);
+    assert_eq!(v["points"], 40);
+    assert_eq!(v["negative_share"], 0.0);
+    let csv = std::fs::read_to_string(&out).unwrap();
+    let mut lines = csv.lines();
+    assert_eq!(lines.next(), Some("frame,rms,w_0,w_60,w_120,w_180,w_215"));
+    let rows: Vec<Vec<f64>> = lines
+        .map(|l| l.split(',').map(|c| c.parse().unwrap()).collect())
+        .collect();
+    assert_eq!(rows.len(), 216);
+    // A key frame reconstructs itself exactly, with weight 1 on itself.
+    let key60 = &rows[60];
+    assert!(key60[1] < 1e-9, "rms of a key frame = {}", key60[1]);
+    assert!((key60[3] - 1.0).abs() < 1e-9);
+    // LS on the same keys has negative weights on this data.
+    let r = kslab(&[
+        "solve",
+        &seq,
+        "--points",
+        "lips",
+        "--keys",
+        "0,60,120,180,215",
+        "--solver",
+        "ls",
+        "--json",
+    ]);
+    let v: serde_json::Value = serde_json::from_str(&r.stdout).unwrap();
+    assert!(v["negative_share"].as_f64().unwrap() > 0.0);
+}

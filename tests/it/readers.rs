@@ -1,0 +1,142 @@
+//! Every reader on the real files in ../shared/data, plus round trips through JSON and .pts.
+
+use crate::common::shared;
+use keyshape_lab::io::{builtin_sequence, json, read_sequence, ReadOptions};
+use keyshape_lab::sequence::{Format, Layout};
+
+fn read(rel: &str, dims: usize) -> keyshape_lab::sequence::Sequence {
+    let opts = ReadOptions { format: None, dims };
+    read_sequence(&shared(rel), &opts).unwrap_or_else(|e| panic!("{rel}: {e}"))
+}
+
+#[test]
+fn mediapipe_tracks_read_with_their_frame_counts() {
+    for (name, frames) in [
+        ("liveportrait_d6.csv", 1008),
+        ("liveportrait_d9.csv", 587),
+        ("liveportrait_d18.csv", 216),
+        ("pyfeat_wolfganglanger_pexels.csv", 472),
+    ] {
+        let s = read(&format!("mediapipe_face_tracks/{name}"), 2);
+        assert_eq!(
+            (s.format, s.n_frames(), s.points, s.dims),
+            (Format::Mediapipe, frames, 468, 2),
+            "{name}"
+        );
+        assert!(s.failed.is_empty());
+        assert_eq!(s.frames[..3], [0, 1, 2]);
+        assert!(
+            (s.fps().unwrap()
+                - if name.starts_with("pyfeat") {
+                    23.976
+                } else {
+                    30.0
+                })
+            .abs()
+                < 0.01
+        );
+    }
+    let s3 = read("mediapipe_face_tracks/liveportrait_d18.csv", 3);
+    assert_eq!((s3.dims, s3.coords.nrows()), (3, 3 * 468));
+    // Point 1 (nose tip) of frame 0, as in the file: x_1, y_1, z_1.
+    let s2 = read("mediapipe_face_tracks/liveportrait_d18.csv", 2);
+    assert_eq!(s3.coords[(3, 0)], s2.coords[(2, 0)]);
+    assert_eq!(s3.coords[(4, 0)], s2.coords[(3, 0)]);
+}
+
+#[test]
+fn openface_reads_2d_pixels_and_3d_millimetres() {
+    let s = read("pyfeat_samples/openface_test.csv", 2);
+    assert_eq!(
+        (s.format, s.n_frames(), s.points),
+        (Format::Openface, 100, 68)
+    );
+    assert_eq!((s.frames[0], s.frames[99]), (1, 100));
+    let s3 = read("pyfeat_samples/openface_test.csv", 3);
+    assert_eq!((s3.dims, s3.points), (3, 68));
+    // Z is depth from the camera in mm: hundreds of mm, unlike the pixel coordinates.
+    let (zlo, _) = s3.ranges()[2];
+    assert!(zlo > 300.0, "{zlo}");
+}
+
+#[test]
+fn pyfeat_table_keeps_clips_as_segments() {
+    let s = read("pyfeat_samples/news_sample_compact.csv", 2);
+    assert_eq!(
+        (s.format, s.n_frames(), s.points),
+        (Format::Pyfeat, 477, 68)
+    );
+    let mut clips = s.segments.clone().unwrap();
+    clips.dedup();
+    assert_eq!(clips.len(), 20);
+    assert_eq!(s.frames[..2], [0, 1], "py-feat frames are numbered by row");
+    let opts = ReadOptions {
+        format: None,
+        dims: 3,
+    };
+    let e = read_sequence(&shared("pyfeat_samples/news_sample_compact.csv"), &opts).unwrap_err();
+    assert!(e.to_string().contains("--dims 3"), "{e}");
+}
+
+#[test]
+fn builtin_sequence_is_the_derived_d18_track() {
+    let b = builtin_sequence().unwrap();
+    assert_eq!((b.n_frames(), b.points, b.dims), (216, 468, 2));
+    let full = read("mediapipe_face_tracks/liveportrait_d18.csv", 2);
+    let d = (&b.coords - &full.coords).amax();
+    assert!(
+        d <= 0.05 + 1e-9,
+        "built-in differs from the source by {d} px"
+    );
+    assert!((b.fps().unwrap() - 30.0).abs() < 0.01);
+}
+
+#[test]
+fn json_round_trip_keeps_everything_including_failed_frames() {
+    let mut s = read("pyfeat_samples/openface_test.csv", 2);
+    s.failed = vec![1000];
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("seq.json");
+    std::fs::write(&p, serde_json::to_string(&json::to_file(&s)).unwrap()).unwrap();
+    let back = read_sequence(&p, &ReadOptions::default()).unwrap();
+    assert_eq!(back.format, Format::Json);
+    assert_eq!(back.coords, s.coords);
+    assert_eq!(back.frames, s.frames);
+    assert_eq!(back.failed, vec![1000]);
+    assert_eq!(back.times, s.times);
+}
+
+#[test]
+fn pts_directory_reads_in_natural_order() {
+    let s = read("pyfeat_samples/openface_test.csv", 2);
+    let dir = tempfile::tempdir().unwrap();
+    for f in 0..12 {
+        let mut text = String::from("version: 1\nn_points: 68\n{\n");
+        for p in s.coords.column(f).as_slice().chunks(2) {
+            text.push_str(&format!("{} {}\n", p[0], p[1]));
+        }
+        text.push_str("}\n");
+        std::fs::write(dir.path().join(format!("frame{f}.pts")), text).unwrap();
+    }
+    let back = read_sequence(dir.path(), &ReadOptions::default()).unwrap();
+    assert_eq!(
+        (back.format, back.n_frames(), back.points),
+        (Format::Pts, 12, 68)
+    );
+    assert_eq!(back.coords, s.coords.columns(0, 12));
+}
+
+#[test]
+fn layouts_select_groups_on_real_tracks() {
+    let s = read("mediapipe_face_tracks/liveportrait_d18.csv", 2);
+    let lips = Layout::for_points(s.points)
+        .unwrap()
+        .select("lips")
+        .unwrap();
+    assert_eq!(lips.len(), 40);
+    let sub = s.select_points(&lips).unwrap();
+    assert_eq!(sub.coords.nrows(), 80);
+    assert_eq!(sub.coords[(0, 5)], s.coords[(2 * lips[0], 5)]);
+    let ib = Layout::ibug68().select("lips").unwrap();
+    assert_eq!(ib, (48..68).collect::<Vec<_>>());
+}

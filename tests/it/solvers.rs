@@ -1,0 +1,160 @@
+//! Solver properties: KKT optimality, brute-force agreement, LS = normal equations,
+//! invariance under frame permutation, finite weights on duplicate key shapes.
+
+use crate::common::{brute_force, kkt_violation, objective};
+use keyshape_lab::solve::{lstsq, solve_batch, textbook, SolveOptions, Solver};
+use nalgebra::{DMatrix, DVector};
+use proptest::prelude::*;
+
+/// Key shapes like real ones: a shared base shape plus small per-key offsets, sometimes
+/// with a column duplicated (rank deficient), and frames near their span.
+fn problem(max_k: usize) -> impl Strategy<Value = (DMatrix<f64>, DMatrix<f64>)> {
+    (1..=max_k, 0usize..3, 1usize..6).prop_flat_map(move |(k, dup, frames)| {
+        let n = 2 * (k + 2);
+        (
+            prop::collection::vec(-1.0f64..1.0, n),
+            prop::collection::vec(-1.0f64..1.0, n * k),
+            prop::collection::vec(-1.0f64..1.0, n * frames),
+            prop::collection::vec(-0.5f64..1.5, k * frames),
+            0.0f64..1.0,
+        )
+            .prop_map(move |(base, off, noise, mix, spread)| {
+                let mut s = DMatrix::from_fn(n, k, |i, j| {
+                    10.0 * base[i] + (0.1 + spread) * off[i * k + j]
+                });
+                if dup == 1 && k >= 2 {
+                    let c = s.column(0).clone_owned();
+                    s.set_column(k - 1, &c);
+                }
+                let w = DMatrix::from_vec(k, frames, mix);
+                let q = &s * w + DMatrix::from_vec(n, frames, noise) * 0.05;
+                (s, q)
+            })
+    })
+}
+
+fn column(q: &DMatrix<f64>, j: usize) -> DVector<f64> {
+    q.column(j).clone_owned()
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(300))]
+
+    #[test]
+    fn nnls_satisfies_kkt_including_rank_deficient_bases((s, q) in problem(10), warm in any::<bool>()) {
+        let mut opts = SolveOptions::new(Solver::Nnls);
+        opts.warm_start = warm;
+        let sol = solve_batch(&s, &q, &opts).unwrap();
+        prop_assert_eq!(sol.unconverged, 0);
+        for j in 0..q.ncols() {
+            let v = kkt_violation(&s, &column(&q, j), &column(&sol.weights, j), f64::INFINITY);
+            prop_assert!(v < 1e-8, "KKT violated by {v:e} at frame {j}");
+        }
+    }
+
+    #[test]
+    fn bounded_satisfies_kkt_in_the_unit_box((s, q) in problem(10)) {
+        let sol = solve_batch(&s, &q, &SolveOptions::new(Solver::Bounded)).unwrap();
+        for j in 0..q.ncols() {
+            let v = kkt_violation(&s, &column(&q, j), &column(&sol.weights, j), 1.0);
+            prop_assert!(v < 1e-8, "KKT violated by {v:e} at frame {j}");
+        }
+    }
+
+    #[test]
+    fn nnls_and_bounded_match_brute_force_active_set_enumeration((s, q) in problem(6)) {
+        for (solver, upper) in [(Solver::Nnls, f64::INFINITY), (Solver::Bounded, 1.0)] {
+            let sol = solve_batch(&s, &q, &SolveOptions::new(solver)).unwrap();
+            for j in 0..q.ncols() {
+                let qj = column(&q, j);
+                let ours = objective(&s, &qj, &column(&sol.weights, j));
+                let best = brute_force(&s, &qj, upper);
+                let scale = qj.norm_squared().max(1.0);
+                prop_assert!(ours <= best + 1e-9 * scale, "{solver}: {ours} > brute force {best}");
+            }
+        }
+    }
+
+    #[test]
+    fn nnls_matches_the_textbook_per_frame_solver((s, q) in problem(8)) {
+        let sol = solve_batch(&s, &q, &SolveOptions::new(Solver::Nnls)).unwrap();
+        for j in 0..q.ncols() {
+            let qj = column(&q, j);
+            let ours = objective(&s, &qj, &column(&sol.weights, j));
+            let theirs = objective(&s, &qj, &textbook::nnls(&s, &qj));
+            prop_assert!((ours - theirs).abs() <= 1e-9 * qj.norm_squared().max(1.0), "{ours} vs {theirs}");
+        }
+    }
+
+    #[test]
+    fn ls_equals_normal_equations_when_well_conditioned(
+        k in 1usize..8, frames in 1usize..5,
+        vals in prop::collection::vec(-1.0f64..1.0, 40 * 8 + 40 * 5),
+    ) {
+        let n = 40;
+        let s = DMatrix::from_fn(n, k, |i, j| vals[i * 8 + j] + if i % k == j { 2.0 } else { 0.0 });
+        let q = DMatrix::from_fn(n, frames, |i, j| vals[n * 8 + i * 5 + j]);
+        let ls = solve_batch(&s, &q, &SolveOptions::new(Solver::Ls)).unwrap();
+        let ne = lstsq::normal_equations(&s, &q).unwrap();
+        prop_assert!(ls.condition < 1e3);
+        prop_assert!((ls.weights - ne).amax() < 1e-9);
+    }
+
+    #[test]
+    fn weights_do_not_depend_on_frame_order(
+        (s, q) in problem(8), seed in any::<u64>(), solver in prop::sample::select(Solver::ALL.to_vec()),
+    ) {
+        let n = q.ncols();
+        let mut perm: Vec<usize> = (0..n).collect();
+        let mut x = seed;
+        for i in (1..n).rev() {
+            x = x.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            perm.swap(i, (x >> 33) as usize % (i + 1));
+        }
+        let opts = SolveOptions::new(solver);
+        let a = solve_batch(&s, &q, &opts).unwrap();
+        let b = solve_batch(&s, &q.select_columns(&perm), &opts).unwrap();
+        for (pj, &j) in perm.iter().enumerate() {
+            // Compare reconstructions: with duplicate key shapes the weights are not unique.
+            let ra = &s * column(&a.weights, j);
+            let rb = &s * column(&b.weights, pj);
+            prop_assert!((ra - rb).amax() < 1e-7 * (1.0 + q.amax()));
+        }
+    }
+}
+
+#[test]
+fn ls_on_duplicate_key_shapes_gives_finite_split_weights() {
+    let base = DVector::from_vec(vec![1.0, 2.0, 3.0, 4.0, 5.0, 7.0]);
+    let other = DVector::from_vec(vec![0.0, 1.0, 0.0, 1.0, 0.0, 1.0]);
+    let s = DMatrix::from_columns(&[base.clone(), other.clone(), base.clone()]);
+    let q = DMatrix::from_columns(&[&base * 2.0 + &other]);
+    let sol = solve_batch(&s, &q, &SolveOptions::new(Solver::Ls)).unwrap();
+    assert_eq!(sol.rank, 2);
+    assert!(sol.condition.is_infinite() || sol.condition > 1e12);
+    // Minimum-norm: the duplicate pair shares the weight 2 equally.
+    assert!((sol.weights[(0, 0)] - 1.0).abs() < 1e-10, "{}", sol.weights);
+    assert!((sol.weights[(2, 0)] - 1.0).abs() < 1e-10);
+    assert!((sol.weights[(1, 0)] - 1.0).abs() < 1e-10);
+}
+
+#[test]
+fn near_duplicate_key_shapes_keep_nnls_weights_bounded() {
+    let base = DVector::from_fn(20, |i, _| (i as f64 * 0.7).sin() + 3.0);
+    let bump = DVector::from_fn(20, |i, _| if i == 3 { 1e-9 } else { 0.0 });
+    let other = DVector::from_fn(20, |i, _| (i as f64 * 1.3).cos());
+    let s = DMatrix::from_columns(&[base.clone(), &base + bump, other.clone()]);
+    let q = DMatrix::from_columns(&[&base * 0.7 + &other * 0.2]);
+    let sol = solve_batch(&s, &q, &SolveOptions::new(Solver::Nnls)).unwrap();
+    assert!(sol.weights.amax() < 2.0, "{}", sol.weights);
+    let r = &s * sol.weights.column(0) - q.column(0);
+    assert!(r.norm() < 1e-6);
+}
+
+#[test]
+fn nan_in_frames_is_an_error_not_nan_weights() {
+    let s = DMatrix::from_element(4, 2, 1.0);
+    let mut q = DMatrix::from_element(4, 1, 1.0);
+    q[(2, 0)] = f64::NAN;
+    assert!(solve_batch(&s, &q, &SolveOptions::new(Solver::Nnls)).is_err());
+}
