@@ -11,6 +11,7 @@
 
 pub mod active_set;
 mod chol;
+pub mod jacobi;
 pub mod lstsq;
 pub mod textbook;
 
@@ -115,10 +116,10 @@ pub fn solve_batch(s: &DMatrix<f64>, q: &DMatrix<f64>, opts: &SolveOptions) -> R
             q.nrows()
         )));
     }
-    if s.iter().chain(q.iter()).any(|v| !v.is_finite()) {
-        return Err(Error::invalid(
-            "key shapes or frames contain NaN or infinity",
-        ));
+    // Only S is scanned up front: a NaN or infinity in a frame reaches `Sᵀq` and the
+    // weights, which are checked after the solve, so the batch makes one pass over Q.
+    if s.iter().any(|v| !v.is_finite()) {
+        return Err(Error::invalid("key shapes contain NaN or infinity"));
     }
     let pinv = lstsq::pseudo_inverse(s, opts.rcond)?;
     let mut sol = Solution {
@@ -144,10 +145,12 @@ pub fn solve_batch(s: &DMatrix<f64>, q: &DMatrix<f64>, opts: &SolveOptions) -> R
             sol.iterations = iterations;
         }
     }
-    if sol.weights.iter().any(|v| !v.is_finite()) {
-        return Err(Error::invalid(
-            "the solver produced non-finite weights (key shapes too ill-conditioned)",
-        ));
+    let bad =
+        (0..sol.weights.ncols()).find(|&j| sol.weights.column(j).iter().any(|v| !v.is_finite()));
+    if let Some(j) = bad {
+        return Err(Error::invalid(format!(
+            "frame column {j}: non-finite weights (the frame holds NaN or infinity)"
+        )));
     }
     Ok(sol)
 }
@@ -177,6 +180,8 @@ pub fn active_set_batch(
 ) -> (DMatrix<f64>, usize, u64) {
     let k = s.ncols();
     let gram = Gram::new(s, upper);
+    // Sᵀ once: `st * q` runs as a blocked GEMM, `s.tr_mul(q)` as column dot products.
+    let st = s.transpose();
     let mut out = DMatrix::zeros(k, q.ncols());
     let stats: Vec<(usize, u64)> = out
         .as_mut_slice()
@@ -186,7 +191,7 @@ pub fn active_set_batch(
             let start = c * CHUNK;
             let m = dst.len() / k;
             let qc = q.columns(start, m);
-            let b = s.tr_mul(&qc);
+            let b = &st * qc;
             let mut ws = Workspace::new(k);
             let mut state = vec![Bound::Lower; k];
             let mut w = vec![0.0; k];
@@ -196,14 +201,15 @@ pub fn active_set_batch(
                     state.iter_mut().for_each(|s| *s = Bound::Lower);
                     w.iter_mut().for_each(|v| *v = 0.0);
                 }
-                let r = active_set::solve_frame(
-                    &gram,
-                    b.column(f).as_slice(),
-                    qc.column(f).norm(),
-                    &mut w,
-                    &mut state,
-                    &mut ws,
-                );
+                let bf = b.column(f);
+                if bf.iter().any(|v| !v.is_finite()) {
+                    // A NaN/inf frame: report it through non-finite weights.
+                    dst[f * k..(f + 1) * k]
+                        .iter_mut()
+                        .for_each(|v| *v = f64::NAN);
+                    continue;
+                }
+                let r = active_set::solve_frame(&gram, bf.as_slice(), &mut w, &mut state, &mut ws);
                 bad += usize::from(!r.converged);
                 iters += u64::from(r.iterations);
                 dst[f * k..(f + 1) * k].copy_from_slice(&w);

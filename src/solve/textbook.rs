@@ -3,8 +3,8 @@
 
 use nalgebra::{DMatrix, DVector};
 
-/// Solves `min ‖S w − q‖², w ≥ 0` for one frame. Each inner solve is an SVD least-squares
-/// solve on the passive columns, as in Lawson & Hanson (1974), ch. 23, algorithm NNLS.
+/// Solves `min ‖S w − q‖², w ≥ 0` for one frame. Each inner solve is a Householder QR
+/// least-squares solve on the passive columns, as in Lawson & Hanson (1974), ch. 23, algorithm NNLS.
 pub fn nnls(s: &DMatrix<f64>, q: &DVector<f64>) -> DVector<f64> {
     let k = s.ncols();
     let mut w = DVector::zeros(k);
@@ -24,7 +24,9 @@ pub fn nnls(s: &DMatrix<f64>, q: &DVector<f64>) -> DVector<f64> {
                 break;
             }
             let sp = s.select_columns(&idx);
-            let Ok(zp) = sp.svd(true, true).solve(q, 1e-14) else {
+            // Householder QR of the passive columns: R z = Qᵀ q.
+            let qr = sp.qr();
+            let Some(zp) = qr.r().solve_upper_triangular(&qr.q().tr_mul(q)) else {
                 break;
             };
             if zp.iter().all(|&v| v > 0.0) {
@@ -33,13 +35,14 @@ pub fn nnls(s: &DMatrix<f64>, q: &DVector<f64>) -> DVector<f64> {
                 }
                 break;
             }
-            let (mut alpha, mut hit) = (1.0f64, idx[0]);
+            let (mut alpha, mut hit) = (f64::INFINITY, usize::MAX);
             for (&i, &v) in idx.iter().zip(zp.iter()) {
                 if v <= 0.0 && w[i] / (w[i] - v) < alpha {
                     alpha = w[i] / (w[i] - v);
                     hit = i;
                 }
             }
+            let alpha = alpha.min(1.0);
             for (&i, &v) in idx.iter().zip(zp.iter()) {
                 w[i] += alpha * (v - w[i]);
                 if i == hit || w[i] <= 0.0 {

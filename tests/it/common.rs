@@ -63,7 +63,15 @@ pub fn brute_force(s: &DMatrix<f64>, q: &DVector<f64>, upper: f64) -> f64 {
         if !free.is_empty() {
             let sf = s.select_columns(&free);
             let r = q - s * &w;
-            let Ok(z) = sf.svd(true, true).solve(&r, 1e-12) else {
+            // Householder QR (not nalgebra's SVD, see src/solve/jacobi.rs); subsets with
+            // dependent columns are skipped: a subset without the dependent column reaches
+            // the same objective.
+            let qr = sf.clone().qr();
+            let rr = qr.r();
+            if rr.diagonal().iter().any(|d| d.abs() < 1e-10 * sf.norm()) {
+                continue;
+            }
+            let Some(z) = rr.solve_upper_triangular(&qr.q().tr_mul(&r)) else {
                 continue;
             };
             if z.iter().any(|&v| v < -1e-9 || v > upper + 1e-9) {

@@ -1,9 +1,13 @@
 //! Integration tests, one binary: solvers against their oracles, readers on the real data in
 //! `../shared/data`, alignment invariances, and the CLI's handling of bad input.
 
+// Index loops mirror the maths, as in the library.
+#![allow(clippy::needless_range_loop)]
+
 mod align;
 mod bad_input;
 mod common;
+mod pca;
 mod readers;
 mod reference;
 mod solvers;

@@ -28,6 +28,16 @@ fn problem(max_k: usize) -> impl Strategy<Value = (DMatrix<f64>, DMatrix<f64>)> 
                 }
                 let w = DMatrix::from_vec(k, frames, mix);
                 let q = &s * w + DMatrix::from_vec(n, frames, noise) * 0.05;
+                // Frames equal to a key shape (exact zeros in the sub-solves) are common:
+                // every key frame of a sequence is one.
+                let q = if dup == 2 {
+                    DMatrix::from_columns(&[
+                        q.column(0).clone_owned(),
+                        s.column(k - 1).clone_owned(),
+                    ])
+                } else {
+                    q
+                };
                 (s, q)
             })
     })
@@ -157,4 +167,50 @@ fn nan_in_frames_is_an_error_not_nan_weights() {
     let mut q = DMatrix::from_element(4, 1, 1.0);
     q[(2, 0)] = f64::NAN;
     assert!(solve_batch(&s, &q, &SolveOptions::new(Solver::Nnls)).is_err());
+}
+
+#[test]
+fn nnls_meets_kkt_on_every_frame_of_a_real_track_including_key_frames() {
+    let seq = keyshape_lab::io::builtin_sequence().unwrap();
+    let prep = keyshape_lab::decompose::prepare(
+        &seq,
+        &keyshape_lab::decompose::PrepareOptions {
+            points: None,
+            align: true,
+        },
+    )
+    .unwrap();
+    let q = &prep.seq.coords;
+    let t = q.ncols();
+    for k in [8usize, 16, 32] {
+        let keys: Vec<usize> = (0..k).map(|i| i * (t - 1) / (k - 1)).collect();
+        let s = q.select_columns(&keys);
+        for warm in [false, true] {
+            let mut opts = SolveOptions::new(Solver::Nnls);
+            opts.warm_start = warm;
+            let sol = solve_batch(&s, q, &opts).unwrap();
+            assert_eq!(sol.unconverged, 0, "k={k}");
+            for j in 0..t {
+                let v = kkt_violation(&s, &column(q, j), &column(&sol.weights, j), f64::INFINITY);
+                assert!(v < 1e-8, "k={k} frame {j}: KKT violated by {v:e}");
+            }
+            for (i, &c) in keys.iter().enumerate() {
+                assert!(
+                    (sol.weights[(i, c)] - 1.0).abs() < 1e-9,
+                    "key frame {c} does not reconstruct itself"
+                );
+            }
+        }
+    }
+}
+
+proptest! {
+    #[test]
+    fn ls_residual_is_orthogonal_to_the_key_shapes((s, q) in problem(10)) {
+        let sol = solve_batch(&s, &q, &SolveOptions::new(Solver::Ls)).unwrap();
+        let r = &q - &s * &sol.weights;
+        let g = s.transpose() * &r;
+        let scale = s.amax() * q.amax() * (s.nrows() as f64);
+        prop_assert!(g.amax() < 1e-9 * scale, "Sᵀr = {}", g.amax());
+    }
 }
