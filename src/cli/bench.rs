@@ -26,7 +26,7 @@ pub struct BenchArgs {
     #[arg(long, value_delimiter = ',', default_value = "8,16,32")]
     k: Vec<usize>,
     /// Frames given to the slow textbook baseline (its rate is per frame, so fewer suffice).
-    #[arg(long, default_value_t = 2_000)]
+    #[arg(long, default_value_t = 5_000)]
     baseline_frames: usize,
 }
 

@@ -4,7 +4,7 @@ use super::input::InputArgs;
 use anyhow::{Context, Result};
 use clap::Args;
 use keyshape_lab::decompose::{decompose, Decomposition};
-use keyshape_lab::io::write_atomic;
+use keyshape_lab::io::{fmt_num, write_atomic};
 use keyshape_lab::sequence::Sequence;
 use keyshape_lab::solve::{SolveOptions, Solver};
 use serde_json::json;
@@ -67,7 +67,11 @@ pub fn run(a: &SolveArgs) -> Result<()> {
         None if a.json => {}
         None => {
             let stdout = std::io::stdout();
-            write_csv(&mut stdout.lock(), seq, &a.keys, &d)?;
+            match write_csv(&mut stdout.lock(), seq, &a.keys, &d) {
+                // `kslab solve … | head` closes the pipe early: not an error.
+                Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => {}
+                r => r?,
+            }
         }
     }
     if a.json {
@@ -139,9 +143,9 @@ fn write_csv(
     writeln!(w, "{header}")?;
     let rms = d.rms();
     for (c, frame) in seq.frames.iter().enumerate() {
-        write!(w, "{frame},{}", rms[c])?;
+        write!(w, "{frame},{}", fmt_num(rms[c]))?;
         for v in d.weights.column(c).iter() {
-            write!(w, ",{v}")?;
+            write!(w, ",{}", fmt_num(*v))?;
         }
         writeln!(w)?;
     }

@@ -33,6 +33,17 @@ impl Default for ReadOptions {
     }
 }
 
+/// Formats a number for CSV output: shortest round-trip decimal, with an exponent for
+/// magnitudes below 1e-4 or from 1e15 on (so 2.5e-12 does not print as 0.0000000000025).
+pub fn fmt_num(v: f64) -> String {
+    let a = v.abs();
+    if v == 0.0 || (1e-4..1e15).contains(&a) || !v.is_finite() {
+        format!("{v}")
+    } else {
+        format!("{v:e}")
+    }
+}
+
 /// Reads a tracked sequence from a file or a directory of `.pts` files.
 pub fn read_sequence(path: &Path, opts: &ReadOptions) -> Result<Sequence> {
     if opts.dims != 2 && opts.dims != 3 {

@@ -67,13 +67,25 @@ impl Gram {
     }
 }
 
-/// Scratch space reused across frames.
+/// Scratch space reused across frames, including the Cholesky factor of `G_FF` for the
+/// current free set. The factor follows the order in which variables became free, so a
+/// variable added extends it by one row (O(p²)), a variable removed keeps the rows before
+/// it, and a frame whose free set equals the previous frame's reuses it whole.
 #[derive(Debug, Clone)]
 pub struct Workspace {
+    /// Fallback dense system for the ridge path.
     a: Vec<f64>,
+    /// Lower Cholesky factor, row-major with stride k, rows in `free` order.
+    l: Vec<f64>,
+    /// Leading rows of `l` that are up to date.
+    valid: usize,
     z: Vec<f64>,
     grad: Vec<f64>,
+    /// Free variables in factor order.
     free: Vec<usize>,
+    in_free: Vec<bool>,
+    /// Nonzero weights (gradient scratch).
+    nz: Vec<usize>,
     excluded: Vec<bool>,
 }
 
@@ -82,9 +94,13 @@ impl Workspace {
     pub fn new(k: usize) -> Workspace {
         Workspace {
             a: vec![0.0; k * k],
+            l: vec![0.0; k * k],
+            valid: 0,
             z: vec![0.0; k],
             grad: vec![0.0; k],
             free: Vec::with_capacity(k),
+            in_free: vec![false; k],
+            nz: Vec::with_capacity(k),
             excluded: vec![false; k],
         }
     }
@@ -156,15 +172,15 @@ pub fn solve_frame(
 /// summing over the nonzero weights only: O((k − p) · nnz) instead of O(k²).
 fn gradient(gram: &Gram, b: &[f64], w: &[f64], state: &[Bound], ws: &mut Workspace) {
     let k = gram.k;
-    ws.free.clear();
-    ws.free.extend((0..k).filter(|&j| w[j] != 0.0));
+    ws.nz.clear();
+    ws.nz.extend((0..k).filter(|&j| w[j] != 0.0));
     for i in 0..k {
         if state[i] == Bound::Free {
             continue;
         }
         let row = &gram.g[i * k..(i + 1) * k];
         let mut v = b[i];
-        for &j in &ws.free {
+        for &j in &ws.nz {
             v -= row[j] * w[j];
         }
         ws.grad[i] = v;
@@ -183,8 +199,7 @@ fn inner(
 ) -> bool {
     let (k, u) = (gram.k, gram.upper);
     for round in 0..=k + 1 {
-        ws.free.clear();
-        ws.free.extend((0..k).filter(|&i| state[i] == Bound::Free));
+        sync_free(state, ws);
         let p = ws.free.len();
         if p == 0 {
             return true;
@@ -245,31 +260,108 @@ fn inner(
     true
 }
 
-/// Solves `G_FF z = b_F − G_FU u` into `ws.z[..p]`; a singular `G_FF` (duplicate key shapes
-/// both free) gets a tiny ridge, 1e-12 then 1e-8 of its largest diagonal.
+/// Brings `ws.free` in line with `state`: survivors keep their order, newly free variables
+/// are appended; factor rows from the first dropped variable on become stale.
+fn sync_free(state: &[Bound], ws: &mut Workspace) {
+    let mut kept = 0;
+    let mut valid = ws.valid.min(ws.free.len());
+    for r in 0..ws.free.len() {
+        let i = ws.free[r];
+        if state[i] == Bound::Free {
+            ws.free[kept] = i;
+            kept += 1;
+        } else {
+            ws.in_free[i] = false;
+            valid = valid.min(r);
+        }
+    }
+    ws.free.truncate(kept);
+    for i in 0..state.len() {
+        if state[i] == Bound::Free && !ws.in_free[i] {
+            ws.in_free[i] = true;
+            ws.free.push(i);
+        }
+    }
+    ws.valid = valid;
+}
+
+/// Extends the Cholesky factor of `G_FF` over the stale rows. False when a new column is
+/// (to working precision) in the span of the ones before it.
+fn factor(gram: &Gram, ws: &mut Workspace) -> bool {
+    let (k, p) = (gram.k, ws.free.len());
+    for r in ws.valid..p {
+        let i = ws.free[r];
+        for c in 0..r {
+            let j = ws.free[c];
+            let mut v = gram.g[i * k + j];
+            for m in 0..c {
+                v -= ws.l[r * k + m] * ws.l[c * k + m];
+            }
+            ws.l[r * k + c] = v / ws.l[c * k + c];
+        }
+        let gii = gram.g[i * k + i];
+        let mut d = gii;
+        for m in 0..r {
+            d -= ws.l[r * k + m] * ws.l[r * k + m];
+        }
+        if !(d > f64::EPSILON * (p as f64) * gii) {
+            ws.valid = r;
+            return false;
+        }
+        ws.l[r * k + r] = d.sqrt();
+    }
+    ws.valid = p;
+    true
+}
+
+/// Solves `G_FF z = b_F − G_FU u` into `ws.z[..p]` (in `ws.free` order) from the cached
+/// factor. A singular `G_FF` (duplicate key shapes both free) falls back to a dense solve
+/// with a tiny ridge, 1e-12, 1e-8, then 1e-4 of its largest diagonal.
 fn sub_solve(gram: &Gram, b: &[f64], state: &[Bound], ws: &mut Workspace) {
     let (k, p) = (gram.k, ws.free.len());
     let g = &gram.g;
-    for ridge in [0.0, 1e-12, 1e-8, 1e-4] {
+    for (r, &i) in ws.free.iter().enumerate() {
+        let mut v = b[i];
+        if gram.upper.is_finite() {
+            for j in 0..k {
+                if state[j] == Bound::Upper {
+                    v -= g[i * k + j] * gram.upper;
+                }
+            }
+        }
+        ws.z[r] = v;
+    }
+    if factor(gram, ws) {
+        let (l, z) = (&ws.l, &mut ws.z);
+        for r in 0..p {
+            let mut v = z[r];
+            for m in 0..r {
+                v -= l[r * k + m] * z[m];
+            }
+            z[r] = v / l[r * k + r];
+        }
+        for r in (0..p).rev() {
+            let mut v = z[r];
+            for m in r + 1..p {
+                v -= l[m * k + r] * z[m];
+            }
+            z[r] = v / l[r * k + r];
+        }
+        return;
+    }
+    let rhs: Vec<f64> = ws.z[..p].to_vec();
+    for ridge in [1e-12, 1e-8, 1e-4] {
         let mut dmax = 0.0f64;
         for (r, &i) in ws.free.iter().enumerate() {
             for (c, &j) in ws.free.iter().enumerate() {
                 ws.a[r * p + c] = g[i * k + j];
             }
             dmax = dmax.max(g[i * k + i]);
-            let mut v = b[i];
-            if gram.upper.is_finite() {
-                for j in 0..k {
-                    if state[j] == Bound::Upper {
-                        v -= g[i * k + j] * gram.upper;
-                    }
-                }
-            }
-            ws.z[r] = v;
         }
         for r in 0..p {
             ws.a[r * p + r] += ridge * dmax.max(f64::MIN_POSITIVE);
         }
+        ws.z[..p].copy_from_slice(&rhs);
         if solve_spd(&mut ws.a[..p * p], p, &mut ws.z[..p]) {
             return;
         }

@@ -37,3 +37,29 @@ proptest! {
         prop_assert!((al.head[2].scale / al.head[1].scale - scale).abs() < 1e-8 * scale);
     }
 }
+
+#[test]
+fn three_d_tracks_align_in_the_image_plane_and_round_trip() {
+    use keyshape_lab::io::{read_sequence, ReadOptions};
+    for (rel, points) in [
+        ("pyfeat_samples/openface_test.csv", 68),
+        ("mediapipe_face_tracks/liveportrait_d18.csv", 468),
+    ] {
+        let opts = ReadOptions {
+            format: None,
+            dims: 3,
+        };
+        let seq = read_sequence(&crate::common::shared(rel), &opts).unwrap();
+        assert_eq!((seq.dims, seq.points), (3, points));
+        let al = procrustes(&seq.coords, 3).unwrap();
+        for j in [0, seq.n_frames() / 2, seq.n_frames() - 1] {
+            let back = al.head[j].apply(al.coords.column(j).as_slice(), 3);
+            let d = back
+                .iter()
+                .zip(seq.coords.column(j).iter())
+                .map(|(a, b)| (a - b).abs())
+                .fold(0.0, f64::max);
+            assert!(d < 1e-9, "{rel} frame {j}: round trip off by {d}");
+        }
+    }
+}
