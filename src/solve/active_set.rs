@@ -304,7 +304,7 @@ fn factor(gram: &Gram, ws: &mut Workspace) -> bool {
         for m in 0..r {
             d -= ws.l[r * k + m] * ws.l[r * k + m];
         }
-        if !(d > f64::EPSILON * (p as f64) * gii) {
+        if d.is_nan() || d <= f64::EPSILON * (p as f64) * gii {
             ws.valid = r;
             return false;
         }
