@@ -33,8 +33,13 @@
 pub mod align;
 pub mod decompose;
 pub mod error;
+pub mod experiment;
 pub mod io;
+pub mod keyshapes;
 pub mod pca;
+pub mod plot;
+pub mod render;
+pub mod report;
 pub mod sequence;
 pub mod solve;
 

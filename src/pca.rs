@@ -75,6 +75,78 @@ impl Pca {
         })
     }
 
+    /// The leading `r` axes only, by block subspace iteration (block of r + 12 vectors,
+    /// Householder re-orthonormalisation, Rayleigh–Ritz) on the centred data, never forming
+    /// a covariance matrix. Stops when every kept pair has `‖C v − λ v‖ ≤ 1e-10 · λ₁`; if 100
+    /// rounds do not get there, or the problem is small, it falls back to [`Pca::fit`].
+    /// Much faster than the full decomposition when r is a small part of the rank.
+    pub fn fit_leading(coords: &DMatrix<f64>, r: usize) -> Result<Pca> {
+        let (rows, n) = coords.shape();
+        let l = r + 12;
+        if n < 2 || rows.min(n) <= 2 * l {
+            let mut p = Pca::fit(coords)?;
+            p.truncate(r);
+            return Ok(p);
+        }
+        let mean = coords.column_mean();
+        let mut x = coords.clone();
+        for mut c in x.column_iter_mut() {
+            c -= &mean;
+        }
+        let denom = (n - 1) as f64;
+        let total_variance = x.norm_squared() / denom;
+        let xt = x.transpose();
+        // Deterministic start: a fixed pseudo-random block (splitmix64).
+        let mut state = 0x9E37_79B9_7F4A_7C15u64;
+        let mut start = DMatrix::<f64>::zeros(n, l);
+        for v in start.iter_mut() {
+            state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
+            let mut z = state;
+            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+            *v = ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64 - 0.5;
+        }
+        let mut q = (&x * start).qr().q();
+        for _ in 0..100 {
+            let z = &x * (&xt * &q); // C·Q (times n − 1)
+            let b = q.tr_mul(&z);
+            let b = (&b + b.transpose()) * 0.5;
+            let eig = SymmetricEigen::new(b);
+            let mut order: Vec<usize> = (0..l).collect();
+            order.sort_by(|&i, &j| eig.eigenvalues[j].total_cmp(&eig.eigenvalues[i]));
+            let top = eig.eigenvalues[order[0]].max(f64::MIN_POSITIVE);
+            let keep: Vec<usize> = order.iter().copied().take(r).filter(|&j| eig.eigenvalues[j] > top * 1e-13 * rows.max(n) as f64).collect();
+            let u = eig.eigenvectors.select_columns(&keep);
+            let v = &q * &u;
+            let zv = &z * &u;
+            let converged = keep.iter().enumerate().all(|(c, &j)| {
+                (zv.column(c) - v.column(c) * eig.eigenvalues[j]).norm() <= 1e-10 * top
+            });
+            if converged {
+                let mut components = v;
+                for mut axis in components.column_iter_mut() {
+                    let imax = axis.iamax();
+                    if axis[imax] < 0.0 {
+                        axis.neg_mut();
+                    }
+                }
+                let variances = keep.iter().map(|&j| eig.eigenvalues[j] / denom).collect();
+                return Ok(Pca { mean, components, variances, total_variance });
+            }
+            q = z.qr().q();
+        }
+        let mut p = Pca::fit(coords)?;
+        p.truncate(r);
+        Ok(p)
+    }
+
+    /// Keeps the leading `r` axes.
+    pub fn truncate(&mut self, r: usize) {
+        let r = r.min(self.components.ncols());
+        self.components = self.components.columns(0, r).clone_owned();
+        self.variances.truncate(r);
+    }
+
     /// Share of the total variance each axis explains.
     pub fn explained_ratio(&self) -> Vec<f64> {
         self.variances

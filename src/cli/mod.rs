@@ -1,8 +1,12 @@
 //! Command-line parsing and the subcommands. Only arranges library calls and prints.
 
 mod bench;
+mod curves;
 mod info;
 mod input;
+mod keys;
+mod progress;
+mod run;
 mod solve;
 
 use clap::{Parser, Subcommand};
@@ -23,7 +27,13 @@ enum Command {
     Info(info::InfoArgs),
     /// Solve blend weights of every frame on chosen key frames (paper 000 Eq. 3/4).
     Solve(solve::SolveArgs),
-    /// Measure solver throughput (the figures in BENCHMARKS.md).
+    /// Choose key frames with a heuristic (paper 000 §4.2).
+    Keys(keys::KeysArgs),
+    /// Error against number of key shapes for each heuristic (paper 000 Fig. 6).
+    Curves(curves::CurvesArgs),
+    /// Run a scripted experiment (experiments/*.toml): CSV, JSON and PNG reports.
+    Run(run::RunArgs),
+    /// Measure solver and sweep speed (the figures in BENCHMARKS.md).
     Bench(bench::BenchArgs),
 }
 
@@ -33,6 +43,9 @@ pub fn main() -> ExitCode {
     let result = match cli.command {
         Command::Info(a) => info::run(&a),
         Command::Solve(a) => solve::run(&a),
+        Command::Keys(a) => keys::run(&a),
+        Command::Curves(a) => curves::run(&a),
+        Command::Run(a) => run::run(&a),
         Command::Bench(a) => bench::run(&a),
     };
     match result {
@@ -43,3 +56,4 @@ pub fn main() -> ExitCode {
         }
     }
 }
+

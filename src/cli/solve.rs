@@ -36,7 +36,7 @@ pub struct SolveArgs {
     json: bool,
 }
 
-fn parse_solver(s: &str) -> Result<Solver, String> {
+pub fn parse_solver(s: &str) -> Result<Solver, String> {
     Solver::parse(s).map_err(|e| e.to_string())
 }
 

@@ -38,8 +38,12 @@ pub struct Gram {
 impl Gram {
     /// Builds the Gram form for key shapes `s` (one per column) and an upper bound.
     pub fn new(s: &nalgebra::DMatrix<f64>, upper: f64) -> Gram {
-        let k = s.ncols();
-        let gm = s.tr_mul(s);
+        Gram::from_matrix(&s.tr_mul(s), upper)
+    }
+
+    /// The Gram form from `G = SᵀS` itself (k × k, symmetric).
+    pub fn from_matrix(gm: &nalgebra::DMatrix<f64>, upper: f64) -> Gram {
+        let k = gm.ncols();
         let g: Vec<f64> = (0..k * k).map(|i| gm[(i / k, i % k)]).collect();
         let norms: Vec<f64> = (0..k).map(|i| g[i * k + i].sqrt()).collect();
         let max_norm = norms.iter().copied().fold(0.0, f64::max);

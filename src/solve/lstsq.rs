@@ -86,3 +86,24 @@ pub fn normal_equations_batch(s: &DMatrix<f64>, q: &DMatrix<f64>) -> Result<DMat
         });
     Ok(out)
 }
+
+/// `G⁺` for a symmetric positive semi-definite Gram matrix `G = SᵀS`, by symmetric
+/// eigendecomposition. Eigenvalues below `max(k·ε, rcond²)·λ_max` count as zero: through
+/// the Gram matrix the condition number is squared, so directions of S with
+/// `σ < sqrt(k·ε)·σ_max` (≈ 5e-8 for k = 24) are treated as null. Used where only the
+/// inner products are at hand (error curves from the frames' Gram matrix).
+pub fn gram_pseudo_inverse(g: &DMatrix<f64>, rcond: Option<f64>) -> DMatrix<f64> {
+    let k = g.nrows();
+    let eig = nalgebra::SymmetricEigen::new(g.clone());
+    let lmax = eig.eigenvalues.iter().copied().fold(0.0, f64::max);
+    let r = rcond.unwrap_or_else(|| default_rcond(k, k));
+    let cut = (k as f64 * f64::EPSILON).max(r * r) * lmax;
+    let mut out = DMatrix::zeros(k, k);
+    for (i, &l) in eig.eigenvalues.iter().enumerate() {
+        if l > cut && l > 0.0 {
+            let v = eig.eigenvectors.column(i);
+            out.ger(1.0 / l, &v, &v, 1.0);
+        }
+    }
+    out
+}

@@ -171,27 +171,42 @@ pub fn chunked_product(a: &DMatrix<f64>, q: &DMatrix<f64>) -> DMatrix<f64> {
     out
 }
 
-/// Batch active-set solve from the Gram matrix; returns (weights, unconverged, iterations).
+/// Batch active-set solve; returns (weights, unconverged, iterations). `Sᵀq` is formed per
+/// chunk of frames as a blocked GEMM.
 pub fn active_set_batch(
     s: &DMatrix<f64>,
     q: &DMatrix<f64>,
     upper: f64,
     warm: bool,
 ) -> (DMatrix<f64>, usize, u64) {
-    let k = s.ncols();
     let gram = Gram::new(s, upper);
     // Sᵀ once: `st * q` runs as a blocked GEMM, `s.tr_mul(q)` as column dot products.
     let st = s.transpose();
-    let mut out = DMatrix::zeros(k, q.ncols());
+    chunked_active_set(&gram, q.ncols(), warm, |start, m| &st * q.columns(start, m))
+}
+
+/// Batch active-set solve from a precomputed Gram form: `gram` from `G = SᵀS` and
+/// `b = Sᵀq` (k × frames) — for callers that already hold inner products, such as key-shape
+/// searches working from the frames' Gram matrix `QᵀQ`.
+pub fn active_set_from_gram(gram: &Gram, b: &DMatrix<f64>, warm: bool) -> (DMatrix<f64>, usize, u64) {
+    chunked_active_set(gram, b.ncols(), warm, |start, m| b.columns(start, m).clone_owned())
+}
+
+/// Runs [`active_set::solve_frame`] over `frames` frames in parallel chunks; `rhs(start, m)`
+/// gives `Sᵀq` for frames `start..start + m`.
+fn chunked_active_set<F>(gram: &Gram, frames: usize, warm: bool, rhs: F) -> (DMatrix<f64>, usize, u64)
+where
+    F: Fn(usize, usize) -> DMatrix<f64> + Sync,
+{
+    let k = gram.k;
+    let mut out = DMatrix::zeros(k, frames);
     let stats: Vec<(usize, u64)> = out
         .as_mut_slice()
         .par_chunks_mut(k * CHUNK)
         .enumerate()
         .map(|(c, dst)| {
-            let start = c * CHUNK;
             let m = dst.len() / k;
-            let qc = q.columns(start, m);
-            let b = &st * qc;
+            let b = rhs(c * CHUNK, m);
             let mut ws = Workspace::new(k);
             let mut state = vec![Bound::Lower; k];
             let mut w = vec![0.0; k];
@@ -204,12 +219,10 @@ pub fn active_set_batch(
                 let bf = b.column(f);
                 if bf.iter().any(|v| !v.is_finite()) {
                     // A NaN/inf frame: report it through non-finite weights.
-                    dst[f * k..(f + 1) * k]
-                        .iter_mut()
-                        .for_each(|v| *v = f64::NAN);
+                    dst[f * k..(f + 1) * k].iter_mut().for_each(|v| *v = f64::NAN);
                     continue;
                 }
-                let r = active_set::solve_frame(&gram, bf.as_slice(), &mut w, &mut state, &mut ws);
+                let r = active_set::solve_frame(gram, bf.as_slice(), &mut w, &mut state, &mut ws);
                 bad += usize::from(!r.converged);
                 iters += u64::from(r.iterations);
                 dst[f * k..(f + 1) * k].copy_from_slice(&w);

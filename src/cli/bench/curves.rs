@@ -1,0 +1,121 @@
+//! `kslab bench curves`: time of the Fig. 6 sweep by stage and by method, against a plain
+//! implementation (errors by per-frame textbook NNLS on S, no Gram reuse).
+
+use super::nnls::short;
+use anyhow::Result;
+use clap::Args;
+use keyshape_lab::decompose::{prepare, PrepareOptions};
+use keyshape_lab::io::{builtin_sequence, read_sequence, ReadOptions};
+use keyshape_lab::keyshapes::curves::sweep;
+use keyshape_lab::keyshapes::{Analysis, KeyOptions, Method};
+use keyshape_lab::solve::{textbook, Solver};
+use rayon::prelude::*;
+use std::path::PathBuf;
+use std::time::Instant;
+
+/// Arguments of `kslab bench curves`.
+#[derive(Debug, Args)]
+pub struct CurvesBenchArgs {
+    /// Sequence (default: ../shared/data/mediapipe_face_tracks/liveportrait_d6.csv, 1,008
+    /// frames × 468 points, or the built-in sequence when that is missing).
+    file: Option<PathBuf>,
+    /// Point groups, as for `kslab curves`.
+    #[arg(long)]
+    points: Option<String>,
+    /// Highest k of the sweep.
+    #[arg(long, default_value_t = 24)]
+    kmax: usize,
+}
+
+fn textbook_error(an: &Analysis, keys: &[usize]) -> f64 {
+    let s = an.coords.select_columns(keys);
+    (0..an.frames())
+        .into_par_iter()
+        .map(|t| {
+            let q = an.coords.column(t).clone_owned();
+            let w = textbook::nnls(&s, &q);
+            (&s * w - q).norm_squared()
+        })
+        .sum()
+}
+
+pub fn run(a: &CurvesBenchArgs) -> Result<()> {
+    let t0 = Instant::now();
+    let default = PathBuf::from("../shared/data/mediapipe_face_tracks/liveportrait_d6.csv");
+    let seq = match (&a.file, default.exists()) {
+        (Some(f), _) => read_sequence(f, &ReadOptions::default())?,
+        (None, true) => read_sequence(&default, &ReadOptions::default())?,
+        (None, false) => builtin_sequence()?,
+    };
+    let t_read = t0.elapsed().as_secs_f64();
+    let t = Instant::now();
+    let prep = prepare(&seq, &PrepareOptions { points: a.points.clone(), align: true })?;
+    let t_align = t.elapsed().as_secs_f64();
+    let t = Instant::now();
+    let an = Analysis::new(prep.seq.coords.clone(), prep.seq.points)?;
+    let t_pca = t.elapsed().as_secs_f64();
+    let t = Instant::now();
+    an.frame_gram()?;
+    let t_gram = t.elapsed().as_secs_f64();
+    let opts = KeyOptions::default();
+    println!(
+        "kslab bench curves: {} ({} frames × {} points{}), k = 2..{}, nnls, {} threads\n",
+        short(&seq.source),
+        an.frames(),
+        an.points,
+        a.points.as_deref().map(|p| format!(", {p}")).unwrap_or_default(),
+        a.kmax,
+        rayon::current_num_threads()
+    );
+    println!("| stage | seconds | plain implementation, seconds | ratio |");
+    println!("|---|---|---|---|");
+    println!("| read | {t_read:.3} | | |");
+    println!("| align (Procrustes) | {t_align:.3} | | |");
+    println!("| PCA | {t_pca:.3} | | |");
+    println!("| frames' Gram matrix QᵀQ | {t_gram:.3} | | |");
+    let mut total = 0.0;
+    let mut total_plain = 0.0;
+    for m in Method::ALL {
+        let t = Instant::now();
+        let rows = sweep(&an, &[m], 2..=a.kmax, &[Solver::Nnls], &opts, &|_, _| {})?;
+        let secs = t.elapsed().as_secs_f64();
+        total += secs;
+        let (plain, note) = if m == Method::Greedy {
+            (plain_greedy_estimate(&an, a.kmax), " (estimated: exact greedy, per-frame textbook NNLS, from measured per-frame times)")
+        } else {
+            // Same selections (k-means included), errors by the textbook solver.
+            let t = Instant::now();
+            for r in &rows {
+                let keys = if m == Method::Hull { r.keys.clone() } else { m.heuristic(&opts).select(&an, r.k)?.columns };
+                std::hint::black_box(textbook_error(&an, &keys));
+            }
+            (t.elapsed().as_secs_f64(), "")
+        };
+        total_plain += plain;
+        println!("| sweep: {} | {secs:.3} | {plain:.2}{note} | {:.0}× |", m.name(), plain / secs);
+    }
+    println!("| **sweep, all methods** | **{total:.3}** | **{total_plain:.1}** | **{:.0}×** |", total_plain / total);
+    let all = t_read + t_align + t_pca + t_gram + total;
+    println!("| **everything from reading on** | **{all:.3}** | | |");
+    Ok(())
+}
+
+/// Exact greedy from scratch: for each step k, every remaining frame is tried as the k-th
+/// key by solving every frame with the textbook solver. Estimated as Σ_k (T − k + 1) · T ·
+/// (per-frame textbook time at k), the per-frame time measured on 100 frames.
+fn plain_greedy_estimate(an: &Analysis, kmax: usize) -> f64 {
+    let n = an.frames();
+    let sample: Vec<usize> = (0..100.min(n)).map(|i| i * n / 100.min(n)).collect();
+    let mut est = 0.0;
+    for k in 1..=kmax {
+        let keys: Vec<usize> = (0..k).map(|i| i * (n - 1) / k.max(2).saturating_sub(1).max(1)).collect();
+        let s = an.coords.select_columns(&keys);
+        let t = Instant::now();
+        for &f in &sample {
+            std::hint::black_box(textbook::nnls(&s, &an.coords.column(f).clone_owned()));
+        }
+        let per_frame = t.elapsed().as_secs_f64() / sample.len() as f64;
+        est += (n - k + 1) as f64 * n as f64 * per_frame / rayon::current_num_threads() as f64;
+    }
+    est
+}

@@ -1,0 +1,30 @@
+//! `kslab bench`: the measurements behind BENCHMARKS.md, each in one run so ratios compare
+//! like with like.
+
+mod curves;
+mod nnls;
+
+use anyhow::Result;
+use clap::{Args, Subcommand};
+
+/// Arguments of `kslab bench`.
+#[derive(Debug, Args)]
+pub struct BenchArgs {
+    #[command(subcommand)]
+    what: What,
+}
+
+#[derive(Debug, Subcommand)]
+enum What {
+    /// Batch NNLS throughput against a textbook solver and the normal equations.
+    Nnls(nnls::NnlsArgs),
+    /// The full error-curve sweep (all methods, k = 2..24) against a plain implementation.
+    Curves(curves::CurvesBenchArgs),
+}
+
+pub fn run(a: &BenchArgs) -> Result<()> {
+    match &a.what {
+        What::Nnls(n) => nnls::run(n),
+        What::Curves(c) => curves::run(c),
+    }
+}

@@ -1,0 +1,85 @@
+//! `kslab curves`: paper 000 Fig. 6 — reconstruction error against k for each method.
+
+use super::input::InputArgs;
+use super::keys::{parse_method, HeuristicArgs};
+use super::progress::Progress;
+use anyhow::Result;
+use clap::Args;
+use keyshape_lab::keyshapes::curves::sweep;
+use keyshape_lab::report::write_curves_csv;
+use keyshape_lab::keyshapes::{Analysis, KeyOptions, Method};
+use keyshape_lab::solve::Solver;
+use std::path::PathBuf;
+
+/// Arguments of `kslab curves`.
+#[derive(Debug, Args)]
+pub struct CurvesArgs {
+    #[command(flatten)]
+    input: InputArgs,
+    /// Comma-separated methods.
+    #[arg(long, value_delimiter = ',', value_parser = parse_method, default_value = "spread,kmeans2,kmeans3,hull,greedy,random")]
+    methods: Vec<Method>,
+    /// k range, `A..B` (inclusive) or a single k.
+    #[arg(long, default_value = "2..24", value_parser = parse_range)]
+    k: (usize, usize),
+    /// Solvers, comma-separated (ls, nnls, bounded).
+    #[arg(long = "solver", value_delimiter = ',', default_value = "nnls", value_parser = super::solve::parse_solver)]
+    solvers: Vec<Solver>,
+    #[command(flatten)]
+    heuristic: HeuristicArgs,
+    /// Write the curves as CSV (method,solver,k,total_sq_error,rms).
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Write the plot as PNG (one file per solver when several: NAME_<solver>.png).
+    #[arg(long)]
+    png: Option<PathBuf>,
+    /// No progress bar.
+    #[arg(long, short)]
+    quiet: bool,
+}
+
+pub fn parse_range(s: &str) -> Result<(usize, usize), String> {
+    let bad = || format!("'{s}' is not a k range (write A..B, e.g. 2..24, or one number)");
+    let parts: Vec<&str> = s.split("..").collect();
+    let num = |t: &str| t.trim().trim_start_matches('=').parse::<usize>().map_err(|_| bad());
+    match parts.as_slice() {
+        [one] => num(one).map(|k| (k, k)),
+        [a, b] => Ok((num(a)?, num(b)?)),
+        _ => Err(bad()),
+    }
+}
+
+pub fn run(a: &CurvesArgs) -> Result<()> {
+    let (_, prep) = a.input.prepare()?;
+    let axes = keyshape_lab::keyshapes::DEFAULT_AXES.max(a.k.1.div_ceil(2));
+    let an = Analysis::with_axes(prep.seq.coords.clone(), prep.seq.points, axes)?;
+    let opts = KeyOptions { solver: a.solvers[0], seed: a.heuristic.seed, shortlist: a.heuristic.shortlist };
+    let progress = Progress::new("curves", a.quiet);
+    let rows = sweep(&an, &a.methods, a.k.0..=a.k.1, &a.solvers, &opts, &|d, t| progress.tick(d, t))?;
+    progress.finish();
+    match &a.out {
+        Some(p) => keyshape_lab::io::write_atomic(p, |w| write_curves_csv(w, &rows))?,
+        None => write_curves_csv(&mut std::io::stdout().lock(), &rows)?,
+    }
+    if let Some(png) = &a.png {
+        let title = format!("{} — {}", short(&prep.seq.source), a.input.points.as_deref().unwrap_or("whole face"));
+        for s in &a.solvers {
+            let path = if a.solvers.len() == 1 { png.clone() } else { suffixed(png, s.name()) };
+            keyshape_lab::report::write_curves_png(&rows, s.name(), &title, &path)?;
+            eprintln!("wrote {}", path.display());
+        }
+    }
+    Ok(())
+}
+
+pub fn short(source: &str) -> &str {
+    source.rsplit('/').next().unwrap_or(source)
+}
+
+/// `dir/name.png` → `dir/name_<tag>.png`.
+pub fn suffixed(path: &std::path::Path, tag: &str) -> PathBuf {
+    let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    let ext = path.extension().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "png".into());
+    path.with_file_name(format!("{stem}_{tag}.{ext}"))
+}
+

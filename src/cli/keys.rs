@@ -1,0 +1,81 @@
+//! `kslab keys`: the key frames a heuristic chooses.
+
+use super::input::InputArgs;
+use anyhow::Result;
+use clap::Args;
+use keyshape_lab::keyshapes::{Analysis, KeyOptions, Method};
+use keyshape_lab::solve::Solver;
+use serde_json::json;
+
+/// Options every key-shape command shares.
+#[derive(Debug, Clone, Args)]
+pub struct HeuristicArgs {
+    /// Seed for kmeans and random.
+    #[arg(long, default_value_t = 7)]
+    pub seed: u64,
+    /// greedy with nnls/bounded: exact solves per step for this many candidates, ranked by
+    /// least-squares gain (0 = every frame, exact and slow).
+    #[arg(long, default_value_t = 8)]
+    pub shortlist: usize,
+}
+
+/// Arguments of `kslab keys`.
+#[derive(Debug, Args)]
+pub struct KeysArgs {
+    #[command(flatten)]
+    input: InputArgs,
+    /// spread, kmeans2, kmeans3, kmeansN (N principal components), hull, greedy or random.
+    #[arg(long, value_parser = parse_method)]
+    method: Method,
+    /// Number of key shapes (hull ignores it: k is whatever the hull gives).
+    #[arg(long, required_unless_present_any = ["method"], default_value_t = 0)]
+    k: usize,
+    /// Solver for the reported error and for greedy's choices.
+    #[arg(long, default_value = "nnls", value_parser = super::solve::parse_solver)]
+    solver: Solver,
+    #[command(flatten)]
+    heuristic: HeuristicArgs,
+    /// Print JSON (frames, columns, error; k-means centres in PCA coordinates).
+    #[arg(long)]
+    json: bool,
+}
+
+pub fn parse_method(s: &str) -> Result<Method, String> {
+    Method::parse(s).map_err(|e| e.to_string())
+}
+
+pub fn run(a: &KeysArgs) -> Result<()> {
+    if a.k == 0 && a.method != Method::Hull {
+        anyhow::bail!("--k is required for --method {}", a.method);
+    }
+    let (_, prep) = a.input.prepare()?;
+    let axes = keyshape_lab::keyshapes::DEFAULT_AXES.max(a.k.div_ceil(2));
+    let an = Analysis::with_axes(prep.seq.coords.clone(), prep.seq.points, axes)?;
+    let opts = KeyOptions { solver: a.solver, seed: a.heuristic.seed, shortlist: a.heuristic.shortlist };
+    let sel = a.method.heuristic(&opts).select(&an, a.k)?;
+    let frames: Vec<i64> = sel.columns.iter().map(|&c| prep.seq.frames[c]).collect();
+    let e = an.error(&sel.columns, a.solver)?;
+    if a.json {
+        let centres = sel.centres.as_ref().map(|c| {
+            c.column_iter().map(|col| col.iter().copied().collect::<Vec<f64>>()).collect::<Vec<_>>()
+        });
+        let v = json!({
+            "source": prep.seq.source,
+            "method": a.method.name(),
+            "k": frames.len(),
+            "frames": frames,
+            "columns": sel.columns,
+            "solver": a.solver.name(),
+            "total_sq_error": e,
+            "rms": an.rms(e),
+            "centres_pca": centres,
+            "note": sel.centres.as_ref().map(|_| "centres_pca are k-means centres in PCA coordinates; they are not frames, the keys are the nearest frames"),
+        });
+        println!("{}", serde_json::to_string_pretty(&v)?);
+    } else {
+        let list: Vec<String> = frames.iter().map(i64::to_string).collect();
+        println!("{} key frames by {}: {}", frames.len(), a.method, list.join(","));
+        println!("Eq. 5 error under {}: {e:.6e} (RMS {:.4} per point)", a.solver, an.rms(e));
+    }
+    Ok(())
+}

@@ -1,0 +1,36 @@
+//! `kslab run`: a scripted experiment, headless.
+
+use super::progress::Progress;
+use anyhow::Result;
+use clap::Args;
+use keyshape_lab::experiment::{run as run_spec, Spec};
+use keyshape_lab::report::write_outcome;
+use std::path::PathBuf;
+
+/// Arguments of `kslab run`.
+#[derive(Debug, Args)]
+pub struct RunArgs {
+    /// The experiment file (TOML; see experiments/ and the README).
+    spec: PathBuf,
+    /// Output folder (default: out/<spec name>/).
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// No progress bar.
+    #[arg(long, short)]
+    quiet: bool,
+}
+
+pub fn run(a: &RunArgs) -> Result<()> {
+    let (spec, base) = Spec::from_path(&a.spec)?;
+    let dir = a.out.clone().unwrap_or_else(|| {
+        let stem = a.spec.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "experiment".into());
+        PathBuf::from("out").join(stem)
+    });
+    let progress = Progress::new(&spec.title, a.quiet);
+    let outcome = run_spec(&spec, &base, &|d, t| progress.tick(d, t))?;
+    progress.finish();
+    for f in write_outcome(&outcome, &dir)? {
+        println!("{}", f.display());
+    }
+    Ok(())
+}

@@ -1,0 +1,225 @@
+//! Scripted experiments: a TOML spec (input, points, alignment, methods, k range, solvers,
+//! outputs) run headless. This module parses and runs; [`crate::report`] writes the files.
+//!
+//! ```toml
+//! title = "Paper 000 Fig. 6: liveportrait_d6, lips"
+//! input = "../../shared/data/mediapipe_face_tracks/liveportrait_d6.csv"  # relative to this file; "builtin" for the built-in sequence
+//! points = "lips"            # optional: point groups; default the whole face
+//! align = true               # optional, default true
+//! methods = ["spread", "kmeans2", "kmeans3", "hull", "greedy", "random"]
+//! k = "2..24"                # or [2, 24], or 12
+//! solvers = ["nnls", "ls"]
+//! seed = 7                   # optional
+//! shortlist = 8              # optional (greedy with nnls/bounded)
+//! png = true                 # optional: write curves_<solver>.png
+//! ```
+
+use crate::decompose::{prepare, PrepareOptions};
+use crate::error::{Error, Result};
+use crate::io::{builtin_sequence, read_sequence, ReadOptions};
+use crate::keyshapes::curves::{sweep, CurveRow};
+use crate::keyshapes::{Analysis, KeyOptions, Method, DEFAULT_AXES};
+use crate::sequence::Format;
+use crate::solve::Solver;
+use serde::{Deserialize, Deserializer, Serialize};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// An experiment file.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Spec {
+    /// Title for plots and the report.
+    pub title: String,
+    /// Input sequence, relative to the spec file, or `builtin`.
+    pub input: String,
+    /// Force an input format.
+    #[serde(default)]
+    pub format: Option<Format>,
+    /// 2 or 3.
+    #[serde(default = "two")]
+    pub dims: usize,
+    /// Point groups (e.g. `lips`); None = whole face.
+    #[serde(default)]
+    pub points: Option<String>,
+    /// Remove 2-D head motion first.
+    #[serde(default = "yes")]
+    pub align: bool,
+    /// Key-shape methods.
+    #[serde(deserialize_with = "methods", serialize_with = "method_names")]
+    pub methods: Vec<Method>,
+    /// Inclusive k range.
+    #[serde(deserialize_with = "k_range")]
+    pub k: (usize, usize),
+    /// Solvers.
+    pub solvers: Vec<Solver>,
+    /// Seed for kmeans and random.
+    #[serde(default = "seven")]
+    pub seed: u64,
+    /// Greedy shortlist for nnls/bounded.
+    #[serde(default = "eight")]
+    pub shortlist: usize,
+    /// Write PNG plots.
+    #[serde(default = "yes")]
+    pub png: bool,
+}
+
+fn two() -> usize {
+    2
+}
+fn yes() -> bool {
+    true
+}
+fn seven() -> u64 {
+    7
+}
+fn eight() -> usize {
+    8
+}
+
+fn methods<'de, D: Deserializer<'de>>(d: D) -> std::result::Result<Vec<Method>, D::Error> {
+    let names = Vec::<String>::deserialize(d)?;
+    names.iter().map(|n| Method::parse(n).map_err(serde::de::Error::custom)).collect()
+}
+
+fn method_names<S: serde::Serializer>(m: &[Method], s: S) -> std::result::Result<S::Ok, S::Error> {
+    s.collect_seq(m.iter().map(Method::name))
+}
+
+fn k_range<'de, D: Deserializer<'de>>(d: D) -> std::result::Result<(usize, usize), D::Error> {
+    #[derive(Deserialize)]
+    #[serde(untagged)]
+    enum K {
+        One(usize),
+        Pair([usize; 2]),
+        Text(String),
+    }
+    let bad = |s: &str| serde::de::Error::custom(format!("'{s}' is not a k range: write \"2..24\", [2, 24] or 12"));
+    match K::deserialize(d)? {
+        K::One(k) => Ok((k, k)),
+        K::Pair([a, b]) => Ok((a, b)),
+        K::Text(t) => {
+            let parts: Vec<&str> = t.split("..").collect();
+            let num = |s: &str| s.trim().trim_start_matches('=').parse::<usize>().map_err(|_| bad(&t));
+            match parts.as_slice() {
+                [a, b] => Ok((num(a)?, num(b)?)),
+                [a] => num(a).map(|k| (k, k)),
+                _ => Err(bad(&t)),
+            }
+        }
+    }
+}
+
+impl Spec {
+    /// Reads and validates a spec; errors name the file, line, column and key.
+    pub fn from_path(path: &Path) -> Result<(Spec, PathBuf)> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let spec = Spec::from_str(path, &text)?;
+        let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        Ok((spec, base))
+    }
+
+    /// Parses spec text (`path` only names the file in errors).
+    pub fn from_str(path: &Path, text: &str) -> Result<Spec> {
+        let spec: Spec = toml::from_str(text).map_err(|e| {
+            let (line, col) = e.span().map_or((0, 0), |s| line_col(text, s.start));
+            Error::parse(path, line, col, e.message().to_string())
+        })?;
+        let at = |key: &str, msg: String| {
+            let (line, col) = find_key(text, key);
+            Error::parse(path, line, col, format!("{key}: {msg}"))
+        };
+        if spec.k.0 == 0 || spec.k.0 > spec.k.1 {
+            return Err(at("k", format!("range {}..{} is empty or starts at 0", spec.k.0, spec.k.1)));
+        }
+        if spec.methods.is_empty() {
+            return Err(at("methods", "name at least one method".into()));
+        }
+        if spec.solvers.is_empty() {
+            return Err(at("solvers", "name at least one solver".into()));
+        }
+        if spec.dims != 2 && spec.dims != 3 {
+            return Err(at("dims", format!("must be 2 or 3, got {}", spec.dims)));
+        }
+        Ok(spec)
+    }
+}
+
+/// 1-based line and column of a byte offset.
+fn line_col(text: &str, offset: usize) -> (u64, u64) {
+    let before = &text[..offset.min(text.len())];
+    let line = before.matches('\n').count() as u64 + 1;
+    let col = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) as u64 + 1;
+    (line, col)
+}
+
+/// Line and column of `key = …` at the start of a line (0, 0 if absent).
+fn find_key(text: &str, key: &str) -> (u64, u64) {
+    for (i, l) in text.lines().enumerate() {
+        let t = l.trim_start();
+        if t.strip_prefix(key).is_some_and(|r| r.trim_start().starts_with('=')) {
+            return (i as u64 + 1, (l.len() - t.len()) as u64 + 1);
+        }
+    }
+    (0, 0)
+}
+
+/// What a run produced, in memory.
+#[derive(Debug, Clone, Serialize)]
+pub struct Outcome {
+    /// The spec as run.
+    pub spec: Spec,
+    /// The input path as resolved.
+    pub input: String,
+    /// Valid frames analysed.
+    pub frames: usize,
+    /// Points per shape.
+    pub points: usize,
+    /// Failed frames left out.
+    pub failed_frames: usize,
+    /// Share of variance on the first principal axes.
+    pub explained_variance: Vec<f64>,
+    /// The curves.
+    pub rows: Vec<CurveRow>,
+    /// Seconds per stage: read, prepare, pca, sweep.
+    pub timings: Vec<(String, f64)>,
+}
+
+/// Runs a spec whose relative paths are relative to `base`.
+pub fn run(spec: &Spec, base: &Path, tick: &(dyn Fn(usize, usize) + Sync)) -> Result<Outcome> {
+    let mut timings = Vec::new();
+    let t = Instant::now();
+    let (seq, input) = if spec.input == "builtin" {
+        (builtin_sequence()?, crate::io::BUILTIN_NAME.to_string())
+    } else {
+        let p = base.join(&spec.input);
+        let opts = ReadOptions { format: spec.format, dims: spec.dims };
+        (read_sequence(&p, &opts)?, p.display().to_string())
+    };
+    timings.push(("read".to_string(), t.elapsed().as_secs_f64()));
+    let t = Instant::now();
+    let prep = prepare(&seq, &PrepareOptions { points: spec.points.clone(), align: spec.align })?;
+    timings.push(("prepare".to_string(), t.elapsed().as_secs_f64()));
+    let t = Instant::now();
+    let axes = DEFAULT_AXES.max(spec.k.1.div_ceil(2));
+    let axes = spec.methods.iter().fold(axes, |a, m| match m {
+        Method::KMeans { pcs } => a.max(*pcs),
+        _ => a,
+    });
+    let an = Analysis::with_axes(prep.seq.coords.clone(), prep.seq.points, axes)?;
+    timings.push(("pca".to_string(), t.elapsed().as_secs_f64()));
+    let t = Instant::now();
+    let opts = KeyOptions { solver: spec.solvers[0], seed: spec.seed, shortlist: spec.shortlist };
+    let rows = sweep(&an, &spec.methods, spec.k.0..=spec.k.1, &spec.solvers, &opts, tick)?;
+    timings.push(("sweep".to_string(), t.elapsed().as_secs_f64()));
+    Ok(Outcome {
+        spec: spec.clone(),
+        input,
+        frames: an.frames(),
+        points: an.points,
+        failed_frames: seq.failed.len(),
+        explained_variance: an.pca.explained_ratio().into_iter().take(6).collect(),
+        rows,
+        timings,
+    })
+}

@@ -1,0 +1,295 @@
+//! Key-shape selection (paper 000 §4.2): which frames of the sequence to use as key shapes.
+//!
+//! Every heuristic works on the PCA projection of the (aligned) shapes and returns frame
+//! columns of the sequence, since an artist must model each key shape. One trait,
+//! [`Heuristic`], one result type, [`Selection`]; [`Method`] names them for the CLI and
+//! experiment files. Reconstruction error (paper 000 Eq. 5) of a key set is evaluated from
+//! the frames' Gram matrix `QᵀQ` ([`Analysis::error`]), so trying many key sets costs
+//! k × k and k × frames work each, not a pass over the shapes.
+
+pub mod curves;
+mod greedy;
+mod hull;
+mod kmeans;
+mod random;
+mod spread;
+
+pub use greedy::{greedy_path, Greedy};
+pub use hull::Hull;
+pub use kmeans::KMeans;
+pub use random::Random;
+pub use spread::Spread;
+
+use crate::error::{Error, Result};
+use crate::pca::Pca;
+use crate::solve::active_set::Gram;
+use crate::solve::{active_set_from_gram, lstsq, Solver};
+use nalgebra::DMatrix;
+use std::collections::HashSet;
+use std::sync::OnceLock;
+
+/// Largest sequence for which the frames' Gram matrix (frames² values) is formed; longer
+/// sequences evaluate errors from the shapes directly and cannot use `greedy`.
+pub const GRAM_LIMIT: usize = 6000;
+
+/// Frames chosen as key shapes.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Selection {
+    /// Column indices of the chosen frames (into the analysed sequence), in choice order.
+    pub columns: Vec<usize>,
+    /// k-means only: the cluster centres in PCA coordinates (pcs × k), which are not frames.
+    pub centres: Option<DMatrix<f64>>,
+}
+
+/// A key-shape heuristic.
+pub trait Heuristic {
+    /// Name as the CLI writes it (`spread`, `kmeans2`, …).
+    fn name(&self) -> String;
+    /// Chooses `k` key frames. Heuristics whose k is fixed by the data (`hull`) ignore it.
+    fn select(&self, an: &Analysis, k: usize) -> Result<Selection>;
+}
+
+/// The heuristics by name.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Method {
+    /// Maximum spread along principal components.
+    Spread,
+    /// k-means on the first `pcs` principal components.
+    KMeans {
+        /// Number of principal components clustered.
+        pcs: usize,
+    },
+    /// Frames on the convex hull of the first two principal components.
+    Hull,
+    /// Forward selection that most lowers Eq. (5) at each step (ours, beyond the paper).
+    Greedy,
+    /// Uniformly random distinct frames (seeded): the floor.
+    Random,
+}
+
+impl Method {
+    /// The methods of paper 000's Fig. 6 plus ours, in plotting order.
+    pub const ALL: [Method; 6] = [
+        Method::Spread,
+        Method::KMeans { pcs: 2 },
+        Method::KMeans { pcs: 3 },
+        Method::Hull,
+        Method::Greedy,
+        Method::Random,
+    ];
+
+    /// Parses `spread`, `kmeans2`, `kmeans3`, `kmeansN`, `hull`, `greedy`, `random`.
+    pub fn parse(s: &str) -> Result<Method> {
+        let t = s.trim().to_ascii_lowercase();
+        let m = match t.as_str() {
+            "spread" => Method::Spread,
+            "hull" => Method::Hull,
+            "greedy" => Method::Greedy,
+            "random" => Method::Random,
+            "kmeans" => Method::KMeans { pcs: 2 },
+            _ => match t.strip_prefix("kmeans").map(str::parse::<usize>) {
+                Some(Ok(pcs)) if (1..=64).contains(&pcs) => Method::KMeans { pcs },
+                _ => {
+                    return Err(Error::invalid(format!(
+                        "unknown key-shape method '{s}' (expected spread, kmeans2, kmeans3, kmeansN, hull, greedy or random)"
+                    )))
+                }
+            },
+        };
+        Ok(m)
+    }
+
+    /// The name [`Method::parse`] reads.
+    pub fn name(&self) -> String {
+        match self {
+            Method::Spread => "spread".into(),
+            Method::KMeans { pcs } => format!("kmeans{pcs}"),
+            Method::Hull => "hull".into(),
+            Method::Greedy => "greedy".into(),
+            Method::Random => "random".into(),
+        }
+    }
+
+    /// The heuristic with these options.
+    pub fn heuristic(&self, opts: &KeyOptions) -> Box<dyn Heuristic + Send + Sync> {
+        match *self {
+            Method::Spread => Box::new(Spread),
+            Method::KMeans { pcs } => Box::new(KMeans { pcs, seed: opts.seed }),
+            Method::Hull => Box::new(Hull),
+            Method::Greedy => Box::new(Greedy {
+                solver: opts.solver,
+                shortlist: opts.shortlist,
+            }),
+            Method::Random => Box::new(Random { seed: opts.seed }),
+        }
+    }
+}
+
+impl std::fmt::Display for Method {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.name())
+    }
+}
+
+/// Options shared by the heuristics.
+#[derive(Debug, Clone, Copy)]
+pub struct KeyOptions {
+    /// Solver whose Eq. (5) error `greedy` minimises.
+    pub solver: Solver,
+    /// Seed for `kmeans` and `random`.
+    pub seed: u64,
+    /// `greedy` with nnls/bounded: exact solves for this many candidates per step, ranked
+    /// by least-squares gain (0 = every frame: exact greedy, slow).
+    pub shortlist: usize,
+}
+
+impl Default for KeyOptions {
+    fn default() -> Self {
+        KeyOptions {
+            solver: Solver::Nnls,
+            seed: 7,
+            shortlist: 8,
+        }
+    }
+}
+
+/// A prepared sequence with what every heuristic needs: its PCA, the projection, the
+/// number of distinct shapes, and (lazily) the frames' Gram matrix.
+#[derive(Debug)]
+pub struct Analysis {
+    /// Shapes, one per column (dims · points × frames).
+    pub coords: DMatrix<f64>,
+    /// Points per shape (for per-point RMS).
+    pub points: usize,
+    /// PCA of the shapes.
+    pub pca: Pca,
+    /// Coordinates of every frame on the leading axes (axes × frames).
+    pub proj: DMatrix<f64>,
+    /// Number of distinct shapes among the frames.
+    pub distinct: usize,
+    /// `‖q_t‖²` per frame.
+    pub sq_norms: Vec<f64>,
+    gram: OnceLock<DMatrix<f64>>,
+}
+
+/// Principal axes [`Analysis::new`] keeps (spread uses k/2 of them, so k ≤ 48; use
+/// [`Analysis::with_axes`] for more).
+pub const DEFAULT_AXES: usize = 24;
+
+impl Analysis {
+    /// Fits the PCA (leading [`DEFAULT_AXES`] axes) and projects every frame.
+    pub fn new(coords: DMatrix<f64>, points: usize) -> Result<Analysis> {
+        Analysis::with_axes(coords, points, DEFAULT_AXES)
+    }
+
+    /// As [`Analysis::new`], keeping `axes` principal axes.
+    pub fn with_axes(coords: DMatrix<f64>, points: usize, axes: usize) -> Result<Analysis> {
+        let pca = Pca::fit_leading(&coords, axes.max(3))?;
+        let proj = pca.project(&coords, axes.max(3));
+        let mut seen = HashSet::new();
+        for c in coords.column_iter() {
+            seen.insert(c.iter().map(|v| v.to_bits()).collect::<Vec<u64>>());
+        }
+        let sq_norms = coords.column_iter().map(|c| c.norm_squared()).collect();
+        Ok(Analysis {
+            distinct: seen.len(),
+            coords,
+            points,
+            pca,
+            proj,
+            sq_norms,
+            gram: OnceLock::new(),
+        })
+    }
+
+    /// Number of frames.
+    pub fn frames(&self) -> usize {
+        self.coords.ncols()
+    }
+
+    /// Checks that `k` key shapes can be chosen.
+    pub fn check_k(&self, k: usize) -> Result<()> {
+        if k == 0 {
+            return Err(Error::invalid("k must be at least 1"));
+        }
+        if k > self.distinct {
+            return Err(Error::invalid(format!(
+                "k = {k} key shapes asked for, but the sequence has only {} distinct shapes ({} frames)",
+                self.distinct,
+                self.frames()
+            )));
+        }
+        Ok(())
+    }
+
+    /// The frames' Gram matrix `QᵀQ` (frames × frames), formed on first use.
+    pub fn frame_gram(&self) -> Result<&DMatrix<f64>> {
+        if self.frames() > GRAM_LIMIT {
+            return Err(Error::invalid(format!(
+                "{} frames: the frames' Gram matrix is limited to {GRAM_LIMIT} frames",
+                self.frames()
+            )));
+        }
+        Ok(self.gram.get_or_init(|| self.coords.transpose() * &self.coords))
+    }
+
+    /// `G = SᵀS` and `B = SᵀQ` for key columns `keys`.
+    fn products(&self, keys: &[usize]) -> Result<(DMatrix<f64>, DMatrix<f64>)> {
+        if let Some(&bad) = keys.iter().find(|&&c| c >= self.frames()) {
+            return Err(Error::invalid(format!("key column {bad} out of range (0..{})", self.frames())));
+        }
+        if self.frames() <= GRAM_LIMIT {
+            let k = self.frame_gram()?;
+            let b = k.select_rows(keys);
+            let g = b.select_columns(keys);
+            Ok((g, b))
+        } else {
+            let s = self.coords.select_columns(keys);
+            Ok((s.tr_mul(&s), s.transpose() * &self.coords))
+        }
+    }
+
+    /// Paper 000 Eq. (5), `E = Σ_t ‖Q_t − S w_t‖²`, for key columns `keys` under `solver`,
+    /// computed from inner products: `‖q‖² − 2 wᵀb + wᵀ G w` per frame.
+    pub fn error(&self, keys: &[usize], solver: Solver) -> Result<f64> {
+        self.weights_and_error(keys, solver).map(|(_, e)| e)
+    }
+
+    /// The weights (k × frames) and Eq. (5) error of key columns `keys` under `solver`.
+    pub fn weights_and_error(&self, keys: &[usize], solver: Solver) -> Result<(DMatrix<f64>, f64)> {
+        let (g, b) = self.products(keys)?;
+        let w = match solver {
+            Solver::Ls => lstsq::gram_pseudo_inverse(&g, None) * &b,
+            Solver::Nnls | Solver::Bounded => {
+                let upper = if solver == Solver::Nnls { f64::INFINITY } else { 1.0 };
+                active_set_from_gram(&Gram::from_matrix(&g, upper), &b, true).0
+            }
+        };
+        let gw = &g * &w;
+        let mut e = 0.0;
+        for t in 0..w.ncols() {
+            let (wt, bt, gwt) = (w.column(t), b.column(t), gw.column(t));
+            e += (self.sq_norms[t] - 2.0 * wt.dot(&bt) + wt.dot(&gwt)).max(0.0);
+        }
+        if !e.is_finite() {
+            return Err(Error::invalid("reconstruction error is not finite"));
+        }
+        Ok((w, e))
+    }
+
+    /// `sqrt(E / (frames · points))`: per-point RMS in input units.
+    pub fn rms(&self, total_sq_error: f64) -> f64 {
+        (total_sq_error / (self.frames() * self.points).max(1) as f64).sqrt()
+    }
+
+    /// Errors if fewer than `n` principal axes carry variance.
+    fn need_axes(&self, n: usize, what: &str) -> Result<()> {
+        if self.proj.nrows() < n {
+            return Err(Error::invalid(format!(
+                "{what} needs {n} principal axes, but only {} are available (the shapes vary along fewer, or the analysis keeps fewer: see Analysis::with_axes)",
+                self.proj.nrows()
+            )));
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,103 @@
+//! Plot descriptions as plain data: what to draw, not how. The PNG renderer
+//! ([`crate::render`]) and the terminal chart both draw from a [`PlotSpec`].
+
+use crate::keyshapes::curves::CurveRow;
+
+/// How a series is drawn.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Style {
+    /// A solid polyline with small markers.
+    Line,
+    /// A dashed polyline with small markers.
+    Dashed,
+    /// Markers only (a single large dot for one point, like the paper's hull).
+    Marker,
+}
+
+/// One named series.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Series {
+    /// Legend label.
+    pub name: String,
+    /// (x, y) points in drawing order.
+    pub points: Vec<(f64, f64)>,
+    /// Line style.
+    pub style: Style,
+    /// RGB colour.
+    pub color: [u8; 3],
+}
+
+/// A 2-D line plot.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlotSpec {
+    /// Title above the plot.
+    pub title: String,
+    /// x-axis title.
+    pub x_label: String,
+    /// y-axis title.
+    pub y_label: String,
+    /// The series, drawn in order; the legend lists them in order.
+    pub series: Vec<Series>,
+    /// Start the y axis at zero.
+    pub y_from_zero: bool,
+}
+
+impl PlotSpec {
+    /// Data bounds over all series: ((xmin, xmax), (ymin, ymax)).
+    pub fn bounds(&self) -> Option<((f64, f64), (f64, f64))> {
+        let pts = self.series.iter().flat_map(|s| s.points.iter()).filter(|p| p.0.is_finite() && p.1.is_finite());
+        let mut b: Option<((f64, f64), (f64, f64))> = None;
+        for &(x, y) in pts {
+            b = Some(match b {
+                None => ((x, x), (y, y)),
+                Some(((x0, x1), (y0, y1))) => ((x0.min(x), x1.max(x)), (y0.min(y), y1.max(y))),
+            });
+        }
+        b.map(|(x, (y0, y1))| (x, (if self.y_from_zero { y0.min(0.0) } else { y0 }, y1)))
+    }
+}
+
+/// Colour and style of each key-shape method, after paper 000 Fig. 6 (spread solid blue,
+/// k-means dashed green / magenta, hull a red dot) plus ours.
+pub fn method_style(method: &str) -> ([u8; 3], Style) {
+    match method {
+        "spread" => ([31, 90, 200], Style::Line),
+        "kmeans2" => ([30, 150, 60], Style::Dashed),
+        "kmeans3" => ([190, 40, 190], Style::Dashed),
+        "hull" => ([220, 30, 30], Style::Marker),
+        "greedy" => ([20, 20, 20], Style::Line),
+        "random" => ([150, 150, 150], Style::Dashed),
+        _ => ([230, 140, 20], Style::Dashed),
+    }
+}
+
+/// The error-curve plot (per-point RMS against k) for one solver's rows.
+pub fn curves_plot(rows: &[CurveRow], solver: &str, title: &str, units: &str) -> PlotSpec {
+    let mut methods: Vec<&str> = Vec::new();
+    for r in rows.iter().filter(|r| r.solver == solver) {
+        if !methods.contains(&r.method.as_str()) {
+            methods.push(&r.method);
+        }
+    }
+    let series = methods
+        .iter()
+        .map(|m| {
+            let (color, style) = method_style(m);
+            let mut points: Vec<(f64, f64)> = rows
+                .iter()
+                .filter(|r| r.solver == solver && r.method == *m)
+                .map(|r| (r.k as f64, r.rms))
+                .collect();
+            points.sort_by(|a, b| a.0.total_cmp(&b.0));
+            let style = if points.len() == 1 { Style::Marker } else { style };
+            Series { name: m.to_string(), points, style, color }
+        })
+        .collect();
+    PlotSpec {
+        title: title.to_string(),
+        x_label: "number of key shapes k".into(),
+        y_label: format!("RMS error per point ({units}), {solver}"),
+        series,
+        y_from_zero: true,
+    }
+}

@@ -1,0 +1,20 @@
+//! Pictures with tiny-skia: line plots from [`crate::plot::PlotSpec`]. The numeric core never
+//! calls in here.
+
+mod chart;
+pub mod text;
+
+pub use chart::render_plot;
+
+use crate::error::{Error, Result};
+use crate::io::write_atomic;
+use std::path::Path;
+use tiny_skia::Pixmap;
+
+/// Writes a pixmap as PNG, atomically.
+pub fn save_png(pixmap: &Pixmap, path: &Path) -> Result<()> {
+    let bytes = pixmap
+        .encode_png()
+        .map_err(|e| Error::invalid(format!("{}: PNG encoding failed: {e}", path.display())))?;
+    write_atomic(path, |w| w.write_all(&bytes))
+}
