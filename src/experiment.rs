@@ -18,7 +18,7 @@ use crate::decompose::{prepare, PrepareOptions};
 use crate::error::{Error, Result};
 use crate::io::{builtin_sequence, read_sequence, ReadOptions};
 use crate::keyshapes::curves::{sweep, CurveRow};
-use crate::keyshapes::{Analysis, KeyOptions, Method, DEFAULT_AXES};
+use crate::keyshapes::{axes_needed, Analysis, KeyOptions, Method};
 use crate::sequence::Format;
 use crate::solve::Solver;
 use serde::{Deserialize, Deserializer, Serialize};
@@ -79,7 +79,10 @@ fn eight() -> usize {
 
 fn methods<'de, D: Deserializer<'de>>(d: D) -> std::result::Result<Vec<Method>, D::Error> {
     let names = Vec::<String>::deserialize(d)?;
-    names.iter().map(|n| Method::parse(n).map_err(serde::de::Error::custom)).collect()
+    names
+        .iter()
+        .map(|n| Method::parse(n).map_err(serde::de::Error::custom))
+        .collect()
 }
 
 fn method_names<S: serde::Serializer>(m: &[Method], s: S) -> std::result::Result<S::Ok, S::Error> {
@@ -94,13 +97,22 @@ fn k_range<'de, D: Deserializer<'de>>(d: D) -> std::result::Result<(usize, usize
         Pair([usize; 2]),
         Text(String),
     }
-    let bad = |s: &str| serde::de::Error::custom(format!("'{s}' is not a k range: write \"2..24\", [2, 24] or 12"));
+    let bad = |s: &str| {
+        serde::de::Error::custom(format!(
+            "'{s}' is not a k range: write \"2..24\", [2, 24] or 12"
+        ))
+    };
     match K::deserialize(d)? {
         K::One(k) => Ok((k, k)),
         K::Pair([a, b]) => Ok((a, b)),
         K::Text(t) => {
             let parts: Vec<&str> = t.split("..").collect();
-            let num = |s: &str| s.trim().trim_start_matches('=').parse::<usize>().map_err(|_| bad(&t));
+            let num = |s: &str| {
+                s.trim()
+                    .trim_start_matches('=')
+                    .parse::<usize>()
+                    .map_err(|_| bad(&t))
+            };
             match parts.as_slice() {
                 [a, b] => Ok((num(a)?, num(b)?)),
                 [a] => num(a).map(|k| (k, k)),
@@ -130,7 +142,10 @@ impl Spec {
             Error::parse(path, line, col, format!("{key}: {msg}"))
         };
         if spec.k.0 == 0 || spec.k.0 > spec.k.1 {
-            return Err(at("k", format!("range {}..{} is empty or starts at 0", spec.k.0, spec.k.1)));
+            return Err(at(
+                "k",
+                format!("range {}..{} is empty or starts at 0", spec.k.0, spec.k.1),
+            ));
         }
         if spec.methods.is_empty() {
             return Err(at("methods", "name at least one method".into()));
@@ -157,7 +172,9 @@ fn line_col(text: &str, offset: usize) -> (u64, u64) {
 fn find_key(text: &str, key: &str) -> (u64, u64) {
     for (i, l) in text.lines().enumerate() {
         let t = l.trim_start();
-        if t.strip_prefix(key).is_some_and(|r| r.trim_start().starts_with('=')) {
+        if t.strip_prefix(key)
+            .is_some_and(|r| r.trim_start().starts_with('='))
+        {
             return (i as u64 + 1, (l.len() - t.len()) as u64 + 1);
         }
     }
@@ -193,24 +210,40 @@ pub fn run(spec: &Spec, base: &Path, tick: &(dyn Fn(usize, usize) + Sync)) -> Re
         (builtin_sequence()?, crate::io::BUILTIN_NAME.to_string())
     } else {
         let p = base.join(&spec.input);
-        let opts = ReadOptions { format: spec.format, dims: spec.dims };
+        let opts = ReadOptions {
+            format: spec.format,
+            dims: spec.dims,
+        };
         (read_sequence(&p, &opts)?, p.display().to_string())
     };
     timings.push(("read".to_string(), t.elapsed().as_secs_f64()));
     let t = Instant::now();
-    let prep = prepare(&seq, &PrepareOptions { points: spec.points.clone(), align: spec.align })?;
+    let prep = prepare(
+        &seq,
+        &PrepareOptions {
+            points: spec.points.clone(),
+            align: spec.align,
+        },
+    )?;
     timings.push(("prepare".to_string(), t.elapsed().as_secs_f64()));
     let t = Instant::now();
-    let axes = DEFAULT_AXES.max(spec.k.1.div_ceil(2));
-    let axes = spec.methods.iter().fold(axes, |a, m| match m {
-        Method::KMeans { pcs } => a.max(*pcs),
-        _ => a,
-    });
+    let axes = axes_needed(&spec.methods, spec.k.1);
     let an = Analysis::with_axes(prep.seq.coords.clone(), prep.seq.points, axes)?;
     timings.push(("pca".to_string(), t.elapsed().as_secs_f64()));
     let t = Instant::now();
-    let opts = KeyOptions { solver: spec.solvers[0], seed: spec.seed, shortlist: spec.shortlist };
-    let rows = sweep(&an, &spec.methods, spec.k.0..=spec.k.1, &spec.solvers, &opts, tick)?;
+    let opts = KeyOptions {
+        solver: spec.solvers[0],
+        seed: spec.seed,
+        shortlist: spec.shortlist,
+    };
+    let rows = sweep(
+        &an,
+        &spec.methods,
+        spec.k.0..=spec.k.1,
+        &spec.solvers,
+        &opts,
+        tick,
+    )?;
     timings.push(("sweep".to_string(), t.elapsed().as_secs_f64()));
     Ok(Outcome {
         spec: spec.clone(),

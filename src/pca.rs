@@ -115,7 +115,12 @@ impl Pca {
             let mut order: Vec<usize> = (0..l).collect();
             order.sort_by(|&i, &j| eig.eigenvalues[j].total_cmp(&eig.eigenvalues[i]));
             let top = eig.eigenvalues[order[0]].max(f64::MIN_POSITIVE);
-            let keep: Vec<usize> = order.iter().copied().take(r).filter(|&j| eig.eigenvalues[j] > top * 1e-13 * rows.max(n) as f64).collect();
+            let keep: Vec<usize> = order
+                .iter()
+                .copied()
+                .take(r)
+                .filter(|&j| eig.eigenvalues[j] > top * 1e-13 * rows.max(n) as f64)
+                .collect();
             let u = eig.eigenvectors.select_columns(&keep);
             let v = &q * &u;
             let zv = &z * &u;
@@ -131,7 +136,12 @@ impl Pca {
                     }
                 }
                 let variances = keep.iter().map(|&j| eig.eigenvalues[j] / denom).collect();
-                return Ok(Pca { mean, components, variances, total_variance });
+                return Ok(Pca {
+                    mean,
+                    components,
+                    variances,
+                    total_variance,
+                });
             }
             q = z.qr().q();
         }

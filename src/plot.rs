@@ -45,7 +45,11 @@ pub struct PlotSpec {
 impl PlotSpec {
     /// Data bounds over all series: ((xmin, xmax), (ymin, ymax)).
     pub fn bounds(&self) -> Option<((f64, f64), (f64, f64))> {
-        let pts = self.series.iter().flat_map(|s| s.points.iter()).filter(|p| p.0.is_finite() && p.1.is_finite());
+        let pts = self
+            .series
+            .iter()
+            .flat_map(|s| s.points.iter())
+            .filter(|p| p.0.is_finite() && p.1.is_finite());
         let mut b: Option<((f64, f64), (f64, f64))> = None;
         for &(x, y) in pts {
             b = Some(match b {
@@ -89,8 +93,17 @@ pub fn curves_plot(rows: &[CurveRow], solver: &str, title: &str, units: &str) ->
                 .map(|r| (r.k as f64, r.rms))
                 .collect();
             points.sort_by(|a, b| a.0.total_cmp(&b.0));
-            let style = if points.len() == 1 { Style::Marker } else { style };
-            Series { name: m.to_string(), points, style, color }
+            let style = if points.len() == 1 {
+                Style::Marker
+            } else {
+                style
+            };
+            Series {
+                name: m.to_string(),
+                points,
+                style,
+                color,
+            }
         })
         .collect();
     PlotSpec {

@@ -14,7 +14,15 @@ use std::path::{Path, PathBuf};
 pub fn write_curves_csv(w: &mut dyn Write, rows: &[CurveRow]) -> std::io::Result<()> {
     writeln!(w, "method,solver,k,total_sq_error,rms")?;
     for r in rows {
-        writeln!(w, "{},{},{},{},{}", r.method, r.solver, r.k, fmt_num(r.total_sq_error), fmt_num(r.rms))?;
+        writeln!(
+            w,
+            "{},{},{},{},{}",
+            r.method,
+            r.solver,
+            r.k,
+            fmt_num(r.total_sq_error),
+            fmt_num(r.rms)
+        )?;
     }
     Ok(())
 }

@@ -6,8 +6,8 @@ use super::progress::Progress;
 use anyhow::Result;
 use clap::Args;
 use keyshape_lab::keyshapes::curves::sweep;
-use keyshape_lab::report::write_curves_csv;
 use keyshape_lab::keyshapes::{Analysis, KeyOptions, Method};
+use keyshape_lab::report::write_curves_csv;
 use keyshape_lab::solve::Solver;
 use std::path::PathBuf;
 
@@ -41,7 +41,12 @@ pub struct CurvesArgs {
 pub fn parse_range(s: &str) -> Result<(usize, usize), String> {
     let bad = || format!("'{s}' is not a k range (write A..B, e.g. 2..24, or one number)");
     let parts: Vec<&str> = s.split("..").collect();
-    let num = |t: &str| t.trim().trim_start_matches('=').parse::<usize>().map_err(|_| bad());
+    let num = |t: &str| {
+        t.trim()
+            .trim_start_matches('=')
+            .parse::<usize>()
+            .map_err(|_| bad())
+    };
     match parts.as_slice() {
         [one] => num(one).map(|k| (k, k)),
         [a, b] => Ok((num(a)?, num(b)?)),
@@ -51,20 +56,39 @@ pub fn parse_range(s: &str) -> Result<(usize, usize), String> {
 
 pub fn run(a: &CurvesArgs) -> Result<()> {
     let (_, prep) = a.input.prepare()?;
-    let axes = keyshape_lab::keyshapes::DEFAULT_AXES.max(a.k.1.div_ceil(2));
+    let axes = keyshape_lab::keyshapes::axes_needed(&a.methods, a.k.1);
     let an = Analysis::with_axes(prep.seq.coords.clone(), prep.seq.points, axes)?;
-    let opts = KeyOptions { solver: a.solvers[0], seed: a.heuristic.seed, shortlist: a.heuristic.shortlist };
+    let opts = KeyOptions {
+        solver: a.solvers[0],
+        seed: a.heuristic.seed,
+        shortlist: a.heuristic.shortlist,
+    };
     let progress = Progress::new("curves", a.quiet);
-    let rows = sweep(&an, &a.methods, a.k.0..=a.k.1, &a.solvers, &opts, &|d, t| progress.tick(d, t))?;
+    let rows = sweep(
+        &an,
+        &a.methods,
+        a.k.0..=a.k.1,
+        &a.solvers,
+        &opts,
+        &|d, t| progress.tick(d, t),
+    )?;
     progress.finish();
     match &a.out {
         Some(p) => keyshape_lab::io::write_atomic(p, |w| write_curves_csv(w, &rows))?,
         None => write_curves_csv(&mut std::io::stdout().lock(), &rows)?,
     }
     if let Some(png) = &a.png {
-        let title = format!("{} — {}", short(&prep.seq.source), a.input.points.as_deref().unwrap_or("whole face"));
+        let title = format!(
+            "{} — {}",
+            short(&prep.seq.source),
+            a.input.points.as_deref().unwrap_or("whole face")
+        );
         for s in &a.solvers {
-            let path = if a.solvers.len() == 1 { png.clone() } else { suffixed(png, s.name()) };
+            let path = if a.solvers.len() == 1 {
+                png.clone()
+            } else {
+                suffixed(png, s.name())
+            };
             keyshape_lab::report::write_curves_png(&rows, s.name(), &title, &path)?;
             eprintln!("wrote {}", path.display());
         }
@@ -78,8 +102,13 @@ pub fn short(source: &str) -> &str {
 
 /// `dir/name.png` → `dir/name_<tag>.png`.
 pub fn suffixed(path: &std::path::Path, tag: &str) -> PathBuf {
-    let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
-    let ext = path.extension().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "png".into());
+    let stem = path
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let ext = path
+        .extension()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "png".into());
     path.with_file_name(format!("{stem}_{tag}.{ext}"))
 }
-

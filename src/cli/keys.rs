@@ -49,15 +49,21 @@ pub fn run(a: &KeysArgs) -> Result<()> {
         anyhow::bail!("--k is required for --method {}", a.method);
     }
     let (_, prep) = a.input.prepare()?;
-    let axes = keyshape_lab::keyshapes::DEFAULT_AXES.max(a.k.div_ceil(2));
+    let axes = keyshape_lab::keyshapes::axes_needed(&[a.method], a.k);
     let an = Analysis::with_axes(prep.seq.coords.clone(), prep.seq.points, axes)?;
-    let opts = KeyOptions { solver: a.solver, seed: a.heuristic.seed, shortlist: a.heuristic.shortlist };
+    let opts = KeyOptions {
+        solver: a.solver,
+        seed: a.heuristic.seed,
+        shortlist: a.heuristic.shortlist,
+    };
     let sel = a.method.heuristic(&opts).select(&an, a.k)?;
     let frames: Vec<i64> = sel.columns.iter().map(|&c| prep.seq.frames[c]).collect();
     let e = an.error(&sel.columns, a.solver)?;
     if a.json {
         let centres = sel.centres.as_ref().map(|c| {
-            c.column_iter().map(|col| col.iter().copied().collect::<Vec<f64>>()).collect::<Vec<_>>()
+            c.column_iter()
+                .map(|col| col.iter().copied().collect::<Vec<f64>>())
+                .collect::<Vec<_>>()
         });
         let v = json!({
             "source": prep.seq.source,
@@ -74,8 +80,17 @@ pub fn run(a: &KeysArgs) -> Result<()> {
         println!("{}", serde_json::to_string_pretty(&v)?);
     } else {
         let list: Vec<String> = frames.iter().map(i64::to_string).collect();
-        println!("{} key frames by {}: {}", frames.len(), a.method, list.join(","));
-        println!("Eq. 5 error under {}: {e:.6e} (RMS {:.4} per point)", a.solver, an.rms(e));
+        println!(
+            "{} key frames by {}: {}",
+            frames.len(),
+            a.method,
+            list.join(",")
+        );
+        println!(
+            "Eq. 5 error under {}: {e:.6e} (RMS {:.4} per point)",
+            a.solver,
+            an.rms(e)
+        );
     }
     Ok(())
 }

@@ -19,7 +19,12 @@ impl Progress {
             bar.set_style(style.progress_chars("=> "));
         }
         bar.set_message(message.to_string());
-        Progress { bar, start: Instant::now(), quiet, shown: Mutex::new(false) }
+        Progress {
+            bar,
+            start: Instant::now(),
+            quiet,
+            shown: Mutex::new(false),
+        }
     }
 
     /// Records `done` of `total` steps.

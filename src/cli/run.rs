@@ -23,7 +23,11 @@ pub struct RunArgs {
 pub fn run(a: &RunArgs) -> Result<()> {
     let (spec, base) = Spec::from_path(&a.spec)?;
     let dir = a.out.clone().unwrap_or_else(|| {
-        let stem = a.spec.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "experiment".into());
+        let stem = a
+            .spec
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "experiment".into());
         PathBuf::from("out").join(stem)
     });
     let progress = Progress::new(&spec.title, a.quiet);

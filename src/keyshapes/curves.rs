@@ -38,7 +38,9 @@ pub fn sweep(
 ) -> Result<Vec<CurveRow>> {
     let (lo, hi) = (*ks.start(), *ks.end());
     if lo == 0 || lo > hi {
-        return Err(Error::invalid(format!("k range {lo}..{hi} is empty or starts at 0")));
+        return Err(Error::invalid(format!(
+            "k range {lo}..{hi} is empty or starts at 0"
+        )));
     }
     an.check_k(hi)?;
     let total = methods.len() * solvers.len();
@@ -51,7 +53,10 @@ pub fn sweep(
         .par_iter()
         .map(|&(m, s)| {
             let rows = curve(an, m, lo, hi, s, opts);
-            tick(done.fetch_add(1, std::sync::atomic::Ordering::SeqCst) + 1, total);
+            tick(
+                done.fetch_add(1, std::sync::atomic::Ordering::SeqCst) + 1,
+                total,
+            );
             rows
         })
         .collect();
@@ -74,12 +79,21 @@ fn row(an: &Analysis, m: Method, s: Solver, k: usize, e: f64, keys: Vec<usize>) 
 }
 
 /// One method's curve under one solver.
-fn curve(an: &Analysis, m: Method, lo: usize, hi: usize, s: Solver, opts: &KeyOptions) -> Result<Vec<CurveRow>> {
+fn curve(
+    an: &Analysis,
+    m: Method,
+    lo: usize,
+    hi: usize,
+    s: Solver,
+    opts: &KeyOptions,
+) -> Result<Vec<CurveRow>> {
     let opts = KeyOptions { solver: s, ..*opts };
     match m {
         Method::Greedy => {
             let (keys, errs) = greedy_path(an, hi, s, opts.shortlist)?;
-            Ok((lo..=hi).map(|k| row(an, m, s, k, errs[k - 1], keys[..k].to_vec())).collect())
+            Ok((lo..=hi)
+                .map(|k| row(an, m, s, k, errs[k - 1], keys[..k].to_vec()))
+                .collect())
         }
         Method::Hull => {
             let sel = m.heuristic(&opts).select(an, 0)?;
@@ -92,7 +106,10 @@ fn curve(an: &Analysis, m: Method, lo: usize, hi: usize, s: Solver, opts: &KeyOp
                 let mut sum = 0.0;
                 let mut first = Vec::new();
                 for d in 0..RANDOM_DRAWS {
-                    let o = KeyOptions { seed: opts.seed.wrapping_add(d), ..opts };
+                    let o = KeyOptions {
+                        seed: opts.seed.wrapping_add(d),
+                        ..opts
+                    };
                     let sel = m.heuristic(&o).select(an, k)?;
                     sum += an.error(&sel.columns, s)?;
                     if d == 0 {

@@ -32,12 +32,20 @@ impl Heuristic for Greedy {
 
     fn select(&self, an: &Analysis, k: usize) -> Result<Selection> {
         let (columns, _) = greedy_path(an, k, self.solver, self.shortlist)?;
-        Ok(Selection { columns, centres: None })
+        Ok(Selection {
+            columns,
+            centres: None,
+        })
     }
 }
 
 /// The greedy choice of `kmax` frames and Eq. (5) after each addition.
-pub fn greedy_path(an: &Analysis, kmax: usize, solver: Solver, shortlist: usize) -> Result<(Vec<usize>, Vec<f64>)> {
+pub fn greedy_path(
+    an: &Analysis,
+    kmax: usize,
+    solver: Solver,
+    shortlist: usize,
+) -> Result<(Vec<usize>, Vec<f64>)> {
     an.check_k(kmax)?;
     let mut kr = an.frame_gram()?.clone();
     let n = kr.ncols();
@@ -70,7 +78,11 @@ pub fn greedy_path(an: &Analysis, kmax: usize, solver: Solver, shortlist: usize)
             let (w, e) = an.weights_and_error(&keys, solver)?;
             (gains[0].0, w, e)
         } else {
-            let m = if shortlist == 0 { gains.len() } else { shortlist.min(gains.len()) };
+            let m = if shortlist == 0 {
+                gains.len()
+            } else {
+                shortlist.min(gains.len())
+            };
             let mut best: Option<(usize, DMatrix<f64>, f64)> = None;
             for &(c, _) in &gains[..m] {
                 let mut keys = chosen.clone();
@@ -104,9 +116,17 @@ fn constrained_gains(
     top: f64,
     solver: Solver,
 ) -> Vec<(usize, f64)> {
-    let upper = if solver == Solver::Bounded { 1.0 } else { f64::INFINITY };
+    let upper = if solver == Solver::Bounded {
+        1.0
+    } else {
+        f64::INFINITY
+    };
     // R[c, t] = ⟨q_c, r_t⟩ with r_t the current residual of frame t.
-    let r = if chosen.is_empty() { k_full.clone() } else { k_full - k_full.select_columns(chosen) * weights };
+    let r = if chosen.is_empty() {
+        k_full.clone()
+    } else {
+        k_full - k_full.select_columns(chosen) * weights
+    };
     let n = k_full.ncols();
     (0..n)
         .filter(|&c| !taken[c] && k_full[(c, c)] > 1e-12 * top)

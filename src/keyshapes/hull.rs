@@ -33,22 +33,35 @@ impl Heuristic for Hull {
     fn select(&self, an: &Analysis, _k: usize) -> Result<Selection> {
         let n = an.frames();
         let axes = an.proj.nrows().min(2);
-        let pt = |t: usize| (an.proj[(0, t)], if axes > 1 { an.proj[(1, t)] } else { 0.0 });
-        let (mut lo, mut hi) = ((f64::INFINITY, f64::INFINITY), (f64::NEG_INFINITY, f64::NEG_INFINITY));
+        let pt = |t: usize| {
+            (
+                an.proj[(0, t)],
+                if axes > 1 { an.proj[(1, t)] } else { 0.0 },
+            )
+        };
+        let (mut lo, mut hi) = (
+            (f64::INFINITY, f64::INFINITY),
+            (f64::NEG_INFINITY, f64::NEG_INFINITY),
+        );
         for t in 0..n {
             let (x, y) = pt(t);
             lo = (lo.0.min(x), lo.1.min(y));
             hi = (hi.0.max(x), hi.1.max(y));
         }
         let extent = (hi.0 - lo.0).max(hi.1 - lo.1);
-        if !(extent > 0.0) {
-            return Err(Error::invalid("hull: every frame projects to the same point"));
+        if extent.is_nan() || extent <= 0.0 {
+            return Err(Error::invalid(
+                "hull: every frame projects to the same point",
+            ));
         }
         // Lowest frame index first, so a merged duplicate reports the earliest frame.
         let verts: Vec<Vertex> = (0..n)
             .map(|t| {
                 let (x, y) = pt(t);
-                Vertex { p: Point2::new(x, y), frame: t }
+                Vertex {
+                    p: Point2::new(x, y),
+                    frame: t,
+                }
             })
             .collect();
         let tri: DelaunayTriangulation<Vertex> = DelaunayTriangulation::bulk_load_stable(verts)
@@ -65,7 +78,10 @@ impl Heuristic for Hull {
                 .collect();
             corners(&ring, extent)
         };
-        Ok(Selection { columns, centres: None })
+        Ok(Selection {
+            columns,
+            centres: None,
+        })
     }
 }
 
@@ -78,9 +94,17 @@ fn line_ends(an: &Analysis, pt: &dyn Fn(usize) -> (f64, f64)) -> Vec<usize> {
         .unwrap_or(0);
     let d = (pt(far).0 - p0.0, pt(far).1 - p0.1);
     let along = |t: usize| (pt(t).0 - p0.0) * d.0 + (pt(t).1 - p0.1) * d.1;
-    let a = (0..n).min_by(|&i, &j| along(i).total_cmp(&along(j)).then(i.cmp(&j))).unwrap_or(0);
-    let b = (0..n).max_by(|&i, &j| along(i).total_cmp(&along(j)).then(j.cmp(&i))).unwrap_or(0);
-    if a == b { vec![a] } else { vec![a, b] }
+    let a = (0..n)
+        .min_by(|&i, &j| along(i).total_cmp(&along(j)).then(i.cmp(&j)))
+        .unwrap_or(0);
+    let b = (0..n)
+        .max_by(|&i, &j| along(i).total_cmp(&along(j)).then(j.cmp(&i)))
+        .unwrap_or(0);
+    if a == b {
+        vec![a]
+    } else {
+        vec![a, b]
+    }
 }
 
 fn dist2(a: (f64, f64), b: (f64, f64)) -> f64 {
@@ -91,7 +115,10 @@ fn dist2(a: (f64, f64), b: (f64, f64)) -> f64 {
 fn corners(ring: &[(usize, (f64, f64))], extent: f64) -> Vec<usize> {
     let mut pts: Vec<(usize, (f64, f64))> = Vec::with_capacity(ring.len());
     for &v in ring {
-        if pts.last().is_none_or(|l| dist2(l.1, v.1).sqrt() > 1e-9 * extent) {
+        if pts
+            .last()
+            .is_none_or(|l| dist2(l.1, v.1).sqrt() > 1e-9 * extent)
+        {
             pts.push(v);
         }
     }

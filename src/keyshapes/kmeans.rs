@@ -44,7 +44,9 @@ impl Heuristic for KMeans {
         let mut columns = Vec::with_capacity(k);
         for c in 0..k {
             let dist = |t: usize| -> f64 {
-                (0..self.pcs).map(|a| (data[(t, a)] - centroids[(c, a)]).powi(2)).sum()
+                (0..self.pcs)
+                    .map(|a| (data[(t, a)] - centroids[(c, a)]).powi(2))
+                    .sum()
             };
             let best = (0..n)
                 .filter(|&t| !taken[t])

@@ -114,7 +114,10 @@ impl Method {
     pub fn heuristic(&self, opts: &KeyOptions) -> Box<dyn Heuristic + Send + Sync> {
         match *self {
             Method::Spread => Box::new(Spread),
-            Method::KMeans { pcs } => Box::new(KMeans { pcs, seed: opts.seed }),
+            Method::KMeans { pcs } => Box::new(KMeans {
+                pcs,
+                seed: opts.seed,
+            }),
             Method::Hull => Box::new(Hull),
             Method::Greedy => Box::new(Greedy {
                 solver: opts.solver,
@@ -151,6 +154,17 @@ impl Default for KeyOptions {
             shortlist: 8,
         }
     }
+}
+
+/// Principal axes an analysis must keep for `methods` up to `kmax` key shapes: spread uses
+/// ⌈k/2⌉, `kmeansN` uses N, and never fewer than [`DEFAULT_AXES`].
+pub fn axes_needed(methods: &[Method], kmax: usize) -> usize {
+    methods
+        .iter()
+        .fold(DEFAULT_AXES.max(kmax.div_ceil(2)), |a, m| match m {
+            Method::KMeans { pcs } => a.max(*pcs),
+            _ => a,
+        })
 }
 
 /// A prepared sequence with what every heuristic needs: its PCA, the projection, the
@@ -230,13 +244,18 @@ impl Analysis {
                 self.frames()
             )));
         }
-        Ok(self.gram.get_or_init(|| self.coords.transpose() * &self.coords))
+        Ok(self
+            .gram
+            .get_or_init(|| self.coords.transpose() * &self.coords))
     }
 
     /// `G = SᵀS` and `B = SᵀQ` for key columns `keys`.
     fn products(&self, keys: &[usize]) -> Result<(DMatrix<f64>, DMatrix<f64>)> {
         if let Some(&bad) = keys.iter().find(|&&c| c >= self.frames()) {
-            return Err(Error::invalid(format!("key column {bad} out of range (0..{})", self.frames())));
+            return Err(Error::invalid(format!(
+                "key column {bad} out of range (0..{})",
+                self.frames()
+            )));
         }
         if self.frames() <= GRAM_LIMIT {
             let k = self.frame_gram()?;
@@ -261,7 +280,11 @@ impl Analysis {
         let w = match solver {
             Solver::Ls => lstsq::gram_pseudo_inverse(&g, None) * &b,
             Solver::Nnls | Solver::Bounded => {
-                let upper = if solver == Solver::Nnls { f64::INFINITY } else { 1.0 };
+                let upper = if solver == Solver::Nnls {
+                    f64::INFINITY
+                } else {
+                    1.0
+                };
                 active_set_from_gram(&Gram::from_matrix(&g, upper), &b, true).0
             }
         };

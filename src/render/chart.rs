@@ -17,29 +17,44 @@ fn paint(c: [u8; 3]) -> Paint<'static> {
 
 /// About `n` "nice" tick values (1, 2, 5 × 10^e) covering [lo, hi].
 pub fn ticks(lo: f64, hi: f64, n: usize) -> Vec<f64> {
-    if !(hi > lo) {
+    if hi.is_nan() || lo.is_nan() || hi <= lo {
         return vec![lo];
     }
     let raw = (hi - lo) / n.max(1) as f64;
     let mag = 10f64.powf(raw.log10().floor());
-    let step = [1.0, 2.0, 5.0, 10.0].iter().map(|m| m * mag).find(|s| *s >= raw).unwrap_or(10.0 * mag);
+    let step = [1.0, 2.0, 5.0, 10.0]
+        .iter()
+        .map(|m| m * mag)
+        .find(|s| *s >= raw)
+        .unwrap_or(10.0 * mag);
     let start = (lo / step).ceil() as i64;
     let end = (hi / step).floor() as i64;
     (start..=end).map(|i| i as f64 * step).collect()
 }
 
 fn label(v: f64, step: f64) -> String {
-    let decimals = if step >= 1.0 { 0 } else { (-step.log10().floor()) as usize };
+    let decimals = if step >= 1.0 {
+        0
+    } else {
+        (-step.log10().floor()) as usize
+    };
     format!("{v:.decimals$}")
 }
 
 fn line(pixmap: &mut Pixmap, pts: &[(f32, f32)], color: [u8; 3], width: f32, dash: bool) {
     let mut pb = PathBuilder::new();
     for (i, &(x, y)) in pts.iter().enumerate() {
-        if i == 0 { pb.move_to(x, y) } else { pb.line_to(x, y) }
+        if i == 0 {
+            pb.move_to(x, y)
+        } else {
+            pb.line_to(x, y)
+        }
     }
     let Some(path) = pb.finish() else { return };
-    let mut stroke = Stroke { width, ..Stroke::default() };
+    let mut stroke = Stroke {
+        width,
+        ..Stroke::default()
+    };
     if dash {
         stroke.dash = StrokeDash::new(vec![7.0, 5.0], 0.0);
     }
@@ -48,19 +63,41 @@ fn line(pixmap: &mut Pixmap, pts: &[(f32, f32)], color: [u8; 3], width: f32, das
 
 fn dot(pixmap: &mut Pixmap, x: f32, y: f32, r: f32, color: [u8; 3]) {
     if let Some(path) = PathBuilder::from_circle(x, y, r) {
-        pixmap.fill_path(&path, &paint(color), FillRule::Winding, Transform::identity(), None);
+        pixmap.fill_path(
+            &path,
+            &paint(color),
+            FillRule::Winding,
+            Transform::identity(),
+            None,
+        );
     }
 }
 
 /// Renders `spec` into a `width × height` picture.
 pub fn render_plot(spec: &PlotSpec, width: u32, height: u32) -> Result<Pixmap> {
-    let mut pm = Pixmap::new(width, height).ok_or_else(|| Error::invalid(format!("bad picture size {width}×{height}")))?;
+    let mut pm = Pixmap::new(width, height)
+        .ok_or_else(|| Error::invalid(format!("bad picture size {width}×{height}")))?;
     pm.fill(Color::WHITE);
-    let ((x0, x1), (y0, y1)) = spec.bounds().ok_or_else(|| Error::invalid("nothing to plot: every series is empty"))?;
-    let (x0, x1) = if x1 > x0 { (x0, x1) } else { (x0 - 1.0, x1 + 1.0) };
-    let (y0, y1) = if y1 > y0 { (y0, y1 + 0.05 * (y1 - y0)) } else { (y0 - 1.0, y1 + 1.0) };
+    let ((x0, x1), (y0, y1)) = spec
+        .bounds()
+        .ok_or_else(|| Error::invalid("nothing to plot: every series is empty"))?;
+    let (x0, x1) = if x1 > x0 {
+        (x0 - 0.02 * (x1 - x0), x1 + 0.02 * (x1 - x0))
+    } else {
+        (x0 - 1.0, x1 + 1.0)
+    };
+    let (y0, y1) = if y1 > y0 {
+        (y0, y1 + 0.05 * (y1 - y0))
+    } else {
+        (y0 - 1.0, y1 + 1.0)
+    };
     let fs = (height as f32 / 40.0).clamp(11.0, 18.0);
-    let (left, right, top, bottom) = (fs * 5.5, width as f32 - fs * 1.2, fs * 3.0, height as f32 - fs * 3.6);
+    let (left, right, top, bottom) = (
+        fs * 5.5,
+        width as f32 - fs * 1.2,
+        fs * 3.0,
+        height as f32 - fs * 3.6,
+    );
     let sx = |x: f64| left + ((x - x0) / (x1 - x0)) as f32 * (right - left);
     let sy = |y: f64| bottom - ((y - y0) / (y1 - y0)) as f32 * (bottom - top);
     // Grid, ticks and numbers.
@@ -68,29 +105,89 @@ pub fn render_plot(spec: &PlotSpec, width: u32, height: u32) -> Result<Pixmap> {
     let xstep = if xt.len() > 1 { xt[1] - xt[0] } else { 1.0 };
     for &t in &xt {
         line(&mut pm, &[(sx(t), top), (sx(t), bottom)], GRID, 1.0, false);
-        line(&mut pm, &[(sx(t), bottom), (sx(t), bottom + 5.0)], INK, 1.0, false);
-        text::draw(&mut pm, &label(t, xstep), sx(t), bottom + 7.0 + fs, fs, Anchor::Centre, INK);
+        line(
+            &mut pm,
+            &[(sx(t), bottom), (sx(t), bottom + 5.0)],
+            INK,
+            1.0,
+            false,
+        );
+        text::draw(
+            &mut pm,
+            &label(t, xstep),
+            sx(t),
+            bottom + 7.0 + fs,
+            fs,
+            Anchor::Centre,
+            INK,
+        );
     }
     let yt = ticks(y0, y1, 8);
     let ystep = if yt.len() > 1 { yt[1] - yt[0] } else { 1.0 };
     for &t in &yt {
         line(&mut pm, &[(left, sy(t)), (right, sy(t))], GRID, 1.0, false);
-        line(&mut pm, &[(left - 5.0, sy(t)), (left, sy(t))], INK, 1.0, false);
-        text::draw(&mut pm, &label(t, ystep), left - 8.0, sy(t) + fs * 0.35, fs, Anchor::Right, INK);
+        line(
+            &mut pm,
+            &[(left - 5.0, sy(t)), (left, sy(t))],
+            INK,
+            1.0,
+            false,
+        );
+        text::draw(
+            &mut pm,
+            &label(t, ystep),
+            left - 8.0,
+            sy(t) + fs * 0.35,
+            fs,
+            Anchor::Right,
+            INK,
+        );
     }
-    line(&mut pm, &[(left, top), (left, bottom), (right, bottom)], INK, 1.5, false);
+    line(
+        &mut pm,
+        &[(left, top), (left, bottom), (right, bottom)],
+        INK,
+        1.5,
+        false,
+    );
     // Titles.
-    text::draw(&mut pm, &spec.title, (left + right) / 2.0, top - fs * 1.0, fs * 1.15, Anchor::Centre, INK);
-    text::draw(&mut pm, &spec.x_label, (left + right) / 2.0, height as f32 - fs * 0.6, fs, Anchor::Centre, INK);
-    text::draw_vertical(&mut pm, &spec.y_label, fs * 1.0, (top + bottom) / 2.0, fs, INK);
+    text::draw(
+        &mut pm,
+        &spec.title,
+        (left + right) / 2.0,
+        top - fs * 1.0,
+        fs * 1.15,
+        Anchor::Centre,
+        INK,
+    );
+    text::draw(
+        &mut pm,
+        &spec.x_label,
+        (left + right) / 2.0,
+        height as f32 - fs * 0.6,
+        fs,
+        Anchor::Centre,
+        INK,
+    );
+    text::draw_vertical(
+        &mut pm,
+        &spec.y_label,
+        fs * 1.0,
+        (top + bottom) / 2.0,
+        fs,
+        INK,
+    );
     // Series.
     for s in &spec.series {
         let pts: Vec<(f32, f32)> = s.points.iter().map(|&(x, y)| (sx(x), sy(y))).collect();
         match s.style {
-            Style::Marker => pts.iter().for_each(|&(x, y)| dot(&mut pm, x, y, fs * 0.45, s.color)),
+            Style::Marker => pts
+                .iter()
+                .for_each(|&(x, y)| dot(&mut pm, x, y, fs * 0.45, s.color)),
             Style::Line | Style::Dashed => {
                 line(&mut pm, &pts, s.color, 2.0, s.style == Style::Dashed);
-                pts.iter().for_each(|&(x, y)| dot(&mut pm, x, y, 2.5, s.color));
+                pts.iter()
+                    .for_each(|&(x, y)| dot(&mut pm, x, y, 2.5, s.color));
             }
         }
     }
@@ -99,7 +196,11 @@ pub fn render_plot(spec: &PlotSpec, width: u32, height: u32) -> Result<Pixmap> {
 }
 
 fn legend(pm: &mut Pixmap, spec: &PlotSpec, right: f32, top: f32, fs: f32) {
-    let wmax = spec.series.iter().map(|s| text::width(&s.name, fs)).fold(0.0, f32::max);
+    let wmax = spec
+        .series
+        .iter()
+        .map(|s| text::width(&s.name, fs))
+        .fold(0.0, f32::max);
     let (w, row) = (wmax + fs * 3.6, fs * 1.4);
     let h = row * spec.series.len() as f32 + fs * 0.6;
     let (x, y) = (right - w - fs * 0.5, top + fs * 0.5);
@@ -108,7 +209,13 @@ fn legend(pm: &mut Pixmap, spec: &PlotSpec, right: f32, top: f32, fs: f32) {
         let mut pb = PathBuilder::new();
         pb.push_rect(r);
         if let Some(p) = pb.finish() {
-            pm.stroke_path(&p, &paint([160, 160, 160]), &Stroke::default(), Transform::identity(), None);
+            pm.stroke_path(
+                &p,
+                &paint([160, 160, 160]),
+                &Stroke::default(),
+                Transform::identity(),
+                None,
+            );
         }
     }
     for (i, s) in spec.series.iter().enumerate() {
@@ -116,8 +223,22 @@ fn legend(pm: &mut Pixmap, spec: &PlotSpec, right: f32, top: f32, fs: f32) {
         let (lx0, lx1) = (x + fs * 0.5, x + fs * 2.4);
         match s.style {
             Style::Marker => dot(pm, (lx0 + lx1) / 2.0, cy, fs * 0.45, s.color),
-            _ => line(pm, &[(lx0, cy), (lx1, cy)], s.color, 2.0, s.style == Style::Dashed),
+            _ => line(
+                pm,
+                &[(lx0, cy), (lx1, cy)],
+                s.color,
+                2.0,
+                s.style == Style::Dashed,
+            ),
         }
-        text::draw(pm, &s.name, lx1 + fs * 0.5, cy + fs * 0.35, fs, Anchor::Left, INK);
+        text::draw(
+            pm,
+            &s.name,
+            lx1 + fs * 0.5,
+            cy + fs * 0.35,
+            fs,
+            Anchor::Left,
+            INK,
+        );
     }
 }

@@ -39,7 +39,12 @@ fn rasterise(text: &str, px: f32) -> Option<Run> {
     let ascent = lm.ascent.ceil() as i32;
     let h = (lm.ascent - lm.descent).ceil() as usize + 1;
     let glyphs: Vec<_> = text.chars().map(|c| font.rasterize(c, px)).collect();
-    let w = glyphs.iter().map(|(m, _)| m.advance_width).sum::<f32>().ceil() as usize + 2;
+    let w = glyphs
+        .iter()
+        .map(|(m, _)| m.advance_width)
+        .sum::<f32>()
+        .ceil() as usize
+        + 2;
     let mut cov = vec![0u8; w * h];
     let mut pen = 0.0f32;
     for (m, bmp) in &glyphs {
@@ -56,7 +61,12 @@ fn rasterise(text: &str, px: f32) -> Option<Run> {
         }
         pen += m.advance_width;
     }
-    Some(Run { w, h, ascent: ascent.max(0) as usize, cov })
+    Some(Run {
+        w,
+        h,
+        ascent: ascent.max(0) as usize,
+        cov,
+    })
 }
 
 fn blend(pixmap: &mut Pixmap, x: i32, y: i32, color: [u8; 3], a: u8) {
@@ -67,7 +77,12 @@ fn blend(pixmap: &mut Pixmap, x: i32, y: i32, color: [u8; 3], a: u8) {
     let px = &mut pixmap.pixels_mut()[i];
     let a = u16::from(a);
     let mix = |d: u8, s: u8| ((u16::from(d) * (255 - a) + u16::from(s) * a) / 255) as u8;
-    if let Some(c) = PremultipliedColorU8::from_rgba(mix(px.red(), color[0]), mix(px.green(), color[1]), mix(px.blue(), color[2]), 255) {
+    if let Some(c) = PremultipliedColorU8::from_rgba(
+        mix(px.red(), color[0]),
+        mix(px.green(), color[1]),
+        mix(px.blue(), color[2]),
+        255,
+    ) {
         *px = c;
     }
 }
@@ -78,7 +93,15 @@ pub fn width(text: &str, px: f32) -> f32 {
 }
 
 /// Draws `text` with its baseline at `y`.
-pub fn draw(pixmap: &mut Pixmap, text: &str, x: f32, y: f32, px: f32, anchor: Anchor, color: [u8; 3]) {
+pub fn draw(
+    pixmap: &mut Pixmap,
+    text: &str,
+    x: f32,
+    y: f32,
+    px: f32,
+    anchor: Anchor,
+    color: [u8; 3],
+) {
     let Some(r) = rasterise(text, px) else { return };
     let left = match anchor {
         Anchor::Left => x,
@@ -89,7 +112,13 @@ pub fn draw(pixmap: &mut Pixmap, text: &str, x: f32, y: f32, px: f32, anchor: An
     let top = y.round() as i32 - r.ascent as i32;
     for gy in 0..r.h {
         for gx in 0..r.w {
-            blend(pixmap, left + gx as i32, top + gy as i32, color, r.cov[gy * r.w + gx]);
+            blend(
+                pixmap,
+                left + gx as i32,
+                top + gy as i32,
+                color,
+                r.cov[gy * r.w + gx],
+            );
         }
     }
 }
@@ -101,7 +130,13 @@ pub fn draw_vertical(pixmap: &mut Pixmap, text: &str, x: f32, y: f32, px: f32, c
     let bottom = y.round() as i32 + r.w as i32 / 2;
     for gy in 0..r.h {
         for gx in 0..r.w {
-            blend(pixmap, left + gy as i32, bottom - gx as i32, color, r.cov[gy * r.w + gx]);
+            blend(
+                pixmap,
+                left + gy as i32,
+                bottom - gx as i32,
+                color,
+                r.cov[gy * r.w + gx],
+            );
         }
     }
 }

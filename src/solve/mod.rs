@@ -188,13 +188,24 @@ pub fn active_set_batch(
 /// Batch active-set solve from a precomputed Gram form: `gram` from `G = SᵀS` and
 /// `b = Sᵀq` (k × frames) — for callers that already hold inner products, such as key-shape
 /// searches working from the frames' Gram matrix `QᵀQ`.
-pub fn active_set_from_gram(gram: &Gram, b: &DMatrix<f64>, warm: bool) -> (DMatrix<f64>, usize, u64) {
-    chunked_active_set(gram, b.ncols(), warm, |start, m| b.columns(start, m).clone_owned())
+pub fn active_set_from_gram(
+    gram: &Gram,
+    b: &DMatrix<f64>,
+    warm: bool,
+) -> (DMatrix<f64>, usize, u64) {
+    chunked_active_set(gram, b.ncols(), warm, |start, m| {
+        b.columns(start, m).clone_owned()
+    })
 }
 
 /// Runs [`active_set::solve_frame`] over `frames` frames in parallel chunks; `rhs(start, m)`
 /// gives `Sᵀq` for frames `start..start + m`.
-fn chunked_active_set<F>(gram: &Gram, frames: usize, warm: bool, rhs: F) -> (DMatrix<f64>, usize, u64)
+fn chunked_active_set<F>(
+    gram: &Gram,
+    frames: usize,
+    warm: bool,
+    rhs: F,
+) -> (DMatrix<f64>, usize, u64)
 where
     F: Fn(usize, usize) -> DMatrix<f64> + Sync,
 {
@@ -219,7 +230,9 @@ where
                 let bf = b.column(f);
                 if bf.iter().any(|v| !v.is_finite()) {
                     // A NaN/inf frame: report it through non-finite weights.
-                    dst[f * k..(f + 1) * k].iter_mut().for_each(|v| *v = f64::NAN);
+                    dst[f * k..(f + 1) * k]
+                        .iter_mut()
+                        .for_each(|v| *v = f64::NAN);
                     continue;
                 }
                 let r = active_set::solve_frame(gram, bf.as_slice(), &mut w, &mut state, &mut ws);

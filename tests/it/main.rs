@@ -7,6 +7,8 @@
 mod align;
 mod bad_input;
 mod common;
+mod experiments;
+mod keyshapes;
 mod pca;
 mod readers;
 mod reference;

@@ -71,3 +71,47 @@ fn pca_on_a_real_track_explains_most_variance_in_few_axes() {
     let proj = pca.project(&prep.seq.coords, 2);
     assert_eq!(proj.shape(), (2, 216));
 }
+
+#[test]
+fn leading_axes_by_subspace_iteration_match_the_full_decomposition() {
+    for rel in [
+        "mediapipe_face_tracks/liveportrait_d6.csv",
+        "mediapipe_face_tracks/pyfeat_wolfganglanger_pexels.csv",
+    ] {
+        let seq = keyshape_lab::io::read_sequence(&crate::common::shared(rel), &Default::default())
+            .unwrap();
+        let prep = keyshape_lab::decompose::prepare(
+            &seq,
+            &keyshape_lab::decompose::PrepareOptions {
+                points: None,
+                align: true,
+            },
+        )
+        .unwrap();
+        let full = Pca::fit(&prep.seq.coords).unwrap();
+        let fast = Pca::fit_leading(&prep.seq.coords, 24).unwrap();
+        assert_eq!(fast.components.ncols(), 24);
+        assert!((fast.total_variance - full.total_variance).abs() < 1e-9 * full.total_variance);
+        for j in 0..24 {
+            let rel_var = (fast.variances[j] - full.variances[j]).abs() / full.variances[0];
+            assert!(
+                rel_var < 1e-10,
+                "{rel} axis {j}: variance differs by {rel_var:e}"
+            );
+            let dot = fast
+                .components
+                .column(j)
+                .dot(&full.components.column(j))
+                .abs();
+            // Axes with a clear gap to their neighbours must agree as directions.
+            let gap = (full.variances[j] - full.variances[j + 1]).min(if j > 0 {
+                full.variances[j - 1] - full.variances[j]
+            } else {
+                f64::INFINITY
+            });
+            if gap > 1e-3 * full.variances[0] {
+                assert!(dot > 1.0 - 1e-8, "{rel} axis {j}: |cos| = {dot}");
+            }
+        }
+    }
+}

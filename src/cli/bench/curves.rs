@@ -49,7 +49,13 @@ pub fn run(a: &CurvesBenchArgs) -> Result<()> {
     };
     let t_read = t0.elapsed().as_secs_f64();
     let t = Instant::now();
-    let prep = prepare(&seq, &PrepareOptions { points: a.points.clone(), align: true })?;
+    let prep = prepare(
+        &seq,
+        &PrepareOptions {
+            points: a.points.clone(),
+            align: true,
+        },
+    )?;
     let t_align = t.elapsed().as_secs_f64();
     let t = Instant::now();
     let an = Analysis::new(prep.seq.coords.clone(), prep.seq.points)?;
@@ -63,7 +69,10 @@ pub fn run(a: &CurvesBenchArgs) -> Result<()> {
         short(&seq.source),
         an.frames(),
         an.points,
-        a.points.as_deref().map(|p| format!(", {p}")).unwrap_or_default(),
+        a.points
+            .as_deref()
+            .map(|p| format!(", {p}"))
+            .unwrap_or_default(),
         a.kmax,
         rayon::current_num_threads()
     );
@@ -86,15 +95,26 @@ pub fn run(a: &CurvesBenchArgs) -> Result<()> {
             // Same selections (k-means included), errors by the textbook solver.
             let t = Instant::now();
             for r in &rows {
-                let keys = if m == Method::Hull { r.keys.clone() } else { m.heuristic(&opts).select(&an, r.k)?.columns };
+                let keys = if m == Method::Hull {
+                    r.keys.clone()
+                } else {
+                    m.heuristic(&opts).select(&an, r.k)?.columns
+                };
                 std::hint::black_box(textbook_error(&an, &keys));
             }
             (t.elapsed().as_secs_f64(), "")
         };
         total_plain += plain;
-        println!("| sweep: {} | {secs:.3} | {plain:.2}{note} | {:.0}× |", m.name(), plain / secs);
+        println!(
+            "| sweep: {} | {secs:.3} | {plain:.2}{note} | {:.0}× |",
+            m.name(),
+            plain / secs
+        );
     }
-    println!("| **sweep, all methods** | **{total:.3}** | **{total_plain:.1}** | **{:.0}×** |", total_plain / total);
+    println!(
+        "| **sweep, all methods** | **{total:.3}** | **{total_plain:.1}** | **{:.0}×** |",
+        total_plain / total
+    );
     let all = t_read + t_align + t_pca + t_gram + total;
     println!("| **everything from reading on** | **{all:.3}** | | |");
     Ok(())
@@ -108,7 +128,9 @@ fn plain_greedy_estimate(an: &Analysis, kmax: usize) -> f64 {
     let sample: Vec<usize> = (0..100.min(n)).map(|i| i * n / 100.min(n)).collect();
     let mut est = 0.0;
     for k in 1..=kmax {
-        let keys: Vec<usize> = (0..k).map(|i| i * (n - 1) / k.max(2).saturating_sub(1).max(1)).collect();
+        let keys: Vec<usize> = (0..k)
+            .map(|i| i * (n - 1) / k.max(2).saturating_sub(1).max(1))
+            .collect();
         let s = an.coords.select_columns(&keys);
         let t = Instant::now();
         for &f in &sample {

@@ -1,0 +1,235 @@
+//! Key-shape heuristics: their defining properties, on random and real shapes.
+
+use keyshape_lab::keyshapes::{greedy_path, Analysis, KeyOptions, Method};
+use keyshape_lab::solve::{SolveOptions, Solver};
+use nalgebra::DMatrix;
+use proptest::prelude::*;
+
+/// Shapes: a base plus a few modes with random amplitudes, some frames repeated.
+fn shapes() -> impl Strategy<Value = DMatrix<f64>> {
+    (
+        6usize..16,
+        8usize..40,
+        prop::collection::vec(-1.0f64..1.0, 16 * 3 + 40 * 3),
+        any::<bool>(),
+    )
+        .prop_map(|(rows, frames, v, repeat)| {
+            let rows = rows * 2;
+            let mut q = DMatrix::from_fn(rows, frames, |i, t| {
+                let base = (i as f64 * 0.7).sin() * 10.0;
+                base + (0..3)
+                    .map(|m| v[(i % 16) * 3 + m] * v[48 + (t % 40) * 3 + m] * (3.0 - m as f64))
+                    .sum::<f64>()
+            });
+            if repeat {
+                let c = q.column(0).clone_owned();
+                q.set_column(frames - 1, &c);
+            }
+            q
+        })
+}
+
+fn all_methods() -> Vec<Method> {
+    Method::ALL.to_vec()
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(60))]
+
+    #[test]
+    fn no_method_returns_a_duplicate_frame(q in shapes(), k in 1usize..6) {
+        let an = Analysis::new(q, 1).unwrap();
+        prop_assume!(k <= an.distinct && an.proj.nrows() >= 3);
+        for m in all_methods() {
+            let sel = m.heuristic(&KeyOptions::default()).select(&an, k).unwrap();
+            let mut c = sel.columns.clone();
+            c.sort_unstable();
+            c.dedup();
+            prop_assert_eq!(c.len(), sel.columns.len(), "{} returned a frame twice", m);
+            if m != Method::Hull {
+                prop_assert_eq!(sel.columns.len(), k);
+            }
+        }
+    }
+
+    #[test]
+    fn spread_takes_the_extremes_of_each_axis(q in shapes()) {
+        let an = Analysis::new(q, 1).unwrap();
+        prop_assume!(an.proj.nrows() >= 2 && an.distinct >= 4);
+        let sel = Method::Spread.heuristic(&KeyOptions::default()).select(&an, 4).unwrap();
+        for (i, want_max) in [(0, true), (1, false), (2, true), (3, false)] {
+            let axis = i / 2;
+            let row = an.proj.row(axis);
+            let v = row[sel.columns[i]];
+            // The pick is the extreme among the frames not already taken.
+            let taken = &sel.columns[..i];
+            let others = (0..an.frames()).filter(|c| !taken.contains(c)).map(|c| row[c]);
+            let ext = if want_max { others.fold(f64::NEG_INFINITY, f64::max) } else { others.fold(f64::INFINITY, f64::min) };
+            prop_assert_eq!(v, ext, "axis {} {}", axis, if want_max { "max" } else { "min" });
+        }
+    }
+
+    #[test]
+    fn every_frame_projects_inside_the_hull(q in shapes()) {
+        let an = Analysis::new(q, 1).unwrap();
+        prop_assume!(an.proj.nrows() >= 2);
+        let sel = Method::Hull.heuristic(&KeyOptions::default()).select(&an, 0).unwrap();
+        let p = |c: usize| (an.proj[(0, c)], an.proj[(1, c)]);
+        let h: Vec<(f64, f64)> = sel.columns.iter().map(|&c| p(c)).collect();
+        prop_assert!(h.len() >= 2);
+        if h.len() >= 3 {
+            let extent = an.proj.rows(0, 2).amax();
+            // Hull corners come clockwise: every frame is right of (or on) every edge.
+            for t in 0..an.frames() {
+                let (x, y) = p(t);
+                for i in 0..h.len() {
+                    let (a, b) = (h[i], h[(i + 1) % h.len()]);
+                    let cross = (b.0 - a.0) * (y - a.1) - (b.1 - a.1) * (x - a.0);
+                    prop_assert!(cross <= 1e-9 * extent * extent, "frame {} outside edge {}: {}", t, i, cross);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn greedy_error_never_increases_with_k(q in shapes(), solver in prop::sample::select(Solver::ALL.to_vec())) {
+        let an = Analysis::new(q, 1).unwrap();
+        let kmax = an.distinct.min(6);
+        let Ok((keys, errs)) = greedy_path(&an, kmax, solver, 8) else { return Ok(()) };
+        prop_assert_eq!(keys.len(), errs.len());
+        for w in errs.windows(2) {
+            prop_assert!(w[1] <= w[0] * (1.0 + 1e-9) + 1e-9, "{:?}", errs);
+        }
+    }
+
+    #[test]
+    fn gram_path_error_equals_the_direct_residual(q in shapes(), solver in prop::sample::select(Solver::ALL.to_vec())) {
+        let an = Analysis::new(q.clone(), 1).unwrap();
+        prop_assume!(an.distinct >= 3);
+        let keys = Method::Spread.heuristic(&KeyOptions::default()).select(&an, 3).unwrap().columns;
+        let e = an.error(&keys, solver).unwrap();
+        let d = keyshape_lab::decompose::decompose(&q, 1, &keys, None, &SolveOptions::new(solver)).unwrap();
+        let direct = d.total_sq_error();
+        let scale = q.norm_squared();
+        prop_assert!((e - direct).abs() <= 1e-8 * scale + 1e-9, "gram {e} vs direct {direct}");
+    }
+}
+
+#[test]
+fn kmeans_is_deterministic_for_a_seed_and_differs_across_seeds() {
+    let seq = keyshape_lab::io::builtin_sequence().unwrap();
+    let an = Analysis::new(seq.coords, seq.points).unwrap();
+    let pick = |seed| {
+        Method::KMeans { pcs: 3 }
+            .heuristic(&KeyOptions {
+                seed,
+                ..KeyOptions::default()
+            })
+            .select(&an, 10)
+            .unwrap()
+    };
+    assert_eq!(pick(7), pick(7));
+    let centres = pick(7).centres.unwrap();
+    assert_eq!(centres.shape(), (3, 10));
+}
+
+#[test]
+fn asking_for_more_keys_than_distinct_shapes_is_a_clear_error() {
+    let base = DMatrix::from_fn(6, 4, |i, t| (i * 3 + t * 7) as f64 % 5.0);
+    let q = DMatrix::from_fn(6, 12, |i, t| base[(i, t % 4)]);
+    let an = Analysis::new(q, 3).unwrap();
+    assert_eq!(an.distinct, 4);
+    for m in [
+        Method::Spread,
+        Method::KMeans { pcs: 2 },
+        Method::Greedy,
+        Method::Random,
+    ] {
+        let e = m
+            .heuristic(&KeyOptions::default())
+            .select(&an, 5)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("only 4 distinct shapes"), "{m}: {e}");
+    }
+}
+
+#[test]
+fn hull_handles_collinear_and_duplicate_projections() {
+    // Every frame a multiple of one direction: the projections lie on a line.
+    let dir = DMatrix::from_fn(8, 1, |i, _| i as f64 - 3.5);
+    let q = DMatrix::from_fn(8, 9, |i, t| {
+        100.0 + dir[(i, 0)] * [0.0, 1.0, 2.0, 2.0, 3.0, 1.5, 0.5, 3.0, 1.0][t]
+    });
+    let an = Analysis::new(q, 4).unwrap();
+    let sel = Method::Hull
+        .heuristic(&KeyOptions::default())
+        .select(&an, 0)
+        .unwrap();
+    let mut c = sel.columns.clone();
+    c.sort_unstable();
+    assert_eq!(
+        c,
+        vec![0, 4],
+        "the two ends, lowest index of the duplicates"
+    );
+}
+
+#[test]
+fn fig6_shape_holds_on_real_lips_spread_is_nested_and_decreasing() {
+    let seq = keyshape_lab::io::builtin_sequence().unwrap();
+    let prep = keyshape_lab::decompose::prepare(
+        &seq,
+        &keyshape_lab::decompose::PrepareOptions {
+            points: Some("lips".into()),
+            align: true,
+        },
+    )
+    .unwrap();
+    let an = Analysis::new(prep.seq.coords, prep.seq.points).unwrap();
+    let mut prev = f64::INFINITY;
+    let mut prev_keys: Vec<usize> = Vec::new();
+    for k in 2..=16 {
+        let keys = Method::Spread
+            .heuristic(&KeyOptions::default())
+            .select(&an, k)
+            .unwrap()
+            .columns;
+        assert!(
+            prev_keys.iter().all(|c| keys.contains(c)),
+            "spread sets are nested"
+        );
+        let e = an.error(&keys, Solver::Nnls).unwrap();
+        assert!(e <= prev * (1.0 + 1e-12));
+        prev = e;
+        prev_keys = keys;
+    }
+    // Every heuristic beats the random floor at k = 12 on this track.
+    let floor = an
+        .error(
+            &Method::Random
+                .heuristic(&KeyOptions::default())
+                .select(&an, 12)
+                .unwrap()
+                .columns,
+            Solver::Nnls,
+        )
+        .unwrap();
+    for m in [
+        Method::Spread,
+        Method::KMeans { pcs: 2 },
+        Method::KMeans { pcs: 3 },
+        Method::Greedy,
+    ] {
+        let e = an
+            .error(
+                &m.heuristic(&KeyOptions::default())
+                    .select(&an, 12)
+                    .unwrap()
+                    .columns,
+                Solver::Nnls,
+            )
+            .unwrap();
+        assert!(e < floor, "{m}: {e} not below random {floor}");
+    }
+}
