@@ -30,7 +30,7 @@ pub struct CurvesArgs {
     /// Write the curves as CSV (method,solver,k,total_sq_error,rms).
     #[arg(long)]
     out: Option<PathBuf>,
-    /// Write the plot as PNG (one file per solver when several: NAME_<solver>.png).
+    /// Write the plot as PNG (one file per solver when several: `NAME_<solver>.png`).
     #[arg(long)]
     png: Option<PathBuf>,
     /// No progress bar.

@@ -12,7 +12,7 @@ use std::path::PathBuf;
 pub struct RunArgs {
     /// The experiment file (TOML; see experiments/ and the README).
     spec: PathBuf,
-    /// Output folder (default: out/<spec name>/).
+    /// Output folder (default: `out/<spec name>/`).
     #[arg(long)]
     out: Option<PathBuf>,
     /// No progress bar.
