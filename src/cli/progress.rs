@@ -1,48 +1,47 @@
-//! A progress bar that appears only when a job has run for more than a second and stderr
-//! is a terminal, and never with `--quiet`.
+//! A progress bar that appears only once a job has run for more than a second (and only on
+//! a terminal: indicatif draws nothing when stderr is not one), never with `--quiet`.
 
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use std::sync::Mutex;
-use std::time::{Duration, Instant};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::Duration;
 
 pub struct Progress {
     bar: ProgressBar,
-    start: Instant,
-    quiet: bool,
-    shown: Mutex<bool>,
+    done: Arc<AtomicBool>,
 }
 
 impl Progress {
     pub fn new(message: &str, quiet: bool) -> Progress {
         let bar = ProgressBar::with_draw_target(Some(0), ProgressDrawTarget::hidden());
-        if let Ok(style) = ProgressStyle::with_template("{msg} [{bar:30}] {pos}/{len} {elapsed}") {
+        if let Ok(style) =
+            ProgressStyle::with_template("{spinner} {msg} [{bar:30}] {pos}/{len} {elapsed}")
+        {
             bar.set_style(style.progress_chars("=> "));
         }
         bar.set_message(message.to_string());
-        Progress {
-            bar,
-            start: Instant::now(),
-            quiet,
-            shown: Mutex::new(false),
+        let done = Arc::new(AtomicBool::new(false));
+        if !quiet {
+            let (bar, done) = (bar.clone(), done.clone());
+            std::thread::spawn(move || {
+                std::thread::sleep(Duration::from_secs(1));
+                if !done.load(Ordering::SeqCst) {
+                    bar.set_draw_target(ProgressDrawTarget::stderr());
+                    bar.enable_steady_tick(Duration::from_millis(120));
+                }
+            });
         }
+        Progress { bar, done }
     }
 
     /// Records `done` of `total` steps.
     pub fn tick(&self, done: usize, total: usize) {
         self.bar.set_length(total as u64);
         self.bar.set_position(done as u64);
-        if self.quiet || self.start.elapsed() < Duration::from_secs(1) {
-            return;
-        }
-        if let Ok(mut shown) = self.shown.lock() {
-            if !*shown {
-                *shown = true;
-                self.bar.set_draw_target(ProgressDrawTarget::stderr());
-            }
-        }
     }
 
     pub fn finish(&self) {
+        self.done.store(true, Ordering::SeqCst);
         self.bar.finish_and_clear();
     }
 }
