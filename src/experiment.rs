@@ -19,6 +19,7 @@ use crate::error::{Error, Result};
 use crate::io::{builtin_sequence, read_sequence, ReadOptions};
 use crate::keyshapes::curves::{sweep, CurveRow};
 use crate::keyshapes::{axes_needed, Analysis, KeyOptions, Method};
+use nalgebra::DMatrix;
 use crate::sequence::Format;
 use crate::solve::Solver;
 use serde::{Deserialize, Deserializer, Serialize};
@@ -45,14 +46,18 @@ pub struct Spec {
     /// Remove 2-D head motion first.
     #[serde(default = "yes")]
     pub align: bool,
-    /// Key-shape methods.
-    #[serde(deserialize_with = "methods", serialize_with = "method_names")]
+    /// Key-shape methods for error curves (empty: no curves).
+    #[serde(default, deserialize_with = "methods", serialize_with = "method_names")]
     pub methods: Vec<Method>,
-    /// Inclusive k range.
-    #[serde(deserialize_with = "k_range")]
+    /// Inclusive k range of the curves.
+    #[serde(default = "k_default", deserialize_with = "k_range")]
     pub k: (usize, usize),
-    /// Solvers.
+    /// Solvers of the curves.
+    #[serde(default = "nnls_only")]
     pub solvers: Vec<Solver>,
+    /// A retargeting study (paper 000 Figs. 4–5), optional.
+    #[serde(default)]
+    pub retarget: Option<RetargetSpec>,
     /// Seed for kmeans and random.
     #[serde(default = "seven")]
     pub seed: u64,
@@ -62,6 +67,46 @@ pub struct Spec {
     /// Write PNG plots.
     #[serde(default = "yes")]
     pub png: bool,
+}
+
+/// `[retarget]`: LS against NNLS through a target face.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RetargetSpec {
+    /// Heuristic choosing the key frames.
+    #[serde(deserialize_with = "method", serialize_with = "method_name")]
+    pub method: Method,
+    /// Number of key shapes.
+    pub k: usize,
+    /// Solvers compared (the first is the one whose distortion the strip shows).
+    pub solvers: Vec<Solver>,
+    /// Tracing noise levels on the built-in target, in inter-ocular distances.
+    #[serde(default = "zero_noise")]
+    pub trace_noise: Vec<f64>,
+    /// Frames in the strip of worst frames (0 = none).
+    #[serde(default = "four")]
+    pub strip: usize,
+}
+
+fn zero_noise() -> Vec<f64> {
+    vec![0.0]
+}
+fn four() -> usize {
+    4
+}
+fn k_default() -> (usize, usize) {
+    (2, 24)
+}
+fn nnls_only() -> Vec<Solver> {
+    vec![Solver::Nnls]
+}
+
+fn method<'de, D: Deserializer<'de>>(d: D) -> std::result::Result<Method, D::Error> {
+    Method::parse(&String::deserialize(d)?).map_err(serde::de::Error::custom)
+}
+
+fn method_name<S: serde::Serializer>(m: &Method, s: S) -> std::result::Result<S::Ok, S::Error> {
+    s.serialize_str(&m.name())
 }
 
 fn two() -> usize {
@@ -147,11 +192,16 @@ impl Spec {
                 format!("range {}..{} is empty or starts at 0", spec.k.0, spec.k.1),
             ));
         }
-        if spec.methods.is_empty() {
-            return Err(at("methods", "name at least one method".into()));
+        if spec.methods.is_empty() && spec.retarget.is_none() {
+            return Err(at("methods", "name at least one method (or add a [retarget] table)".into()));
         }
         if spec.solvers.is_empty() {
             return Err(at("solvers", "name at least one solver".into()));
+        }
+        if let Some(r) = &spec.retarget {
+            if r.solvers.is_empty() || r.k == 0 || r.trace_noise.iter().any(|v| !(v.is_finite() && *v >= 0.0)) {
+                return Err(at("retarget", "needs k ≥ 1, at least one solver, and trace_noise values ≥ 0".into()));
+            }
         }
         if spec.dims != 2 && spec.dims != 3 {
             return Err(at("dims", format!("must be 2 or 3, got {}", spec.dims)));
@@ -200,6 +250,52 @@ pub struct Outcome {
     pub rows: Vec<CurveRow>,
     /// Seconds per stage: read, prepare, pca, sweep.
     pub timings: Vec<(String, f64)>,
+    /// Retargeting study rows (one per trace-noise level and solver).
+    pub retarget: Vec<RetargetRow>,
+    /// The frames where the first solver distorts most, for the strip picture.
+    #[serde(skip)]
+    pub strip: Option<Strip>,
+}
+
+/// One retargeting result.
+#[derive(Debug, Clone, Serialize)]
+pub struct RetargetRow {
+    /// Solver.
+    pub solver: String,
+    /// Tracing noise on the target key shapes, in inter-ocular distances.
+    pub trace_noise: f64,
+    /// Key frames (frame numbers).
+    pub keys: Vec<i64>,
+    /// Source RMS per point.
+    pub source_rms: f64,
+    /// Target-domain RMS per point against G(Q_t).
+    pub target_rms: f64,
+    /// Mean squared second difference of the weights.
+    pub jitter: f64,
+    /// Share of negative weights.
+    pub negative_share: f64,
+    /// Largest |w|.
+    pub max_abs_weight: f64,
+}
+
+/// Shapes for a strip of frames (aligned coordinates): per frame the tracked shape, the
+/// ground truth G(q) and, per solver, the source reconstruction and the retargeted shape.
+#[derive(Debug, Clone)]
+pub struct Strip {
+    /// Tracing noise level used.
+    pub trace_noise: f64,
+    /// Frame numbers.
+    pub frames: Vec<i64>,
+    /// Drawing contours (selection indices).
+    pub polylines: Vec<Vec<usize>>,
+    /// Values per point.
+    pub dims: usize,
+    /// Tracked shapes (n × strip frames).
+    pub tracked: DMatrix<f64>,
+    /// Ground truth G(q).
+    pub truth: DMatrix<f64>,
+    /// Per solver: (name, source reconstruction, retargeted, per-frame target RMS).
+    pub solvers: Vec<(String, DMatrix<f64>, DMatrix<f64>, Vec<f64>)>,
 }
 
 /// Runs a spec whose relative paths are relative to `base`.
@@ -236,15 +332,18 @@ pub fn run(spec: &Spec, base: &Path, tick: &(dyn Fn(usize, usize) + Sync)) -> Re
         seed: spec.seed,
         shortlist: spec.shortlist,
     };
-    let rows = sweep(
-        &an,
-        &spec.methods,
-        spec.k.0..=spec.k.1,
-        &spec.solvers,
-        &opts,
-        tick,
-    )?;
+    let rows = if spec.methods.is_empty() {
+        Vec::new()
+    } else {
+        sweep(&an, &spec.methods, spec.k.0..=spec.k.1, &spec.solvers, &opts, tick)?
+    };
     timings.push(("sweep".to_string(), t.elapsed().as_secs_f64()));
+    let t = Instant::now();
+    let (retarget, strip) = match &spec.retarget {
+        Some(r) => retarget_study(r, &seq, &prep, &an, &opts)?,
+        None => (Vec::new(), None),
+    };
+    timings.push(("retarget".to_string(), t.elapsed().as_secs_f64()));
     Ok(Outcome {
         spec: spec.clone(),
         input,
@@ -254,5 +353,76 @@ pub fn run(spec: &Spec, base: &Path, tick: &(dyn Fn(usize, usize) + Sync)) -> Re
         explained_variance: an.pca.explained_ratio().into_iter().take(6).collect(),
         rows,
         timings,
+        retarget,
+        strip,
     })
+}
+
+/// Paper 000 Figs. 4–5 on the built-in target: the same key frames, each solver, each
+/// tracing-noise level; the strip shows the highest noise level's worst frames for the
+/// first solver.
+fn retarget_study(
+    r: &RetargetSpec,
+    seq: &crate::sequence::Sequence,
+    prep: &crate::decompose::Prepared,
+    an: &Analysis,
+    opts: &KeyOptions,
+) -> Result<(Vec<RetargetRow>, Option<Strip>)> {
+    use crate::retarget::{retarget, setup, KeyPlan, Target};
+    let keys = if an.proj.nrows() >= crate::keyshapes::axes_needed(&[r.method], r.k) {
+        r.method.heuristic(opts).select(an, r.k)?.columns
+    } else {
+        let an2 = Analysis::with_axes(an.coords.clone(), an.points, axes_needed(&[r.method], r.k))?;
+        r.method.heuristic(opts).select(&an2, r.k)?.columns
+    };
+    let key_frames: Vec<i64> = keys.iter().map(|&c| prep.seq.frames[c]).collect();
+    let (g, iod) = setup::builtin_target(seq, prep)?;
+    let mut rows = Vec::new();
+    let mut last = Vec::new();
+    let top_noise = r.trace_noise.iter().copied().fold(0.0, f64::max);
+    for &noise in &r.trace_noise {
+        for &solver in &r.solvers {
+            let target = Target::Warp { g: g.clone(), trace_noise: noise * iod };
+            let res = retarget(&prep.seq.coords, prep.seq.dims, &KeyPlan::Global(keys.clone()), &target, None, solver)?;
+            rows.push(RetargetRow {
+                solver: solver.name().into(),
+                trace_noise: noise,
+                keys: key_frames.clone(),
+                source_rms: res.source_rms(),
+                target_rms: res.target_rms().unwrap_or(f64::NAN),
+                jitter: res.jitter(),
+                negative_share: res.negative_share(),
+                max_abs_weight: res.weights.iter().flat_map(|w| w.iter()).fold(0.0, |m, v| m.max(v.abs())),
+            });
+            if noise == top_noise {
+                last.push((solver, res));
+            }
+        }
+    }
+    if r.strip == 0 || last.is_empty() {
+        return Ok((rows, None));
+    }
+    let first = last[0].1.target_rms_per_frame().unwrap_or_default();
+    let mut order: Vec<usize> = (0..first.len()).collect();
+    order.sort_by(|&a, &b| first[b].total_cmp(&first[a]));
+    let mut cols: Vec<usize> = order.into_iter().take(r.strip).collect();
+    cols.sort_unstable();
+    let polylines = prep.layout.as_ref().map(|l| setup::polylines_for(l, &prep.point_indices)).unwrap_or_default();
+    let truth = last[0].1.truth.clone().unwrap_or_else(|| prep.seq.coords.clone());
+    let strip = Strip {
+        trace_noise: top_noise,
+        frames: cols.iter().map(|&c| prep.seq.frames[c]).collect(),
+        polylines,
+        dims: prep.seq.dims,
+        tracked: prep.seq.coords.select_columns(&cols),
+        truth: truth.select_columns(&cols),
+        solvers: last
+            .iter()
+            .map(|(s, res)| {
+                let per = res.target_rms_per_frame().unwrap_or_default();
+                (s.name().to_string(), res.source.select_columns(&cols), res.target.select_columns(&cols), cols.iter().map(|&c| per[c]).collect())
+            })
+            .collect(),
+    };
+    Ok((rows, Some(strip)))
 }

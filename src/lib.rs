@@ -40,6 +40,7 @@ pub mod pca;
 pub mod plot;
 pub mod render;
 pub mod report;
+pub mod retarget;
 pub mod sequence;
 pub mod solve;
 

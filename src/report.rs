@@ -1,7 +1,7 @@
 //! Writes an experiment's outcome: `curves.csv`, `report.json` and one PNG per solver.
 
 use crate::error::{Error, Result};
-use crate::experiment::Outcome;
+use crate::experiment::{Outcome, Strip};
 use crate::io::{fmt_num, write_atomic};
 use crate::keyshapes::curves::CurveRow;
 use crate::plot::curves_plot;
@@ -38,11 +38,28 @@ pub fn write_curves_png(rows: &[CurveRow], solver: &str, title: &str, path: &Pat
 pub fn write_outcome(o: &Outcome, dir: &Path) -> Result<Vec<PathBuf>> {
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
     let mut files = Vec::new();
-    let csv = dir.join("curves.csv");
-    write_atomic(&csv, |w| write_curves_csv(w, &o.rows))?;
-    files.push(csv);
     let mut figures = Vec::new();
-    if o.spec.png {
+    if !o.rows.is_empty() {
+        let csv = dir.join("curves.csv");
+        write_atomic(&csv, |w| write_curves_csv(w, &o.rows))?;
+        files.push(csv);
+    }
+    if !o.retarget.is_empty() {
+        let csv = dir.join("retarget.csv");
+        write_atomic(&csv, |w| {
+            writeln!(w, "solver,trace_noise,source_rms,target_rms,jitter,negative_share,max_abs_weight")?;
+            for r in &o.retarget {
+                writeln!(w, "{},{},{},{},{},{},{}", r.solver, fmt_num(r.trace_noise), fmt_num(r.source_rms), fmt_num(r.target_rms), fmt_num(r.jitter), fmt_num(r.negative_share), fmt_num(r.max_abs_weight))?;
+            }
+            Ok(())
+        })?;
+        files.push(csv);
+    }
+    if let (Some(strip), true) = (&o.strip, o.spec.png) {
+        save_png(&render_strip(strip)?, &dir.join("strip.png"))?;
+        figures.push("strip.png".to_string());
+    }
+    if o.spec.png && !o.rows.is_empty() {
         for s in &o.spec.solvers {
             let name = format!("curves_{}.png", s.name());
             write_curves_png(&o.rows, s.name(), &o.spec.title, &dir.join(&name))?;
@@ -60,6 +77,8 @@ pub fn write_outcome(o: &Outcome, dir: &Path) -> Result<Vec<PathBuf>> {
         "timings_s": o.timings.iter().map(|(k, v)| (k.clone(), json!(v))).collect::<serde_json::Map<_, _>>(),
         "figures": figures,
         "rows": o.rows,
+        "retarget": o.retarget,
+        "strip_frames": o.strip.as_ref().map(|s| s.frames.clone()),
     });
     let path = dir.join("report.json");
     let text = serde_json::to_string_pretty(&report).map_err(|e| Error::invalid(e.to_string()))?;
@@ -67,4 +86,42 @@ pub fn write_outcome(o: &Outcome, dir: &Path) -> Result<Vec<PathBuf>> {
     files.push(path);
     files.extend(figures.iter().map(|f| dir.join(f)));
     Ok(files)
+}
+
+/// One row per strip frame: the source with the first solver's reconstruction, then per
+/// solver the target-domain truth with that solver's retargeted shape.
+pub fn render_strip(s: &Strip) -> Result<tiny_skia::Pixmap> {
+    use crate::render::face::{bounds_of, col, render_panels, Layer, Panel};
+    let mut all = vec![&s.truth];
+    all.extend(s.solvers.iter().map(|x| &x.2));
+    let tb = bounds_of(&all, s.dims);
+    let mut src = vec![&s.tracked];
+    src.extend(s.solvers.iter().map(|x| &x.1));
+    let sb = bounds_of(&src, s.dims);
+    let colours = [[200, 30, 30], [31, 90, 200], [30, 150, 60]];
+    let mut rows = Vec::new();
+    for (i, frame) in s.frames.iter().enumerate() {
+        let (name0, rec0, _, _) = &s.solvers[0];
+        let mut panels = vec![Panel {
+            title: "source".into(),
+            layers: vec![
+                Layer { name: "tracked", shape: col(&s.tracked, i), dims: s.dims, polylines: &s.polylines, color: [20, 20, 20], dashed: false },
+                Layer { name: name0, shape: col(rec0, i), dims: s.dims, polylines: &s.polylines, color: [31, 90, 200], dashed: true },
+            ],
+            bounds: sb,
+        }];
+        for (j, (name, _, tgt, rms)) in s.solvers.iter().enumerate() {
+            panels.push(Panel {
+                title: format!("target, {name}: RMS {:.2}", rms[i]),
+                layers: vec![
+                    Layer { name: "ground truth G(q)", shape: col(&s.truth, i), dims: s.dims, polylines: &s.polylines, color: [150, 150, 150], dashed: true },
+                    Layer { name, shape: col(tgt, i), dims: s.dims, polylines: &s.polylines, color: colours[j % 3], dashed: false },
+                ],
+                bounds: tb,
+            });
+        }
+        let caption = format!("frame {frame}   (tracing noise {} IOD)", s.trace_noise);
+        rows.push(render_panels(&panels, &caption, 300)?);
+    }
+    crate::render::face::stack(&rows)
 }

@@ -6,6 +6,7 @@ mod info;
 mod input;
 mod keys;
 mod progress;
+mod retarget;
 mod run;
 mod solve;
 
@@ -31,6 +32,8 @@ enum Command {
     Keys(keys::KeysArgs),
     /// Error against number of key shapes for each heuristic (paper 000 Fig. 6).
     Curves(curves::CurvesArgs),
+    /// Retarget the performance onto target key shapes (paper 000 Eq. 2, §5).
+    Retarget(retarget::RetargetArgs),
     /// Run a scripted experiment (experiments/*.toml): CSV, JSON and PNG reports.
     Run(run::RunArgs),
     /// Measure solver and sweep speed (the figures in BENCHMARKS.md).
@@ -45,6 +48,7 @@ pub fn main() -> ExitCode {
         Command::Solve(a) => solve::run(&a),
         Command::Keys(a) => keys::run(&a),
         Command::Curves(a) => curves::run(&a),
+        Command::Retarget(a) => retarget::run(&a),
         Command::Run(a) => run::run(&a),
         Command::Bench(a) => bench::run(&a),
     };

@@ -4,6 +4,7 @@
 pub mod atomic;
 mod builtin;
 pub mod json;
+pub mod svg;
 mod pts;
 mod table;
 

@@ -1,7 +1,9 @@
 //! Pictures with tiny-skia: line plots from [`crate::plot::PlotSpec`]. The numeric core never
 //! calls in here.
 
+pub mod apng;
 mod chart;
+pub mod face;
 pub mod text;
 
 pub use chart::render_plot;

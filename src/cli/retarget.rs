@@ -1,0 +1,240 @@
+//! `kslab retarget`: weights from the source drive a target face; metrics, frames, APNG.
+
+use super::input::InputArgs;
+use super::keys::{parse_method, HeuristicArgs};
+use anyhow::{Context, Result};
+use clap::Args;
+use keyshape_lab::decompose::Prepared;
+use keyshape_lab::io::{fmt_num, write_atomic};
+use keyshape_lab::keyshapes::{axes_needed, Analysis, KeyOptions, Method};
+use keyshape_lab::render::face::{bounds_of, col, render_panels, Layer, Panel};
+use keyshape_lab::render::{apng::write_apng, save_png};
+use keyshape_lab::retarget::regions::{plan, Regions};
+use keyshape_lab::retarget::setup::{builtin_target, polylines_for};
+use keyshape_lab::retarget::target::TargetSet;
+use keyshape_lab::retarget::{retarget, with_head_motion, KeyPlan, Retargeted, Target};
+use keyshape_lab::sequence::Sequence;
+use keyshape_lab::solve::Solver;
+use nalgebra::DMatrix;
+use serde_json::json;
+use std::io::Write;
+use std::path::PathBuf;
+
+/// Arguments of `kslab retarget`.
+#[derive(Debug, Args)]
+pub struct RetargetArgs {
+    #[command(flatten)]
+    input: InputArgs,
+    /// Key frames by frame number (or choose them with --method and --k).
+    #[arg(long, value_delimiter = ',', conflicts_with = "method")]
+    keys: Vec<i64>,
+    /// Heuristic choosing the key frames.
+    #[arg(long, value_parser = parse_method)]
+    method: Option<Method>,
+    /// Number of key shapes for --method.
+    #[arg(long, default_value_t = 12)]
+    k: usize,
+    /// ls, nnls or bounded.
+    #[arg(long, default_value = "nnls", value_parser = super::solve::parse_solver)]
+    solver: Solver,
+    /// Target key shapes: a JSON target set or an SVG from `kslab template` (default: the
+    /// built-in cartoon face, a smooth warp of the source, which also gives a ground truth).
+    #[arg(long)]
+    target: Option<PathBuf>,
+    /// Built-in target only: hand-tracing noise on each target key shape, as a fraction of
+    /// the inter-ocular distance (paper 000's traced lip shapes; 0 = exact warp).
+    #[arg(long, default_value_t = 0.0)]
+    trace_noise: f64,
+    /// Delta mode from this neutral frame: B = N_B + Σ wᵢ (Bᵢ − N_B).
+    #[arg(long, value_name = "FRAME")]
+    neutral: Option<i64>,
+    /// Face regions, each with its own key shapes (`builtin`, or a regions JSON file).
+    #[arg(long)]
+    regions: Option<String>,
+    #[command(flatten)]
+    heuristic: HeuristicArgs,
+    /// Write per-frame weights and errors as CSV.
+    #[arg(long, short)]
+    out: Option<PathBuf>,
+    /// Write one PNG per frame here.
+    #[arg(long)]
+    png_dir: Option<PathBuf>,
+    /// Write an animated PNG at the sequence's frame rate.
+    #[arg(long)]
+    apng: Option<PathBuf>,
+    /// Print source RMS, target-domain RMS and jitter as JSON.
+    #[arg(long)]
+    json: bool,
+}
+
+fn target_for(a: &RetargetArgs, seq: &Sequence, prep: &Prepared, key_frames: &[i64]) -> Result<(Target, Vec<Vec<usize>>)> {
+    let Some(path) = &a.target else {
+        let layout_lines = prep.layout.as_ref().map(|l| polylines_for(l, &prep.point_indices)).unwrap_or_default();
+        let (g, iod) = builtin_target(seq, prep)?;
+        return Ok((Target::Warp { g, trace_noise: a.trace_noise * iod }, layout_lines));
+    };
+    let set = if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("svg")) {
+        keyshape_lab::io::svg::read_template(path)?
+    } else {
+        TargetSet::read_json(path)?
+    };
+    let keys = set.for_frames(key_frames).with_context(|| format!("{}", path.display()))?;
+    let neutral = set.neutral.as_ref().map(|n| nalgebra::DVector::from_vec(n.coords.clone()));
+    Ok((Target::Shapes { keys, neutral }, set.polylines.clone()))
+}
+
+pub fn run(a: &RetargetArgs) -> Result<()> {
+    let (seq, prep) = a.input.prepare()?;
+    let s = &prep.seq;
+    let opts = KeyOptions { solver: a.solver, seed: a.heuristic.seed, shortlist: a.heuristic.shortlist };
+    let neutral = a.neutral.map(|f| s.column_of_frame(f).with_context(|| format!("--neutral {f}"))).transpose()?;
+    let choose = |coords: DMatrix<f64>, points: usize, k: usize| -> Result<Vec<usize>> {
+        let m = a.method.unwrap_or(Method::Spread);
+        let an = Analysis::with_axes(coords, points, axes_needed(&[m], k))?;
+        Ok(m.heuristic(&opts).select(&an, k)?.columns)
+    };
+    let plan_keys = match &a.regions {
+        None => {
+            let cols = if a.keys.is_empty() {
+                choose(s.coords.clone(), s.points, a.k)?
+            } else {
+                a.keys.iter().map(|&f| s.column_of_frame(f).with_context(|| format!("--keys {f}"))).collect::<Result<Vec<_>>>()?
+            };
+            KeyPlan::Global(cols)
+        }
+        Some(r) => {
+            let layout = prep.layout.as_ref().context("--regions needs a known layout (468 or 68 points)")?;
+            let regions = if r == "builtin" { Regions::builtin(layout)? } else { Regions::read(std::path::Path::new(r))? };
+            let mean = s.coords.column_mean();
+            let p = plan(&regions, layout, &prep.point_indices, mean.as_slice(), s.dims)?;
+            let mut keys = Vec::new();
+            for (members, &k) in p.members.iter().zip(&p.k) {
+                let sub = s.select_points(members)?;
+                keys.push(choose(sub.coords, sub.points, k)?);
+            }
+            KeyPlan::Regions(p, keys)
+        }
+    };
+    let all_keys: Vec<usize> = match &plan_keys {
+        KeyPlan::Global(k) => k.clone(),
+        KeyPlan::Regions(_, ks) => ks.iter().flatten().copied().collect(),
+    };
+    let key_frames: Vec<i64> = all_keys.iter().map(|&c| s.frames[c]).collect();
+    if a.target.is_some() && matches!(plan_keys, KeyPlan::Regions(..)) {
+        anyhow::bail!("--regions works with the built-in target only (each region picks its own key frames)");
+    }
+    let (target, target_lines) = target_for(a, &seq, &prep, &key_frames)?;
+    let r = retarget(&s.coords, s.dims, &plan_keys, &target, neutral, a.solver)?;
+    if let Some(p) = &a.out {
+        write_atomic(p, |w| write_csv(w, s, &r, &key_frames))?;
+    }
+    let summary = json!({
+        "source": s.source,
+        "solver": a.solver.name(),
+        "keys": key_frames,
+        "regions": match &plan_keys { KeyPlan::Regions(p, _) => Some(p.names.clone()), _ => None },
+        "frames": s.n_frames(),
+        "source_rms": r.source_rms(),
+        "target_rms": r.target_rms(),
+        "jitter": r.jitter(),
+        "negative_share": r.negative_share(),
+        "target": a.target.as_ref().map_or("builtin:cartoon".to_string(), |p| p.display().to_string()),
+    });
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&summary)?);
+    } else {
+        let t = r.target_rms().map_or("n/a (no ground truth)".to_string(), |v| format!("{v:.4}"));
+        println!(
+            "{} frames, {} keys, {}: source RMS {:.4}, target RMS {t}, jitter {:.3e}, negative weights {:.1}%",
+            s.n_frames(),
+            key_frames.len(),
+            a.solver,
+            r.source_rms(),
+            r.jitter(),
+            100.0 * r.negative_share()
+        );
+    }
+    if a.png_dir.is_some() || a.apng.is_some() {
+        pictures(a, &seq, &prep, &r, &target_lines)?;
+    }
+    Ok(())
+}
+
+fn write_csv(w: &mut dyn Write, s: &Sequence, r: &Retargeted, key_frames: &[i64]) -> std::io::Result<()> {
+    let mut head = String::from("frame,source_rms,target_rms");
+    for f in key_frames {
+        head.push_str(&format!(",w_{f}"));
+    }
+    writeln!(w, "{head}")?;
+    let trms = r.target_rms_per_frame();
+    for (t, frame) in s.frames.iter().enumerate() {
+        let src = (r.source_sq[t] / r.points as f64).sqrt();
+        let tg = trms.as_ref().map_or(String::new(), |v| fmt_num(v[t]));
+        write!(w, "{frame},{},{tg}", fmt_num(src))?;
+        for wm in &r.weights {
+            for v in wm.column(t).iter() {
+                write!(w, ",{}", fmt_num(*v))?;
+            }
+        }
+        writeln!(w)?;
+    }
+    Ok(())
+}
+
+/// Image-space shapes (head motion re-applied when the sequence was aligned).
+fn image_space(m: &DMatrix<f64>, prep: &Prepared, dims: usize) -> Result<DMatrix<f64>> {
+    Ok(match &prep.head {
+        Some(h) => with_head_motion(m, h, dims)?,
+        None => m.clone(),
+    })
+}
+
+fn pictures(a: &RetargetArgs, seq: &Sequence, prep: &Prepared, r: &Retargeted, target_lines: &[Vec<usize>]) -> Result<()> {
+    let s = &prep.seq;
+    let dims = s.dims;
+    let tracked = seq.select_points(&prep.point_indices)?.coords;
+    let recon = image_space(&r.source, prep, dims)?;
+    let same_points = r.target.nrows() == s.coords.nrows();
+    let target = if same_points { image_space(&r.target, prep, dims)? } else { r.target.clone() };
+    let truth = match (&r.truth, same_points) {
+        (Some(t), true) => Some(image_space(t, prep, dims)?),
+        _ => None,
+    };
+    let src_lines = prep.layout.as_ref().map(|l| polylines_for(l, &prep.point_indices)).unwrap_or_default();
+    let sb = bounds_of(&[&tracked], dims);
+    let mut all_t = vec![&target];
+    all_t.extend(truth.iter());
+    let tb = bounds_of(&all_t, dims);
+    let frame = |t: usize| -> keyshape_lab::Result<tiny_skia::Pixmap> {
+        let mut tl = vec![Layer { name: "retargeted", shape: col(&target, t), dims, polylines: target_lines, color: [200, 30, 30], dashed: false }];
+        if let Some(tr) = &truth {
+            tl.insert(0, Layer { name: "ground truth G(q)", shape: col(tr, t), dims, polylines: target_lines, color: [150, 150, 150], dashed: true });
+        }
+        let panels = [
+            Panel {
+                title: "source".into(),
+                layers: vec![
+                    Layer { name: "tracked", shape: col(&tracked, t), dims, polylines: &src_lines, color: [20, 20, 20], dashed: false },
+                    Layer { name: "reconstruction", shape: col(&recon, t), dims, polylines: &src_lines, color: [31, 90, 200], dashed: true },
+                ],
+                bounds: sb,
+            },
+            Panel { title: "target".into(), layers: tl, bounds: tb },
+        ];
+        let caption = format!("frame {}   {}   source RMS {:.2}", s.frames[t], a.solver, (r.source_sq[t] / r.points as f64).sqrt());
+        render_panels(&panels, &caption, 360)
+    };
+    if let Some(dir) = &a.png_dir {
+        std::fs::create_dir_all(dir).with_context(|| format!("{}", dir.display()))?;
+        for t in 0..s.n_frames() {
+            save_png(&frame(t)?, &dir.join(format!("frame_{:06}.png", s.frames[t])))?;
+        }
+        eprintln!("wrote {} frames to {}", s.n_frames(), dir.display());
+    }
+    if let Some(p) = &a.apng {
+        let fps = s.fps().unwrap_or(30.0);
+        write_apng(p, s.n_frames(), fps, &frame)?;
+        eprintln!("wrote {}", p.display());
+    }
+    Ok(())
+}

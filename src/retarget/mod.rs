@@ -1,0 +1,257 @@
+//! Retargeting (paper 000 §4.1 Eq. 2 and §5): the weights solved on the source key shapes
+//! drive target key shapes, `B_t = Σ wᵢ Bᵢ` (absolute) or `N_B + Σ wᵢ (Bᵢ − N_B)` (delta),
+//! optionally per face region with linear blending, and the head motion removed by
+//! alignment is put back.
+
+pub mod rbf;
+pub mod setup;
+pub mod regions;
+pub mod target;
+
+use crate::align::Similarity;
+use crate::error::{Error, Result};
+use crate::solve::{solve_batch, SolveOptions, Solver};
+use nalgebra::{DMatrix, DVector};
+use rbf::Rbf;
+use regions::RegionPlan;
+
+/// Where the target key shapes come from.
+#[derive(Debug, Clone)]
+pub enum Target {
+    /// A smooth warp G of source points (the built-in cartoon): `Bᵢ = G(Sᵢ) + εᵢ`, and
+    /// `G(Q_t)` is a ground truth in the target domain. `εᵢ` models an artist tracing each
+    /// key shape by hand (paper 000 §4.1: "the traced shapes closely match the tracked
+    /// contours, [but] they are not identical"): independent Gaussian offsets of standard
+    /// deviation `trace_noise` (input units) per coordinate, seeded by the key's frame
+    /// column, so the same key always gets the same tracing.
+    Warp {
+        /// The warp G.
+        g: Rbf,
+        /// Tracing noise σ (0 = exact G(Sᵢ)).
+        trace_noise: f64,
+    },
+    /// Given shapes, one column per key (in key order), with an optional neutral.
+    Shapes {
+        /// n_t × k.
+        keys: DMatrix<f64>,
+        /// The target neutral, for delta mode.
+        neutral: Option<DVector<f64>>,
+    },
+}
+
+/// Which key shapes, with which weights.
+#[derive(Debug, Clone)]
+pub enum KeyPlan {
+    /// One set of key columns for every point.
+    Global(Vec<usize>),
+    /// Per region: its key columns, with the region plan.
+    Regions(RegionPlan, Vec<Vec<usize>>),
+}
+
+/// Everything a retargeting run produced.
+#[derive(Debug, Clone)]
+pub struct Retargeted {
+    /// Key columns per region (one entry without regions).
+    pub keys: Vec<Vec<usize>>,
+    /// Weights per region, k × frames.
+    pub weights: Vec<DMatrix<f64>>,
+    /// Source reconstruction (aligned), n × frames.
+    pub source: DMatrix<f64>,
+    /// Retargeted target (aligned frame), n_t × frames.
+    pub target: DMatrix<f64>,
+    /// `G(Q_t)` when the target is a warp.
+    pub truth: Option<DMatrix<f64>>,
+    /// Per frame `‖q − q̂‖²`.
+    pub source_sq: Vec<f64>,
+    /// Per frame `‖B_t − G(Q_t)‖²` when there is a truth.
+    pub target_sq: Option<Vec<f64>>,
+    /// Points per source shape.
+    pub points: usize,
+    /// Points per target shape.
+    pub target_points: usize,
+}
+
+impl Retargeted {
+    /// Source RMS per point.
+    pub fn source_rms(&self) -> f64 {
+        rms(&self.source_sq, self.points)
+    }
+
+    /// Target-domain RMS per point against `G(Q_t)`.
+    pub fn target_rms(&self) -> Option<f64> {
+        self.target_sq.as_ref().map(|e| rms(e, self.target_points))
+    }
+
+    /// Per-frame target-domain RMS.
+    pub fn target_rms_per_frame(&self) -> Option<Vec<f64>> {
+        self.target_sq.as_ref().map(|e| e.iter().map(|v| (v / self.target_points as f64).sqrt()).collect())
+    }
+
+    /// Jitter: mean squared second difference of the weights over time,
+    /// `mean (w_{t+1} − 2 w_t + w_{t−1})²` over frames and weights (all regions).
+    pub fn jitter(&self) -> f64 {
+        jitter(&self.weights)
+    }
+
+    /// Share of negative weights.
+    pub fn negative_share(&self) -> f64 {
+        let (neg, all) = self.weights.iter().fold((0usize, 0usize), |(n, a), w| (n + w.iter().filter(|v| **v < 0.0).count(), a + w.len()));
+        neg as f64 / all.max(1) as f64
+    }
+}
+
+fn rms(sq: &[f64], points: usize) -> f64 {
+    (sq.iter().sum::<f64>() / (sq.len() * points).max(1) as f64).sqrt()
+}
+
+/// Mean squared second difference over time of every weight track.
+pub fn jitter(weights: &[DMatrix<f64>]) -> f64 {
+    let (mut sum, mut n) = (0.0, 0usize);
+    for w in weights {
+        for t in 1..w.ncols().saturating_sub(1) {
+            for i in 0..w.nrows() {
+                sum += (w[(i, t + 1)] - 2.0 * w[(i, t)] + w[(i, t - 1)]).powi(2);
+                n += 1;
+            }
+        }
+    }
+    if n == 0 { 0.0 } else { sum / n as f64 }
+}
+
+/// Applies per-frame head motion to every column (paper 000 §5: "only scaled 2D translation
+/// and rotation are applied to the output motion").
+pub fn with_head_motion(shapes: &DMatrix<f64>, head: &[Similarity], dims: usize) -> Result<DMatrix<f64>> {
+    if head.len() != shapes.ncols() {
+        return Err(Error::invalid("head motion and frames differ in count"));
+    }
+    let cols: Vec<f64> = (0..shapes.ncols()).flat_map(|c| head[c].apply(shapes.column(c).as_slice(), dims)).collect();
+    Ok(DMatrix::from_vec(shapes.nrows(), shapes.ncols(), cols))
+}
+
+/// Retargets every frame of `q` (aligned shapes, `dims` per point).
+pub fn retarget(q: &DMatrix<f64>, dims: usize, plan: &KeyPlan, target: &Target, neutral: Option<usize>, solver: Solver) -> Result<Retargeted> {
+    let (n, frames) = q.shape();
+    let points = n / dims;
+    let (regions, key_sets): (Option<&RegionPlan>, Vec<Vec<usize>>) = match plan {
+        KeyPlan::Global(k) => (None, vec![k.clone()]),
+        KeyPlan::Regions(p, k) => (Some(p), k.clone()),
+    };
+    if let (Some(_), Target::Shapes { keys, .. }) = (regions, target) {
+        if keys.nrows() != n {
+            return Err(Error::invalid("regions need target shapes with the source's points"));
+        }
+    }
+    let n_t = match target {
+        Target::Warp { .. } => n,
+        Target::Shapes { keys, .. } => keys.nrows(),
+    };
+    let mut source = DMatrix::zeros(n, frames);
+    let mut out = DMatrix::zeros(n_t, frames);
+    let mut weights = Vec::new();
+    for (r, keys) in key_sets.iter().enumerate() {
+        let rows: Vec<usize> = match regions {
+            None => (0..n).collect(),
+            Some(p) => p.members[r].iter().flat_map(|&i| (0..dims).map(move |d| i * dims + d)).collect(),
+        };
+        let s_full = q.select_columns(keys);
+        let b_full = match target {
+            Target::Warp { g, trace_noise } => {
+                let mut b = g.apply_all(&s_full);
+                for (j, &c) in keys.iter().enumerate() {
+                    add_tracing(b.column_mut(j).as_mut_slice(), *trace_noise, c);
+                }
+                b
+            }
+            Target::Shapes { keys: b, .. } => {
+                if b.ncols() != keys.len() {
+                    return Err(Error::invalid(format!("{} target shapes for {} key shapes", b.ncols(), keys.len())));
+                }
+                b.clone()
+            }
+        };
+        let (src_base, tgt_base) = match neutral {
+            None => (None, None),
+            Some(c) => {
+                let nq = q.column(c).clone_owned();
+                let nb = match target {
+                    Target::Warp { g, trace_noise } => {
+                        let mut v = g.apply(nq.as_slice());
+                        add_tracing(&mut v, *trace_noise, c);
+                        DVector::from_vec(v)
+                    }
+                    Target::Shapes { neutral: Some(v), .. } => v.clone(),
+                    Target::Shapes { neutral: None, .. } => {
+                        return Err(Error::invalid("delta mode (--neutral) needs a neutral shape in the target set"))
+                    }
+                };
+                (Some(nq), Some(nb))
+            }
+        };
+        let delta = |m: &DMatrix<f64>, base: &Option<DVector<f64>>| {
+            let mut m = m.clone();
+            if let Some(b) = base {
+                for mut c in m.column_iter_mut() {
+                    c -= b;
+                }
+            }
+            m
+        };
+        let s_d = delta(&s_full, &src_base);
+        let q_d = delta(q, &src_base);
+        let b_d = delta(&b_full, &tgt_base);
+        let w = solve_batch(&s_d.select_rows(&rows), &q_d.select_rows(&rows), &SolveOptions::new(solver))?.weights;
+        let mut rec_s = &s_d * &w;
+        let mut rec_t = &b_d * &w;
+        if let (Some(sb), Some(tb)) = (&src_base, &tgt_base) {
+            for mut c in rec_s.column_iter_mut() {
+                c += sb;
+            }
+            for mut c in rec_t.column_iter_mut() {
+                c += tb;
+            }
+        }
+        match regions {
+            None => {
+                source = rec_s;
+                out = rec_t;
+            }
+            Some(p) => {
+                for i in 0..points {
+                    let bw = p.blend[(i, r)];
+                    if bw == 0.0 {
+                        continue;
+                    }
+                    for d in 0..dims {
+                        let row = i * dims + d;
+                        for t in 0..frames {
+                            source[(row, t)] += bw * rec_s[(row, t)];
+                            out[(row, t)] += bw * rec_t[(row, t)];
+                        }
+                    }
+                }
+            }
+        }
+        weights.push(w);
+    }
+    let source_sq = (0..frames).map(|t| (q.column(t) - source.column(t)).norm_squared()).collect();
+    let truth = match target {
+        Target::Warp { g, .. } => Some(g.apply_all(q)),
+        Target::Shapes { .. } => None,
+    };
+    let target_sq = truth.as_ref().map(|tr| (0..frames).map(|t| (tr.column(t) - out.column(t)).norm_squared()).collect());
+    Ok(Retargeted { keys: key_sets, weights, source, target: out, truth, source_sq, target_sq, points, target_points: n_t / dims })
+}
+
+/// Adds the seeded tracing offsets of key column `key` (see [`Target::Warp`]).
+fn add_tracing(shape: &mut [f64], sigma: f64, key: usize) {
+    use rand::{Rng, SeedableRng};
+    if sigma <= 0.0 {
+        return;
+    }
+    let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(0x7ACE ^ (key as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15));
+    for v in shape.iter_mut() {
+        // Box–Muller.
+        let (u1, u2): (f64, f64) = (rng.gen_range(f64::EPSILON..1.0), rng.gen());
+        *v += sigma * (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos();
+    }
+}

@@ -1,0 +1,51 @@
+//! The glue a retargeting run needs around [`super::retarget`]: drawing contours for a point
+//! selection and the built-in target for a sequence.
+
+use super::rbf::Rbf;
+use super::target::{cartoon_warp, iod};
+use crate::decompose::{prepare, PrepareOptions, Prepared};
+use crate::error::{Error, Result};
+use crate::sequence::{Layout, Sequence};
+
+/// The layout's polylines restricted to the selected points, renumbered to selection
+/// indices (a polyline is cut where it leaves the selection).
+pub fn polylines_for(layout: &Layout, selected: &[usize]) -> Vec<Vec<usize>> {
+    let pos = |p: usize| selected.binary_search(&p).ok();
+    let mut out = Vec::new();
+    for g in layout.groups.values() {
+        for line in &g.polylines {
+            let mut run = Vec::new();
+            for &p in line {
+                match pos(p) {
+                    Some(i) => run.push(i),
+                    None => {
+                        if run.len() > 1 {
+                            out.push(std::mem::take(&mut run));
+                        }
+                        run.clear();
+                    }
+                }
+            }
+            if run.len() > 1 {
+                out.push(run);
+            }
+        }
+    }
+    out
+}
+
+/// The built-in cartoon target for `seq` and the mean inter-ocular distance: the warp is
+/// fitted on the mean of the whole face aligned exactly as `prep` was, so it maps `prep`'s
+/// (selected) aligned points.
+pub fn builtin_target(seq: &Sequence, prep: &Prepared) -> Result<(Rbf, f64)> {
+    if seq.dims != 2 {
+        return Err(Error::invalid("the built-in target is 2-D: use --dims 2, or give --target"));
+    }
+    let layout = prep
+        .layout
+        .as_ref()
+        .ok_or_else(|| Error::invalid(format!("the built-in target needs a known layout (468 or 68 points), not {}", seq.points)))?;
+    let full = prepare(seq, &PrepareOptions { points: None, align: prep.head.is_some() })?;
+    let mean = full.seq.coords.column_mean();
+    Ok((cartoon_warp(mean.as_slice(), layout)?, iod(mean.as_slice(), layout)?))
+}
