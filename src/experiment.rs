@@ -19,9 +19,9 @@ use crate::error::{Error, Result};
 use crate::io::{builtin_sequence, read_sequence, ReadOptions};
 use crate::keyshapes::curves::{sweep, CurveRow};
 use crate::keyshapes::{axes_needed, Analysis, KeyOptions, Method};
-use nalgebra::DMatrix;
 use crate::sequence::Format;
 use crate::solve::Solver;
+use nalgebra::DMatrix;
 use serde::{Deserialize, Deserializer, Serialize};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -193,14 +193,23 @@ impl Spec {
             ));
         }
         if spec.methods.is_empty() && spec.retarget.is_none() {
-            return Err(at("methods", "name at least one method (or add a [retarget] table)".into()));
+            return Err(at(
+                "methods",
+                "name at least one method (or add a [retarget] table)".into(),
+            ));
         }
         if spec.solvers.is_empty() {
             return Err(at("solvers", "name at least one solver".into()));
         }
         if let Some(r) = &spec.retarget {
-            if r.solvers.is_empty() || r.k == 0 || r.trace_noise.iter().any(|v| !(v.is_finite() && *v >= 0.0)) {
-                return Err(at("retarget", "needs k ≥ 1, at least one solver, and trace_noise values ≥ 0".into()));
+            if r.solvers.is_empty()
+                || r.k == 0
+                || r.trace_noise.iter().any(|v| !(v.is_finite() && *v >= 0.0))
+            {
+                return Err(at(
+                    "retarget",
+                    "needs k ≥ 1, at least one solver, and trace_noise values ≥ 0".into(),
+                ));
             }
         }
         if spec.dims != 2 && spec.dims != 3 {
@@ -294,8 +303,21 @@ pub struct Strip {
     pub tracked: DMatrix<f64>,
     /// Ground truth G(q).
     pub truth: DMatrix<f64>,
-    /// Per solver: (name, source reconstruction, retargeted, per-frame target RMS).
-    pub solvers: Vec<(String, DMatrix<f64>, DMatrix<f64>, Vec<f64>)>,
+    /// Per solver: what it made of the strip's frames.
+    pub solvers: Vec<StripSolver>,
+}
+
+/// One solver's shapes in a [`Strip`].
+#[derive(Debug, Clone)]
+pub struct StripSolver {
+    /// Solver name.
+    pub name: String,
+    /// Source reconstruction (n × strip frames).
+    pub source: DMatrix<f64>,
+    /// Retargeted shapes.
+    pub target: DMatrix<f64>,
+    /// Target-domain RMS per strip frame.
+    pub target_rms: Vec<f64>,
 }
 
 /// Runs a spec whose relative paths are relative to `base`.
@@ -335,7 +357,14 @@ pub fn run(spec: &Spec, base: &Path, tick: &(dyn Fn(usize, usize) + Sync)) -> Re
     let rows = if spec.methods.is_empty() {
         Vec::new()
     } else {
-        sweep(&an, &spec.methods, spec.k.0..=spec.k.1, &spec.solvers, &opts, tick)?
+        sweep(
+            &an,
+            &spec.methods,
+            spec.k.0..=spec.k.1,
+            &spec.solvers,
+            &opts,
+            tick,
+        )?
     };
     timings.push(("sweep".to_string(), t.elapsed().as_secs_f64()));
     let t = Instant::now();
@@ -382,8 +411,18 @@ fn retarget_study(
     let top_noise = r.trace_noise.iter().copied().fold(0.0, f64::max);
     for &noise in &r.trace_noise {
         for &solver in &r.solvers {
-            let target = Target::Warp { g: g.clone(), trace_noise: noise * iod };
-            let res = retarget(&prep.seq.coords, prep.seq.dims, &KeyPlan::Global(keys.clone()), &target, None, solver)?;
+            let target = Target::Warp {
+                g: g.clone(),
+                trace_noise: noise * iod,
+            };
+            let res = retarget(
+                &prep.seq.coords,
+                prep.seq.dims,
+                &KeyPlan::Global(keys.clone()),
+                &target,
+                None,
+                solver,
+            )?;
             rows.push(RetargetRow {
                 solver: solver.name().into(),
                 trace_noise: noise,
@@ -392,7 +431,11 @@ fn retarget_study(
                 target_rms: res.target_rms().unwrap_or(f64::NAN),
                 jitter: res.jitter(),
                 negative_share: res.negative_share(),
-                max_abs_weight: res.weights.iter().flat_map(|w| w.iter()).fold(0.0, |m, v| m.max(v.abs())),
+                max_abs_weight: res
+                    .weights
+                    .iter()
+                    .flat_map(|w| w.iter())
+                    .fold(0.0, |m, v| m.max(v.abs())),
             });
             if noise == top_noise {
                 last.push((solver, res));
@@ -407,8 +450,16 @@ fn retarget_study(
     order.sort_by(|&a, &b| first[b].total_cmp(&first[a]));
     let mut cols: Vec<usize> = order.into_iter().take(r.strip).collect();
     cols.sort_unstable();
-    let polylines = prep.layout.as_ref().map(|l| setup::polylines_for(l, &prep.point_indices)).unwrap_or_default();
-    let truth = last[0].1.truth.clone().unwrap_or_else(|| prep.seq.coords.clone());
+    let polylines = prep
+        .layout
+        .as_ref()
+        .map(|l| setup::polylines_for(l, &prep.point_indices))
+        .unwrap_or_default();
+    let truth = last[0]
+        .1
+        .truth
+        .clone()
+        .unwrap_or_else(|| prep.seq.coords.clone());
     let strip = Strip {
         trace_noise: top_noise,
         frames: cols.iter().map(|&c| prep.seq.frames[c]).collect(),
@@ -420,7 +471,12 @@ fn retarget_study(
             .iter()
             .map(|(s, res)| {
                 let per = res.target_rms_per_frame().unwrap_or_default();
-                (s.name().to_string(), res.source.select_columns(&cols), res.target.select_columns(&cols), cols.iter().map(|&c| per[c]).collect())
+                StripSolver {
+                    name: s.name().to_string(),
+                    source: res.source.select_columns(&cols),
+                    target: res.target.select_columns(&cols),
+                    target_rms: cols.iter().map(|&c| per[c]).collect(),
+                }
             })
             .collect(),
     };

@@ -47,9 +47,22 @@ pub fn write_outcome(o: &Outcome, dir: &Path) -> Result<Vec<PathBuf>> {
     if !o.retarget.is_empty() {
         let csv = dir.join("retarget.csv");
         write_atomic(&csv, |w| {
-            writeln!(w, "solver,trace_noise,source_rms,target_rms,jitter,negative_share,max_abs_weight")?;
+            writeln!(
+                w,
+                "solver,trace_noise,source_rms,target_rms,jitter,negative_share,max_abs_weight"
+            )?;
             for r in &o.retarget {
-                writeln!(w, "{},{},{},{},{},{},{}", r.solver, fmt_num(r.trace_noise), fmt_num(r.source_rms), fmt_num(r.target_rms), fmt_num(r.jitter), fmt_num(r.negative_share), fmt_num(r.max_abs_weight))?;
+                writeln!(
+                    w,
+                    "{},{},{},{},{},{},{}",
+                    r.solver,
+                    fmt_num(r.trace_noise),
+                    fmt_num(r.source_rms),
+                    fmt_num(r.target_rms),
+                    fmt_num(r.jitter),
+                    fmt_num(r.negative_share),
+                    fmt_num(r.max_abs_weight)
+                )?;
             }
             Ok(())
         })?;
@@ -93,29 +106,58 @@ pub fn write_outcome(o: &Outcome, dir: &Path) -> Result<Vec<PathBuf>> {
 pub fn render_strip(s: &Strip) -> Result<tiny_skia::Pixmap> {
     use crate::render::face::{bounds_of, col, render_panels, Layer, Panel};
     let mut all = vec![&s.truth];
-    all.extend(s.solvers.iter().map(|x| &x.2));
+    all.extend(s.solvers.iter().map(|x| &x.target));
     let tb = bounds_of(&all, s.dims);
     let mut src = vec![&s.tracked];
-    src.extend(s.solvers.iter().map(|x| &x.1));
+    src.extend(s.solvers.iter().map(|x| &x.source));
     let sb = bounds_of(&src, s.dims);
     let colours = [[200, 30, 30], [31, 90, 200], [30, 150, 60]];
     let mut rows = Vec::new();
     for (i, frame) in s.frames.iter().enumerate() {
-        let (name0, rec0, _, _) = &s.solvers[0];
+        let (name0, rec0) = (&s.solvers[0].name, &s.solvers[0].source);
         let mut panels = vec![Panel {
             title: "source".into(),
             layers: vec![
-                Layer { name: "tracked", shape: col(&s.tracked, i), dims: s.dims, polylines: &s.polylines, color: [20, 20, 20], dashed: false },
-                Layer { name: name0, shape: col(rec0, i), dims: s.dims, polylines: &s.polylines, color: [31, 90, 200], dashed: true },
+                Layer {
+                    name: "tracked",
+                    shape: col(&s.tracked, i),
+                    dims: s.dims,
+                    polylines: &s.polylines,
+                    color: [20, 20, 20],
+                    dashed: false,
+                },
+                Layer {
+                    name: name0,
+                    shape: col(rec0, i),
+                    dims: s.dims,
+                    polylines: &s.polylines,
+                    color: [31, 90, 200],
+                    dashed: true,
+                },
             ],
             bounds: sb,
         }];
-        for (j, (name, _, tgt, rms)) in s.solvers.iter().enumerate() {
+        for (j, sv) in s.solvers.iter().enumerate() {
+            let (name, tgt, rms) = (&sv.name, &sv.target, &sv.target_rms);
             panels.push(Panel {
                 title: format!("target, {name}: RMS {:.2}", rms[i]),
                 layers: vec![
-                    Layer { name: "ground truth G(q)", shape: col(&s.truth, i), dims: s.dims, polylines: &s.polylines, color: [150, 150, 150], dashed: true },
-                    Layer { name, shape: col(tgt, i), dims: s.dims, polylines: &s.polylines, color: colours[j % 3], dashed: false },
+                    Layer {
+                        name: "ground truth G(q)",
+                        shape: col(&s.truth, i),
+                        dims: s.dims,
+                        polylines: &s.polylines,
+                        color: [150, 150, 150],
+                        dashed: true,
+                    },
+                    Layer {
+                        name,
+                        shape: col(tgt, i),
+                        dims: s.dims,
+                        polylines: &s.polylines,
+                        color: colours[j % 3],
+                        dashed: false,
+                    },
                 ],
                 bounds: tb,
             });

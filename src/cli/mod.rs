@@ -9,6 +9,7 @@ mod progress;
 mod retarget;
 mod run;
 mod solve;
+mod template;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -32,6 +33,8 @@ enum Command {
     Keys(keys::KeysArgs),
     /// Error against number of key shapes for each heuristic (paper 000 Fig. 6).
     Curves(curves::CurvesArgs),
+    /// Write chosen key shapes as an SVG template for an artist to redraw.
+    Template(template::TemplateArgs),
     /// Retarget the performance onto target key shapes (paper 000 Eq. 2, §5).
     Retarget(retarget::RetargetArgs),
     /// Run a scripted experiment (experiments/*.toml): CSV, JSON and PNG reports.
@@ -48,6 +51,7 @@ pub fn main() -> ExitCode {
         Command::Solve(a) => solve::run(&a),
         Command::Keys(a) => keys::run(&a),
         Command::Curves(a) => curves::run(&a),
+        Command::Template(a) => template::run(&a),
         Command::Retarget(a) => retarget::run(&a),
         Command::Run(a) => run::run(&a),
         Command::Bench(a) => bench::run(&a),

@@ -67,27 +67,60 @@ pub struct RetargetArgs {
     json: bool,
 }
 
-fn target_for(a: &RetargetArgs, seq: &Sequence, prep: &Prepared, key_frames: &[i64]) -> Result<(Target, Vec<Vec<usize>>)> {
+fn target_for(
+    a: &RetargetArgs,
+    seq: &Sequence,
+    prep: &Prepared,
+    key_frames: &[i64],
+) -> Result<(Target, Vec<Vec<usize>>)> {
     let Some(path) = &a.target else {
-        let layout_lines = prep.layout.as_ref().map(|l| polylines_for(l, &prep.point_indices)).unwrap_or_default();
+        let layout_lines = prep
+            .layout
+            .as_ref()
+            .map(|l| polylines_for(l, &prep.point_indices))
+            .unwrap_or_default();
         let (g, iod) = builtin_target(seq, prep)?;
-        return Ok((Target::Warp { g, trace_noise: a.trace_noise * iod }, layout_lines));
+        return Ok((
+            Target::Warp {
+                g,
+                trace_noise: a.trace_noise * iod,
+            },
+            layout_lines,
+        ));
     };
-    let set = if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("svg")) {
+    let set = if path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("svg"))
+    {
         keyshape_lab::io::svg::read_template(path)?
     } else {
         TargetSet::read_json(path)?
     };
-    let keys = set.for_frames(key_frames).with_context(|| format!("{}", path.display()))?;
-    let neutral = set.neutral.as_ref().map(|n| nalgebra::DVector::from_vec(n.coords.clone()));
+    let keys = set
+        .for_frames(key_frames)
+        .with_context(|| format!("{}", path.display()))?;
+    let neutral = set
+        .neutral
+        .as_ref()
+        .map(|n| nalgebra::DVector::from_vec(n.coords.clone()));
     Ok((Target::Shapes { keys, neutral }, set.polylines.clone()))
 }
 
 pub fn run(a: &RetargetArgs) -> Result<()> {
     let (seq, prep) = a.input.prepare()?;
     let s = &prep.seq;
-    let opts = KeyOptions { solver: a.solver, seed: a.heuristic.seed, shortlist: a.heuristic.shortlist };
-    let neutral = a.neutral.map(|f| s.column_of_frame(f).with_context(|| format!("--neutral {f}"))).transpose()?;
+    let opts = KeyOptions {
+        solver: a.solver,
+        seed: a.heuristic.seed,
+        shortlist: a.heuristic.shortlist,
+    };
+    let neutral = a
+        .neutral
+        .map(|f| {
+            s.column_of_frame(f)
+                .with_context(|| format!("--neutral {f}"))
+        })
+        .transpose()?;
     let choose = |coords: DMatrix<f64>, points: usize, k: usize| -> Result<Vec<usize>> {
         let m = a.method.unwrap_or(Method::Spread);
         let an = Analysis::with_axes(coords, points, axes_needed(&[m], k))?;
@@ -98,15 +131,31 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
             let cols = if a.keys.is_empty() {
                 choose(s.coords.clone(), s.points, a.k)?
             } else {
-                a.keys.iter().map(|&f| s.column_of_frame(f).with_context(|| format!("--keys {f}"))).collect::<Result<Vec<_>>>()?
+                a.keys
+                    .iter()
+                    .map(|&f| s.column_of_frame(f).with_context(|| format!("--keys {f}")))
+                    .collect::<Result<Vec<_>>>()?
             };
             KeyPlan::Global(cols)
         }
         Some(r) => {
-            let layout = prep.layout.as_ref().context("--regions needs a known layout (468 or 68 points)")?;
-            let regions = if r == "builtin" { Regions::builtin(layout)? } else { Regions::read(std::path::Path::new(r))? };
+            let layout = prep
+                .layout
+                .as_ref()
+                .context("--regions needs a known layout (468 or 68 points)")?;
+            let regions = if r == "builtin" {
+                Regions::builtin(layout)?
+            } else {
+                Regions::read(std::path::Path::new(r))?
+            };
             let mean = s.coords.column_mean();
-            let p = plan(&regions, layout, &prep.point_indices, mean.as_slice(), s.dims)?;
+            let p = plan(
+                &regions,
+                layout,
+                &prep.point_indices,
+                mean.as_slice(),
+                s.dims,
+            )?;
             let mut keys = Vec::new();
             for (members, &k) in p.members.iter().zip(&p.k) {
                 let sub = s.select_points(members)?;
@@ -121,7 +170,9 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
     };
     let key_frames: Vec<i64> = all_keys.iter().map(|&c| s.frames[c]).collect();
     if a.target.is_some() && matches!(plan_keys, KeyPlan::Regions(..)) {
-        anyhow::bail!("--regions works with the built-in target only (each region picks its own key frames)");
+        anyhow::bail!(
+            "--regions works with the built-in target only (each region picks its own key frames)"
+        );
     }
     let (target, target_lines) = target_for(a, &seq, &prep, &key_frames)?;
     let r = retarget(&s.coords, s.dims, &plan_keys, &target, neutral, a.solver)?;
@@ -143,7 +194,9 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
     if a.json {
         println!("{}", serde_json::to_string_pretty(&summary)?);
     } else {
-        let t = r.target_rms().map_or("n/a (no ground truth)".to_string(), |v| format!("{v:.4}"));
+        let t = r
+            .target_rms()
+            .map_or("n/a (no ground truth)".to_string(), |v| format!("{v:.4}"));
         println!(
             "{} frames, {} keys, {}: source RMS {:.4}, target RMS {t}, jitter {:.3e}, negative weights {:.1}%",
             s.n_frames(),
@@ -160,7 +213,12 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
     Ok(())
 }
 
-fn write_csv(w: &mut dyn Write, s: &Sequence, r: &Retargeted, key_frames: &[i64]) -> std::io::Result<()> {
+fn write_csv(
+    w: &mut dyn Write,
+    s: &Sequence,
+    r: &Retargeted,
+    key_frames: &[i64],
+) -> std::io::Result<()> {
     let mut head = String::from("frame,source_rms,target_rms");
     for f in key_frames {
         head.push_str(&format!(",w_{f}"));
@@ -189,45 +247,102 @@ fn image_space(m: &DMatrix<f64>, prep: &Prepared, dims: usize) -> Result<DMatrix
     })
 }
 
-fn pictures(a: &RetargetArgs, seq: &Sequence, prep: &Prepared, r: &Retargeted, target_lines: &[Vec<usize>]) -> Result<()> {
+fn pictures(
+    a: &RetargetArgs,
+    seq: &Sequence,
+    prep: &Prepared,
+    r: &Retargeted,
+    target_lines: &[Vec<usize>],
+) -> Result<()> {
     let s = &prep.seq;
     let dims = s.dims;
     let tracked = seq.select_points(&prep.point_indices)?.coords;
     let recon = image_space(&r.source, prep, dims)?;
     let same_points = r.target.nrows() == s.coords.nrows();
-    let target = if same_points { image_space(&r.target, prep, dims)? } else { r.target.clone() };
+    let target = if same_points {
+        image_space(&r.target, prep, dims)?
+    } else {
+        r.target.clone()
+    };
     let truth = match (&r.truth, same_points) {
         (Some(t), true) => Some(image_space(t, prep, dims)?),
         _ => None,
     };
-    let src_lines = prep.layout.as_ref().map(|l| polylines_for(l, &prep.point_indices)).unwrap_or_default();
+    let src_lines = prep
+        .layout
+        .as_ref()
+        .map(|l| polylines_for(l, &prep.point_indices))
+        .unwrap_or_default();
     let sb = bounds_of(&[&tracked], dims);
     let mut all_t = vec![&target];
     all_t.extend(truth.iter());
     let tb = bounds_of(&all_t, dims);
     let frame = |t: usize| -> keyshape_lab::Result<tiny_skia::Pixmap> {
-        let mut tl = vec![Layer { name: "retargeted", shape: col(&target, t), dims, polylines: target_lines, color: [200, 30, 30], dashed: false }];
+        let mut tl = vec![Layer {
+            name: "retargeted",
+            shape: col(&target, t),
+            dims,
+            polylines: target_lines,
+            color: [200, 30, 30],
+            dashed: false,
+        }];
         if let Some(tr) = &truth {
-            tl.insert(0, Layer { name: "ground truth G(q)", shape: col(tr, t), dims, polylines: target_lines, color: [150, 150, 150], dashed: true });
+            tl.insert(
+                0,
+                Layer {
+                    name: "ground truth G(q)",
+                    shape: col(tr, t),
+                    dims,
+                    polylines: target_lines,
+                    color: [150, 150, 150],
+                    dashed: true,
+                },
+            );
         }
         let panels = [
             Panel {
                 title: "source".into(),
                 layers: vec![
-                    Layer { name: "tracked", shape: col(&tracked, t), dims, polylines: &src_lines, color: [20, 20, 20], dashed: false },
-                    Layer { name: "reconstruction", shape: col(&recon, t), dims, polylines: &src_lines, color: [31, 90, 200], dashed: true },
+                    Layer {
+                        name: "tracked",
+                        shape: col(&tracked, t),
+                        dims,
+                        polylines: &src_lines,
+                        color: [20, 20, 20],
+                        dashed: false,
+                    },
+                    Layer {
+                        name: "reconstruction",
+                        shape: col(&recon, t),
+                        dims,
+                        polylines: &src_lines,
+                        color: [31, 90, 200],
+                        dashed: true,
+                    },
                 ],
                 bounds: sb,
             },
-            Panel { title: "target".into(), layers: tl, bounds: tb },
+            Panel {
+                title: "target".into(),
+                layers: tl,
+                bounds: tb,
+            },
         ];
-        let caption = format!("frame {}   {}   source RMS {:.2}", s.frames[t], a.solver, (r.source_sq[t] / r.points as f64).sqrt());
+        let caption = format!(
+            "frame {}   {}   source RMS {:.2}",
+            s.frames[t],
+            a.solver,
+            (r.source_sq[t] / r.points as f64).sqrt()
+        );
         render_panels(&panels, &caption, 360)
     };
     if let Some(dir) = &a.png_dir {
         std::fs::create_dir_all(dir).with_context(|| format!("{}", dir.display()))?;
         for t in 0..s.n_frames() {
-            save_png(&frame(t)?, &dir.join(format!("frame_{:06}.png", s.frames[t])))?;
+            save_png(
+                &frame(t)?,
+                &dir.join(format!("frame_{:06}.png", s.frames[t])),
+            )?;
         }
         eprintln!("wrote {} frames to {}", s.n_frames(), dir.display());
     }

@@ -4,8 +4,8 @@
 pub mod atomic;
 mod builtin;
 pub mod json;
-pub mod svg;
 mod pts;
+pub mod svg;
 mod table;
 
 pub use atomic::write_atomic;

@@ -7,7 +7,12 @@ use tiny_skia::Pixmap;
 
 /// Writes `count` frames made on demand by `frame(i)` as an APNG playing at `fps`,
 /// looping forever. All frames must have the first frame's size.
-pub fn write_apng(path: &Path, count: usize, fps: f64, frame: &dyn Fn(usize) -> Result<Pixmap>) -> Result<()> {
+pub fn write_apng(
+    path: &Path,
+    count: usize,
+    fps: f64,
+    frame: &dyn Fn(usize) -> Result<Pixmap>,
+) -> Result<()> {
     let first = frame(0)?;
     let (w, h) = (first.width(), first.height());
     let delay_ms = (1000.0 / fps.clamp(0.1, 1000.0)).round() as u16;

@@ -2,7 +2,9 @@
 
 use super::text::{self, Anchor};
 use crate::error::{Error, Result};
-use tiny_skia::{Color, FillRule, Paint, PathBuilder, Pixmap, PixmapPaint, Stroke, StrokeDash, Transform};
+use tiny_skia::{
+    Color, FillRule, Paint, PathBuilder, Pixmap, PixmapPaint, Stroke, StrokeDash, Transform,
+};
 
 /// One shape drawn in a panel.
 #[derive(Debug, Clone)]
@@ -35,7 +37,10 @@ pub struct Panel<'a> {
 /// Bounds of every point of every column of the matrices (flat shapes, `dims` per point),
 /// padded 5 %.
 pub fn bounds_of(shapes: &[&nalgebra::DMatrix<f64>], dims: usize) -> ((f64, f64), (f64, f64)) {
-    let (mut lo, mut hi) = ((f64::INFINITY, f64::INFINITY), (f64::NEG_INFINITY, f64::NEG_INFINITY));
+    let (mut lo, mut hi) = (
+        (f64::INFINITY, f64::INFINITY),
+        (f64::NEG_INFINITY, f64::NEG_INFINITY),
+    );
     for m in shapes {
         for p in m.as_slice().chunks(dims) {
             lo = (lo.0.min(p[0]), lo.1.min(p[1]));
@@ -62,7 +67,10 @@ fn paint(c: [u8; 3]) -> Paint<'static> {
 fn draw_layer(pm: &mut Pixmap, l: &Layer, map: &dyn Fn(f64, f64) -> (f32, f32)) {
     let pt = |i: usize| map(l.shape[i * l.dims], l.shape[i * l.dims + 1]);
     let n = l.shape.len() / l.dims.max(1);
-    let mut stroke = Stroke { width: 1.6, ..Stroke::default() };
+    let mut stroke = Stroke {
+        width: 1.6,
+        ..Stroke::default()
+    };
     if l.dashed {
         stroke.dash = StrokeDash::new(vec![5.0, 3.0], 0.0);
     }
@@ -70,7 +78,13 @@ fn draw_layer(pm: &mut Pixmap, l: &Layer, map: &dyn Fn(f64, f64) -> (f32, f32)) 
         for i in 0..n {
             let (x, y) = pt(i);
             if let Some(c) = PathBuilder::from_circle(x, y, 1.6) {
-                pm.fill_path(&c, &paint(l.color), FillRule::Winding, Transform::identity(), None);
+                pm.fill_path(
+                    &c,
+                    &paint(l.color),
+                    FillRule::Winding,
+                    Transform::identity(),
+                    None,
+                );
             }
         }
         return;
@@ -79,7 +93,11 @@ fn draw_layer(pm: &mut Pixmap, l: &Layer, map: &dyn Fn(f64, f64) -> (f32, f32)) 
         let mut pb = PathBuilder::new();
         for (j, &i) in line.iter().filter(|&&i| i < n).enumerate() {
             let (x, y) = pt(i);
-            if j == 0 { pb.move_to(x, y) } else { pb.line_to(x, y) }
+            if j == 0 {
+                pb.move_to(x, y)
+            } else {
+                pb.line_to(x, y)
+            }
         }
         if let Some(path) = pb.finish() {
             pm.stroke_path(&path, &paint(l.color), &stroke, Transform::identity(), None);
@@ -91,15 +109,32 @@ fn draw_layer(pm: &mut Pixmap, l: &Layer, map: &dyn Fn(f64, f64) -> (f32, f32)) 
 pub fn render_panels(panels: &[Panel], caption: &str, size: u32) -> Result<Pixmap> {
     let fs = (size as f32 / 22.0).clamp(10.0, 16.0);
     let head = (fs * 2.2) as u32;
-    let legend = (fs * 1.5) as u32 * panels.iter().map(|p| p.layers.len()).max().unwrap_or(0) as u32;
+    let legend =
+        (fs * 1.5) as u32 * panels.iter().map(|p| p.layers.len()).max().unwrap_or(0) as u32;
     let (w, h) = (size * panels.len().max(1) as u32, head + size + legend);
     let mut pm = Pixmap::new(w, h).ok_or_else(|| Error::invalid("bad picture size"))?;
     pm.fill(Color::WHITE);
-    text::draw(&mut pm, caption, 8.0, fs * 1.3, fs, Anchor::Left, [30, 30, 30]);
+    text::draw(
+        &mut pm,
+        caption,
+        8.0,
+        fs * 1.3,
+        fs,
+        Anchor::Left,
+        [30, 30, 30],
+    );
     for (k, p) in panels.iter().enumerate() {
         let ox = (k as u32 * size) as f32;
         let top = head as f32 + fs * 1.2;
-        text::draw(&mut pm, &p.title, ox + size as f32 / 2.0, top - fs * 0.3, fs, Anchor::Centre, [30, 30, 30]);
+        text::draw(
+            &mut pm,
+            &p.title,
+            ox + size as f32 / 2.0,
+            top - fs * 0.3,
+            fs,
+            Anchor::Centre,
+            [30, 30, 30],
+        );
         let ((x0, y0), (x1, y1)) = p.bounds;
         let span = (x1 - x0).max(y1 - y0).max(1e-12);
         let inner = size as f32 - 2.0 * fs;
@@ -116,13 +151,24 @@ pub fn render_panels(panels: &[Panel], caption: &str, size: u32) -> Result<Pixma
             pb.move_to(ox + fs, y - fs * 0.3);
             pb.line_to(ox + fs * 2.8, y - fs * 0.3);
             if let Some(path) = pb.finish() {
-                let mut st = Stroke { width: 2.0, ..Stroke::default() };
+                let mut st = Stroke {
+                    width: 2.0,
+                    ..Stroke::default()
+                };
                 if l.dashed {
                     st.dash = StrokeDash::new(vec![5.0, 3.0], 0.0);
                 }
                 pm.stroke_path(&path, &paint(l.color), &st, Transform::identity(), None);
             }
-            text::draw(&mut pm, l.name, ox + fs * 3.3, y, fs * 0.9, Anchor::Left, [30, 30, 30]);
+            text::draw(
+                &mut pm,
+                l.name,
+                ox + fs * 3.3,
+                y,
+                fs * 0.9,
+                Anchor::Left,
+                [30, 30, 30],
+            );
         }
     }
     Ok(pm)
@@ -136,7 +182,14 @@ pub fn stack(rows: &[Pixmap]) -> Result<Pixmap> {
     out.fill(Color::WHITE);
     let mut y = 0;
     for r in rows {
-        out.draw_pixmap(0, y as i32, r.as_ref(), &PixmapPaint::default(), Transform::identity(), None);
+        out.draw_pixmap(
+            0,
+            y as i32,
+            r.as_ref(),
+            &PixmapPaint::default(),
+            Transform::identity(),
+            None,
+        );
         y += r.height();
     }
     Ok(out)

@@ -4,8 +4,8 @@
 //! alignment is put back.
 
 pub mod rbf;
-pub mod setup;
 pub mod regions;
+pub mod setup;
 pub mod target;
 
 use crate::align::Similarity;
@@ -84,7 +84,11 @@ impl Retargeted {
 
     /// Per-frame target-domain RMS.
     pub fn target_rms_per_frame(&self) -> Option<Vec<f64>> {
-        self.target_sq.as_ref().map(|e| e.iter().map(|v| (v / self.target_points as f64).sqrt()).collect())
+        self.target_sq.as_ref().map(|e| {
+            e.iter()
+                .map(|v| (v / self.target_points as f64).sqrt())
+                .collect()
+        })
     }
 
     /// Jitter: mean squared second difference of the weights over time,
@@ -95,7 +99,9 @@ impl Retargeted {
 
     /// Share of negative weights.
     pub fn negative_share(&self) -> f64 {
-        let (neg, all) = self.weights.iter().fold((0usize, 0usize), |(n, a), w| (n + w.iter().filter(|v| **v < 0.0).count(), a + w.len()));
+        let (neg, all) = self.weights.iter().fold((0usize, 0usize), |(n, a), w| {
+            (n + w.iter().filter(|v| **v < 0.0).count(), a + w.len())
+        });
         neg as f64 / all.max(1) as f64
     }
 }
@@ -115,21 +121,38 @@ pub fn jitter(weights: &[DMatrix<f64>]) -> f64 {
             }
         }
     }
-    if n == 0 { 0.0 } else { sum / n as f64 }
+    if n == 0 {
+        0.0
+    } else {
+        sum / n as f64
+    }
 }
 
 /// Applies per-frame head motion to every column (paper 000 §5: "only scaled 2D translation
 /// and rotation are applied to the output motion").
-pub fn with_head_motion(shapes: &DMatrix<f64>, head: &[Similarity], dims: usize) -> Result<DMatrix<f64>> {
+pub fn with_head_motion(
+    shapes: &DMatrix<f64>,
+    head: &[Similarity],
+    dims: usize,
+) -> Result<DMatrix<f64>> {
     if head.len() != shapes.ncols() {
         return Err(Error::invalid("head motion and frames differ in count"));
     }
-    let cols: Vec<f64> = (0..shapes.ncols()).flat_map(|c| head[c].apply(shapes.column(c).as_slice(), dims)).collect();
+    let cols: Vec<f64> = (0..shapes.ncols())
+        .flat_map(|c| head[c].apply(shapes.column(c).as_slice(), dims))
+        .collect();
     Ok(DMatrix::from_vec(shapes.nrows(), shapes.ncols(), cols))
 }
 
 /// Retargets every frame of `q` (aligned shapes, `dims` per point).
-pub fn retarget(q: &DMatrix<f64>, dims: usize, plan: &KeyPlan, target: &Target, neutral: Option<usize>, solver: Solver) -> Result<Retargeted> {
+pub fn retarget(
+    q: &DMatrix<f64>,
+    dims: usize,
+    plan: &KeyPlan,
+    target: &Target,
+    neutral: Option<usize>,
+    solver: Solver,
+) -> Result<Retargeted> {
     let (n, frames) = q.shape();
     let points = n / dims;
     let (regions, key_sets): (Option<&RegionPlan>, Vec<Vec<usize>>) = match plan {
@@ -138,7 +161,9 @@ pub fn retarget(q: &DMatrix<f64>, dims: usize, plan: &KeyPlan, target: &Target, 
     };
     if let (Some(_), Target::Shapes { keys, .. }) = (regions, target) {
         if keys.nrows() != n {
-            return Err(Error::invalid("regions need target shapes with the source's points"));
+            return Err(Error::invalid(
+                "regions need target shapes with the source's points",
+            ));
         }
     }
     let n_t = match target {
@@ -151,7 +176,10 @@ pub fn retarget(q: &DMatrix<f64>, dims: usize, plan: &KeyPlan, target: &Target, 
     for (r, keys) in key_sets.iter().enumerate() {
         let rows: Vec<usize> = match regions {
             None => (0..n).collect(),
-            Some(p) => p.members[r].iter().flat_map(|&i| (0..dims).map(move |d| i * dims + d)).collect(),
+            Some(p) => p.members[r]
+                .iter()
+                .flat_map(|&i| (0..dims).map(move |d| i * dims + d))
+                .collect(),
         };
         let s_full = q.select_columns(keys);
         let b_full = match target {
@@ -164,7 +192,11 @@ pub fn retarget(q: &DMatrix<f64>, dims: usize, plan: &KeyPlan, target: &Target, 
             }
             Target::Shapes { keys: b, .. } => {
                 if b.ncols() != keys.len() {
-                    return Err(Error::invalid(format!("{} target shapes for {} key shapes", b.ncols(), keys.len())));
+                    return Err(Error::invalid(format!(
+                        "{} target shapes for {} key shapes",
+                        b.ncols(),
+                        keys.len()
+                    )));
                 }
                 b.clone()
             }
@@ -179,9 +211,13 @@ pub fn retarget(q: &DMatrix<f64>, dims: usize, plan: &KeyPlan, target: &Target, 
                         add_tracing(&mut v, *trace_noise, c);
                         DVector::from_vec(v)
                     }
-                    Target::Shapes { neutral: Some(v), .. } => v.clone(),
+                    Target::Shapes {
+                        neutral: Some(v), ..
+                    } => v.clone(),
                     Target::Shapes { neutral: None, .. } => {
-                        return Err(Error::invalid("delta mode (--neutral) needs a neutral shape in the target set"))
+                        return Err(Error::invalid(
+                            "delta mode (--neutral) needs a neutral shape in the target set",
+                        ))
                     }
                 };
                 (Some(nq), Some(nb))
@@ -199,7 +235,12 @@ pub fn retarget(q: &DMatrix<f64>, dims: usize, plan: &KeyPlan, target: &Target, 
         let s_d = delta(&s_full, &src_base);
         let q_d = delta(q, &src_base);
         let b_d = delta(&b_full, &tgt_base);
-        let w = solve_batch(&s_d.select_rows(&rows), &q_d.select_rows(&rows), &SolveOptions::new(solver))?.weights;
+        let w = solve_batch(
+            &s_d.select_rows(&rows),
+            &q_d.select_rows(&rows),
+            &SolveOptions::new(solver),
+        )?
+        .weights;
         let mut rec_s = &s_d * &w;
         let mut rec_t = &b_d * &w;
         if let (Some(sb), Some(tb)) = (&src_base, &tgt_base) {
@@ -233,13 +274,29 @@ pub fn retarget(q: &DMatrix<f64>, dims: usize, plan: &KeyPlan, target: &Target, 
         }
         weights.push(w);
     }
-    let source_sq = (0..frames).map(|t| (q.column(t) - source.column(t)).norm_squared()).collect();
+    let source_sq = (0..frames)
+        .map(|t| (q.column(t) - source.column(t)).norm_squared())
+        .collect();
     let truth = match target {
         Target::Warp { g, .. } => Some(g.apply_all(q)),
         Target::Shapes { .. } => None,
     };
-    let target_sq = truth.as_ref().map(|tr| (0..frames).map(|t| (tr.column(t) - out.column(t)).norm_squared()).collect());
-    Ok(Retargeted { keys: key_sets, weights, source, target: out, truth, source_sq, target_sq, points, target_points: n_t / dims })
+    let target_sq = truth.as_ref().map(|tr| {
+        (0..frames)
+            .map(|t| (tr.column(t) - out.column(t)).norm_squared())
+            .collect()
+    });
+    Ok(Retargeted {
+        keys: key_sets,
+        weights,
+        source,
+        target: out,
+        truth,
+        source_sq,
+        target_sq,
+        points,
+        target_points: n_t / dims,
+    })
 }
 
 /// Adds the seeded tracing offsets of key column `key` (see [`Target::Warp`]).
@@ -248,7 +305,9 @@ fn add_tracing(shape: &mut [f64], sigma: f64, key: usize) {
     if sigma <= 0.0 {
         return;
     }
-    let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(0x7ACE ^ (key as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15));
+    let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(
+        0x7ACE ^ (key as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15),
+    );
     for v in shape.iter_mut() {
         // Box–Muller.
         let (u1, u2): (f64, f64) = (rng.gen_range(f64::EPSILON..1.0), rng.gen());

@@ -34,7 +34,9 @@ impl Rbf {
     pub fn fit(src: &[f64], dst: &[f64], dims: usize) -> Result<Rbf> {
         let n = src.len() / dims;
         if n == 0 || src.len() != dst.len() || src.len() % dims != 0 {
-            return Err(Error::invalid("RBF: source and target feature points differ in count"));
+            return Err(Error::invalid(
+                "RBF: source and target feature points differ in count",
+            ));
         }
         let p = |i: usize| &src[i * dims..(i + 1) * dims];
         let mut sc2 = vec![f64::INFINITY; n];
@@ -43,7 +45,9 @@ impl Rbf {
                 if i != j {
                     let d = dist2(p(i), p(j));
                     if d == 0.0 {
-                        return Err(Error::invalid(format!("RBF: feature points {i} and {j} coincide (H is singular)")));
+                        return Err(Error::invalid(format!(
+                            "RBF: feature points {i} and {j} coincide (H is singular)"
+                        )));
                     }
                     sc2[i] = sc2[i].min(d);
                 }
@@ -56,16 +60,29 @@ impl Rbf {
         let svd = jacobi::svd(&h);
         let smax = svd.s.first().copied().unwrap_or(0.0);
         let smin = svd.s.last().copied().unwrap_or(0.0);
-        let condition = if smin > 0.0 { smax / smin } else { f64::INFINITY };
+        let condition = if smin > 0.0 {
+            smax / smin
+        } else {
+            f64::INFINITY
+        };
         if condition > 1e12 {
             return Err(Error::invalid(format!(
                 "RBF: feature points too close together (condition number of H {condition:.1e})"
             )));
         }
         let t = DMatrix::from_fn(n, dims, |j, d| dst[j * dims + d]);
-        let sinv = DMatrix::from_diagonal(&nalgebra::DVector::from_iterator(n, svd.s.iter().map(|s| 1.0 / s)));
+        let sinv = DMatrix::from_diagonal(&nalgebra::DVector::from_iterator(
+            n,
+            svd.s.iter().map(|s| 1.0 / s),
+        ));
         let weights = &svd.v * sinv * svd.u.transpose() * t;
-        Ok(Rbf { dims, centres: src.to_vec(), sc2, weights, condition })
+        Ok(Rbf {
+            dims,
+            centres: src.to_vec(),
+            sc2,
+            weights,
+            condition,
+        })
     }
 
     /// Maps one point.

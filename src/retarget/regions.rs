@@ -40,9 +40,15 @@ impl Regions {
     /// The built-in regions of a layout.
     pub fn builtin(layout: &Layout) -> Result<Regions> {
         let text = match layout.name.as_str() {
-            "mediapipe_face_mesh_468" => include_str!("../../assets/regions/mediapipe_face_mesh_468.json"),
+            "mediapipe_face_mesh_468" => {
+                include_str!("../../assets/regions/mediapipe_face_mesh_468.json")
+            }
             "ibug68" => include_str!("../../assets/regions/ibug68.json"),
-            other => return Err(Error::invalid(format!("no built-in regions for layout {other}"))),
+            other => {
+                return Err(Error::invalid(format!(
+                    "no built-in regions for layout {other}"
+                )))
+            }
         };
         serde_json::from_str(text).map_err(|e| Error::invalid(format!("built-in regions: {e}")))
     }
@@ -50,7 +56,8 @@ impl Regions {
     /// Reads a regions file.
     pub fn read(path: &Path) -> Result<Regions> {
         let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-        serde_json::from_str(&text).map_err(|e| Error::parse(path, e.line() as u64, e.column() as u64, e.to_string()))
+        serde_json::from_str(&text)
+            .map_err(|e| Error::parse(path, e.line() as u64, e.column() as u64, e.to_string()))
     }
 }
 
@@ -71,9 +78,18 @@ pub struct RegionPlan {
 /// point i) with `mean` the flat 2-D mean shape of the selection. A point in one region
 /// belongs to it; a point in several, or (with `blend_rest`) in none, is blended linearly
 /// between the two nearest region centres by its position along the line joining them.
-pub fn plan(regions: &Regions, layout: &Layout, selected: &[usize], mean: &[f64], dims: usize) -> Result<RegionPlan> {
+pub fn plan(
+    regions: &Regions,
+    layout: &Layout,
+    selected: &[usize],
+    mean: &[f64],
+    dims: usize,
+) -> Result<RegionPlan> {
     if regions.layout != layout.name {
-        return Err(Error::invalid(format!("regions are for layout {}, the sequence is {}", regions.layout, layout.name)));
+        return Err(Error::invalid(format!(
+            "regions are for layout {}, the sequence is {}",
+            regions.layout, layout.name
+        )));
     }
     if regions.regions.is_empty() {
         return Err(Error::invalid("regions file lists no regions"));
@@ -81,9 +97,14 @@ pub fn plan(regions: &Regions, layout: &Layout, selected: &[usize], mean: &[f64]
     let mut members = Vec::new();
     for r in &regions.regions {
         let pts = layout.select(&r.groups.join(","))?;
-        let m: Vec<usize> = (0..selected.len()).filter(|&i| pts.binary_search(&selected[i]).is_ok()).collect();
+        let m: Vec<usize> = (0..selected.len())
+            .filter(|&i| pts.binary_search(&selected[i]).is_ok())
+            .collect();
         if m.is_empty() {
-            return Err(Error::invalid(format!("region '{}' covers none of the selected points", r.name)));
+            return Err(Error::invalid(format!(
+                "region '{}' covers none of the selected points",
+                r.name
+            )));
         }
         if r.k == 0 {
             return Err(Error::invalid(format!("region '{}' has k = 0", r.name)));
@@ -93,7 +114,9 @@ pub fn plan(regions: &Regions, layout: &Layout, selected: &[usize], mean: &[f64]
     let nr = members.len();
     let centre = |m: &[usize]| {
         let n = m.len() as f64;
-        m.iter().fold([0.0, 0.0], |c, &i| [c[0] + mean[i * dims] / n, c[1] + mean[i * dims + 1] / n])
+        m.iter().fold([0.0, 0.0], |c, &i| {
+            [c[0] + mean[i * dims] / n, c[1] + mean[i * dims + 1] / n]
+        })
     };
     let centres: Vec<[f64; 2]> = members.iter().map(|m| centre(m)).collect();
     let mut blend = DMatrix::zeros(selected.len(), nr);
@@ -108,7 +131,11 @@ pub fn plan(regions: &Regions, layout: &Layout, selected: &[usize], mean: &[f64]
             uncovered += 1;
             continue;
         }
-        let cand: Vec<usize> = if inside.is_empty() { (0..nr).collect() } else { inside };
+        let cand: Vec<usize> = if inside.is_empty() {
+            (0..nr).collect()
+        } else {
+            inside
+        };
         let p = [mean[i * dims], mean[i * dims + 1]];
         let d2 = |r: usize| (p[0] - centres[r][0]).powi(2) + (p[1] - centres[r][1]).powi(2);
         let mut by = cand.clone();
@@ -117,7 +144,11 @@ pub fn plan(regions: &Regions, layout: &Layout, selected: &[usize], mean: &[f64]
         let (ca, cb) = (centres[a], centres[b]);
         let axis = [cb[0] - ca[0], cb[1] - ca[1]];
         let len2 = axis[0] * axis[0] + axis[1] * axis[1];
-        let t = if len2 > 0.0 { (((p[0] - ca[0]) * axis[0] + (p[1] - ca[1]) * axis[1]) / len2).clamp(0.0, 1.0) } else { 0.5 };
+        let t = if len2 > 0.0 {
+            (((p[0] - ca[0]) * axis[0] + (p[1] - ca[1]) * axis[1]) / len2).clamp(0.0, 1.0)
+        } else {
+            0.5
+        };
         blend[(i, a)] = 1.0 - t;
         blend[(i, b)] = t;
     }

@@ -39,13 +39,26 @@ pub fn polylines_for(layout: &Layout, selected: &[usize]) -> Vec<Vec<usize>> {
 /// (selected) aligned points.
 pub fn builtin_target(seq: &Sequence, prep: &Prepared) -> Result<(Rbf, f64)> {
     if seq.dims != 2 {
-        return Err(Error::invalid("the built-in target is 2-D: use --dims 2, or give --target"));
+        return Err(Error::invalid(
+            "the built-in target is 2-D: use --dims 2, or give --target",
+        ));
     }
-    let layout = prep
-        .layout
-        .as_ref()
-        .ok_or_else(|| Error::invalid(format!("the built-in target needs a known layout (468 or 68 points), not {}", seq.points)))?;
-    let full = prepare(seq, &PrepareOptions { points: None, align: prep.head.is_some() })?;
+    let layout = prep.layout.as_ref().ok_or_else(|| {
+        Error::invalid(format!(
+            "the built-in target needs a known layout (468 or 68 points), not {}",
+            seq.points
+        ))
+    })?;
+    let full = prepare(
+        seq,
+        &PrepareOptions {
+            points: None,
+            align: prep.head.is_some(),
+        },
+    )?;
     let mean = full.seq.coords.column_mean();
-    Ok((cartoon_warp(mean.as_slice(), layout)?, iod(mean.as_slice(), layout)?))
+    Ok((
+        cartoon_warp(mean.as_slice(), layout)?,
+        iod(mean.as_slice(), layout)?,
+    ))
 }

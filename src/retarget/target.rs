@@ -60,7 +60,10 @@ impl TargetSet {
     /// Checks counts, finiteness and polylines.
     pub fn check(&self) -> Result<()> {
         if self.dims != 2 && self.dims != 3 {
-            return Err(Error::invalid(format!("dims must be 2 or 3, got {}", self.dims)));
+            return Err(Error::invalid(format!(
+                "dims must be 2 or 3, got {}",
+                self.dims
+            )));
         }
         let want = self.dims * self.points;
         for (i, k) in self.keys.iter().chain(self.neutral.iter()).enumerate() {
@@ -74,11 +77,17 @@ impl TargetSet {
                 )));
             }
             if k.coords.iter().any(|v| !v.is_finite()) {
-                return Err(Error::invalid(format!("target shape for frame {} has a non-finite coordinate", k.frame)));
+                return Err(Error::invalid(format!(
+                    "target shape for frame {} has a non-finite coordinate",
+                    k.frame
+                )));
             }
         }
         if let Some(bad) = self.polylines.iter().flatten().find(|&&p| p >= self.points) {
-            return Err(Error::invalid(format!("polyline names point {bad}, but target shapes have {} points", self.points)));
+            return Err(Error::invalid(format!(
+                "polyline names point {bad}, but target shapes have {} points",
+                self.points
+            )));
         }
         Ok(())
     }
@@ -88,10 +97,20 @@ impl TargetSet {
     pub fn for_frames(&self, frames: &[i64]) -> Result<DMatrix<f64>> {
         let by_frame: BTreeMap<i64, &TargetKey> = self.keys.iter().map(|k| (k.frame, k)).collect();
         if by_frame.len() != self.keys.len() {
-            return Err(Error::invalid("target set has two shapes for the same frame"));
+            return Err(Error::invalid(
+                "target set has two shapes for the same frame",
+            ));
         }
-        let missing: Vec<i64> = frames.iter().copied().filter(|f| !by_frame.contains_key(f)).collect();
-        let extra: Vec<i64> = by_frame.keys().copied().filter(|f| !frames.contains(f)).collect();
+        let missing: Vec<i64> = frames
+            .iter()
+            .copied()
+            .filter(|f| !by_frame.contains_key(f))
+            .collect();
+        let extra: Vec<i64> = by_frame
+            .keys()
+            .copied()
+            .filter(|f| !frames.contains(f))
+            .collect();
         if !missing.is_empty() || !extra.is_empty() {
             return Err(Error::invalid(format!(
                 "the target has {} shapes for {} key frames: missing frames {missing:?}, extra frames {extra:?}",
@@ -99,7 +118,10 @@ impl TargetSet {
                 frames.len()
             )));
         }
-        let cols: Vec<DVector<f64>> = frames.iter().map(|f| DVector::from_vec(by_frame[f].coords.clone())).collect();
+        let cols: Vec<DVector<f64>> = frames
+            .iter()
+            .map(|f| DVector::from_vec(by_frame[f].coords.clone()))
+            .collect();
         Ok(DMatrix::from_columns(&cols))
     }
 }
@@ -126,11 +148,11 @@ const CARTOON: &str = include_str!("../../assets/targets/cartoon.json");
 
 /// Inter-ocular distance of a flat 2-D mean shape of the full layout (outer eye corners).
 pub fn iod(mean: &[f64], layout: &Layout) -> Result<f64> {
-    let file: CartoonFile = serde_json::from_str(CARTOON).map_err(|e| Error::invalid(format!("built-in cartoon: {e}")))?;
-    let [a, b] = *file
-        .iod_points
-        .get(&layout.name)
-        .ok_or_else(|| Error::invalid(format!("no eye corners known for layout {}", layout.name)))?;
+    let file: CartoonFile = serde_json::from_str(CARTOON)
+        .map_err(|e| Error::invalid(format!("built-in cartoon: {e}")))?;
+    let [a, b] = *file.iod_points.get(&layout.name).ok_or_else(|| {
+        Error::invalid(format!("no eye corners known for layout {}", layout.name))
+    })?;
     Ok(((mean[2 * a] - mean[2 * b]).powi(2) + (mean[2 * a + 1] - mean[2 * b + 1]).powi(2)).sqrt())
 }
 
@@ -142,19 +164,26 @@ const CONTROLS_PER_GROUP: usize = 24;
 /// raised, jaw narrowed, as `assets/targets/cartoon.json` says, and a multiquadric RBF
 /// (paper 004) through the groups' points so that G maps any point smoothly.
 pub fn cartoon_warp(mean: &[f64], layout: &Layout) -> Result<Rbf> {
-    let file: CartoonFile = serde_json::from_str(CARTOON).map_err(|e| Error::invalid(format!("built-in cartoon: {e}")))?;
+    let file: CartoonFile = serde_json::from_str(CARTOON)
+        .map_err(|e| Error::invalid(format!("built-in cartoon: {e}")))?;
     let pt = |i: usize| [mean[2 * i], mean[2 * i + 1]];
-    let [a, b] = *file
-        .iod_points
-        .get(&layout.name)
-        .ok_or_else(|| Error::invalid(format!("the built-in cartoon target has no rule for layout {}", layout.name)))?;
+    let [a, b] = *file.iod_points.get(&layout.name).ok_or_else(|| {
+        Error::invalid(format!(
+            "the built-in cartoon target has no rule for layout {}",
+            layout.name
+        ))
+    })?;
     let iod = ((pt(a)[0] - pt(b)[0]).powi(2) + (pt(a)[1] - pt(b)[1]).powi(2)).sqrt();
     let (mut src, mut dst) = (Vec::new(), Vec::new());
     let mut used = std::collections::BTreeSet::new();
     for (name, warp) in &file.groups {
-        let Some(group) = layout.groups.get(name) else { continue };
+        let Some(group) = layout.groups.get(name) else {
+            continue;
+        };
         let n = group.points.len() as f64;
-        let c = group.points.iter().fold([0.0, 0.0], |c, &p| [c[0] + pt(p)[0] / n, c[1] + pt(p)[1] / n]);
+        let c = group.points.iter().fold([0.0, 0.0], |c, &p| {
+            [c[0] + pt(p)[0] / n, c[1] + pt(p)[1] / n]
+        });
         let sx = warp.scale_x.or(warp.scale).unwrap_or(1.0);
         let sy = warp.scale_y.or(warp.scale).unwrap_or(1.0);
         let step = group.points.len().div_ceil(CONTROLS_PER_GROUP).max(1);

@@ -249,3 +249,92 @@ fn solve_writes_weights_and_a_json_summary_on_real_data() {
     let v: serde_json::Value = serde_json::from_str(&r.stdout).unwrap();
     assert!(v["negative_share"].as_f64().unwrap() > 0.0);
 }
+
+#[test]
+fn retarget_writes_metrics_frames_and_a_reviewed_frame_picture() {
+    let d = tempfile::tempdir().unwrap();
+    let frames = d.path().join("frames");
+    let apng = d.path().join("anim.png");
+    let out = d.path().join("w.csv");
+    let r = kslab(&[
+        "retarget",
+        "--points",
+        "lips",
+        "--method",
+        "spread",
+        "--k",
+        "12",
+        "--solver",
+        "ls",
+        "--json",
+        "--png-dir",
+        &frames.display().to_string(),
+        "--apng",
+        &apng.display().to_string(),
+        "--out",
+        &out.display().to_string(),
+    ]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let v: serde_json::Value = serde_json::from_str(&r.stdout).unwrap();
+    assert!(v["target_rms"].as_f64().unwrap() > 0.0 && v["jitter"].as_f64().unwrap() > 0.0);
+    assert_eq!(std::fs::read_dir(&frames).unwrap().count(), 216);
+    assert!(std::fs::read_to_string(&out)
+        .unwrap()
+        .starts_with("frame,source_rms,target_rms,w_"));
+    crate::experiments::assert_png_matches(
+        &frames.join("frame_000150.png"),
+        &crate::experiments::repo("snapshots/retarget_lips_ls_frame150.png"),
+    );
+}
+
+#[test]
+fn retarget_rejects_a_target_that_does_not_fit_the_keys() {
+    let d = tempfile::tempdir().unwrap();
+    let t = write(
+        d.path(),
+        "t.json",
+        r#"{"kslab_target":1,"dims":2,"points":2,"keys":[{"frame":0,"coords":[0,0,1,1]}]}"#,
+    );
+    let out = d.path().join("w.csv");
+    let r = kslab(&[
+        "retarget",
+        "--keys",
+        "0,60",
+        "--target",
+        &t.display().to_string(),
+        "--out",
+        &out.display().to_string(),
+    ]);
+    assert_eq!(r.code, 1);
+    assert!(r.stderr.contains("missing frames [60]"), "{}", r.stderr);
+    assert!(!out.exists());
+    let bad = write(d.path(), "b.json", "{\"kslab_target\":1,\n\"dims\":2,\"points\":2,\"keys\":[{\"frame\":0,\"coords\":[0,0,1]}]}");
+    let r = kslab(&[
+        "retarget",
+        "--keys",
+        "0",
+        "--target",
+        &bad.display().to_string(),
+    ]);
+    assert!(
+        r.stderr
+            .contains("b.json: target shape 0 (frame 0) has 3 coordinates"),
+        "{}",
+        r.stderr
+    );
+    let r = kslab(&[
+        "retarget",
+        "--points",
+        "lips",
+        "--regions",
+        "builtin",
+        "--method",
+        "spread",
+    ]);
+    assert!(
+        r.stderr
+            .contains("region 'eyes' covers none of the selected points"),
+        "{}",
+        r.stderr
+    );
+}

@@ -4,7 +4,7 @@ use keyshape_lab::experiment::{run, Spec};
 use keyshape_lab::report::write_outcome;
 use std::path::{Path, PathBuf};
 
-fn repo(rel: &str) -> PathBuf {
+pub fn repo(rel: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join(rel)
 }
 
@@ -88,7 +88,7 @@ fn assert_csv_matches(got: &str, golden: &Path) {
 }
 
 /// Compares decoded pixels: at most 0.5 % of pixels may differ by more than 16 in a channel.
-fn assert_png_matches(got: &Path, golden: &Path) {
+pub fn assert_png_matches(got: &Path, golden: &Path) {
     if update() {
         std::fs::copy(got, golden).unwrap();
         return;

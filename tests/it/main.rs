@@ -12,4 +12,5 @@ mod keyshapes;
 mod pca;
 mod readers;
 mod reference;
+mod retarget;
 mod solvers;

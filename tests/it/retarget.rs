@@ -1,0 +1,430 @@
+//! Retargeting: RBF interpolation, target sets, SVG round trips, regions, head motion,
+//! metrics, pictures, and the Figs. 4–5 finding on real lips.
+
+use crate::common::shared;
+use keyshape_lab::decompose::{prepare, PrepareOptions};
+use keyshape_lab::io::builtin_sequence;
+use keyshape_lab::io::svg::{read_template, write_template};
+use keyshape_lab::retarget::rbf::Rbf;
+use keyshape_lab::retarget::regions::{plan, Regions};
+use keyshape_lab::retarget::setup::{builtin_target, polylines_for};
+use keyshape_lab::retarget::target::{TargetKey, TargetSet};
+use keyshape_lab::retarget::{jitter, retarget, with_head_motion, KeyPlan, Target};
+use keyshape_lab::sequence::Layout;
+use keyshape_lab::solve::Solver;
+use nalgebra::DMatrix;
+use proptest::prelude::*;
+
+proptest! {
+    #[test]
+    fn rbf_interpolates_its_training_points(pts in prop::collection::vec((-50.0f64..50.0, -50.0f64..50.0, -5.0f64..5.0, -5.0f64..5.0), 3..25)) {
+        let src: Vec<f64> = pts.iter().flat_map(|p| [p.0, p.1]).collect();
+        // Non-degenerate: no two points closer than 0.5.
+        for i in 0..pts.len() {
+            for j in 0..i {
+                prop_assume!((pts[i].0 - pts[j].0).hypot(pts[i].1 - pts[j].1) > 0.5);
+            }
+        }
+        let dst: Vec<f64> = pts.iter().flat_map(|p| [p.0 * 1.3 + p.2, p.1 * 0.8 + p.3]).collect();
+        let g = Rbf::fit(&src, &dst, 2).unwrap();
+        let out = g.apply(&src);
+        for (a, b) in out.iter().zip(&dst) {
+            prop_assert!((a - b).abs() < 1e-6 * (1.0 + b.abs()), "{a} vs {b} (cond {:e})", g.condition);
+        }
+        // Identity training maps the training points to themselves.
+        let id = Rbf::fit(&src, &src, 2).unwrap();
+        for (a, b) in id.apply(&src).iter().zip(&src) {
+            prop_assert!((a - b).abs() < 1e-6 * (1.0 + b.abs()));
+        }
+    }
+}
+
+#[test]
+fn coincident_feature_points_are_a_clear_error() {
+    let e = Rbf::fit(&[0.0, 0.0, 1.0, 1.0, 0.0, 0.0], &[0.0; 6], 2)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("feature points 0 and 2 coincide"), "{e}");
+}
+
+#[test]
+fn jitter_is_the_mean_squared_second_difference() {
+    // w_t = t²: second difference 2 everywhere, so jitter 4.
+    let w = DMatrix::from_fn(2, 10, |_, t| (t * t) as f64);
+    assert!((jitter(&[w]) - 4.0).abs() < 1e-12);
+    assert_eq!(jitter(&[DMatrix::from_element(3, 10, 0.7)]), 0.0);
+}
+
+fn builtin_lips() -> (
+    keyshape_lab::sequence::Sequence,
+    keyshape_lab::decompose::Prepared,
+) {
+    let seq = builtin_sequence().unwrap();
+    let prep = prepare(
+        &seq,
+        &PrepareOptions {
+            points: Some("lips".into()),
+            align: true,
+        },
+    )
+    .unwrap();
+    (seq, prep)
+}
+
+#[test]
+fn key_frames_retarget_exactly_onto_their_target_shapes() {
+    let (seq, prep) = builtin_lips();
+    let (g, _) = builtin_target(&seq, &prep).unwrap();
+    let keys = vec![0, 40, 90, 150, 200];
+    let r = retarget(
+        &prep.seq.coords,
+        2,
+        &KeyPlan::Global(keys.clone()),
+        &Target::Warp {
+            g,
+            trace_noise: 0.0,
+        },
+        None,
+        Solver::Nnls,
+    )
+    .unwrap();
+    let per = r.target_rms_per_frame().unwrap();
+    for &k in &keys {
+        assert!(per[k] < 1e-6, "key frame {k}: target error {}", per[k]);
+        assert!(r.source_sq[k] < 1e-9);
+    }
+    // Given shapes equal to the source keys: the target is the source reconstruction.
+    let same = Target::Shapes {
+        keys: prep.seq.coords.select_columns(&keys),
+        neutral: None,
+    };
+    let r2 = retarget(
+        &prep.seq.coords,
+        2,
+        &KeyPlan::Global(keys),
+        &same,
+        None,
+        Solver::Ls,
+    )
+    .unwrap();
+    assert!((&r2.target - &r2.source).amax() < 1e-9);
+}
+
+#[test]
+fn head_motion_puts_the_retargeted_face_back_where_the_tracker_saw_it() {
+    let (seq, prep) = builtin_lips();
+    let keys = vec![10, 100, 180];
+    let same = Target::Shapes {
+        keys: prep.seq.coords.select_columns(&keys),
+        neutral: None,
+    };
+    let r = retarget(
+        &prep.seq.coords,
+        2,
+        &KeyPlan::Global(keys.clone()),
+        &same,
+        None,
+        Solver::Nnls,
+    )
+    .unwrap();
+    let image = with_head_motion(&r.target, prep.head.as_ref().unwrap(), 2).unwrap();
+    let raw = seq.select_points(&prep.point_indices).unwrap().coords;
+    for &k in &keys {
+        let d = (image.column(k) - raw.column(k)).amax();
+        assert!(d < 1e-6, "frame {k} off by {d} px");
+    }
+}
+
+#[test]
+fn delta_mode_uses_the_neutral_and_needs_one_in_the_target() {
+    let (seq, prep) = builtin_lips();
+    let (g, _) = builtin_target(&seq, &prep).unwrap();
+    let keys = vec![40, 90, 150];
+    let r = retarget(
+        &prep.seq.coords,
+        2,
+        &KeyPlan::Global(keys.clone()),
+        &Target::Warp {
+            g,
+            trace_noise: 0.0,
+        },
+        Some(0),
+        Solver::Bounded,
+    )
+    .unwrap();
+    // The neutral frame itself: all weights 0, target = G(neutral) exactly.
+    assert!(r.weights[0].column(0).amax() < 1e-12);
+    assert!(r.target_rms_per_frame().unwrap()[0] < 1e-9);
+    let no_neutral = Target::Shapes {
+        keys: prep.seq.coords.select_columns(&keys),
+        neutral: None,
+    };
+    let e = retarget(
+        &prep.seq.coords,
+        2,
+        &KeyPlan::Global(keys),
+        &no_neutral,
+        Some(0),
+        Solver::Nnls,
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("needs a neutral shape"), "{e}");
+}
+
+#[test]
+fn regions_blend_to_one_and_bad_regions_are_explained() {
+    let seq = builtin_sequence().unwrap();
+    let layout = Layout::mediapipe468();
+    let all: Vec<usize> = (0..468).collect();
+    let mean = seq.coords.column_mean();
+    let p = plan(
+        &Regions::builtin(&layout).unwrap(),
+        &layout,
+        &all,
+        mean.as_slice(),
+        2,
+    )
+    .unwrap();
+    for i in 0..468 {
+        assert!((p.blend.row(i).sum() - 1.0).abs() < 1e-12);
+    }
+    // A lips-only selection leaves the eye region empty.
+    let lips = layout.select("lips").unwrap();
+    let mean_l: Vec<f64> = lips
+        .iter()
+        .flat_map(|&i| [mean[2 * i], mean[2 * i + 1]])
+        .collect();
+    let e = plan(
+        &Regions::builtin(&layout).unwrap(),
+        &layout,
+        &lips,
+        &mean_l,
+        2,
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("region 'eyes' covers none"), "{e}");
+    // Without blend_rest, points in no region are an error.
+    let mut r = Regions::builtin(&layout).unwrap();
+    r.blend_rest = false;
+    let e = plan(&r, &layout, &all, mean.as_slice(), 2)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("uncovered"), "{e}");
+    // Regions retarget end to end on the whole face.
+    let prep = prepare(
+        &seq,
+        &PrepareOptions {
+            points: None,
+            align: true,
+        },
+    )
+    .unwrap();
+    let (g, _) = builtin_target(&seq, &prep).unwrap();
+    let keys: Vec<Vec<usize>> = vec![vec![0, 50, 100, 150], vec![10, 60, 120, 170, 210]];
+    let res = retarget(
+        &prep.seq.coords,
+        2,
+        &KeyPlan::Regions(p, keys),
+        &Target::Warp {
+            g,
+            trace_noise: 0.0,
+        },
+        None,
+        Solver::Nnls,
+    )
+    .unwrap();
+    assert_eq!(res.weights.len(), 2);
+    assert!(res.target_rms().unwrap() < 5.0);
+}
+
+#[test]
+fn target_sets_check_counts_and_point_counts() {
+    let key = |frame, n: usize| TargetKey {
+        frame,
+        coords: vec![1.0; n],
+    };
+    let set = TargetSet {
+        kslab_target: 1,
+        dims: 2,
+        points: 2,
+        polylines: vec![],
+        keys: vec![key(3, 4), key(7, 4)],
+        neutral: None,
+    };
+    assert!(set.check().is_ok());
+    let e = set.for_frames(&[3, 7, 9]).unwrap_err().to_string();
+    assert!(e.contains("missing frames [9]"), "{e}");
+    let e = set.for_frames(&[3]).unwrap_err().to_string();
+    assert!(e.contains("extra frames [7]"), "{e}");
+    let bad = TargetSet {
+        keys: vec![key(3, 4), key(7, 6)],
+        ..set.clone()
+    };
+    let e = bad.check().unwrap_err().to_string();
+    assert!(e.contains("same point count"), "{e}");
+}
+
+fn template_of(
+    prep: &keyshape_lab::decompose::Prepared,
+    cols: &[usize],
+) -> (String, Vec<(i64, Vec<f64>)>) {
+    let s = &prep.seq;
+    let keys: Vec<(i64, Vec<f64>)> = cols
+        .iter()
+        .map(|&c| (s.frames[c], s.coords.column(c).iter().copied().collect()))
+        .collect();
+    let lines = polylines_for(prep.layout.as_ref().unwrap(), &prep.point_indices);
+    let mut buf = Vec::new();
+    write_template(&mut buf, &keys, s.points, &lines).unwrap();
+    (String::from_utf8(buf).unwrap(), keys)
+}
+
+#[test]
+fn svg_template_round_trips_and_reads_edits_through_transforms() {
+    let seq = builtin_sequence().unwrap();
+    for points in ["lips", "eyes,lips,face_oval"] {
+        let prep = prepare(
+            &seq,
+            &PrepareOptions {
+                points: Some(points.into()),
+                align: true,
+            },
+        )
+        .unwrap();
+        let (svg, keys) = template_of(&prep, &[3, 77, 140, 201]);
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("t.svg");
+        std::fs::write(&p, &svg).unwrap();
+        let back = read_template(&p).unwrap();
+        let frames: Vec<i64> = keys.iter().map(|k| k.0).collect();
+        let m = back.for_frames(&frames).unwrap();
+        for (j, (_, s)) in keys.iter().enumerate() {
+            for (a, b) in m.column(j).iter().zip(s) {
+                assert!(
+                    (a - b).abs() < 1e-4 * (1.0 + b.abs()),
+                    "{points}: {a} vs {b}"
+                );
+            }
+        }
+        // An artist's edit: Inkscape moves a contour with a transform on the path.
+        let moved = svg.replacen(
+            &format!("<polyline id=\"key-{}-c0\"", frames[0]),
+            &format!(
+                "<polyline transform=\"translate(2 -1)\" id=\"key-{}-c0\"",
+                frames[0]
+            ),
+            1,
+        );
+        std::fs::write(&p, moved).unwrap();
+        let edited = read_template(&p).unwrap().for_frames(&frames).unwrap();
+        let c0 = &prep
+            .layout
+            .as_ref()
+            .map(|l| polylines_for(l, &prep.point_indices))
+            .unwrap()[0];
+        let i = c0[1];
+        assert!((edited[(2 * i, 0)] - m[(2 * i, 0)] - 2.0).abs() < 1e-3);
+        assert!((edited[(2 * i + 1, 0)] - m[(2 * i + 1, 0)] + 1.0).abs() < 1e-3);
+    }
+}
+
+#[test]
+fn damaged_svg_templates_are_explained() {
+    let seq = builtin_sequence().unwrap();
+    let prep = prepare(
+        &seq,
+        &PrepareOptions {
+            points: Some("lips".into()),
+            align: true,
+        },
+    )
+    .unwrap();
+    let (svg, _) = template_of(&prep, &[3, 77]);
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("t.svg");
+    let check = |text: String, needle: &str| {
+        std::fs::write(&p, text).unwrap();
+        let e = read_template(&p).unwrap_err().to_string();
+        assert!(e.contains(needle), "expected '{needle}' in: {e}");
+    };
+    check(
+        svg.replace("id=\"key-77-c1\"", "id=\"key-77-cX\""),
+        "contour 'key-77-c1' is missing",
+    );
+    let pts_start = svg.find("points=\"").unwrap() + 8;
+    let first_space = svg[pts_start..].find(' ').unwrap() + pts_start;
+    check(
+        format!("{}{}", &svg[..pts_start], &svg[first_space + 1..]),
+        "the template had",
+    );
+    check(
+        svg.replace("<desc id=\"kslab-template\">", "<desc>"),
+        "not a template",
+    );
+    check(svg.replace("</svg>", ""), "not valid SVG/XML");
+}
+
+#[test]
+fn apng_has_one_frame_per_sequence_frame() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("a.png");
+    keyshape_lab::render::apng::write_apng(&p, 3, 30.0, &|i| {
+        let mut pm = tiny_skia::Pixmap::new(8, 8).unwrap();
+        pm.fill(tiny_skia::Color::from_rgba8(i as u8 * 80, 0, 0, 255));
+        Ok(pm)
+    })
+    .unwrap();
+    let dec = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(&p).unwrap()));
+    let reader = dec.read_info().unwrap();
+    let actl = reader.info().animation_control().unwrap();
+    assert_eq!(actl.num_frames, 3);
+}
+
+#[test]
+fn nnls_removes_the_distortion_ls_shows_with_traced_targets_on_real_lips() {
+    // Paper 000 Figs. 4–5 on liveportrait_d6: 21 spread keys, built-in cartoon target with
+    // hand-tracing noise of 1 % IOD. What the data shows (README): with noise LS distorts
+    // and NNLS does not; with an exact smooth warp LS is the more accurate of the two.
+    let seq = keyshape_lab::io::read_sequence(
+        &shared("mediapipe_face_tracks/liveportrait_d6.csv"),
+        &Default::default(),
+    )
+    .unwrap();
+    let prep = prepare(
+        &seq,
+        &PrepareOptions {
+            points: Some("lips".into()),
+            align: true,
+        },
+    )
+    .unwrap();
+    let an =
+        keyshape_lab::keyshapes::Analysis::new(prep.seq.coords.clone(), prep.seq.points).unwrap();
+    let keys = keyshape_lab::keyshapes::Method::Spread
+        .heuristic(&Default::default())
+        .select(&an, 21)
+        .unwrap()
+        .columns;
+    let (g, iod) = builtin_target(&seq, &prep).unwrap();
+    let run = |solver, noise: f64| {
+        retarget(
+            &prep.seq.coords,
+            2,
+            &KeyPlan::Global(keys.clone()),
+            &Target::Warp {
+                g: g.clone(),
+                trace_noise: noise * iod,
+            },
+            None,
+            solver,
+        )
+        .unwrap()
+    };
+    let (ls, nnls) = (run(Solver::Ls, 0.01), run(Solver::Nnls, 0.01));
+    assert!(nnls.target_rms().unwrap() < 0.8 * ls.target_rms().unwrap());
+    assert!(nnls.jitter() < 0.5 * ls.jitter());
+    let (ls0, nnls0) = (run(Solver::Ls, 0.0), run(Solver::Nnls, 0.0));
+    assert!(ls0.target_rms().unwrap() < nnls0.target_rms().unwrap());
+}
