@@ -21,7 +21,7 @@ pub enum Target {
     /// A smooth warp G of source points (the built-in cartoon): `Bᵢ = G(Sᵢ) + εᵢ`, and
     /// `G(Q_t)` is a ground truth in the target domain. `εᵢ` models an artist tracing each
     /// key shape by hand (paper 000 §4.1: "the traced shapes closely match the tracked
-    /// contours, [but] they are not identical"): independent Gaussian offsets of standard
+    /// contours, \[but\] they are not identical"): independent Gaussian offsets of standard
     /// deviation `trace_noise` (input units) per coordinate, seeded by the key's frame
     /// column, so the same key always gets the same tracing.
     Warp {
