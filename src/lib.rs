@@ -43,5 +43,6 @@ pub mod report;
 pub mod retarget;
 pub mod sequence;
 pub mod solve;
+pub mod tui;
 
 pub use error::{Error, Result};

@@ -10,21 +10,24 @@ mod retarget;
 mod run;
 mod solve;
 mod template;
+mod tui;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 
-/// keyshape-lab: pick key shapes from a tracked facial performance, solve blend weights,
+/// keyshape-lab: with no command, the interactive lab on the built-in sequence. Pick key shapes from a tracked facial performance, solve blend weights,
 /// and see how they retarget.
 #[derive(Debug, Parser)]
 #[command(name = "kslab", version, about, long_about = None)]
 pub struct Cli {
     #[command(subcommand)]
-    command: Command,
+    command: Option<Command>,
 }
 
 #[derive(Debug, Subcommand)]
 enum Command {
+    /// Open the interactive lab (this is also what `kslab` alone does, on the built-in sequence).
+    Tui(tui::TuiArgs),
     /// Describe a tracked sequence: format, frames, points, failed frames, ranges.
     Info(info::InfoArgs),
     /// Solve blend weights of every frame on chosen key frames (paper 000 Eq. 3/4).
@@ -46,7 +49,8 @@ enum Command {
 /// Runs the CLI; errors print as `error: …` with exit code 1.
 pub fn main() -> ExitCode {
     let cli = Cli::parse();
-    let result = match cli.command {
+    let result = match cli.command.unwrap_or(Command::Tui(tui::TuiArgs::default())) {
+        Command::Tui(a) => tui::run(&a),
         Command::Info(a) => info::run(&a),
         Command::Solve(a) => solve::run(&a),
         Command::Keys(a) => keys::run(&a),

@@ -153,6 +153,20 @@ pub fn retarget(
     neutral: Option<usize>,
     solver: Solver,
 ) -> Result<Retargeted> {
+    retarget_with_truth(q, dims, plan, target, neutral, solver, None)
+}
+
+/// As [`retarget`], with `G(Q)` already computed for a warp target (it costs a pass of the
+/// RBF over every point of every frame, which an interactive caller computes once).
+pub fn retarget_with_truth(
+    q: &DMatrix<f64>,
+    dims: usize,
+    plan: &KeyPlan,
+    target: &Target,
+    neutral: Option<usize>,
+    solver: Solver,
+    truth: Option<&DMatrix<f64>>,
+) -> Result<Retargeted> {
     let (n, frames) = q.shape();
     let points = n / dims;
     let (regions, key_sets): (Option<&RegionPlan>, Vec<Vec<usize>>) = match plan {
@@ -277,9 +291,10 @@ pub fn retarget(
     let source_sq = (0..frames)
         .map(|t| (q.column(t) - source.column(t)).norm_squared())
         .collect();
-    let truth = match target {
-        Target::Warp { g, .. } => Some(g.apply_all(q)),
-        Target::Shapes { .. } => None,
+    let truth = match (target, truth) {
+        (Target::Warp { .. }, Some(t)) if t.shape() == q.shape() => Some(t.clone()),
+        (Target::Warp { g, .. }, _) => Some(g.apply_all(q)),
+        (Target::Shapes { .. }, _) => None,
     };
     let target_sq = truth.as_ref().map(|tr| {
         (0..frames)

@@ -14,3 +14,4 @@ mod readers;
 mod reference;
 mod retarget;
 mod solvers;
+mod tui;

@@ -3,6 +3,7 @@
 
 mod curves;
 mod nnls;
+mod tui;
 
 use anyhow::Result;
 use clap::{Args, Subcommand};
@@ -20,11 +21,14 @@ enum What {
     Nnls(nnls::NnlsArgs),
     /// The full error-curve sweep (all methods, k = 2..24) against a plain implementation.
     Curves(curves::CurvesBenchArgs),
+    /// Input-to-redraw latency of the lab when k or the method changes.
+    Tui(tui::TuiBenchArgs),
 }
 
 pub fn run(a: &BenchArgs) -> Result<()> {
     match &a.what {
         What::Nnls(n) => nnls::run(n),
         What::Curves(c) => curves::run(c),
+        What::Tui(t) => tui::run(t),
     }
 }

@@ -1,0 +1,391 @@
+//! The worker thread: every solve runs here, off the UI thread. A newer request supersedes
+//! an older one (queued requests are skipped, and the error curves of a superseded request
+//! are abandoned between methods).
+
+use super::state::{Action, Settings};
+use crate::decompose::{prepare, PrepareOptions, Prepared};
+use crate::error::{Error, Result};
+use crate::io::{builtin_sequence, read_sequence, ReadOptions};
+use crate::keyshapes::curves::sweep;
+use crate::keyshapes::{axes_needed, Analysis, KeyOptions, Method};
+use crate::retarget::rbf::Rbf;
+use crate::retarget::setup::{builtin_target, polylines_for};
+use crate::retarget::target::TargetSet;
+use crate::retarget::{retarget_with_truth, KeyPlan, Target};
+use crate::sequence::Sequence;
+use crate::solve::Solver;
+use nalgebra::DMatrix;
+use std::collections::HashMap;
+use std::path::PathBuf;
+use std::sync::mpsc::{channel, Receiver, Sender, TryRecvError};
+use std::time::Instant;
+
+/// One solver's view of the sequence.
+#[derive(Debug, Clone)]
+pub struct SolverView {
+    /// The solver.
+    pub solver: Solver,
+    /// k × frames.
+    pub weights: DMatrix<f64>,
+    /// Source reconstruction (aligned).
+    pub recon: DMatrix<f64>,
+    /// Retargeted target (aligned).
+    pub target: DMatrix<f64>,
+    /// Per-frame source RMS.
+    pub frame_rms: Vec<f64>,
+    /// Per-frame target-domain RMS.
+    pub frame_target_rms: Vec<f64>,
+    /// Whole-sequence source RMS.
+    pub source_rms: f64,
+    /// Whole-sequence target RMS.
+    pub target_rms: f64,
+    /// Weight jitter.
+    pub jitter: f64,
+}
+
+/// A finished request.
+#[derive(Debug, Clone)]
+pub struct Computed {
+    /// Request id.
+    pub id: u64,
+    /// The settings it answers.
+    pub settings: Settings,
+    /// Frame numbers.
+    pub frames: Vec<i64>,
+    /// Key columns.
+    pub keys: Vec<usize>,
+    /// Values per point.
+    pub dims: usize,
+    /// Drawing contours.
+    pub polylines: Vec<Vec<usize>>,
+    /// Tracked shapes (aligned).
+    pub tracked: DMatrix<f64>,
+    /// Ground truth G(q).
+    pub truth: DMatrix<f64>,
+    /// The chosen solver first, then LS and NNLS (for the split view) when different.
+    pub views: Vec<SolverView>,
+    /// Seconds the request took.
+    pub seconds: f64,
+}
+
+impl Computed {
+    /// The view of a solver, if computed.
+    pub fn view(&self, s: Solver) -> Option<&SolverView> {
+        self.views.iter().find(|v| v.solver == s)
+    }
+}
+
+struct Cached {
+    prep: Prepared,
+    an: Analysis,
+    warp: Rbf,
+    truth: DMatrix<f64>,
+    lines: Vec<Vec<usize>>,
+}
+
+/// The worker's side: the sequence, an optional user target, and what it has prepared per
+/// point group.
+pub struct Engine {
+    seq: Sequence,
+    target: Option<TargetSet>,
+    cache: HashMap<String, Cached>,
+}
+
+impl Engine {
+    /// An engine over a sequence (with the built-in target).
+    pub fn new(seq: Sequence) -> Engine {
+        Engine {
+            seq,
+            target: None,
+            cache: HashMap::new(),
+        }
+    }
+
+    /// An engine whose target key shapes come from a target set: its frames become the key
+    /// frames (the artist drew those), so the method and k settings do not apply.
+    pub fn with_target(seq: Sequence, target: TargetSet) -> Engine {
+        Engine {
+            seq,
+            target: Some(target),
+            cache: HashMap::new(),
+        }
+    }
+
+    /// The sequence.
+    pub fn sequence(&self) -> &Sequence {
+        &self.seq
+    }
+
+    fn cached(&mut self, points: &str) -> Result<&Cached> {
+        if !self.cache.contains_key(points) {
+            let sel = if points == "all" {
+                None
+            } else {
+                Some(points.to_string())
+            };
+            let prep = prepare(
+                &self.seq,
+                &PrepareOptions {
+                    points: sel,
+                    align: true,
+                },
+            )?;
+            let an = Analysis::with_axes(
+                prep.seq.coords.clone(),
+                prep.seq.points,
+                axes_needed(&Method::ALL, 64),
+            )?;
+            let (warp, _) = builtin_target(&self.seq, &prep)?;
+            let truth = warp.apply_all(&prep.seq.coords);
+            let lines = prep
+                .layout
+                .as_ref()
+                .map(|l| polylines_for(l, &prep.point_indices))
+                .unwrap_or_default();
+            self.cache.insert(
+                points.to_string(),
+                Cached {
+                    prep,
+                    an,
+                    warp,
+                    truth,
+                    lines,
+                },
+            );
+        }
+        self.cache
+            .get(points)
+            .ok_or_else(|| Error::invalid("cache"))
+    }
+
+    /// The fast part of a request: keys, weights, reconstructions, targets.
+    pub fn compute(&mut self, id: u64, settings: &Settings) -> Result<Computed> {
+        let t0 = Instant::now();
+        let user_target = self.target.clone();
+        let c = self.cached(&settings.points)?;
+        let opts = KeyOptions {
+            solver: settings.solver,
+            ..KeyOptions::default()
+        };
+        let (keys, target) = match &user_target {
+            None => {
+                let k = if settings.method == Method::Hull {
+                    0
+                } else {
+                    settings.k.min(c.an.distinct)
+                };
+                let keys = settings.method.heuristic(&opts).select(&c.an, k)?.columns;
+                (
+                    keys,
+                    Target::Warp {
+                        g: c.warp.clone(),
+                        trace_noise: 0.0,
+                    },
+                )
+            }
+            Some(set) => {
+                let frames: Vec<i64> = set.keys.iter().map(|k| k.frame).collect();
+                let keys = frames
+                    .iter()
+                    .map(|&f| c.prep.seq.column_of_frame(f))
+                    .collect::<Result<Vec<_>>>()?;
+                if set.points != c.prep.seq.points || set.dims != c.prep.seq.dims {
+                    return Err(Error::invalid(format!(
+                        "the target has {} points, the '{}' selection {}: choose the group the target was drawn for (g)",
+                        set.points, settings.points, c.prep.seq.points
+                    )));
+                }
+                let neutral = set
+                    .neutral
+                    .as_ref()
+                    .map(|n| nalgebra::DVector::from_vec(n.coords.clone()));
+                (
+                    keys,
+                    Target::Shapes {
+                        keys: set.for_frames(&frames)?,
+                        neutral,
+                    },
+                )
+            }
+        };
+        let mut solvers = vec![settings.solver];
+        for s in [Solver::Ls, Solver::Nnls] {
+            if !solvers.contains(&s) {
+                solvers.push(s);
+            }
+        }
+        let coords = &c.prep.seq.coords;
+        let dims = c.prep.seq.dims;
+        let mut views = Vec::new();
+        for s in solvers {
+            let r = retarget_with_truth(
+                coords,
+                dims,
+                &KeyPlan::Global(keys.clone()),
+                &target,
+                None,
+                s,
+                Some(&c.truth),
+            )?;
+            views.push(SolverView {
+                solver: s,
+                frame_rms: r
+                    .source_sq
+                    .iter()
+                    .map(|e| (e / r.points as f64).sqrt())
+                    .collect(),
+                frame_target_rms: r.target_rms_per_frame().unwrap_or_default(),
+                source_rms: r.source_rms(),
+                target_rms: r.target_rms().unwrap_or(f64::NAN),
+                jitter: r.jitter(),
+                weights: r
+                    .weights
+                    .into_iter()
+                    .next()
+                    .unwrap_or_else(|| DMatrix::zeros(0, 0)),
+                recon: r.source,
+                target: r.target,
+            });
+        }
+        Ok(Computed {
+            id,
+            settings: settings.clone(),
+            frames: c.prep.seq.frames.clone(),
+            keys,
+            dims,
+            polylines: c.lines.clone(),
+            tracked: coords.clone(),
+            truth: if user_target.is_some() {
+                views_target(&views)
+            } else {
+                c.truth.clone()
+            },
+            views,
+            seconds: t0.elapsed().as_secs_f64(),
+        })
+    }
+
+    /// The error curves of every method for a request's points and solver, k = 2..24;
+    /// `abandon` is asked between methods.
+    pub fn curves(
+        &mut self,
+        settings: &Settings,
+        abandon: &mut dyn FnMut() -> bool,
+    ) -> Result<Option<Vec<crate::keyshapes::curves::CurveRow>>> {
+        let c = self.cached(&settings.points)?;
+        let hi = 24.min(c.an.distinct);
+        let mut rows = Vec::new();
+        for m in Method::ALL {
+            if abandon() {
+                return Ok(None);
+            }
+            let opts = KeyOptions {
+                solver: settings.solver,
+                ..KeyOptions::default()
+            };
+            rows.extend(sweep(
+                &c.an,
+                &[m],
+                2.min(hi)..=hi,
+                &[settings.solver],
+                &opts,
+                &|_, _| {},
+            )?);
+        }
+        Ok(Some(rows))
+    }
+}
+
+/// With a user target there is no ground truth: the chosen solver's target stands in.
+fn views_target(views: &[SolverView]) -> DMatrix<f64> {
+    views
+        .first()
+        .map(|v| v.target.clone())
+        .unwrap_or_else(|| DMatrix::zeros(0, 0))
+}
+
+/// Requests to the worker.
+#[derive(Debug, Clone)]
+pub enum Job {
+    /// Compute with these settings.
+    Compute(u64, Settings),
+    /// Load a sequence from a path.
+    Load(u64, String),
+}
+
+/// Loads a sequence for the lab (`builtin` or a path).
+pub fn load(path: &str) -> Result<Sequence> {
+    if path.trim().is_empty() || path.trim() == "builtin" {
+        return builtin_sequence();
+    }
+    read_sequence(&PathBuf::from(path.trim()), &ReadOptions::default())
+}
+
+/// Starts the worker thread; results come back as [`Action`]s.
+pub fn spawn(seq: Sequence, target: Option<TargetSet>) -> (Sender<Job>, Receiver<Action>) {
+    let (jobs_tx, jobs_rx) = channel::<Job>();
+    let (out_tx, out_rx) = channel::<Action>();
+    std::thread::spawn(move || {
+        let mut engine = match target {
+            Some(t) => Engine::with_target(seq, t),
+            None => Engine::new(seq),
+        };
+        let mut pending: Option<Job> = None;
+        loop {
+            let job = match pending.take() {
+                Some(j) => j,
+                None => match jobs_rx.recv() {
+                    Ok(j) => j,
+                    Err(_) => return,
+                },
+            };
+            // Skip to the newest queued job.
+            let mut job = job;
+            while let Ok(j) = jobs_rx.try_recv() {
+                job = j;
+            }
+            match job {
+                Job::Load(id, path) => match load(&path) {
+                    Ok(seq) => {
+                        let fps = seq.fps().unwrap_or(30.0);
+                        let (name, n) = (seq.source.clone(), seq.n_frames());
+                        engine = Engine::new(seq);
+                        let _ = out_tx.send(Action::Loaded(id, name, n, fps));
+                    }
+                    Err(e) => {
+                        let _ = out_tx.send(Action::Failed(id, e.to_string()));
+                    }
+                },
+                Job::Compute(id, settings) => {
+                    match engine.compute(id, &settings) {
+                        Ok(c) => {
+                            let _ = out_tx.send(Action::Computed(Box::new(c)));
+                        }
+                        Err(e) => {
+                            let _ = out_tx.send(Action::Failed(id, e.to_string()));
+                            continue;
+                        }
+                    }
+                    let mut abandon = || match jobs_rx.try_recv() {
+                        Ok(j) => {
+                            pending = Some(j);
+                            true
+                        }
+                        Err(TryRecvError::Empty) => false,
+                        Err(TryRecvError::Disconnected) => true,
+                    };
+                    match engine.curves(&settings, &mut abandon) {
+                        Ok(Some(rows)) => {
+                            let _ = out_tx.send(Action::Curves(id, rows));
+                        }
+                        Ok(None) => {}
+                        Err(e) => {
+                            let _ = out_tx.send(Action::Failed(id, e.to_string()));
+                        }
+                    }
+                }
+            }
+        }
+    });
+    (jobs_tx, out_rx)
+}

@@ -1,0 +1,129 @@
+//! `e` in the lab: the current weights as CSV, the current view as PNG, and an experiment
+//! TOML that reproduces the settings with `kslab run`.
+
+use super::state::State;
+use crate::io::{fmt_num, write_atomic};
+use crate::keyshapes::Method;
+use crate::render::face::{bounds_of, col, render_panels, Layer, Panel};
+use crate::render::save_png;
+use anyhow::{Context, Result};
+use std::path::Path;
+
+/// Writes `weights.csv`, `view.png` and `experiment.toml` into `dir`; returns their paths.
+pub fn export(s: &State, seq_path: &str, dir: &Path) -> Result<Vec<String>> {
+    let c = s.computed.as_ref().context("nothing computed yet")?;
+    let v = c.views.first().context("no solver view")?;
+    std::fs::create_dir_all(dir).with_context(|| format!("{}", dir.display()))?;
+    let csv = dir.join("weights.csv");
+    write_atomic(&csv, |w| {
+        let keys: Vec<String> = c
+            .keys
+            .iter()
+            .map(|&k| format!("w_{}", c.frames[k]))
+            .collect();
+        writeln!(w, "frame,source_rms,target_rms,{}", keys.join(","))?;
+        for (t, f) in c.frames.iter().enumerate() {
+            let ws: Vec<String> = v.weights.column(t).iter().map(|x| fmt_num(*x)).collect();
+            writeln!(
+                w,
+                "{f},{},{},{}",
+                fmt_num(v.frame_rms[t]),
+                fmt_num(v.frame_target_rms[t]),
+                ws.join(",")
+            )?;
+        }
+        Ok(())
+    })?;
+    let t = s.frame.min(c.frames.len().saturating_sub(1));
+    let sb = bounds_of(&[&c.tracked], c.dims);
+    let tb = bounds_of(&[&c.truth, &v.target], c.dims);
+    let panels = [
+        Panel {
+            title: "source".into(),
+            layers: vec![
+                Layer {
+                    name: "tracked",
+                    shape: col(&c.tracked, t),
+                    dims: c.dims,
+                    polylines: &c.polylines,
+                    color: [20, 20, 20],
+                    dashed: false,
+                },
+                Layer {
+                    name: "reconstruction",
+                    shape: col(&v.recon, t),
+                    dims: c.dims,
+                    polylines: &c.polylines,
+                    color: [31, 90, 200],
+                    dashed: true,
+                },
+            ],
+            bounds: sb,
+        },
+        Panel {
+            title: "target".into(),
+            layers: vec![
+                Layer {
+                    name: "ground truth G(q)",
+                    shape: col(&c.truth, t),
+                    dims: c.dims,
+                    polylines: &c.polylines,
+                    color: [150, 150, 150],
+                    dashed: true,
+                },
+                Layer {
+                    name: "retargeted",
+                    shape: col(&v.target, t),
+                    dims: c.dims,
+                    polylines: &c.polylines,
+                    color: [200, 30, 30],
+                    dashed: false,
+                },
+            ],
+            bounds: tb,
+        },
+    ];
+    let caption = format!(
+        "frame {}   {} {} k={}   {}",
+        c.frames[t],
+        c.settings.points,
+        c.settings.method,
+        c.keys.len(),
+        c.settings.solver
+    );
+    let png = dir.join("view.png");
+    save_png(&render_panels(&panels, &caption, 360)?, &png)?;
+    let toml = dir.join("experiment.toml");
+    let input = if seq_path == "builtin" {
+        "builtin".to_string()
+    } else {
+        std::fs::canonicalize(seq_path).map_or(seq_path.to_string(), |p| p.display().to_string())
+    };
+    let st = &c.settings;
+    let points = if st.points == "all" {
+        "# points: whole face".to_string()
+    } else {
+        format!("points = \"{}\"", st.points)
+    };
+    let k = if st.method == Method::Hull {
+        c.keys.len()
+    } else {
+        st.k
+    };
+    let text = format!(
+        "# Exported from the kslab lab: reproduces the current settings. Run: kslab run {}\ntitle = \"{} {} k={} {}\"\ninput = \"{input}\"\n{points}\nalign = true\nmethods = [\"spread\", \"kmeans2\", \"kmeans3\", \"hull\", \"greedy\", \"random\"]\nk = \"2..24\"\nsolvers = [\"{}\"]\n\n[retarget]\nmethod = \"{}\"\nk = {k}\nsolvers = [\"ls\", \"nnls\"]\ntrace_noise = [0.0, 0.01]\nstrip = 4\n",
+        toml.display(),
+        st.points,
+        st.method,
+        k,
+        st.solver,
+        st.solver,
+        st.method
+    );
+    write_atomic(&toml, |w| w.write_all(text.as_bytes()))?;
+    Ok(vec![
+        csv.display().to_string(),
+        png.display().to_string(),
+        toml.display().to_string(),
+    ])
+}

@@ -1,0 +1,178 @@
+//! The interactive lab (ratatui + crossterm): event → [`Action`] (a pure keymap) →
+//! [`update`] (pure) → [`view::draw`] (reads only). Solves run on a worker thread
+//! ([`compute`]); the loop is generic over the ratatui backend so tests drive it with
+//! `TestBackend`.
+
+pub mod compute;
+pub mod export;
+pub mod state;
+pub mod view;
+
+use crate::sequence::Sequence;
+use crossterm::event::{
+    self, Event, KeyCode, KeyEvent, KeyEventKind, KeyModifiers, MouseButton, MouseEventKind,
+};
+use ratatui::backend::Backend;
+use ratatui::Terminal;
+pub use state::{update, Action, Effect, State};
+use std::sync::mpsc::{Receiver, Sender};
+use std::time::{Duration, Instant};
+
+/// The pure keymap.
+pub fn key_action(k: KeyEvent) -> Option<Action> {
+    if k.kind == KeyEventKind::Release {
+        return None;
+    }
+    let ctrl = k.modifiers.contains(KeyModifiers::CONTROL);
+    Some(match k.code {
+        KeyCode::Char('c') if ctrl => Action::Quit,
+        KeyCode::Char(' ') => Action::TogglePlay,
+        KeyCode::Left => Action::Step(-1),
+        KeyCode::Right => Action::Step(1),
+        KeyCode::Home => Action::First,
+        KeyCode::End => Action::Last,
+        KeyCode::Enter => Action::Enter,
+        KeyCode::Backspace => Action::Backspace,
+        KeyCode::Esc => Action::Escape,
+        KeyCode::Char(c) => Action::Char(c),
+        _ => return None,
+    })
+}
+
+/// Characters outside a prompt that are commands.
+pub fn command(c: char) -> Option<Action> {
+    Some(match c {
+        'q' => Action::Quit,
+        '[' => Action::Speed(false),
+        ']' => Action::Speed(true),
+        'm' => Action::Method(true),
+        'M' => Action::Method(false),
+        '+' | '=' => Action::K(1),
+        '-' | '_' => Action::K(-1),
+        'g' => Action::Group,
+        's' => Action::Solver,
+        'v' => Action::Split,
+        '?' | 'h' => Action::Help,
+        'e' => Action::Export,
+        'o' => Action::Open,
+        _ => return None,
+    })
+}
+
+/// Turns a raw key into the action the current state means by it.
+pub fn interpret(s: &State, k: KeyEvent) -> Option<Action> {
+    match key_action(k)? {
+        Action::Char(c) if s.prompt.is_none() => command(c).or(Some(Action::Char(c))),
+        a => Some(a),
+    }
+}
+
+/// Where input comes from: the terminal, or a script in tests.
+pub trait Events {
+    /// The next event within `timeout`, if any.
+    fn next(&mut self, timeout: Duration) -> std::io::Result<Option<Event>>;
+}
+
+/// Crossterm's event queue.
+pub struct TerminalEvents;
+
+impl Events for TerminalEvents {
+    fn next(&mut self, timeout: Duration) -> std::io::Result<Option<Event>> {
+        if event::poll(timeout)? {
+            Ok(Some(event::read()?))
+        } else {
+            Ok(None)
+        }
+    }
+}
+
+/// Carries out effects: requests go to the worker, exports are written here.
+fn perform(s: &mut State, effects: Vec<Effect>, jobs: &Sender<compute::Job>, seq_path: &str) {
+    for e in effects {
+        match e {
+            Effect::Compute(id, settings) => {
+                let _ = jobs.send(compute::Job::Compute(id, settings));
+            }
+            Effect::Load(id, path) => {
+                let _ = jobs.send(compute::Job::Load(id, path));
+            }
+            Effect::Export => {
+                s.status = match export::export(s, seq_path, std::path::Path::new("kslab-export")) {
+                    Ok(files) => format!("exported {}", files.join(", ")),
+                    Err(e) => format!("error: export failed: {e}"),
+                };
+            }
+        }
+    }
+}
+
+/// Runs the lab until the user quits. Generic over the backend and the event source.
+pub fn run_loop<B: Backend>(
+    terminal: &mut Terminal<B>,
+    events: &mut dyn Events,
+    s: &mut State,
+    jobs: &Sender<compute::Job>,
+    results: &Receiver<Action>,
+    seq_path: &str,
+) -> anyhow::Result<()>
+where
+    B::Error: std::error::Error + Send + Sync + 'static,
+{
+    let effects = s.start();
+    perform(s, effects, jobs, seq_path);
+    let mut last = Instant::now();
+    while !s.quit {
+        terminal.draw(|f| view::draw(f, s))?;
+        let ev = events.next(Duration::from_millis(30))?;
+        let mut actions = Vec::new();
+        match ev {
+            Some(Event::Key(k)) => actions.extend(interpret(s, k)),
+            Some(Event::Mouse(m)) if m.kind == MouseEventKind::Down(MouseButton::Left) => {
+                let area = terminal.size()?;
+                let [_, _, tl, _, _] =
+                    view::regions(ratatui::layout::Rect::new(0, 0, area.width, area.height));
+                if m.row >= tl.y && m.row < tl.y + tl.height && tl.width > 2 {
+                    actions.push(Action::Seek(
+                        f64::from(m.column.saturating_sub(tl.x + 1)) / f64::from(tl.width - 3),
+                    ));
+                }
+            }
+            _ => {}
+        }
+        while let Ok(a) = results.try_recv() {
+            actions.push(a);
+        }
+        let now = Instant::now();
+        actions.push(Action::Tick(now - last));
+        last = now;
+        for a in actions {
+            let effects = update(s, a);
+            perform(s, effects, jobs, seq_path);
+        }
+    }
+    Ok(())
+}
+
+/// Opens the lab in this terminal on `seq` (loaded from `path`, or `builtin`). The
+/// terminal is restored on every exit path, panics included (ratatui's panic hook).
+pub fn run(
+    seq: Sequence,
+    path: &str,
+    target: Option<crate::retarget::target::TargetSet>,
+) -> anyhow::Result<()> {
+    let mut s = State::new(&seq.source, seq.n_frames(), seq.fps().unwrap_or(30.0));
+    let (jobs, results) = compute::spawn(seq, target);
+    let mut terminal = ratatui::try_init()?;
+    let _ = crossterm::execute!(std::io::stdout(), crossterm::event::EnableMouseCapture);
+    let r = run_loop(
+        &mut terminal,
+        &mut TerminalEvents,
+        &mut s,
+        &jobs,
+        &results,
+        path,
+    );
+    let _ = crossterm::execute!(std::io::stdout(), crossterm::event::DisableMouseCapture);
+    ratatui::restore();
+    r
+}

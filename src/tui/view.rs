@@ -1,0 +1,451 @@
+//! Drawing the state. Views take `&State` and never change it.
+
+use super::compute::Computed;
+use super::state::{Prompt, State};
+use crate::keyshapes::Method;
+use crate::plot::method_style;
+use crate::solve::Solver;
+use nalgebra::DMatrix;
+use ratatui::layout::{Constraint, Layout, Rect};
+use ratatui::style::{Color, Modifier, Style};
+use ratatui::symbols::Marker;
+use ratatui::text::{Line, Span};
+use ratatui::widgets::canvas::{Canvas, Line as CLine};
+use ratatui::widgets::{Axis, Block, Borders, Chart, Clear, Dataset, GraphType, Paragraph, Wrap};
+use ratatui::Frame;
+
+/// Smallest terminal the lab draws in.
+pub const MIN_SIZE: (u16, u16) = (80, 24);
+
+/// The screen regions, so mouse clicks can be mapped back.
+pub fn regions(area: Rect) -> [Rect; 5] {
+    let [head, faces, timeline, bottom, foot] = Layout::vertical([
+        Constraint::Length(1),
+        Constraint::Min(8),
+        Constraint::Length(2),
+        Constraint::Length(9),
+        Constraint::Length(1),
+    ])
+    .areas(area);
+    [head, faces, timeline, bottom, foot]
+}
+
+/// Draws the whole screen.
+pub fn draw(f: &mut Frame, s: &State) {
+    let area = f.area();
+    if area.width < MIN_SIZE.0 || area.height < MIN_SIZE.1 {
+        let msg = format!(
+            "terminal too small: {}×{}; the lab needs at least {}×{}. Enlarge it, or q to quit.",
+            area.width, area.height, MIN_SIZE.0, MIN_SIZE.1
+        );
+        f.render_widget(Paragraph::new(msg).wrap(Wrap { trim: true }), area);
+        return;
+    }
+    let [head, faces, timeline, bottom, foot] = regions(area);
+    header(f, s, head);
+    match &s.computed {
+        Some(c) => {
+            face_panels(f, s, c, faces);
+            time_line(f, s, c, timeline);
+            let [chart, weights] =
+                Layout::horizontal([Constraint::Percentage(55), Constraint::Percentage(45)])
+                    .areas(bottom);
+            error_chart(f, s, chart);
+            weight_bars(f, s, c, weights);
+        }
+        None => {
+            let msg = if s.busy {
+                "computing…"
+            } else {
+                "no result yet"
+            };
+            f.render_widget(Paragraph::new(msg).block(Block::bordered()), faces);
+        }
+    }
+    footer(f, s, foot);
+    if s.help {
+        help(f, area);
+    }
+    if let Some(p) = &s.prompt {
+        prompt(f, p, area);
+    }
+}
+
+const SPINNER: [&str; 4] = ["⠋", "⠙", "⠹", "⠸"];
+
+fn header(f: &mut Frame, s: &State, area: Rect) {
+    let st = &s.settings;
+    let k = if st.method == Method::Hull {
+        "k=hull".to_string()
+    } else {
+        format!("k={}", st.k)
+    };
+    let frame_no = s
+        .computed
+        .as_ref()
+        .and_then(|c| c.frames.get(s.frame))
+        .copied()
+        .unwrap_or(s.frame as i64);
+    let play = if s.playing { "▶" } else { "⏸" };
+    let busy = if s.busy || s.curves_busy {
+        format!(" {} computing", SPINNER[(s.request as usize + s.frame) % 4])
+    } else {
+        String::new()
+    };
+    let short = s.source.rsplit('/').next().unwrap_or(&s.source);
+    let line = Line::from(vec![
+        Span::styled(
+            " kslab ",
+            Style::default().add_modifier(Modifier::BOLD | Modifier::REVERSED),
+        ),
+        Span::raw(format!(
+            " {short} · {} frames · {} · {} {k} · {} · frame {frame_no} {play} {}×{busy}",
+            s.frames, st.points, st.method, st.solver, s.speed
+        )),
+    ]);
+    f.render_widget(Paragraph::new(line), area);
+}
+
+fn bounds(ms: &[&DMatrix<f64>], dims: usize) -> ([f64; 2], [f64; 2]) {
+    let ((x0, y0), (x1, y1)) = crate::render::face::bounds_of(ms, dims);
+    let (cx, cy, half) = (
+        (x0 + x1) / 2.0,
+        (y0 + y1) / 2.0,
+        (x1 - x0).max(y1 - y0) / 2.0,
+    );
+    ([cx - half, cx + half], [-(cy + half), -(cy - half)])
+}
+
+fn shape_panel<'a>(
+    title: String,
+    layers: Vec<(&'a DMatrix<f64>, Color)>,
+    c: &'a Computed,
+    t: usize,
+    b: ([f64; 2], [f64; 2]),
+) -> Canvas<'a, impl Fn(&mut ratatui::widgets::canvas::Context) + 'a> {
+    let (dims, lines) = (c.dims, &c.polylines);
+    Canvas::default()
+        .block(Block::bordered().title(title))
+        .marker(Marker::Braille)
+        .x_bounds(b.0)
+        .y_bounds(b.1)
+        .paint(move |ctx| {
+            for (m, colour) in &layers {
+                let col = m.column(t);
+                let p = |i: usize| (col[i * dims], -col[i * dims + 1]);
+                for line in lines {
+                    for w in line.windows(2) {
+                        let (a, b) = (p(w[0]), p(w[1]));
+                        ctx.draw(&CLine {
+                            x1: a.0,
+                            y1: a.1,
+                            x2: b.0,
+                            y2: b.1,
+                            color: *colour,
+                        });
+                    }
+                }
+                ctx.layer();
+            }
+        })
+}
+
+fn face_panels(f: &mut Frame, s: &State, c: &Computed, area: Rect) {
+    let t = s.frame.min(c.frames.len().saturating_sub(1));
+    let sb = bounds(&[&c.tracked], c.dims);
+    let mut targets = vec![&c.truth];
+    targets.extend(c.views.iter().map(|v| &v.target));
+    let tb = bounds(&targets, c.dims);
+    let Some(main) = c.views.first() else { return };
+    let rms = main.frame_rms.get(t).copied().unwrap_or(0.0);
+    let trms = main.frame_target_rms.get(t).copied().unwrap_or(0.0);
+    if s.split {
+        let (Some(ls), Some(nn)) = (c.view(Solver::Ls), c.view(Solver::Nnls)) else {
+            return;
+        };
+        let [a, b, d] = Layout::horizontal([Constraint::Ratio(1, 3); 3]).areas(area);
+        let src = shape_panel(
+            format!(
+                "source · LS {:.2} NNLS {:.2}",
+                ls.frame_rms[t], nn.frame_rms[t]
+            ),
+            vec![
+                (&c.tracked, Color::White),
+                (&ls.recon, Color::Red),
+                (&nn.recon, Color::Green),
+            ],
+            c,
+            t,
+            sb,
+        );
+        f.render_widget(src, a);
+        let tl = shape_panel(
+            format!("target LS · rms {:.2}", ls.frame_target_rms[t]),
+            vec![(&c.truth, Color::DarkGray), (&ls.target, Color::Red)],
+            c,
+            t,
+            tb,
+        );
+        f.render_widget(tl, b);
+        let tn = shape_panel(
+            format!("target NNLS · rms {:.2}", nn.frame_target_rms[t]),
+            vec![(&c.truth, Color::DarkGray), (&nn.target, Color::Green)],
+            c,
+            t,
+            tb,
+        );
+        f.render_widget(tn, d);
+        return;
+    }
+    let [a, b] = Layout::horizontal([Constraint::Ratio(1, 2); 2]).areas(area);
+    let src = shape_panel(
+        format!("source: tracked + recon · rms {rms:.2}"),
+        vec![(&c.tracked, Color::White), (&main.recon, Color::Cyan)],
+        c,
+        t,
+        sb,
+    );
+    f.render_widget(src, a);
+    let tgt = shape_panel(
+        format!("target: G(q) + retargeted · rms {trms:.2}"),
+        vec![(&c.truth, Color::DarkGray), (&main.target, Color::Red)],
+        c,
+        t,
+        tb,
+    );
+    f.render_widget(tgt, b);
+}
+
+fn time_line(f: &mut Frame, s: &State, c: &Computed, area: Rect) {
+    let w = area.width.saturating_sub(2) as usize;
+    let n = c.frames.len().max(1);
+    let col = |i: usize| (i * w.saturating_sub(1)) / (n - 1).max(1);
+    let mut marks = vec!['─'; w];
+    for &k in &c.keys {
+        if let Some(m) = marks.get_mut(col(k)) {
+            *m = '◆';
+        }
+    }
+    let mut cursor = vec![' '; w];
+    if let Some(m) = cursor.get_mut(col(s.frame)) {
+        *m = '▲';
+    }
+    let lines = vec![
+        Line::from(Span::styled(
+            format!(" {}", marks.iter().collect::<String>()),
+            Style::default().fg(Color::Yellow),
+        )),
+        Line::from(format!(" {}", cursor.iter().collect::<String>().trim_end())),
+    ];
+    f.render_widget(Paragraph::new(lines), area);
+}
+
+fn colour(rgb: [u8; 3]) -> Color {
+    Color::Rgb(rgb[0], rgb[1], rgb[2])
+}
+
+fn error_chart(f: &mut Frame, s: &State, area: Rect) {
+    let mut title = vec![Span::raw(format!("error vs k ({}) ", s.settings.solver))];
+    for m in Method::ALL {
+        let (rgb, _) = method_style(&m.name());
+        title.push(Span::styled(
+            format!("{} ", m.name()),
+            Style::default().fg(colour(rgb)),
+        ));
+    }
+    let block = Block::bordered().title(Line::from(title));
+    let Some(rows) = &s.curves else {
+        f.render_widget(
+            Paragraph::new(if s.curves_busy {
+                "computing curves…"
+            } else {
+                ""
+            })
+            .block(block),
+            area,
+        );
+        return;
+    };
+    let mut series: Vec<(String, Vec<(f64, f64)>)> = Vec::new();
+    for r in rows {
+        match series.iter_mut().find(|x| x.0 == r.method) {
+            Some(x) => x.1.push((r.k as f64, r.rms)),
+            None => series.push((r.method.clone(), vec![(r.k as f64, r.rms)])),
+        }
+    }
+    let ymax = series
+        .iter()
+        .flat_map(|x| x.1.iter().map(|p| p.1))
+        .fold(0.0, f64::max)
+        .max(1e-9);
+    let xmax = series
+        .iter()
+        .flat_map(|x| x.1.iter().map(|p| p.0))
+        .fold(2.0, f64::max);
+    let k = s.settings.k as f64;
+    let current = [(k, 0.0), (k, ymax)];
+    let mut datasets: Vec<Dataset> = series
+        .iter()
+        .map(|(m, pts)| {
+            let (rgb, _) = method_style(m);
+            let kind = if pts.len() == 1 {
+                GraphType::Scatter
+            } else {
+                GraphType::Line
+            };
+            Dataset::default()
+                .name(m.clone())
+                .marker(Marker::Braille)
+                .graph_type(kind)
+                .style(Style::default().fg(colour(rgb)))
+                .data(pts)
+        })
+        .collect();
+    datasets.push(
+        Dataset::default()
+            .marker(Marker::Braille)
+            .graph_type(GraphType::Line)
+            .style(Style::default().fg(Color::Yellow))
+            .data(&current),
+    );
+    let chart = Chart::new(datasets)
+        .block(block)
+        .x_axis(
+            Axis::default()
+                .bounds([2.0, xmax])
+                .labels(vec![Line::from("2"), Line::from(format!("{xmax:.0}"))]),
+        )
+        .y_axis(
+            Axis::default()
+                .bounds([0.0, ymax])
+                .labels(vec![Line::from("0"), Line::from(format!("{ymax:.1}"))]),
+        )
+        .legend_position(None);
+    f.render_widget(chart, area);
+}
+
+fn weight_bars(f: &mut Frame, s: &State, c: &Computed, area: Rect) {
+    let Some(v) = c.views.first() else { return };
+    let t = s.frame.min(v.weights.ncols().saturating_sub(1));
+    let inner_w = area.width.saturating_sub(2) as usize;
+    let rows = area.height.saturating_sub(2) as usize;
+    let wmax = v.weights.iter().fold(1e-9f64, |m, x| m.max(x.abs()));
+    let shades = [' ', '░', '▒', '▓', '█'];
+    let mut lines = Vec::new();
+    for (i, &k) in c.keys.iter().enumerate().take(rows) {
+        let w = v.weights[(i, t)];
+        let bar_w = 10usize;
+        let filled = ((w.abs() / wmax) * bar_w as f64).round() as usize;
+        let bar: String = std::iter::repeat_n('█', filled.min(bar_w))
+            .chain(std::iter::repeat_n(' ', bar_w - filled.min(bar_w)))
+            .collect();
+        let strip_w = inner_w.saturating_sub(6 + bar_w + 8);
+        let n = v.weights.ncols().max(1);
+        let strip: String = (0..strip_w)
+            .map(|x| {
+                let tt = x * n / strip_w.max(1);
+                let a = (v.weights[(i, tt.min(n - 1))].abs() / wmax * 4.0).round() as usize;
+                shades[a.min(4)]
+            })
+            .collect();
+        let style = if w < 0.0 {
+            Style::default().fg(Color::Red)
+        } else {
+            Style::default().fg(Color::Green)
+        };
+        lines.push(Line::from(vec![
+            Span::raw(format!("{:>5} ", c.frames[k])),
+            Span::styled(bar, style),
+            Span::raw(format!("{w:>7.3} ")),
+            Span::styled(strip, Style::default().fg(Color::Blue)),
+        ]));
+    }
+    let title = format!(
+        "key frames: weight now | over time · jitter {:.1e}",
+        v.jitter
+    );
+    f.render_widget(
+        Paragraph::new(lines).block(Block::bordered().title(title)),
+        area,
+    );
+}
+
+fn footer(f: &mut Frame, s: &State, area: Rect) {
+    let text = if s.status.is_empty() {
+        " space play ←→ step m method +- k g group s solver v split e export ? help q quit"
+            .to_string()
+    } else {
+        format!(" {}", s.status)
+    };
+    let style = if s.status.starts_with("error") {
+        Style::default().fg(Color::Red)
+    } else {
+        Style::default().add_modifier(Modifier::DIM)
+    };
+    f.render_widget(Paragraph::new(Span::styled(text, style)), area);
+}
+
+/// Every key, for the help overlay and the README.
+pub const KEYS: [(&str, &str); 17] = [
+    ("space", "play / pause"),
+    ("← / →", "step one frame"),
+    ("Home / End", "first / last frame"),
+    ("0-9 … Enter", "jump to a frame number"),
+    ("[ / ]", "slower / faster playback"),
+    ("m / M", "next / previous key-shape method"),
+    ("+ / -", "more / fewer key shapes"),
+    ("g", "next point group (lips, all, eyes, brows, eyes+brows)"),
+    ("s", "next solver (nnls, ls, bounded)"),
+    ("v", "LS and NNLS side by side"),
+    ("e", "export weights CSV, view PNG, experiment TOML"),
+    ("o", "open another sequence"),
+    ("click timeline", "seek"),
+    ("?", "this help"),
+    ("Esc", "close help / prompt, else quit"),
+    ("q", "quit"),
+    ("Ctrl-C", "quit"),
+];
+
+fn centred(area: Rect, w: u16, h: u16) -> Rect {
+    let (w, h) = (w.min(area.width), h.min(area.height));
+    Rect {
+        x: area.x + (area.width - w) / 2,
+        y: area.y + (area.height - h) / 2,
+        width: w,
+        height: h,
+    }
+}
+
+fn help(f: &mut Frame, area: Rect) {
+    let r = centred(area, 74, KEYS.len() as u16 + 2);
+    let lines: Vec<Line> = KEYS
+        .iter()
+        .map(|(k, d)| {
+            Line::from(vec![
+                Span::styled(
+                    format!(" {k:<15}"),
+                    Style::default().add_modifier(Modifier::BOLD),
+                ),
+                Span::raw(*d),
+            ])
+        })
+        .collect();
+    f.render_widget(Clear, r);
+    f.render_widget(
+        Paragraph::new(lines).block(Block::default().borders(Borders::ALL).title("keys")),
+        r,
+    );
+}
+
+fn prompt(f: &mut Frame, p: &Prompt, area: Rect) {
+    let (title, text) = match p {
+        Prompt::Jump(t) => ("jump to frame (Enter)", t),
+        Prompt::Open(t) => ("open sequence: path or 'builtin' (Enter)", t),
+    };
+    let r = centred(area, 60, 3);
+    f.render_widget(Clear, r);
+    f.render_widget(
+        Paragraph::new(format!("{text}▏")).block(Block::bordered().title(title)),
+        r,
+    );
+}
