@@ -372,7 +372,7 @@ fn weight_bars(f: &mut Frame, s: &State, c: &Computed, area: Rect) {
 
 fn footer(f: &mut Frame, s: &State, area: Rect) {
     let text = if s.status.is_empty() {
-        " space play ←→ step m method +- k g group s solver v split e export ? help q quit"
+        "space play ←→ step m method +- k g group s solver v split e export ?help q quit"
             .to_string()
     } else {
         format!(" {}", s.status)
