@@ -144,6 +144,8 @@ pub struct State {
     pub curves: Option<Vec<CurveRow>>,
     /// Leave the loop.
     pub quit: bool,
+    /// Ticks seen (animates the spinner).
+    pub ticks: u64,
     clock: f64,
 }
 
@@ -168,6 +170,7 @@ impl State {
             computed: None,
             curves: None,
             quit: false,
+            ticks: 0,
             clock: 0.0,
         }
     }
@@ -213,7 +216,9 @@ pub fn update(s: &mut State, action: Action) -> Vec<Effect> {
             }
         }
         Action::Seek(f) => s.frame = ((f.clamp(0.0, 1.0) * last as f64).round() as usize).min(last),
-        Action::Tick(dt) if s.playing && s.frames > 0 => {
+        Action::Tick(_) if !s.playing => s.ticks += 1,
+        Action::Tick(dt) if s.frames > 0 => {
+            s.ticks += 1;
             s.clock += dt.as_secs_f64() * s.fps * s.speed;
             let steps = s.clock.floor();
             s.clock -= steps;

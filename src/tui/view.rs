@@ -88,7 +88,7 @@ fn header(f: &mut Frame, s: &State, area: Rect) {
         .unwrap_or(s.frame as i64);
     let play = if s.playing { "▶" } else { "⏸" };
     let busy = if s.busy || s.curves_busy {
-        format!(" {} computing", SPINNER[(s.request as usize + s.frame) % 4])
+        format!(" {} computing", SPINNER[(s.ticks / 3 % 4) as usize])
     } else {
         String::new()
     };
@@ -158,7 +158,10 @@ fn face_panels(f: &mut Frame, s: &State, c: &Computed, area: Rect) {
     let tb = bounds(&targets, c.dims);
     let Some(main) = c.views.first() else { return };
     let rms = main.frame_rms.get(t).copied().unwrap_or(0.0);
-    let trms = main.frame_target_rms.get(t).copied().unwrap_or(0.0);
+    let trms = main
+        .frame_target_rms
+        .get(t)
+        .map_or("n/a".to_string(), |v| format!("{v:.2}"));
     if s.split {
         let (Some(ls), Some(nn)) = (c.view(Solver::Ls), c.view(Solver::Nnls)) else {
             return;
@@ -180,7 +183,12 @@ fn face_panels(f: &mut Frame, s: &State, c: &Computed, area: Rect) {
         );
         f.render_widget(src, a);
         let tl = shape_panel(
-            format!("target LS · rms {:.2}", ls.frame_target_rms[t]),
+            format!(
+                "target LS · rms {}",
+                ls.frame_target_rms
+                    .get(t)
+                    .map_or("n/a".into(), |v| format!("{v:.2}"))
+            ),
             vec![(&c.truth, Color::DarkGray), (&ls.target, Color::Red)],
             c,
             t,
@@ -188,7 +196,12 @@ fn face_panels(f: &mut Frame, s: &State, c: &Computed, area: Rect) {
         );
         f.render_widget(tl, b);
         let tn = shape_panel(
-            format!("target NNLS · rms {:.2}", nn.frame_target_rms[t]),
+            format!(
+                "target NNLS · rms {}",
+                nn.frame_target_rms
+                    .get(t)
+                    .map_or("n/a".into(), |v| format!("{v:.2}"))
+            ),
             vec![(&c.truth, Color::DarkGray), (&nn.target, Color::Green)],
             c,
             t,
@@ -207,7 +220,7 @@ fn face_panels(f: &mut Frame, s: &State, c: &Computed, area: Rect) {
     );
     f.render_widget(src, a);
     let tgt = shape_panel(
-        format!("target: G(q) + retargeted · rms {trms:.2}"),
+        format!("target: G(q) + retargeted · rms {trms}"),
         vec![(&c.truth, Color::DarkGray), (&main.target, Color::Red)],
         c,
         t,
