@@ -1,10 +1,11 @@
 //! `kslab keys`: the key frames a heuristic chooses.
 
 use super::input::InputArgs;
-use anyhow::Result;
+use anyhow::{Context, Result};
 use clap::Args;
 use keyshape_lab::keyshapes::{Analysis, KeyOptions, Method};
 use keyshape_lab::solve::Solver;
+use nalgebra::DMatrix;
 use serde_json::json;
 
 /// Options every key-shape command shares.
@@ -93,4 +94,48 @@ pub fn run(a: &KeysArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// Key frames given by number, or chosen by a heuristic (shared by `template` and
+/// `retarget`).
+#[derive(Debug, Clone, Args)]
+pub struct KeyChoiceArgs {
+    /// Key frames by frame number (or choose them with --method and --k).
+    #[arg(long, value_delimiter = ',', conflicts_with = "method")]
+    pub keys: Vec<i64>,
+    /// Heuristic choosing the key frames (default spread).
+    #[arg(long, value_parser = parse_method)]
+    pub method: Option<Method>,
+    /// Number of key shapes for --method.
+    #[arg(long, default_value_t = 12)]
+    pub k: usize,
+}
+
+impl KeyChoiceArgs {
+    /// Key columns of `coords` (a prepared sequence's shapes, `frames` their numbers).
+    pub fn columns(
+        &self,
+        seq: &keyshape_lab::sequence::Sequence,
+        coords: DMatrix<f64>,
+        points: usize,
+        opts: &KeyOptions,
+    ) -> Result<Vec<usize>> {
+        if !self.keys.is_empty() {
+            return self
+                .keys
+                .iter()
+                .map(|&f| {
+                    seq.column_of_frame(f)
+                        .with_context(|| format!("--keys {f}"))
+                })
+                .collect();
+        }
+        let m = self.method.unwrap_or(Method::Spread);
+        let an = Analysis::with_axes(
+            coords,
+            points,
+            keyshape_lab::keyshapes::axes_needed(&[m], self.k),
+        )?;
+        Ok(m.heuristic(opts).select(&an, self.k)?.columns)
+    }
 }

@@ -1,13 +1,13 @@
 //! `kslab retarget`: weights from the source drive a target face; metrics, frames, APNG.
 
 use super::input::InputArgs;
-use super::keys::{parse_method, HeuristicArgs};
+use super::keys::{HeuristicArgs, KeyChoiceArgs};
 use anyhow::{Context, Result};
 use clap::Args;
 use keyshape_lab::decompose::Prepared;
 use keyshape_lab::io::{fmt_num, write_atomic};
-use keyshape_lab::keyshapes::{axes_needed, Analysis, KeyOptions, Method};
-use keyshape_lab::render::face::{bounds_of, col, render_panels, Layer, Panel};
+use keyshape_lab::keyshapes::KeyOptions;
+use keyshape_lab::render::face::{bounds_of, col, render_frame, FrameShapes};
 use keyshape_lab::render::{apng::write_apng, save_png};
 use keyshape_lab::retarget::regions::{plan, Regions};
 use keyshape_lab::retarget::setup::{builtin_target, polylines_for};
@@ -25,15 +25,8 @@ use std::path::PathBuf;
 pub struct RetargetArgs {
     #[command(flatten)]
     input: InputArgs,
-    /// Key frames by frame number (or choose them with --method and --k).
-    #[arg(long, value_delimiter = ',', conflicts_with = "method")]
-    keys: Vec<i64>,
-    /// Heuristic choosing the key frames.
-    #[arg(long, value_parser = parse_method)]
-    method: Option<Method>,
-    /// Number of key shapes for --method.
-    #[arg(long, default_value_t = 12)]
-    k: usize,
+    #[command(flatten)]
+    choice: KeyChoiceArgs,
     /// ls, nnls or bounded.
     #[arg(long, default_value = "nnls", value_parser = super::solve::parse_solver)]
     solver: Solver,
@@ -121,23 +114,8 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
                 .with_context(|| format!("--neutral {f}"))
         })
         .transpose()?;
-    let choose = |coords: DMatrix<f64>, points: usize, k: usize| -> Result<Vec<usize>> {
-        let m = a.method.unwrap_or(Method::Spread);
-        let an = Analysis::with_axes(coords, points, axes_needed(&[m], k))?;
-        Ok(m.heuristic(&opts).select(&an, k)?.columns)
-    };
     let plan_keys = match &a.regions {
-        None => {
-            let cols = if a.keys.is_empty() {
-                choose(s.coords.clone(), s.points, a.k)?
-            } else {
-                a.keys
-                    .iter()
-                    .map(|&f| s.column_of_frame(f).with_context(|| format!("--keys {f}")))
-                    .collect::<Result<Vec<_>>>()?
-            };
-            KeyPlan::Global(cols)
-        }
+        None => KeyPlan::Global(a.choice.columns(s, s.coords.clone(), s.points, &opts)?),
         Some(r) => {
             let layout = prep
                 .layout
@@ -156,10 +134,17 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
                 mean.as_slice(),
                 s.dims,
             )?;
+            if !a.choice.keys.is_empty() {
+                anyhow::bail!("--regions picks key frames per region: use --method, not --keys");
+            }
             let mut keys = Vec::new();
             for (members, &k) in p.members.iter().zip(&p.k) {
                 let sub = s.select_points(members)?;
-                keys.push(choose(sub.coords, sub.points, k)?);
+                let choice = KeyChoiceArgs {
+                    k,
+                    ..a.choice.clone()
+                };
+                keys.push(choice.columns(s, sub.coords, sub.points, &opts)?);
             }
             KeyPlan::Regions(p, keys)
         }
@@ -278,63 +263,24 @@ fn pictures(
     all_t.extend(truth.iter());
     let tb = bounds_of(&all_t, dims);
     let frame = |t: usize| -> keyshape_lab::Result<tiny_skia::Pixmap> {
-        let mut tl = vec![Layer {
-            name: "retargeted",
-            shape: col(&target, t),
+        let shapes = FrameShapes {
             dims,
-            polylines: target_lines,
-            color: [200, 30, 30],
-            dashed: false,
-        }];
-        if let Some(tr) = &truth {
-            tl.insert(
-                0,
-                Layer {
-                    name: "ground truth G(q)",
-                    shape: col(tr, t),
-                    dims,
-                    polylines: target_lines,
-                    color: [150, 150, 150],
-                    dashed: true,
-                },
-            );
-        }
-        let panels = [
-            Panel {
-                title: "source".into(),
-                layers: vec![
-                    Layer {
-                        name: "tracked",
-                        shape: col(&tracked, t),
-                        dims,
-                        polylines: &src_lines,
-                        color: [20, 20, 20],
-                        dashed: false,
-                    },
-                    Layer {
-                        name: "reconstruction",
-                        shape: col(&recon, t),
-                        dims,
-                        polylines: &src_lines,
-                        color: [31, 90, 200],
-                        dashed: true,
-                    },
-                ],
-                bounds: sb,
-            },
-            Panel {
-                title: "target".into(),
-                layers: tl,
-                bounds: tb,
-            },
-        ];
+            tracked: col(&tracked, t),
+            recon: col(&recon, t),
+            truth: truth.as_ref().map(|m| col(m, t)),
+            target: col(&target, t),
+            source_lines: &src_lines,
+            target_lines,
+            source_bounds: sb,
+            target_bounds: tb,
+        };
         let caption = format!(
             "frame {}   {}   source RMS {:.2}",
             s.frames[t],
             a.solver,
             (r.source_sq[t] / r.points as f64).sqrt()
         );
-        render_panels(&panels, &caption, 360)
+        render_frame(&shapes, &caption, 360)
     };
     if let Some(dir) = &a.png_dir {
         std::fs::create_dir_all(dir).with_context(|| format!("{}", dir.display()))?;

@@ -1,11 +1,11 @@
 //! `kslab template`: the chosen key shapes as an SVG for an artist to redraw.
 
 use super::input::InputArgs;
-use super::keys::{parse_method, HeuristicArgs};
-use anyhow::{Context, Result};
+use super::keys::{HeuristicArgs, KeyChoiceArgs};
+use anyhow::Result;
 use clap::Args;
 use keyshape_lab::io::{svg::write_template, write_atomic};
-use keyshape_lab::keyshapes::{axes_needed, Analysis, KeyOptions, Method};
+use keyshape_lab::keyshapes::KeyOptions;
 use keyshape_lab::retarget::setup::polylines_for;
 use keyshape_lab::solve::Solver;
 use std::path::PathBuf;
@@ -15,15 +15,8 @@ use std::path::PathBuf;
 pub struct TemplateArgs {
     #[command(flatten)]
     input: InputArgs,
-    /// Key frames by frame number (or choose them with --method and --k).
-    #[arg(long, value_delimiter = ',', conflicts_with = "method")]
-    keys: Vec<i64>,
-    /// Heuristic choosing the key frames.
-    #[arg(long, value_parser = parse_method)]
-    method: Option<Method>,
-    /// Number of key shapes for --method.
-    #[arg(long, default_value_t = 12)]
-    k: usize,
+    #[command(flatten)]
+    choice: KeyChoiceArgs,
     #[command(flatten)]
     heuristic: HeuristicArgs,
     /// The SVG to write.
@@ -37,21 +30,12 @@ pub fn run(a: &TemplateArgs) -> Result<()> {
     if s.dims != 2 {
         anyhow::bail!("SVG templates are 2-D: use --dims 2");
     }
-    let cols: Vec<usize> = if a.keys.is_empty() {
-        let m = a.method.unwrap_or(Method::Spread);
-        let an = Analysis::with_axes(s.coords.clone(), s.points, axes_needed(&[m], a.k))?;
-        let opts = KeyOptions {
-            solver: Solver::Nnls,
-            seed: a.heuristic.seed,
-            shortlist: a.heuristic.shortlist,
-        };
-        m.heuristic(&opts).select(&an, a.k)?.columns
-    } else {
-        a.keys
-            .iter()
-            .map(|&f| s.column_of_frame(f).with_context(|| format!("--keys {f}")))
-            .collect::<Result<_>>()?
+    let opts = KeyOptions {
+        solver: Solver::Nnls,
+        seed: a.heuristic.seed,
+        shortlist: a.heuristic.shortlist,
     };
+    let cols = a.choice.columns(s, s.coords.clone(), s.points, &opts)?;
     let keys: Vec<(i64, Vec<f64>)> = cols
         .iter()
         .map(|&c| (s.frames[c], s.coords.column(c).iter().copied().collect()))

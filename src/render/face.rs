@@ -194,3 +194,80 @@ pub fn stack(rows: &[Pixmap]) -> Result<Pixmap> {
     }
     Ok(out)
 }
+
+/// The shapes of one frame for the standard picture.
+#[derive(Debug, Clone)]
+pub struct FrameShapes<'a> {
+    /// Values per point.
+    pub dims: usize,
+    /// Tracked source shape.
+    pub tracked: &'a [f64],
+    /// Its reconstruction from the key shapes.
+    pub recon: &'a [f64],
+    /// The target-domain ground truth, when there is one.
+    pub truth: Option<&'a [f64]>,
+    /// The retargeted shape.
+    pub target: &'a [f64],
+    /// Source contours.
+    pub source_lines: &'a [Vec<usize>],
+    /// Target contours.
+    pub target_lines: &'a [Vec<usize>],
+    /// Fixed source-panel bounds.
+    pub source_bounds: ((f64, f64), (f64, f64)),
+    /// Fixed target-panel bounds.
+    pub target_bounds: ((f64, f64), (f64, f64)),
+}
+
+/// The standard frame picture: the tracked source with its reconstruction beside the
+/// retargeted target with its ground truth.
+pub fn render_frame(f: &FrameShapes, caption: &str, size: u32) -> Result<Pixmap> {
+    let layer = |name, shape, polylines, color, dashed| Layer {
+        name,
+        shape,
+        dims: f.dims,
+        polylines,
+        color,
+        dashed,
+    };
+    let mut target = vec![layer(
+        "retargeted",
+        f.target,
+        f.target_lines,
+        [200, 30, 30],
+        false,
+    )];
+    if let Some(t) = f.truth {
+        target.insert(
+            0,
+            layer(
+                "ground truth G(q)",
+                t,
+                f.target_lines,
+                [150, 150, 150],
+                true,
+            ),
+        );
+    }
+    let panels = [
+        Panel {
+            title: "source".into(),
+            layers: vec![
+                layer("tracked", f.tracked, f.source_lines, [20, 20, 20], false),
+                layer(
+                    "reconstruction",
+                    f.recon,
+                    f.source_lines,
+                    [31, 90, 200],
+                    true,
+                ),
+            ],
+            bounds: f.source_bounds,
+        },
+        Panel {
+            title: "target".into(),
+            layers: target,
+            bounds: f.target_bounds,
+        },
+    ];
+    render_panels(&panels, caption, size)
+}

@@ -4,7 +4,7 @@
 use super::state::State;
 use crate::io::{fmt_num, write_atomic};
 use crate::keyshapes::Method;
-use crate::render::face::{bounds_of, col, render_panels, Layer, Panel};
+use crate::render::face::{bounds_of, col, render_frame, FrameShapes};
 use crate::render::save_png;
 use anyhow::{Context, Result};
 use std::path::Path;
@@ -37,52 +37,17 @@ pub fn export(s: &State, seq_path: &str, dir: &Path) -> Result<Vec<String>> {
     let t = s.frame.min(c.frames.len().saturating_sub(1));
     let sb = bounds_of(&[&c.tracked], c.dims);
     let tb = bounds_of(&[&c.truth, &v.target], c.dims);
-    let panels = [
-        Panel {
-            title: "source".into(),
-            layers: vec![
-                Layer {
-                    name: "tracked",
-                    shape: col(&c.tracked, t),
-                    dims: c.dims,
-                    polylines: &c.polylines,
-                    color: [20, 20, 20],
-                    dashed: false,
-                },
-                Layer {
-                    name: "reconstruction",
-                    shape: col(&v.recon, t),
-                    dims: c.dims,
-                    polylines: &c.polylines,
-                    color: [31, 90, 200],
-                    dashed: true,
-                },
-            ],
-            bounds: sb,
-        },
-        Panel {
-            title: "target".into(),
-            layers: vec![
-                Layer {
-                    name: "ground truth G(q)",
-                    shape: col(&c.truth, t),
-                    dims: c.dims,
-                    polylines: &c.polylines,
-                    color: [150, 150, 150],
-                    dashed: true,
-                },
-                Layer {
-                    name: "retargeted",
-                    shape: col(&v.target, t),
-                    dims: c.dims,
-                    polylines: &c.polylines,
-                    color: [200, 30, 30],
-                    dashed: false,
-                },
-            ],
-            bounds: tb,
-        },
-    ];
+    let shapes = FrameShapes {
+        dims: c.dims,
+        tracked: col(&c.tracked, t),
+        recon: col(&v.recon, t),
+        truth: Some(col(&c.truth, t)),
+        target: col(&v.target, t),
+        source_lines: &c.polylines,
+        target_lines: &c.polylines,
+        source_bounds: sb,
+        target_bounds: tb,
+    };
     let caption = format!(
         "frame {}   {} {} k={}   {}",
         c.frames[t],
@@ -92,7 +57,7 @@ pub fn export(s: &State, seq_path: &str, dir: &Path) -> Result<Vec<String>> {
         c.settings.solver
     );
     let png = dir.join("view.png");
-    save_png(&render_panels(&panels, &caption, 360)?, &png)?;
+    save_png(&render_frame(&shapes, &caption, 360)?, &png)?;
     let toml = dir.join("experiment.toml");
     let input = if seq_path == "builtin" {
         "builtin".to_string()
