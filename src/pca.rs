@@ -23,6 +23,16 @@ pub struct Pca {
     pub total_variance: f64,
 }
 
+/// The column mean and the columns minus it.
+fn centre(coords: &DMatrix<f64>) -> (DVector<f64>, DMatrix<f64>) {
+    let mean = coords.column_mean();
+    let mut x = coords.clone();
+    for mut c in x.column_iter_mut() {
+        c -= &mean;
+    }
+    (mean, x)
+}
+
 impl Pca {
     /// Fits a centred PCA to the columns of `coords`.
     pub fn fit(coords: &DMatrix<f64>) -> Result<Pca> {
@@ -30,11 +40,7 @@ impl Pca {
         if n < 2 {
             return Err(Error::invalid("PCA needs at least 2 frames"));
         }
-        let mean = coords.column_mean();
-        let mut x = coords.clone();
-        for mut c in x.column_iter_mut() {
-            c -= &mean;
-        }
+        let (mean, x) = centre(coords);
         let denom = (n - 1) as f64;
         let total_variance = x.norm_squared() / denom;
         let small_side = rows <= n;
@@ -88,11 +94,7 @@ impl Pca {
             p.truncate(r);
             return Ok(p);
         }
-        let mean = coords.column_mean();
-        let mut x = coords.clone();
-        for mut c in x.column_iter_mut() {
-            c -= &mean;
-        }
+        let (mean, x) = centre(coords);
         let denom = (n - 1) as f64;
         let total_variance = x.norm_squared() / denom;
         let xt = x.transpose();
