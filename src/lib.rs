@@ -43,6 +43,7 @@ pub mod report;
 pub mod retarget;
 pub mod sequence;
 pub mod solve;
+pub mod transfer;
 pub mod tui;
 
 pub use error::{Error, Result};

@@ -10,6 +10,7 @@ mod retarget;
 mod run;
 mod solve;
 mod template;
+mod transfer;
 mod tui;
 
 use clap::{Parser, Subcommand};
@@ -40,6 +41,8 @@ enum Command {
     Template(template::TemplateArgs),
     /// Retarget the performance onto target key shapes (paper 000 Eq. 2, §5).
     Retarget(retarget::RetargetArgs),
+    /// Drive a 3-D mesh from the feature points: RBF transfer + skinning (paper 004).
+    Transfer(transfer::TransferArgs),
     /// Run a scripted experiment (experiments/*.toml): CSV, JSON and PNG reports.
     Run(run::RunArgs),
     /// Measure solver and sweep speed (the figures in BENCHMARKS.md).
@@ -57,6 +60,7 @@ pub fn main() -> ExitCode {
         Command::Curves(a) => curves::run(&a),
         Command::Template(a) => template::run(&a),
         Command::Retarget(a) => retarget::run(&a),
+        Command::Transfer(a) => transfer::run(&a),
         Command::Run(a) => run::run(&a),
         Command::Bench(a) => bench::run(&a),
     };

@@ -4,6 +4,7 @@
 pub mod atomic;
 mod builtin;
 pub mod json;
+pub mod obj;
 mod pts;
 pub mod svg;
 mod table;

@@ -4,6 +4,7 @@
 pub mod apng;
 mod chart;
 pub mod face;
+pub mod mesh;
 pub mod text;
 
 pub use chart::render_plot;

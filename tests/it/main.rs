@@ -14,4 +14,5 @@ mod readers;
 mod reference;
 mod retarget;
 mod solvers;
+mod transfer;
 mod tui;

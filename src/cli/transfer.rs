@@ -1,0 +1,128 @@
+//! `kslab transfer`: the performance onto a 3-D mesh by RBF feature transfer and skinning
+//! (paper 004).
+
+use super::input::InputArgs;
+use anyhow::{Context, Result};
+use clap::Args;
+use keyshape_lab::io::obj::{read_obj, write_obj};
+use keyshape_lab::io::write_atomic;
+use keyshape_lab::render::face::{bounds_of, col};
+use keyshape_lab::render::mesh::{mesh_bounds, transfer_frame, wireframe};
+use keyshape_lab::render::save_png;
+use keyshape_lab::retarget::setup::polylines_for;
+use keyshape_lab::transfer::features::Features;
+use keyshape_lab::transfer::Transfer;
+use serde_json::json;
+use std::path::PathBuf;
+use std::time::Instant;
+
+/// Arguments of `kslab transfer`.
+#[derive(Debug, Args)]
+pub struct TransferArgs {
+    #[command(flatten)]
+    input: InputArgs,
+    /// Target mesh (OBJ), e.g. ../shared/data/ict_facekit_face/neutral_face.obj.
+    #[arg(long)]
+    mesh: PathBuf,
+    /// Correspondences: a JSON file, or `builtin` (MediaPipe → canonical face, 68 → ICT).
+    #[arg(long, default_value = "builtin")]
+    features: String,
+    /// Partial retargeting: only these feature groups move (e.g. `mouth,jaw`).
+    #[arg(long, value_delimiter = ',')]
+    groups: Option<Vec<String>>,
+    /// Source neutral frame the RBF is trained on (default: the first tracked frame).
+    #[arg(long, value_name = "FRAME")]
+    neutral: Option<i64>,
+    /// Painted skin weights overriding the automatic ones (JSON `{"weights": [{"vertex", "feature", "weight"}]}`).
+    #[arg(long)]
+    weights: Option<PathBuf>,
+    /// Write one OBJ per frame here.
+    #[arg(long)]
+    obj_dir: Option<PathBuf>,
+    /// Write one PNG per frame here (source points beside the mesh wireframe).
+    #[arg(long)]
+    png_dir: Option<PathBuf>,
+    /// Only every N-th frame for --obj-dir / --png-dir.
+    #[arg(long, default_value_t = 1)]
+    every: usize,
+    /// Print a JSON summary.
+    #[arg(long)]
+    json: bool,
+}
+
+pub fn run(a: &TransferArgs) -> Result<()> {
+    if a.input.points.is_some() {
+        anyhow::bail!("--points does not apply to transfer: the feature correspondence chooses the points (use --groups)");
+    }
+    let (_, prep) = a.input.prepare()?;
+    let s = &prep.seq;
+    let features = if a.features == "builtin" { Features::builtin_for(s.points)? } else { Features::read(std::path::Path::new(&a.features))? };
+    let mesh = read_obj(&a.mesh)?;
+    let ncol = match a.neutral {
+        Some(f) => s.column_of_frame(f).with_context(|| format!("--neutral {f}"))?,
+        None => 0,
+    };
+    let t0 = Instant::now();
+    let mut tr = Transfer::new(mesh, features, s.coords.column(ncol).as_slice(), s.dims, a.groups.as_deref())
+        .with_context(|| format!("{} with {}", a.mesh.display(), a.features))?;
+    let train = t0.elapsed().as_secs_f64();
+    if let Some(w) = &a.weights {
+        let names: Vec<String> = tr.features.features.iter().map(|f| f.name.clone()).collect();
+        tr.skin.paint(w, &names)?;
+    }
+    let t1 = Instant::now();
+    let frames = tr.all_frames(&s.coords);
+    let deform = t1.elapsed().as_secs_f64();
+    let every = a.every.max(1);
+    if let Some(dir) = &a.obj_dir {
+        std::fs::create_dir_all(dir).with_context(|| format!("{}", dir.display()))?;
+        for (t, pos) in frames.iter().enumerate().step_by(every) {
+            let p = dir.join(format!("frame_{:06}.obj", s.frames[t]));
+            write_atomic(&p, |w| write_obj(w, pos, &tr.mesh.faces, &format!("kslab transfer: frame {} of {}", s.frames[t], s.source)))?;
+        }
+    }
+    if let Some(dir) = &a.png_dir {
+        std::fs::create_dir_all(dir).with_context(|| format!("{}", dir.display()))?;
+        let mb = mesh_bounds(&tr.mesh.positions);
+        let sb = bounds_of(&[&s.coords], s.dims);
+        let lines = prep.layout.as_ref().map(|l| polylines_for(l, &prep.point_indices)).unwrap_or_default();
+        let marks: Vec<usize> = tr.features.features.iter().map(|f| f.target).collect();
+        for (t, pos) in frames.iter().enumerate().step_by(every) {
+            let m = wireframe(pos, &tr.mesh.faces, &marks, mb, 420, "target mesh")?;
+            let pic = transfer_frame(col(&s.coords, t), s.dims, &lines, sb, &m, &format!("frame {}", s.frames[t]))?;
+            save_png(&pic, &dir.join(format!("frame_{:06}.png", s.frames[t])))?;
+        }
+    }
+    let moved = tr.skin.influences.iter().filter(|i| !i.is_empty()).count();
+    let max_disp = frames
+        .iter()
+        .flat_map(|f| f.iter().zip(&tr.mesh.positions).map(|(a, b)| ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()))
+        .fold(0.0, f64::max);
+    let summary = json!({
+        "frames": s.n_frames(),
+        "vertices": tr.mesh.positions.len(),
+        "features": tr.features.features.len(),
+        "enabled_features": tr.enabled.iter().filter(|e| **e).count(),
+        "skinned_vertices": moved,
+        "rbf_condition": tr.rbf.condition,
+        "train_seconds": train,
+        "deform_seconds": deform,
+        "frames_per_second": s.n_frames() as f64 / deform.max(1e-12),
+        "max_vertex_displacement": max_disp,
+    });
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&summary)?);
+    } else {
+        println!(
+            "{} frames onto {} vertices ({} skinned) from {} feature points: trained in {:.1} ms, deformed at {:.0} frames/s, largest displacement {:.3}",
+            s.n_frames(),
+            tr.mesh.positions.len(),
+            moved,
+            tr.enabled.iter().filter(|e| **e).count(),
+            train * 1e3,
+            s.n_frames() as f64 / deform.max(1e-12),
+            max_disp
+        );
+    }
+    Ok(())
+}

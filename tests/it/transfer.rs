@@ -1,0 +1,120 @@
+//! Paper 004: OBJ meshes, correspondences, skin weights, partial retargeting, on the real
+//! target meshes in ../shared/data.
+
+use crate::common::shared;
+use keyshape_lab::io::obj::{parse_obj, read_obj, write_obj};
+use keyshape_lab::transfer::features::Features;
+use keyshape_lab::transfer::skin::{radii, Skin};
+use keyshape_lab::transfer::Transfer;
+use std::path::Path;
+
+fn ict() -> keyshape_lab::io::obj::Mesh {
+    read_obj(&shared("ict_facekit_face/neutral_face.obj")).unwrap()
+}
+
+#[test]
+fn obj_reader_reads_both_target_meshes_and_round_trips() {
+    let m = ict();
+    assert_eq!((m.positions.len(), m.faces.len()), (9409, 9230));
+    let c = read_obj(&shared("mediapipe_canonical_face/canonical_face_model.obj")).unwrap();
+    assert_eq!((c.positions.len(), c.faces.len()), (468, 898));
+    assert!(c.faces.iter().all(|f| f.len() == 3 && f.iter().all(|&v| v < 468)));
+    let mut buf = Vec::new();
+    write_obj(&mut buf, &c.positions, &c.faces, "test").unwrap();
+    let back = parse_obj(Path::new("x.obj"), &String::from_utf8(buf).unwrap()).unwrap();
+    assert_eq!(back.faces, c.faces);
+    assert!(back.positions.iter().zip(&c.positions).all(|(a, b)| (0..3).all(|k| (a[k] - b[k]).abs() < 1e-5)));
+}
+
+#[test]
+fn bad_obj_files_name_line_and_column() {
+    let e = parse_obj(Path::new("m.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n").unwrap_err().to_string();
+    assert_eq!(e, "m.obj:4:1: face refers to vertex 4 but the file has 3 vertices");
+    let e = parse_obj(Path::new("m.obj"), "v 0 0 0\nv 1 x 0\n").unwrap_err().to_string();
+    assert_eq!(e, "m.obj:2:5: not a number: 'x'");
+    let e = parse_obj(Path::new("m.obj"), "v 0 0 0\nf 1 0 1\n").unwrap_err().to_string();
+    assert!(e.starts_with("m.obj:2:5: face index 0"), "{e}");
+}
+
+#[test]
+fn skin_weights_are_nonnegative_sum_to_one_and_far_vertices_stay() {
+    let m = ict();
+    let f = Features::builtin("ibug68_to_ict").unwrap();
+    let t0: Vec<[f64; 3]> = f.features.iter().map(|x| m.positions[x.target]).collect();
+    let factors = vec![1.5; t0.len()];
+    let skin = Skin::automatic(&m.positions, &t0, &radii(&t0, &factors));
+    for inf in &skin.influences {
+        if inf.is_empty() {
+            continue;
+        }
+        assert!(inf.len() <= 4 && inf.iter().all(|x| x.1 >= 0.0));
+        assert!((inf.iter().map(|x| x.1).sum::<f64>() - 1.0).abs() < 1e-12);
+    }
+    // A vertex far from every feature point (the back of the scalp region) does not move.
+    let far = (0..m.positions.len())
+        .max_by(|&a, &b| {
+            let d = |v: usize| t0.iter().map(|p| (0..3).map(|k| (m.positions[v][k] - p[k]).powi(2)).sum::<f64>()).fold(f64::INFINITY, f64::min);
+            d(a).total_cmp(&d(b))
+        })
+        .unwrap();
+    assert!(skin.influences[far].is_empty());
+    let mut out = vec![[0.0; 3]; m.positions.len()];
+    skin.deform(&m.positions, &vec![[1.0, 2.0, 3.0]; t0.len()], &mut out);
+    assert_eq!(out[far], m.positions[far]);
+}
+
+fn news_transfer(groups: Option<&[String]>) -> (Transfer, keyshape_lab::sequence::Sequence) {
+    let seq = keyshape_lab::io::read_sequence(&shared("pyfeat_samples/news_sample_compact.csv"), &Default::default()).unwrap();
+    let prep = keyshape_lab::decompose::prepare(&seq, &keyshape_lab::decompose::PrepareOptions { points: None, align: true }).unwrap();
+    let t = Transfer::new(ict(), Features::builtin("ibug68_to_ict").unwrap(), prep.seq.coords.column(0).as_slice(), 2, groups).unwrap();
+    (t, prep.seq)
+}
+
+#[test]
+fn the_neutral_frame_maps_to_the_neutral_mesh_and_other_frames_move_it() {
+    let (t, seq) = news_transfer(None);
+    let rest = t.frame(seq.coords.column(0).as_slice());
+    let d = rest.iter().zip(&t.mesh.positions).map(|(a, b)| (0..3).map(|k| (a[k] - b[k]).abs()).fold(0.0, f64::max)).fold(0.0, f64::max);
+    assert!(d < 1e-8, "neutral frame moves the mesh by {d}");
+    // Another frame: each feature vertex with a single influence lands on F(s).
+    let later = seq.coords.column(200);
+    let disp = t.displacements(later.as_slice());
+    assert!(disp.iter().any(|x| x.iter().any(|v| v.abs() > 1e-3)), "frame 200 moves something");
+}
+
+#[test]
+fn partial_retargeting_keeps_disabled_groups_at_neutral() {
+    let groups = vec!["mouth".to_string(), "jaw".to_string()];
+    let (t, seq) = news_transfer(Some(&groups));
+    let disp = t.displacements(seq.coords.column(200).as_slice());
+    for (f, d) in t.features.features.iter().zip(&disp) {
+        if f.group != "mouth" && f.group != "jaw" {
+            assert_eq!(*d, [0.0; 3], "{} moved", f.name);
+        }
+    }
+    let moved = t.frame(seq.coords.column(200).as_slice());
+    // Eye feature vertices are only influenced by eye/brow features near them: they stay.
+    let eye = t.features.features.iter().find(|f| f.name == "right_eye_upper").unwrap().target;
+    let only_eyes = t.skin.influences[eye].iter().all(|(i, _)| !t.enabled[*i]);
+    if only_eyes {
+        assert_eq!(moved[eye], t.mesh.positions[eye]);
+    }
+    let e = Transfer::new(ict(), Features::builtin("ibug68_to_ict").unwrap(), seq.coords.column(0).as_slice(), 2, Some(&["lipz".to_string()])).unwrap_err().to_string();
+    assert!(e.contains("no feature group 'lipz'"), "{e}");
+}
+
+#[test]
+fn bad_correspondences_are_explained() {
+    let seq_shape = vec![0.0; 136];
+    let mut f = Features::builtin("ibug68_to_ict").unwrap();
+    f.features[3].target = 99_999;
+    let e = Transfer::new(ict(), f, &seq_shape, 2, None).unwrap_err().to_string();
+    assert!(e.contains("names target vertex 99999, but the mesh has 9409"), "{e}");
+    let mut f = Features::builtin("ibug68_to_ict").unwrap();
+    f.features[4].source = f.features[2].source;
+    let e = Transfer::new(ict(), f, &seq_shape, 2, None).unwrap_err().to_string();
+    assert!(e.contains("share a point"), "{e}");
+    let f = Features::builtin("mediapipe_to_canonical").unwrap();
+    let e = Transfer::new(ict(), f, &seq_shape, 2, None).unwrap_err().to_string();
+    assert!(e.contains("names source landmark"), "{e}");
+}
