@@ -39,6 +39,9 @@ pub struct TransferArgs {
     /// Write one OBJ per frame here.
     #[arg(long)]
     obj_dir: Option<PathBuf>,
+    /// Write a glTF 2.0 binary: the mesh skinned to one joint per feature point, animated.
+    #[arg(long)]
+    gltf: Option<PathBuf>,
     /// Write one PNG per frame here (source points beside the mesh wireframe).
     #[arg(long)]
     png_dir: Option<PathBuf>,
@@ -80,6 +83,11 @@ pub fn run(a: &TransferArgs) -> Result<()> {
             let p = dir.join(format!("frame_{:06}.obj", s.frames[t]));
             write_atomic(&p, |w| write_obj(w, pos, &tr.mesh.faces, &format!("kslab transfer: frame {} of {}", s.frames[t], s.source)))?;
         }
+    }
+    if let Some(p) = &a.gltf {
+        keyshape_lab::io::gltf::check(&tr)?;
+        let fps = s.fps().unwrap_or(30.0);
+        write_atomic(p, |w| keyshape_lab::io::gltf::write_glb(w, &tr, &s.coords, fps))?;
     }
     if let Some(dir) = &a.png_dir {
         std::fs::create_dir_all(dir).with_context(|| format!("{}", dir.display()))?;

@@ -3,6 +3,7 @@
 
 pub mod atomic;
 mod builtin;
+pub mod gltf;
 pub mod json;
 pub mod obj;
 mod pts;

@@ -3,6 +3,7 @@
 
 mod curves;
 mod nnls;
+mod transfer;
 mod tui;
 
 use anyhow::Result;
@@ -21,6 +22,8 @@ enum What {
     Nnls(nnls::NnlsArgs),
     /// The full error-curve sweep (all methods, k = 2..24) against a plain implementation.
     Curves(curves::CurvesBenchArgs),
+    /// Paper 004 mesh deformation throughput on the ICT face.
+    Transfer(transfer::TransferBenchArgs),
     /// Input-to-redraw latency of the lab when k or the method changes.
     Tui(tui::TuiBenchArgs),
 }
@@ -30,5 +33,6 @@ pub fn run(a: &BenchArgs) -> Result<()> {
         What::Nnls(n) => nnls::run(n),
         What::Curves(c) => curves::run(c),
         What::Tui(t) => tui::run(t),
+        What::Transfer(t) => transfer::run(t),
     }
 }

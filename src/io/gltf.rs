@@ -1,0 +1,156 @@
+//! glTF 2.0 binary (GLB) export of a feature-point transfer as linear-blend skinning,
+//! which glTF has natively: one joint per feature point (plus a still root joint for
+//! vertices no feature reaches), the skin weights as `JOINTS_0` / `WEIGHTS_0`, and the
+//! performance as translation animation of the joints. A skinned vertex is then
+//! `Σ wᵢ (v + dᵢ) = v + Σ wᵢ dᵢ` — exactly [`crate::transfer::skin::Skin::deform`].
+//! Chosen over baked morph targets because it stays small (joints × frames × 3 floats, not
+//! vertices × frames) and keeps the rig editable in Blender.
+
+use crate::error::{Error, Result};
+use crate::transfer::Transfer;
+use serde_json::{json, Value};
+use std::io::Write;
+
+/// A binary buffer under construction, with its buffer views and accessors.
+struct Bin {
+    data: Vec<u8>,
+    views: Vec<Value>,
+    accessors: Vec<Value>,
+}
+
+impl Bin {
+    /// Appends `bytes` (4-byte aligned) as a buffer view and an accessor over it.
+    fn push(&mut self, bytes: &[u8], target: Option<u32>, accessor: Value) -> usize {
+        while self.data.len() % 4 != 0 {
+            self.data.push(0);
+        }
+        let mut view = json!({ "buffer": 0, "byteOffset": self.data.len(), "byteLength": bytes.len() });
+        if let Some(t) = target {
+            view["target"] = json!(t);
+        }
+        self.data.extend_from_slice(bytes);
+        self.views.push(view);
+        let mut acc = accessor;
+        acc["bufferView"] = json!(self.views.len() - 1);
+        self.accessors.push(acc);
+        self.accessors.len() - 1
+    }
+}
+
+fn f32s(v: impl IntoIterator<Item = f64>) -> (Vec<u8>, Vec<f32>) {
+    let vals: Vec<f32> = v.into_iter().map(|x| x as f32).collect();
+    (vals.iter().flat_map(|x| x.to_le_bytes()).collect(), vals)
+}
+
+fn min_max3(vals: &[f32]) -> (Vec<f32>, Vec<f32>) {
+    let mut lo = vec![f32::INFINITY; 3];
+    let mut hi = vec![f32::NEG_INFINITY; 3];
+    for p in vals.chunks(3) {
+        for k in 0..3 {
+            lo[k] = lo[k].min(p[k]);
+            hi[k] = hi[k].max(p[k]);
+        }
+    }
+    (lo, hi)
+}
+
+/// Writes the transfer of `frames` source shapes (columns, `fps`) as GLB.
+pub fn write_glb(w: &mut dyn Write, tr: &Transfer, frames: &nalgebra::DMatrix<f64>, fps: f64) -> std::io::Result<()> {
+    let mut bin = Bin { data: Vec::new(), views: Vec::new(), accessors: Vec::new() };
+    let nv = tr.mesh.positions.len();
+    let nf = tr.t0.len();
+    // Geometry.
+    let (pos_bytes, pos) = f32s(tr.mesh.positions.iter().flatten().copied());
+    let (lo, hi) = min_max3(&pos);
+    let a_pos = bin.push(&pos_bytes, Some(34962), json!({ "componentType": 5126, "count": nv, "type": "VEC3", "min": lo, "max": hi }));
+    let mut joints = Vec::with_capacity(nv * 8);
+    let mut weights = Vec::with_capacity(nv * 4);
+    for inf in &tr.skin.influences {
+        let mut j = [0u16; 4];
+        let mut wt = [0f32; 4];
+        if inf.is_empty() {
+            wt[0] = 1.0; // the still root joint
+        }
+        for (k, &(f, x)) in inf.iter().take(4).enumerate() {
+            j[k] = (f + 1) as u16;
+            wt[k] = x as f32;
+        }
+        // Make the float weights sum to 1 exactly in f32, as validators check.
+        let s: f32 = wt.iter().sum();
+        let i = wt.iter().enumerate().fold(0, |m, (i, x)| if *x > wt[m] { i } else { m });
+        wt[i] += 1.0 - s;
+        joints.extend(j.iter().flat_map(|x| x.to_le_bytes()));
+        weights.extend(wt.iter().flat_map(|x| x.to_le_bytes()));
+    }
+    let a_j = bin.push(&joints, Some(34962), json!({ "componentType": 5123, "count": nv, "type": "VEC4" }));
+    let a_w = bin.push(&weights, Some(34962), json!({ "componentType": 5126, "count": nv, "type": "VEC4" }));
+    let tris: Vec<u32> = tr.mesh.faces.iter().flat_map(|f| (1..f.len() - 1).flat_map(move |k| [f[0] as u32, f[k] as u32, f[k + 1] as u32])).collect();
+    let idx: Vec<u8> = tris.iter().flat_map(|x| x.to_le_bytes()).collect();
+    let a_idx = bin.push(&idx, Some(34963), json!({ "componentType": 5125, "count": tris.len(), "type": "SCALAR" }));
+    // Skin: inverse bind matrices (column-major), identity for the root, −t0 for features.
+    let mut ibm = Vec::new();
+    for f in 0..=nf {
+        let t = if f == 0 { [0.0; 3] } else { tr.t0[f - 1] };
+        let m = [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, -t[0], -t[1], -t[2], 1.0];
+        ibm.extend(m.iter().flat_map(|x| (*x as f32).to_le_bytes()));
+    }
+    let a_ibm = bin.push(&ibm, None, json!({ "componentType": 5126, "count": nf + 1, "type": "MAT4" }));
+    // Animation: per frame, each joint's translation t0 + d.
+    let n = frames.ncols();
+    let times: Vec<f32> = (0..n).map(|t| (t as f64 / fps) as f32).collect();
+    let tb: Vec<u8> = times.iter().flat_map(|x| x.to_le_bytes()).collect();
+    let a_time = bin.push(&tb, None, json!({ "componentType": 5126, "count": n, "type": "SCALAR", "min": [times[0]], "max": [times[n - 1]] }));
+    let disp: Vec<Vec<[f64; 3]>> = (0..n).map(|t| tr.displacements(frames.column(t).as_slice())).collect();
+    let (mut samplers, mut channels) = (Vec::new(), Vec::new());
+    for f in 0..nf {
+        let (bytes, _) = f32s(disp.iter().flat_map(|d| (0..3).map(move |k| tr.t0[f][k] + d[f][k])));
+        let a = bin.push(&bytes, None, json!({ "componentType": 5126, "count": n, "type": "VEC3" }));
+        samplers.push(json!({ "input": a_time, "output": a, "interpolation": "LINEAR" }));
+        channels.push(json!({ "sampler": f, "target": { "node": f + 2, "path": "translation" } }));
+    }
+    let mut nodes = vec![
+        json!({ "name": "face", "mesh": 0, "skin": 0 }),
+        json!({ "name": "root", "children": (2..nf + 2).collect::<Vec<_>>() }),
+    ];
+    for (i, f) in tr.features.features.iter().enumerate() {
+        nodes.push(json!({ "name": f.name, "translation": tr.t0[i].iter().map(|x| *x as f32).collect::<Vec<_>>() }));
+    }
+    let doc = json!({
+        "asset": { "version": "2.0", "generator": concat!("keyshape-lab ", env!("CARGO_PKG_VERSION")) },
+        "scene": 0,
+        "scenes": [{ "nodes": [0, 1] }],
+        "nodes": nodes,
+        "meshes": [{ "name": "face", "primitives": [{ "attributes": { "POSITION": a_pos, "JOINTS_0": a_j, "WEIGHTS_0": a_w }, "indices": a_idx, "mode": 4 }] }],
+        "skins": [{ "joints": (1..nf + 2).collect::<Vec<_>>(), "inverseBindMatrices": a_ibm, "skeleton": 1 }],
+        "animations": [{ "name": "performance", "samplers": samplers, "channels": channels }],
+        "accessors": bin.accessors,
+        "bufferViews": bin.views,
+        "buffers": [{ "byteLength": bin.data.len() }],
+    });
+    let mut js = serde_json::to_vec(&doc).map_err(std::io::Error::other)?;
+    while js.len() % 4 != 0 {
+        js.push(b' ');
+    }
+    let mut data = bin.data;
+    while data.len() % 4 != 0 {
+        data.push(0);
+    }
+    let total = 12 + 8 + js.len() + 8 + data.len();
+    w.write_all(b"glTF")?;
+    w.write_all(&2u32.to_le_bytes())?;
+    w.write_all(&(total as u32).to_le_bytes())?;
+    w.write_all(&(js.len() as u32).to_le_bytes())?;
+    w.write_all(b"JSON")?;
+    w.write_all(&js)?;
+    w.write_all(&(data.len() as u32).to_le_bytes())?;
+    w.write_all(b"BIN\0")?;
+    w.write_all(&data)
+}
+
+/// Checks that the joint count fits glTF's 16-bit joint indices.
+pub fn check(tr: &Transfer) -> Result<()> {
+    if tr.t0.len() + 1 > u16::MAX as usize {
+        return Err(Error::invalid("too many feature points for glTF joints"));
+    }
+    Ok(())
+}
