@@ -59,18 +59,35 @@ pub fn run(a: &TransferArgs) -> Result<()> {
     }
     let (_, prep) = a.input.prepare()?;
     let s = &prep.seq;
-    let features = if a.features == "builtin" { Features::builtin_for(s.points)? } else { Features::read(std::path::Path::new(&a.features))? };
+    let features = if a.features == "builtin" {
+        Features::builtin_for(s.points)?
+    } else {
+        Features::read(std::path::Path::new(&a.features))?
+    };
     let mesh = read_obj(&a.mesh)?;
     let ncol = match a.neutral {
-        Some(f) => s.column_of_frame(f).with_context(|| format!("--neutral {f}"))?,
+        Some(f) => s
+            .column_of_frame(f)
+            .with_context(|| format!("--neutral {f}"))?,
         None => 0,
     };
     let t0 = Instant::now();
-    let mut tr = Transfer::new(mesh, features, s.coords.column(ncol).as_slice(), s.dims, a.groups.as_deref())
-        .with_context(|| format!("{} with {}", a.mesh.display(), a.features))?;
+    let mut tr = Transfer::new(
+        mesh,
+        features,
+        s.coords.column(ncol).as_slice(),
+        s.dims,
+        a.groups.as_deref(),
+    )
+    .with_context(|| format!("{} with {}", a.mesh.display(), a.features))?;
     let train = t0.elapsed().as_secs_f64();
     if let Some(w) = &a.weights {
-        let names: Vec<String> = tr.features.features.iter().map(|f| f.name.clone()).collect();
+        let names: Vec<String> = tr
+            .features
+            .features
+            .iter()
+            .map(|f| f.name.clone())
+            .collect();
         tr.skin.paint(w, &names)?;
     }
     let t1 = Instant::now();
@@ -81,30 +98,54 @@ pub fn run(a: &TransferArgs) -> Result<()> {
         std::fs::create_dir_all(dir).with_context(|| format!("{}", dir.display()))?;
         for (t, pos) in frames.iter().enumerate().step_by(every) {
             let p = dir.join(format!("frame_{:06}.obj", s.frames[t]));
-            write_atomic(&p, |w| write_obj(w, pos, &tr.mesh.faces, &format!("kslab transfer: frame {} of {}", s.frames[t], s.source)))?;
+            write_atomic(&p, |w| {
+                write_obj(
+                    w,
+                    pos,
+                    &tr.mesh.faces,
+                    &format!("kslab transfer: frame {} of {}", s.frames[t], s.source),
+                )
+            })?;
         }
     }
     if let Some(p) = &a.gltf {
         keyshape_lab::io::gltf::check(&tr)?;
         let fps = s.fps().unwrap_or(30.0);
-        write_atomic(p, |w| keyshape_lab::io::gltf::write_glb(w, &tr, &s.coords, fps))?;
+        write_atomic(p, |w| {
+            keyshape_lab::io::gltf::write_glb(w, &tr, &s.coords, fps)
+        })?;
     }
     if let Some(dir) = &a.png_dir {
         std::fs::create_dir_all(dir).with_context(|| format!("{}", dir.display()))?;
         let mb = mesh_bounds(&tr.mesh.positions);
         let sb = bounds_of(&[&s.coords], s.dims);
-        let lines = prep.layout.as_ref().map(|l| polylines_for(l, &prep.point_indices)).unwrap_or_default();
+        let lines = prep
+            .layout
+            .as_ref()
+            .map(|l| polylines_for(l, &prep.point_indices))
+            .unwrap_or_default();
         let marks: Vec<usize> = tr.features.features.iter().map(|f| f.target).collect();
         for (t, pos) in frames.iter().enumerate().step_by(every) {
             let m = wireframe(pos, &tr.mesh.faces, &marks, mb, 420, "target mesh")?;
-            let pic = transfer_frame(col(&s.coords, t), s.dims, &lines, sb, &m, &format!("frame {}", s.frames[t]))?;
+            let pic = transfer_frame(
+                col(&s.coords, t),
+                s.dims,
+                &lines,
+                sb,
+                &m,
+                &format!("frame {}", s.frames[t]),
+            )?;
             save_png(&pic, &dir.join(format!("frame_{:06}.png", s.frames[t])))?;
         }
     }
     let moved = tr.skin.influences.iter().filter(|i| !i.is_empty()).count();
     let max_disp = frames
         .iter()
-        .flat_map(|f| f.iter().zip(&tr.mesh.positions).map(|(a, b)| ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()))
+        .flat_map(|f| {
+            f.iter().zip(&tr.mesh.positions).map(|(a, b)| {
+                ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+            })
+        })
         .fold(0.0, f64::max);
     let summary = json!({
         "frames": s.n_frames(),

@@ -7,13 +7,19 @@ use std::io::IsTerminal;
 use std::path::PathBuf;
 
 /// Arguments of `kslab tui`.
-#[derive(Debug, Default, Args)]
+#[derive(Debug, Args)]
 pub struct TuiArgs {
     /// Tracked sequence (omit for the built-in one).
     file: Option<PathBuf>,
     /// Target key shapes (JSON target set or SVG template): its frames become the key frames.
     #[arg(long)]
     target: Option<PathBuf>,
+    /// A target mesh (OBJ) to drive by RBF transfer + skinning (paper 004); `x` shows it.
+    #[arg(long)]
+    mesh: Option<PathBuf>,
+    /// Feature correspondences for --mesh (`builtin`, or a JSON file).
+    #[arg(long, default_value = "builtin")]
+    features: String,
 }
 
 pub fn run(a: &TuiArgs) -> Result<()> {
@@ -32,5 +38,28 @@ pub fn run(a: &TuiArgs) -> Result<()> {
         }
         Some(p) => Some(TargetSet::read_json(p)?),
     };
-    keyshape_lab::tui::run(seq, &path, target)
+    let mesh = match &a.mesh {
+        None => None,
+        Some(m) => {
+            let features = if a.features == "builtin" {
+                keyshape_lab::transfer::features::Features::builtin_for(seq.points)?
+            } else {
+                keyshape_lab::transfer::features::Features::read(std::path::Path::new(&a.features))?
+            };
+            let obj = keyshape_lab::io::obj::read_obj(m)?;
+            Some(keyshape_lab::tui::mesh::mesh_view(&seq, obj, features)?)
+        }
+    };
+    keyshape_lab::tui::run(seq, &path, target, mesh)
+}
+
+impl Default for TuiArgs {
+    fn default() -> Self {
+        TuiArgs {
+            file: None,
+            target: None,
+            mesh: None,
+            features: "builtin".into(),
+        }
+    }
 }

@@ -24,7 +24,8 @@ impl Bin {
         while self.data.len() % 4 != 0 {
             self.data.push(0);
         }
-        let mut view = json!({ "buffer": 0, "byteOffset": self.data.len(), "byteLength": bytes.len() });
+        let mut view =
+            json!({ "buffer": 0, "byteOffset": self.data.len(), "byteLength": bytes.len() });
         if let Some(t) = target {
             view["target"] = json!(t);
         }
@@ -55,14 +56,27 @@ fn min_max3(vals: &[f32]) -> (Vec<f32>, Vec<f32>) {
 }
 
 /// Writes the transfer of `frames` source shapes (columns, `fps`) as GLB.
-pub fn write_glb(w: &mut dyn Write, tr: &Transfer, frames: &nalgebra::DMatrix<f64>, fps: f64) -> std::io::Result<()> {
-    let mut bin = Bin { data: Vec::new(), views: Vec::new(), accessors: Vec::new() };
+pub fn write_glb(
+    w: &mut dyn Write,
+    tr: &Transfer,
+    frames: &nalgebra::DMatrix<f64>,
+    fps: f64,
+) -> std::io::Result<()> {
+    let mut bin = Bin {
+        data: Vec::new(),
+        views: Vec::new(),
+        accessors: Vec::new(),
+    };
     let nv = tr.mesh.positions.len();
     let nf = tr.t0.len();
     // Geometry.
     let (pos_bytes, pos) = f32s(tr.mesh.positions.iter().flatten().copied());
     let (lo, hi) = min_max3(&pos);
-    let a_pos = bin.push(&pos_bytes, Some(34962), json!({ "componentType": 5126, "count": nv, "type": "VEC3", "min": lo, "max": hi }));
+    let a_pos = bin.push(
+        &pos_bytes,
+        Some(34962),
+        json!({ "componentType": 5126, "count": nv, "type": "VEC3", "min": lo, "max": hi }),
+    );
     let mut joints = Vec::with_capacity(nv * 8);
     let mut weights = Vec::with_capacity(nv * 4);
     for inf in &tr.skin.influences {
@@ -77,34 +91,71 @@ pub fn write_glb(w: &mut dyn Write, tr: &Transfer, frames: &nalgebra::DMatrix<f6
         }
         // Make the float weights sum to 1 exactly in f32, as validators check.
         let s: f32 = wt.iter().sum();
-        let i = wt.iter().enumerate().fold(0, |m, (i, x)| if *x > wt[m] { i } else { m });
+        let i = wt
+            .iter()
+            .enumerate()
+            .fold(0, |m, (i, x)| if *x > wt[m] { i } else { m });
         wt[i] += 1.0 - s;
         joints.extend(j.iter().flat_map(|x| x.to_le_bytes()));
         weights.extend(wt.iter().flat_map(|x| x.to_le_bytes()));
     }
-    let a_j = bin.push(&joints, Some(34962), json!({ "componentType": 5123, "count": nv, "type": "VEC4" }));
-    let a_w = bin.push(&weights, Some(34962), json!({ "componentType": 5126, "count": nv, "type": "VEC4" }));
-    let tris: Vec<u32> = tr.mesh.faces.iter().flat_map(|f| (1..f.len() - 1).flat_map(move |k| [f[0] as u32, f[k] as u32, f[k + 1] as u32])).collect();
+    let a_j = bin.push(
+        &joints,
+        Some(34962),
+        json!({ "componentType": 5123, "count": nv, "type": "VEC4" }),
+    );
+    let a_w = bin.push(
+        &weights,
+        Some(34962),
+        json!({ "componentType": 5126, "count": nv, "type": "VEC4" }),
+    );
+    let tris: Vec<u32> = tr
+        .mesh
+        .faces
+        .iter()
+        .flat_map(|f| {
+            (1..f.len() - 1).flat_map(move |k| [f[0] as u32, f[k] as u32, f[k + 1] as u32])
+        })
+        .collect();
     let idx: Vec<u8> = tris.iter().flat_map(|x| x.to_le_bytes()).collect();
-    let a_idx = bin.push(&idx, Some(34963), json!({ "componentType": 5125, "count": tris.len(), "type": "SCALAR" }));
+    let a_idx = bin.push(
+        &idx,
+        Some(34963),
+        json!({ "componentType": 5125, "count": tris.len(), "type": "SCALAR" }),
+    );
     // Skin: inverse bind matrices (column-major), identity for the root, −t0 for features.
     let mut ibm = Vec::new();
     for f in 0..=nf {
         let t = if f == 0 { [0.0; 3] } else { tr.t0[f - 1] };
-        let m = [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, -t[0], -t[1], -t[2], 1.0];
+        let m = [
+            1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, -t[0], -t[1], -t[2], 1.0,
+        ];
         ibm.extend(m.iter().flat_map(|x| (*x as f32).to_le_bytes()));
     }
-    let a_ibm = bin.push(&ibm, None, json!({ "componentType": 5126, "count": nf + 1, "type": "MAT4" }));
+    let a_ibm = bin.push(
+        &ibm,
+        None,
+        json!({ "componentType": 5126, "count": nf + 1, "type": "MAT4" }),
+    );
     // Animation: per frame, each joint's translation t0 + d.
     let n = frames.ncols();
     let times: Vec<f32> = (0..n).map(|t| (t as f64 / fps) as f32).collect();
     let tb: Vec<u8> = times.iter().flat_map(|x| x.to_le_bytes()).collect();
     let a_time = bin.push(&tb, None, json!({ "componentType": 5126, "count": n, "type": "SCALAR", "min": [times[0]], "max": [times[n - 1]] }));
-    let disp: Vec<Vec<[f64; 3]>> = (0..n).map(|t| tr.displacements(frames.column(t).as_slice())).collect();
+    let disp: Vec<Vec<[f64; 3]>> = (0..n)
+        .map(|t| tr.displacements(frames.column(t).as_slice()))
+        .collect();
     let (mut samplers, mut channels) = (Vec::new(), Vec::new());
     for f in 0..nf {
-        let (bytes, _) = f32s(disp.iter().flat_map(|d| (0..3).map(move |k| tr.t0[f][k] + d[f][k])));
-        let a = bin.push(&bytes, None, json!({ "componentType": 5126, "count": n, "type": "VEC3" }));
+        let (bytes, _) = f32s(
+            disp.iter()
+                .flat_map(|d| (0..3).map(move |k| tr.t0[f][k] + d[f][k])),
+        );
+        let a = bin.push(
+            &bytes,
+            None,
+            json!({ "componentType": 5126, "count": n, "type": "VEC3" }),
+        );
         samplers.push(json!({ "input": a_time, "output": a, "interpolation": "LINEAR" }));
         channels.push(json!({ "sampler": f, "target": { "node": f + 2, "path": "translation" } }));
     }

@@ -34,10 +34,24 @@ pub fn parse_obj(path: &Path, text: &str) -> Result<Mesh> {
             Some("v") => {
                 let mut p = [0.0; 3];
                 for (d, slot) in p.iter_mut().enumerate() {
-                    let tok = toks.next().ok_or_else(|| Error::parse(path, line_no, raw.len() as u64 + 1, format!("vertex needs 3 coordinates, found {d}")))?;
-                    let v: f64 = tok.parse().map_err(|_| Error::parse(path, line_no, col_of(tok), format!("not a number: '{tok}'")))?;
+                    let tok = toks.next().ok_or_else(|| {
+                        Error::parse(
+                            path,
+                            line_no,
+                            raw.len() as u64 + 1,
+                            format!("vertex needs 3 coordinates, found {d}"),
+                        )
+                    })?;
+                    let v: f64 = tok.parse().map_err(|_| {
+                        Error::parse(path, line_no, col_of(tok), format!("not a number: '{tok}'"))
+                    })?;
                     if !v.is_finite() {
-                        return Err(Error::parse(path, line_no, col_of(tok), format!("non-finite coordinate '{tok}'")));
+                        return Err(Error::parse(
+                            path,
+                            line_no,
+                            col_of(tok),
+                            format!("non-finite coordinate '{tok}'"),
+                        ));
                     }
                     *slot = v;
                 }
@@ -47,17 +61,34 @@ pub fn parse_obj(path: &Path, text: &str) -> Result<Mesh> {
                 let mut face = Vec::new();
                 for tok in toks {
                     let first = tok.split('/').next().unwrap_or("");
-                    let idx: i64 = first.parse().map_err(|_| Error::parse(path, line_no, col_of(tok), format!("bad face index '{tok}'")))?;
+                    let idx: i64 = first.parse().map_err(|_| {
+                        Error::parse(
+                            path,
+                            line_no,
+                            col_of(tok),
+                            format!("bad face index '{tok}'"),
+                        )
+                    })?;
                     // 1-based; negative counts back from the last vertex read so far.
                     let n = positions.len() as i64;
                     let zero = if idx > 0 { idx - 1 } else { n + idx };
                     if idx == 0 || zero < 0 {
-                        return Err(Error::parse(path, line_no, col_of(tok), format!("face index {idx} is not a vertex (1..={n})")));
+                        return Err(Error::parse(
+                            path,
+                            line_no,
+                            col_of(tok),
+                            format!("face index {idx} is not a vertex (1..={n})"),
+                        ));
                     }
                     face.push(zero as usize);
                 }
                 if face.len() < 3 {
-                    return Err(Error::parse(path, line_no, 1, format!("a face needs 3 or more vertices, found {}", face.len())));
+                    return Err(Error::parse(
+                        path,
+                        line_no,
+                        1,
+                        format!("a face needs 3 or more vertices, found {}", face.len()),
+                    ));
                 }
                 faces.push((line_no, face));
             }
@@ -68,18 +99,34 @@ pub fn parse_obj(path: &Path, text: &str) -> Result<Mesh> {
     let mut out = Vec::with_capacity(faces.len());
     for (line_no, f) in faces {
         if let Some(&bad) = f.iter().find(|&&v| v >= n) {
-            return Err(Error::parse(path, line_no, 1, format!("face refers to vertex {} but the file has {n} vertices", bad + 1)));
+            return Err(Error::parse(
+                path,
+                line_no,
+                1,
+                format!(
+                    "face refers to vertex {} but the file has {n} vertices",
+                    bad + 1
+                ),
+            ));
         }
         out.push(f);
     }
     if n == 0 {
         return Err(Error::file(path, "no vertices ('v' lines)"));
     }
-    Ok(Mesh { positions, faces: out })
+    Ok(Mesh {
+        positions,
+        faces: out,
+    })
 }
 
 /// Writes positions (`v`) and faces (`f`, 1-based) with a comment line.
-pub fn write_obj(w: &mut dyn Write, positions: &[[f64; 3]], faces: &[Vec<usize>], comment: &str) -> std::io::Result<()> {
+pub fn write_obj(
+    w: &mut dyn Write,
+    positions: &[[f64; 3]],
+    faces: &[Vec<usize>],
+    comment: &str,
+) -> std::io::Result<()> {
     writeln!(w, "# {comment}")?;
     for p in positions {
         writeln!(w, "v {:.5} {:.5} {:.5}", p[0], p[1], p[2])?;

@@ -8,7 +8,10 @@ use tiny_skia::{Color, FillRule, Paint, PathBuilder, Pixmap, PixmapPaint, Stroke
 
 /// Bounds (x, y) of positions, padded 5 %.
 pub fn mesh_bounds(positions: &[[f64; 3]]) -> ((f64, f64), (f64, f64)) {
-    let (mut lo, mut hi) = ((f64::INFINITY, f64::INFINITY), (f64::NEG_INFINITY, f64::NEG_INFINITY));
+    let (mut lo, mut hi) = (
+        (f64::INFINITY, f64::INFINITY),
+        (f64::NEG_INFINITY, f64::NEG_INFINITY),
+    );
     for p in positions {
         lo = (lo.0.min(p[0]), lo.1.min(p[1]));
         hi = (hi.0.max(p[0]), hi.1.max(p[1]));
@@ -19,19 +22,35 @@ pub fn mesh_bounds(positions: &[[f64; 3]]) -> ((f64, f64), (f64, f64)) {
 
 /// The wireframe of `faces` over `positions` in a `size`-pixel square, with feature vertices
 /// (`marks`) as red dots.
-pub fn wireframe(positions: &[[f64; 3]], faces: &[Vec<usize>], marks: &[usize], bounds: ((f64, f64), (f64, f64)), size: u32, title: &str) -> Result<Pixmap> {
+pub fn wireframe(
+    positions: &[[f64; 3]],
+    faces: &[Vec<usize>],
+    marks: &[usize],
+    bounds: ((f64, f64), (f64, f64)),
+    size: u32,
+    title: &str,
+) -> Result<Pixmap> {
     let mut pm = Pixmap::new(size, size).ok_or_else(|| Error::invalid("bad picture size"))?;
     pm.fill(Color::WHITE);
     let ((x0, y0), (x1, y1)) = bounds;
     let span = (x1 - x0).max(y1 - y0).max(1e-12);
     let s = f64::from(size) * 0.9 / span;
     let (cx, cy) = ((x0 + x1) / 2.0, (y0 + y1) / 2.0);
-    let map = |p: &[f64; 3]| ((f64::from(size) / 2.0 + (p[0] - cx) * s) as f32, (f64::from(size) / 2.0 + 8.0 - (p[1] - cy) * s) as f32);
+    let map = |p: &[f64; 3]| {
+        (
+            (f64::from(size) / 2.0 + (p[0] - cx) * s) as f32,
+            (f64::from(size) / 2.0 + 8.0 - (p[1] - cy) * s) as f32,
+        )
+    };
     let mut pb = PathBuilder::new();
     for f in faces {
         for (k, &v) in f.iter().enumerate() {
             let (x, y) = map(&positions[v]);
-            if k == 0 { pb.move_to(x, y) } else { pb.line_to(x, y) }
+            if k == 0 {
+                pb.move_to(x, y)
+            } else {
+                pb.line_to(x, y)
+            }
         }
         pb.close();
     }
@@ -39,7 +58,16 @@ pub fn wireframe(positions: &[[f64; 3]], faces: &[Vec<usize>], marks: &[usize], 
     paint.set_color_rgba8(60, 60, 90, 110);
     paint.anti_alias = true;
     if let Some(path) = pb.finish() {
-        pm.stroke_path(&path, &paint, &Stroke { width: 0.6, ..Stroke::default() }, Transform::identity(), None);
+        pm.stroke_path(
+            &path,
+            &paint,
+            &Stroke {
+                width: 0.6,
+                ..Stroke::default()
+            },
+            Transform::identity(),
+            None,
+        );
     }
     paint.set_color_rgba8(210, 30, 30, 255);
     for &m in marks {
@@ -48,22 +76,62 @@ pub fn wireframe(positions: &[[f64; 3]], faces: &[Vec<usize>], marks: &[usize], 
             pm.fill_path(&c, &paint, FillRule::Winding, Transform::identity(), None);
         }
     }
-    text::draw(&mut pm, title, f32::from(size as u16) / 2.0, 16.0, 13.0, Anchor::Centre, [30, 30, 30]);
+    text::draw(
+        &mut pm,
+        title,
+        f32::from(size as u16) / 2.0,
+        16.0,
+        13.0,
+        Anchor::Centre,
+        [30, 30, 30],
+    );
     Ok(pm)
 }
 
 /// Source feature points (a panel) beside the deformed mesh.
-pub fn transfer_frame(source: &[f64], dims: usize, source_lines: &[Vec<usize>], source_bounds: ((f64, f64), (f64, f64)), mesh: &Pixmap, caption: &str) -> Result<Pixmap> {
+pub fn transfer_frame(
+    source: &[f64],
+    dims: usize,
+    source_lines: &[Vec<usize>],
+    source_bounds: ((f64, f64), (f64, f64)),
+    mesh: &Pixmap,
+    caption: &str,
+) -> Result<Pixmap> {
     let size = mesh.height();
     let panel = Panel {
         title: "source".into(),
-        layers: vec![Layer { name: "tracked", shape: source, dims, polylines: source_lines, color: [20, 20, 20], dashed: false }],
+        layers: vec![Layer {
+            name: "tracked",
+            shape: source,
+            dims,
+            polylines: source_lines,
+            color: [20, 20, 20],
+            dashed: false,
+        }],
         bounds: source_bounds,
     };
     let left = render_panels(&[panel], caption, size)?;
-    let mut out = Pixmap::new(left.width() + mesh.width(), left.height().max(mesh.height())).ok_or_else(|| Error::invalid("bad picture size"))?;
+    let mut out = Pixmap::new(
+        left.width() + mesh.width(),
+        left.height().max(mesh.height()),
+    )
+    .ok_or_else(|| Error::invalid("bad picture size"))?;
     out.fill(Color::WHITE);
-    out.draw_pixmap(0, 0, left.as_ref(), &PixmapPaint::default(), Transform::identity(), None);
-    out.draw_pixmap(left.width() as i32, 0, mesh.as_ref(), &PixmapPaint::default(), Transform::identity(), None);
+    out.draw_pixmap(
+        0,
+        0,
+        left.as_ref(),
+        &PixmapPaint::default(),
+        Transform::identity(),
+        None,
+    );
+    out.draw_pixmap(
+        left.width() as i32,
+        0,
+        mesh.as_ref(),
+        &PixmapPaint::default(),
+        Transform::identity(),
+        None,
+    );
     Ok(out)
 }

@@ -46,9 +46,15 @@ impl Features {
     /// A built-in correspondence: `mediapipe_to_canonical` or `ibug68_to_ict`.
     pub fn builtin(name: &str) -> Result<Features> {
         let text = match name {
-            "mediapipe_to_canonical" => include_str!("../../assets/features/mediapipe_to_canonical.json"),
+            "mediapipe_to_canonical" => {
+                include_str!("../../assets/features/mediapipe_to_canonical.json")
+            }
             "ibug68_to_ict" => include_str!("../../assets/features/ibug68_to_ict.json"),
-            other => return Err(Error::invalid(format!("no built-in features '{other}' (mediapipe_to_canonical, ibug68_to_ict)"))),
+            other => {
+                return Err(Error::invalid(format!(
+                    "no built-in features '{other}' (mediapipe_to_canonical, ibug68_to_ict)"
+                )))
+            }
         };
         serde_json::from_str(text).map_err(|e| Error::invalid(format!("built-in features: {e}")))
     }
@@ -58,14 +64,17 @@ impl Features {
         match points {
             468 => Features::builtin("mediapipe_to_canonical"),
             68 => Features::builtin("ibug68_to_ict"),
-            n => Err(Error::invalid(format!("no built-in features for {n}-point sequences: give --features"))),
+            n => Err(Error::invalid(format!(
+                "no built-in features for {n}-point sequences: give --features"
+            ))),
         }
     }
 
     /// Reads a correspondence file.
     pub fn read(path: &Path) -> Result<Features> {
         let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-        serde_json::from_str(&text).map_err(|e| Error::parse(path, e.line() as u64, e.column() as u64, e.to_string()))
+        serde_json::from_str(&text)
+            .map_err(|e| Error::parse(path, e.line() as u64, e.column() as u64, e.to_string()))
     }
 
     /// Checks the indices against a source with `points` landmarks and a mesh with
@@ -76,16 +85,25 @@ impl Features {
         }
         for f in &self.features {
             if f.source >= points {
-                return Err(Error::invalid(format!("feature '{}' names source landmark {}, but the sequence has {points}", f.name, f.source)));
+                return Err(Error::invalid(format!(
+                    "feature '{}' names source landmark {}, but the sequence has {points}",
+                    f.name, f.source
+                )));
             }
             if f.target >= vertices {
-                return Err(Error::invalid(format!("feature '{}' names target vertex {}, but the mesh has {vertices}", f.name, f.target)));
+                return Err(Error::invalid(format!(
+                    "feature '{}' names target vertex {}, but the mesh has {vertices}",
+                    f.name, f.target
+                )));
             }
         }
         for (i, a) in self.features.iter().enumerate() {
             for b in &self.features[..i] {
                 if a.source == b.source || a.target == b.target {
-                    return Err(Error::invalid(format!("features '{}' and '{}' share a point (the RBF system would be singular)", b.name, a.name)));
+                    return Err(Error::invalid(format!(
+                        "features '{}' and '{}' share a point (the RBF system would be singular)",
+                        b.name, a.name
+                    )));
                 }
             }
         }
@@ -94,13 +112,23 @@ impl Features {
 
     /// Which features belong to the enabled groups (all when `groups` is None).
     pub fn enabled(&self, groups: Option<&[String]>) -> Result<Vec<bool>> {
-        let Some(gs) = groups else { return Ok(vec![true; self.features.len()]) };
+        let Some(gs) = groups else {
+            return Ok(vec![true; self.features.len()]);
+        };
         for g in gs {
             if !self.features.iter().any(|f| &f.group == g) {
-                let known: std::collections::BTreeSet<&str> = self.features.iter().map(|f| f.group.as_str()).collect();
-                return Err(Error::invalid(format!("no feature group '{g}' (groups: {})", known.into_iter().collect::<Vec<_>>().join(", "))));
+                let known: std::collections::BTreeSet<&str> =
+                    self.features.iter().map(|f| f.group.as_str()).collect();
+                return Err(Error::invalid(format!(
+                    "no feature group '{g}' (groups: {})",
+                    known.into_iter().collect::<Vec<_>>().join(", ")
+                )));
             }
         }
-        Ok(self.features.iter().map(|f| gs.contains(&f.group)).collect())
+        Ok(self
+            .features
+            .iter()
+            .map(|f| gs.contains(&f.group))
+            .collect())
     }
 }

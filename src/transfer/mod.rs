@@ -47,10 +47,20 @@ pub fn source_points(shape: &[f64], dims: usize, features: &Features) -> Vec<f64
 impl Transfer {
     /// Trains the RBF on `neutral` (a full source shape, `dims` per point) → the mesh's
     /// feature vertices, and computes automatic skin weights.
-    pub fn new(mesh: Mesh, features: Features, neutral: &[f64], dims: usize, groups: Option<&[String]>) -> Result<Transfer> {
+    pub fn new(
+        mesh: Mesh,
+        features: Features,
+        neutral: &[f64],
+        dims: usize,
+        groups: Option<&[String]>,
+    ) -> Result<Transfer> {
         features.check(neutral.len() / dims, mesh.positions.len())?;
         let enabled = features.enabled(groups)?;
-        let t0: Vec<[f64; 3]> = features.features.iter().map(|f| mesh.positions[f.target]).collect();
+        let t0: Vec<[f64; 3]> = features
+            .features
+            .iter()
+            .map(|f| mesh.positions[f.target])
+            .collect();
         let src = source_points(neutral, dims, &features);
         let dst: Vec<f64> = t0.iter().flatten().copied().collect();
         let rbf = Rbf::fit(&src, &dst, 3)?;
@@ -60,11 +70,21 @@ impl Transfer {
             .map(|f| features.radius_factor.get(&f.group).copied().unwrap_or(1.5))
             .collect();
         if let Some(bad) = factors.iter().find(|f| !(f.is_finite() && **f > 0.0)) {
-            return Err(Error::invalid(format!("radius factors must be positive, got {bad}")));
+            return Err(Error::invalid(format!(
+                "radius factors must be positive, got {bad}"
+            )));
         }
         let radii = skin::radii(&t0, &factors);
         let skin = Skin::automatic(&mesh.positions, &t0, &radii);
-        Ok(Transfer { mesh, features, rbf, t0, skin, enabled, dims })
+        Ok(Transfer {
+            mesh,
+            features,
+            rbf,
+            t0,
+            skin,
+            enabled,
+            dims,
+        })
     }
 
     /// Feature displacements `d_i = F(s_i) − t0_i` of one source frame (zero when disabled).
@@ -76,7 +96,11 @@ impl Transfer {
             .enumerate()
             .map(|(i, t)| {
                 if self.enabled[i] {
-                    [mapped[3 * i] - t[0], mapped[3 * i + 1] - t[1], mapped[3 * i + 2] - t[2]]
+                    [
+                        mapped[3 * i] - t[0],
+                        mapped[3 * i + 1] - t[1],
+                        mapped[3 * i + 2] - t[2],
+                    ]
                 } else {
                     [0.0; 3]
                 }
@@ -95,6 +119,9 @@ impl Transfer {
     /// Deformed positions of every frame (columns of `coords`), in parallel.
     pub fn all_frames(&self, coords: &DMatrix<f64>) -> Vec<Vec<[f64; 3]>> {
         use rayon::prelude::*;
-        (0..coords.ncols()).into_par_iter().map(|c| self.frame(coords.column(c).as_slice())).collect()
+        (0..coords.ncols())
+            .into_par_iter()
+            .map(|c| self.frame(coords.column(c).as_slice()))
+            .collect()
     }
 }

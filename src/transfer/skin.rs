@@ -27,7 +27,12 @@ pub fn radii(features: &[[f64; 3]], factors: &[f64]) -> Vec<[f64; 3]> {
         .iter()
         .enumerate()
         .map(|(i, p)| {
-            let mut d: Vec<f64> = features.iter().enumerate().filter(|(j, _)| *j != i).map(|(_, q)| dist(p, q)).collect();
+            let mut d: Vec<f64> = features
+                .iter()
+                .enumerate()
+                .filter(|(j, _)| *j != i)
+                .map(|(_, q)| dist(p, q))
+                .collect();
             d.sort_by(f64::total_cmp);
             let r = factors[i] * d.get(1).or(d.first()).copied().unwrap_or(1.0);
             [r; 3]
@@ -78,15 +83,29 @@ impl Skin {
             weights: Vec<Entry>,
         }
         let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-        let file: File = serde_json::from_str(&text).map_err(|e| Error::parse(path, e.line() as u64, e.column() as u64, e.to_string()))?;
+        let file: File = serde_json::from_str(&text)
+            .map_err(|e| Error::parse(path, e.line() as u64, e.column() as u64, e.to_string()))?;
         let mut painted: std::collections::BTreeMap<usize, Vec<(usize, f64)>> = Default::default();
         for e in file.weights {
             if e.vertex >= self.influences.len() {
-                return Err(Error::file(path, format!("vertex {} is not in the mesh ({} vertices)", e.vertex, self.influences.len())));
+                return Err(Error::file(
+                    path,
+                    format!(
+                        "vertex {} is not in the mesh ({} vertices)",
+                        e.vertex,
+                        self.influences.len()
+                    ),
+                ));
             }
-            let f = names.iter().position(|n| *n == e.feature).ok_or_else(|| Error::file(path, format!("no feature named '{}'", e.feature)))?;
+            let f = names
+                .iter()
+                .position(|n| *n == e.feature)
+                .ok_or_else(|| Error::file(path, format!("no feature named '{}'", e.feature)))?;
             if !(e.weight.is_finite() && e.weight >= 0.0) {
-                return Err(Error::file(path, format!("vertex {}: weight must be ≥ 0, got {}", e.vertex, e.weight)));
+                return Err(Error::file(
+                    path,
+                    format!("vertex {}: weight must be ≥ 0, got {}", e.vertex, e.weight),
+                ));
             }
             painted.entry(e.vertex).or_default().push((f, e.weight));
         }

@@ -5,6 +5,7 @@
 
 pub mod compute;
 pub mod export;
+pub mod mesh;
 pub mod state;
 pub mod view;
 
@@ -55,6 +56,7 @@ pub fn command(c: char) -> Option<Action> {
         '?' | 'h' => Action::Help,
         'e' => Action::Export,
         'o' => Action::Open,
+        'x' => Action::Mesh,
         _ => return None,
     })
 }
@@ -159,8 +161,11 @@ pub fn run(
     seq: Sequence,
     path: &str,
     target: Option<crate::retarget::target::TargetSet>,
+    mesh: Option<mesh::MeshView>,
 ) -> anyhow::Result<()> {
     let mut s = State::new(&seq.source, seq.n_frames(), seq.fps().unwrap_or(30.0));
+    s.mesh = mesh.map(std::sync::Arc::new);
+    s.show_mesh = s.mesh.is_some();
     let (jobs, results) = compute::spawn(seq, target);
     let mut terminal = ratatui::try_init()?;
     let _ = crossterm::execute!(std::io::stdout(), crossterm::event::EnableMouseCapture);

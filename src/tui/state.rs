@@ -65,6 +65,8 @@ pub enum Action {
     Export,
     /// o: open a file (prompt).
     Open,
+    /// x: the transferred 3-D mesh in place of the 2-D target (with `--mesh`).
+    Mesh,
     /// A digit starts a frame-number prompt; other characters go to an open prompt.
     Char(char),
     /// Enter in a prompt.
@@ -146,6 +148,10 @@ pub struct State {
     pub quit: bool,
     /// Ticks seen (animates the spinner).
     pub ticks: u64,
+    /// The transferred mesh per frame (`kslab tui --mesh`).
+    pub mesh: Option<std::sync::Arc<super::mesh::MeshView>>,
+    /// Show the mesh in the target panel.
+    pub show_mesh: bool,
     clock: f64,
 }
 
@@ -171,6 +177,8 @@ impl State {
             curves: None,
             quit: false,
             ticks: 0,
+            mesh: None,
+            show_mesh: false,
             clock: 0.0,
         }
     }
@@ -259,6 +267,8 @@ pub fn update(s: &mut State, action: Action) -> Vec<Effect> {
             return s.recompute();
         }
         Action::Split => s.split = !s.split,
+        Action::Mesh if s.mesh.is_some() => s.show_mesh = !s.show_mesh,
+        Action::Mesh => s.status = "no mesh: open the lab with --mesh M.obj".into(),
         Action::Export => return vec![Effect::Export],
         Action::Open => s.prompt = Some(Prompt::Open(String::new())),
         Action::Char(c) if c.is_ascii_digit() => s.prompt = Some(Prompt::Jump(c.to_string())),
@@ -292,6 +302,8 @@ pub fn update(s: &mut State, action: Action) -> Vec<Effect> {
                 s.frame = 0;
                 s.computed = None;
                 s.curves = None;
+                s.mesh = None;
+                s.show_mesh = false;
                 return s.recompute();
             }
         }

