@@ -56,7 +56,8 @@ pub fn parse_range(s: &str) -> Result<(usize, usize), String> {
 
 pub fn run(a: &CurvesArgs) -> Result<()> {
     let (_, prep) = a.input.prepare()?;
-    let axes = keyshape_lab::keyshapes::axes_needed(&a.methods, a.k.1);
+    let methods: Vec<Method> = a.methods.iter().map(|m| a.heuristic.apply(*m)).collect();
+    let axes = keyshape_lab::keyshapes::axes_needed(&methods, a.k.1);
     let an = Analysis::with_axes(prep.seq.coords.clone(), prep.seq.points, axes)?;
     let opts = KeyOptions {
         solver: a.solvers[0],
@@ -64,14 +65,9 @@ pub fn run(a: &CurvesArgs) -> Result<()> {
         shortlist: a.heuristic.shortlist,
     };
     let progress = Progress::new("curves", a.quiet);
-    let rows = sweep(
-        &an,
-        &a.methods,
-        a.k.0..=a.k.1,
-        &a.solvers,
-        &opts,
-        &|d, t| progress.tick(d, t),
-    )?;
+    let rows = sweep(&an, &methods, a.k.0..=a.k.1, &a.solvers, &opts, &|d, t| {
+        progress.tick(d, t)
+    })?;
     progress.finish();
     match &a.out {
         Some(p) => keyshape_lab::io::write_atomic(p, |w| write_curves_csv(w, &rows))?,

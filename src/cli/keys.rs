@@ -18,6 +18,21 @@ pub struct HeuristicArgs {
     /// least-squares gain (0 = every frame, exact and slow).
     #[arg(long, default_value_t = 8)]
     pub shortlist: usize,
+    /// Principal components k-means clusters (overrides the N of kmeansN).
+    #[arg(long)]
+    pub pcs: Option<usize>,
+}
+
+impl HeuristicArgs {
+    /// `method` with `--pcs` applied to k-means.
+    pub fn apply(&self, method: Method) -> Method {
+        match (method, self.pcs) {
+            (Method::KMeans { .. }, Some(pcs)) => Method::KMeans {
+                pcs: pcs.clamp(1, 64),
+            },
+            (m, _) => m,
+        }
+    }
 }
 
 /// Arguments of `kslab keys`.
@@ -50,14 +65,15 @@ pub fn run(a: &KeysArgs) -> Result<()> {
         anyhow::bail!("--k is required for --method {}", a.method);
     }
     let (_, prep) = a.input.prepare()?;
-    let axes = keyshape_lab::keyshapes::axes_needed(&[a.method], a.k);
+    let method = a.heuristic.apply(a.method);
+    let axes = keyshape_lab::keyshapes::axes_needed(&[method], a.k);
     let an = Analysis::with_axes(prep.seq.coords.clone(), prep.seq.points, axes)?;
     let opts = KeyOptions {
         solver: a.solver,
         seed: a.heuristic.seed,
         shortlist: a.heuristic.shortlist,
     };
-    let sel = a.method.heuristic(&opts).select(&an, a.k)?;
+    let sel = method.heuristic(&opts).select(&an, a.k)?;
     let frames: Vec<i64> = sel.columns.iter().map(|&c| prep.seq.frames[c]).collect();
     let e = an.error(&sel.columns, a.solver)?;
     if a.json {
@@ -68,7 +84,7 @@ pub fn run(a: &KeysArgs) -> Result<()> {
         });
         let v = json!({
             "source": prep.seq.source,
-            "method": a.method.name(),
+            "method": method.name(),
             "k": frames.len(),
             "frames": frames,
             "columns": sel.columns,
@@ -84,7 +100,7 @@ pub fn run(a: &KeysArgs) -> Result<()> {
         println!(
             "{} key frames by {}: {}",
             frames.len(),
-            a.method,
+            method,
             list.join(",")
         );
         println!(

@@ -327,22 +327,15 @@ fn error_chart(f: &mut Frame, s: &State, area: Rect) {
         );
         return;
     };
-    let mut series: Vec<(String, Vec<(f64, f64)>)> = Vec::new();
-    for r in rows {
-        match series.iter_mut().find(|x| x.0 == r.method) {
-            Some(x) => x.1.push((r.k as f64, r.rms)),
-            None => series.push((r.method.clone(), vec![(r.k as f64, r.rms)])),
-        }
-    }
-    let ymax = series
+    // The same plot description the PNG renderer draws (crate::plot).
+    let spec = crate::plot::curves_plot(rows, s.settings.solver.name(), "", "px");
+    let ((_, xmax), (_, ymax)) = spec.bounds().unwrap_or(((2.0, 24.0), (0.0, 1.0)));
+    let (xmax, ymax) = (xmax.max(2.0), ymax.max(1e-9));
+    let series: Vec<(String, Vec<(f64, f64)>)> = spec
+        .series
         .iter()
-        .flat_map(|x| x.1.iter().map(|p| p.1))
-        .fold(0.0, f64::max)
-        .max(1e-9);
-    let xmax = series
-        .iter()
-        .flat_map(|x| x.1.iter().map(|p| p.0))
-        .fold(2.0, f64::max);
+        .map(|x| (x.name.clone(), x.points.clone()))
+        .collect();
     let k = s.settings.k as f64;
     let current = [(k, 0.0), (k, ymax)];
     let mut datasets: Vec<Dataset> = series
