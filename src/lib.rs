@@ -36,6 +36,7 @@ pub mod error;
 pub mod experiment;
 pub mod io;
 pub mod keyshapes;
+pub mod modes;
 pub mod pca;
 pub mod plot;
 pub mod render;

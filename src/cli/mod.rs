@@ -5,6 +5,7 @@ mod curves;
 mod info;
 mod input;
 mod keys;
+mod modes;
 mod progress;
 mod retarget;
 mod run;
@@ -43,6 +44,8 @@ enum Command {
     Retarget(retarget::RetargetArgs),
     /// Drive a 3-D mesh from the feature points: RBF transfer + skinning (paper 004).
     Transfer(transfer::TransferArgs),
+    /// Action-specific modes and their orthogonality (Cosker et al., paper 002 Table 2).
+    Modes(modes::ModesArgs),
     /// Run a scripted experiment (experiments/*.toml): CSV, JSON and PNG reports.
     Run(run::RunArgs),
     /// Measure solver and sweep speed (the figures in BENCHMARKS.md).
@@ -61,6 +64,7 @@ pub fn main() -> ExitCode {
         Command::Template(a) => template::run(&a),
         Command::Retarget(a) => retarget::run(&a),
         Command::Transfer(a) => transfer::run(&a),
+        Command::Modes(a) => modes::run(&a),
         Command::Run(a) => run::run(&a),
         Command::Bench(a) => bench::run(&a),
     };

@@ -9,6 +9,7 @@ mod bad_input;
 mod common;
 mod experiments;
 mod keyshapes;
+mod modes;
 mod pca;
 mod readers;
 mod reference;

@@ -1,0 +1,116 @@
+//! `kslab modes`: action-specific modes and their orthogonality (Cosker et al. Table 2).
+
+use super::input::InputArgs;
+use anyhow::{Context, Result};
+use clap::Args;
+use keyshape_lab::modes::{orthogonality_study, Actions, ModeRegions, OrthogonalityStudy};
+use std::path::PathBuf;
+
+/// Arguments of `kslab modes`.
+#[derive(Debug, Args)]
+pub struct ModesArgs {
+    #[command(flatten)]
+    input: InputArgs,
+    /// Regions (`builtin`, or a JSON file naming layout groups per region).
+    #[arg(long, default_value = "builtin")]
+    regions: String,
+    /// Actions file: name, region and example frame of each action.
+    #[arg(long)]
+    actions: PathBuf,
+    /// Modes of each model the actions are projected on.
+    #[arg(long, default_value_t = 10)]
+    modes: usize,
+    /// Print the upper-triangle tables (paper 002 Table 2) for both models.
+    #[arg(long)]
+    table: bool,
+    /// Print JSON.
+    #[arg(long)]
+    json: bool,
+}
+
+fn print_table(title: &str, names: &[String], m: &nalgebra::DMatrix<f64>) {
+    println!(
+        "{title} (mean of the upper triangle {:.3}; 0 = orthogonal, 1 = parallel)",
+        OrthogonalityStudy::mean_upper(m)
+    );
+    print!("{:>18}", "");
+    for j in 1..names.len() {
+        print!(" {:>6}", j + 1);
+    }
+    println!();
+    for i in 0..names.len() - 1 {
+        print!("{:>2} {:<15}", i + 1, names[i]);
+        for j in 1..names.len() {
+            if j > i {
+                print!(" {:>6.3}", m[(i, j)])
+            } else {
+                print!(" {:>6}", "")
+            }
+        }
+        println!();
+    }
+}
+
+pub fn run(a: &ModesArgs) -> Result<()> {
+    if a.input.points.is_some() {
+        anyhow::bail!("--points does not apply: the regions choose the points");
+    }
+    let (_, prep) = a.input.prepare()?;
+    let layout = prep
+        .layout
+        .as_ref()
+        .context("modes need a known layout (468 or 68 points)")?;
+    let regions = if a.regions == "builtin" {
+        ModeRegions::builtin(layout)?
+    } else {
+        ModeRegions::read(std::path::Path::new(&a.regions))?
+    };
+    let pts = regions.points(layout)?;
+    let actions = Actions::read(&a.actions)?;
+    let st = orthogonality_study(
+        &prep.seq.coords,
+        &prep.seq.frames,
+        prep.seq.dims,
+        &pts,
+        &actions,
+        a.modes,
+    )
+    .with_context(|| format!("{}", a.actions.display()))?;
+    if a.json {
+        let rows = |m: &nalgebra::DMatrix<f64>| {
+            (0..m.nrows())
+                .map(|i| m.row(i).iter().copied().collect::<Vec<f64>>())
+                .collect::<Vec<_>>()
+        };
+        let v = serde_json::json!({
+            "actions": st.names, "modes": st.modes,
+            "action_model": rows(&st.action_model), "plain_pca": rows(&st.plain),
+            "mean_action_model": OrthogonalityStudy::mean_upper(&st.action_model),
+            "mean_plain_pca": OrthogonalityStudy::mean_upper(&st.plain),
+        });
+        println!("{}", serde_json::to_string_pretty(&v)?);
+        return Ok(());
+    }
+    if a.table {
+        print_table(
+            &format!("action-specific model, {} modes", st.modes),
+            &st.names,
+            &st.action_model,
+        );
+        println!();
+        print_table(
+            &format!("plain PCA, {} modes", st.modes),
+            &st.names,
+            &st.plain,
+        );
+    } else {
+        println!(
+            "{} actions, {} modes: mean Eq. 9 score {:.3} (action-specific model) vs {:.3} (plain PCA); --table prints both tables",
+            st.names.len(),
+            st.modes,
+            OrthogonalityStudy::mean_upper(&st.action_model),
+            OrthogonalityStudy::mean_upper(&st.plain)
+        );
+    }
+    Ok(())
+}
