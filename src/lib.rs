@@ -34,6 +34,7 @@ pub mod align;
 pub mod decompose;
 pub mod error;
 pub mod experiment;
+pub mod intensity;
 pub mod io;
 pub mod keyshapes;
 pub mod modes;

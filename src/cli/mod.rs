@@ -4,6 +4,7 @@ mod bench;
 mod curves;
 mod info;
 mod input;
+mod intensity;
 mod keys;
 mod modes;
 mod progress;
@@ -46,6 +47,8 @@ enum Command {
     Transfer(transfer::TransferArgs),
     /// Action-specific modes and their orthogonality (Cosker et al., paper 002 Table 2).
     Modes(modes::ModesArgs),
+    /// Soft-KNN action intensities against ground-truth scores (Cosker et al. §4.1, Eq. 10).
+    Intensity(intensity::IntensityArgs),
     /// Run a scripted experiment (experiments/*.toml): CSV, JSON and PNG reports.
     Run(run::RunArgs),
     /// Measure solver and sweep speed (the figures in BENCHMARKS.md).
@@ -65,6 +68,7 @@ pub fn main() -> ExitCode {
         Command::Retarget(a) => retarget::run(&a),
         Command::Transfer(a) => transfer::run(&a),
         Command::Modes(a) => modes::run(&a),
+        Command::Intensity(a) => intensity::run(&a),
         Command::Run(a) => run::run(&a),
         Command::Bench(a) => bench::run(&a),
     };

@@ -135,3 +135,47 @@ pub fn detect_format(path: &Path, text: &str) -> Result<Format> {
         ))
     }
 }
+
+/// Named numeric columns of a CSV table, one vector per name, over every data row (for side
+/// tables such as py-feat's ARKit scores). Errors name file, line and column.
+pub fn read_columns(path: &Path, names: &[&str]) -> Result<Vec<Vec<f64>>> {
+    let text = read_text(path)?;
+    let mut rdr = csv::ReaderBuilder::new()
+        .trim(csv::Trim::All)
+        .from_reader(text.as_bytes());
+    let header: Vec<String> = rdr
+        .headers()
+        .map_err(|e| Error::parse(path, 1, 0, e.to_string()))?
+        .iter()
+        .map(str::to_string)
+        .collect();
+    let idx: Vec<usize> = names
+        .iter()
+        .map(|n| {
+            header
+                .iter()
+                .position(|h| h == n)
+                .ok_or_else(|| Error::parse(path, 1, 0, format!("no column '{n}'")))
+        })
+        .collect::<Result<_>>()?;
+    let mut out = vec![Vec::new(); names.len()];
+    for rec in rdr.records() {
+        let rec = rec.map_err(|e| {
+            Error::parse(path, e.position().map_or(0, |p| p.line()), 0, e.to_string())
+        })?;
+        let line = rec.position().map_or(0, |p| p.line());
+        for (k, &c) in idx.iter().enumerate() {
+            let cell = rec.get(c).unwrap_or("");
+            let v: f64 = cell.parse().map_err(|_| {
+                Error::parse(
+                    path,
+                    line,
+                    c as u64 + 1,
+                    format!("not a number: '{cell}' in column '{}'", names[k]),
+                )
+            })?;
+            out[k].push(v);
+        }
+    }
+    Ok(out)
+}

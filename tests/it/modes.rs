@@ -127,3 +127,67 @@ fn action_specific_modes_separate_regions_better_than_plain_pca_on_d6() {
         "{e}"
     );
 }
+
+#[test]
+fn median_polynomial_and_correlation_on_known_signals() {
+    use keyshape_lab::intensity::{correlation, median3, polyfit_smooth, soft_knn};
+    assert_eq!(
+        median3(&[0.0, 0.0, 9.0, 0.0, 1.0, 1.0]),
+        vec![0.0, 0.0, 0.0, 1.0, 1.0, 1.0]
+    );
+    let cubic: Vec<f64> = (0..20)
+        .map(|t| 1.0 + 0.5 * t as f64 - 0.03 * (t as f64).powi(3))
+        .collect();
+    let fit = polyfit_smooth(&cubic, 3);
+    assert!(fit.iter().zip(&cubic).all(|(a, b)| (a - b).abs() < 1e-9));
+    let s: Vec<f64> = (0..50).map(|t| (t as f64 * 0.3).sin()).collect();
+    assert!((correlation(&s, &s) - 1.0).abs() < 1e-12);
+    let neg: Vec<f64> = s.iter().map(|v| -2.0 * v + 3.0).collect();
+    assert!((correlation(&s, &neg) + 1.0).abs() < 1e-12);
+    // Soft KNN: 3 of the 4 nearest training points are class 1.
+    let train = nalgebra::DMatrix::from_row_slice(1, 6, &[0.0, 0.1, 0.2, 0.3, 5.0, 5.1]);
+    let p = soft_knn(
+        &train,
+        &[1, 1, 1, 0, 2, 2],
+        3,
+        &nalgebra::DMatrix::from_row_slice(1, 1, &[0.05]),
+        4,
+    )
+    .unwrap();
+    assert_eq!((p[(0, 0)], p[(1, 0)], p[(2, 0)]), (0.25, 0.75, 0.0));
+    assert!(soft_knn(&train, &[1, 1, 1, 0, 2, 2], 3, &train, 7).is_err());
+}
+
+#[test]
+fn intensity_study_on_the_news_sample_finds_smiles() {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_kslab"))
+        .args([
+            "intensity",
+            &shared("pyfeat_samples/news_sample_compact.csv")
+                .display()
+                .to_string(),
+            "--json",
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let smile = v["actions"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|a| a["action"] == "smile")
+        .unwrap();
+    assert!(
+        smile["correlation_median3"].as_f64().unwrap() > 0.6,
+        "{smile}"
+    );
+    assert_eq!(
+        v["test_frames"].as_u64().unwrap() + v["train_frames"].as_u64().unwrap(),
+        477
+    );
+}
