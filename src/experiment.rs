@@ -58,6 +58,15 @@ pub struct Spec {
     /// A retargeting study (paper 000 Figs. 4–5), optional.
     #[serde(default)]
     pub retarget: Option<RetargetSpec>,
+    /// Paper 002 orthogonality table, optional.
+    #[serde(default)]
+    pub modes: Option<ModesSpec>,
+    /// Paper 002 soft-KNN intensity study (the input must be a py-feat table), optional.
+    #[serde(default)]
+    pub intensity: Option<crate::intensity::StudySettings>,
+    /// Paper 002 trajectory mapping onto a second person and the ICT morph targets, optional.
+    #[serde(default)]
+    pub map: Option<MapSpec>,
     /// Seed for kmeans and random.
     #[serde(default = "seven")]
     pub seed: u64,
@@ -86,6 +95,39 @@ pub struct RetargetSpec {
     /// Frames in the strip of worst frames (0 = none).
     #[serde(default = "four")]
     pub strip: usize,
+}
+
+/// `[modes]`: the orthogonality table (paper 002 Table 2).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ModesSpec {
+    /// Actions file, relative to the spec.
+    pub actions: String,
+    /// Modes of each model.
+    #[serde(default = "ten")]
+    pub modes: usize,
+}
+
+/// `[map]`: trajectories onto a second person's model and onto morph targets.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MapSpec {
+    /// Source actions file.
+    pub actions: String,
+    /// Second person's sequence.
+    pub target_sequence: String,
+    /// Second person's actions.
+    pub target_actions: String,
+    /// Modes of each model.
+    #[serde(default = "ten")]
+    pub modes: usize,
+    /// Folder of the ICT face (optional).
+    #[serde(default)]
+    pub morph: Option<String>,
+}
+
+fn ten() -> usize {
+    10
 }
 
 fn zero_noise() -> Vec<f64> {
@@ -192,11 +234,12 @@ impl Spec {
                 format!("range {}..{} is empty or starts at 0", spec.k.0, spec.k.1),
             ));
         }
-        if spec.methods.is_empty() && spec.retarget.is_none() {
-            return Err(at(
-                "methods",
-                "name at least one method (or add a [retarget] table)".into(),
-            ));
+        let studies = spec.retarget.is_some()
+            || spec.modes.is_some()
+            || spec.intensity.is_some()
+            || spec.map.is_some();
+        if spec.methods.is_empty() && !studies {
+            return Err(at("methods", "name at least one method (or add a [retarget], [modes], [intensity] or [map] table)".into()));
         }
         if spec.solvers.is_empty() {
             return Err(at("solvers", "name at least one solver".into()));
@@ -264,6 +307,46 @@ pub struct Outcome {
     /// The frames where the first solver distorts most, for the strip picture.
     #[serde(skip)]
     pub strip: Option<Strip>,
+    /// Paper 002 orthogonality tables.
+    #[serde(skip)]
+    pub orthogonality: Option<crate::modes::OrthogonalityStudy>,
+    /// Paper 002 intensity study.
+    pub intensity: Option<crate::intensity::Study>,
+    /// Paper 002 mapping.
+    #[serde(skip)]
+    pub map: Option<MapOutcome>,
+}
+
+/// A morph-target face ready to export: neutral positions, faces, the used targets (name,
+/// dense offsets) and their weights (targets × frames).
+#[derive(Debug, Clone)]
+pub struct MorphFace {
+    /// Neutral positions.
+    pub neutral: Vec<[f64; 3]>,
+    /// Faces.
+    pub faces: Vec<Vec<usize>>,
+    /// Used targets.
+    pub targets: Vec<(String, Vec<[f64; 3]>)>,
+    /// Weights, targets × frames.
+    pub weights: DMatrix<f64>,
+}
+
+/// What `[map]` produced.
+#[derive(Debug, Clone)]
+pub struct MapOutcome {
+    /// The mode alignment used.
+    pub alignment: crate::trajectory::ModeAlignment,
+    /// Action names and their normalised trajectories (actions × frames).
+    pub actions: Vec<String>,
+    /// Trajectories.
+    pub trajectories: DMatrix<f64>,
+    /// Frame numbers.
+    pub frames: Vec<i64>,
+    /// Frames per second.
+    pub fps: f64,
+    /// The morph face, if asked: neutral positions, faces, used targets (name, dense
+    /// offsets) and their weights (targets × frames).
+    pub morph: Option<MorphFace>,
 }
 
 /// One retargeting result.
@@ -373,6 +456,42 @@ pub fn run(spec: &Spec, base: &Path, tick: &(dyn Fn(usize, usize) + Sync)) -> Re
         None => (Vec::new(), None),
     };
     timings.push(("retarget".to_string(), t.elapsed().as_secs_f64()));
+    let t = Instant::now();
+    let orthogonality = match &spec.modes {
+        Some(m) => {
+            let full = prepare(
+                &seq,
+                &PrepareOptions {
+                    points: None,
+                    align: spec.align,
+                },
+            )?;
+            let layout = full
+                .layout
+                .as_ref()
+                .ok_or_else(|| Error::invalid("[modes] needs a known layout"))?;
+            let regions = crate::modes::ModeRegions::builtin(layout)?.points(layout)?;
+            let actions = crate::modes::Actions::read(&base.join(&m.actions))?;
+            Some(crate::modes::orthogonality_study(
+                &full.seq.coords,
+                &full.seq.frames,
+                full.seq.dims,
+                &regions,
+                &actions,
+                m.modes,
+            )?)
+        }
+        None => None,
+    };
+    let intensity = match &spec.intensity {
+        Some(st) => Some(crate::intensity::study(&base.join(&spec.input), st)?),
+        None => None,
+    };
+    let map = match &spec.map {
+        Some(m) => Some(map_study(m, &seq, base, spec.align)?),
+        None => None,
+    };
+    timings.push(("paper002".to_string(), t.elapsed().as_secs_f64()));
     Ok(Outcome {
         spec: spec.clone(),
         input,
@@ -384,6 +503,95 @@ pub fn run(spec: &Spec, base: &Path, tick: &(dyn Fn(usize, usize) + Sync)) -> Re
         timings,
         retarget,
         strip,
+        orthogonality,
+        intensity,
+        map,
+    })
+}
+
+fn map_study(
+    m: &MapSpec,
+    seq: &crate::sequence::Sequence,
+    base: &Path,
+    align: bool,
+) -> Result<MapOutcome> {
+    use crate::trajectory::{person_model, trajectories, ModeAlignment};
+    let model_of = |s: &crate::sequence::Sequence,
+                    actions: &str|
+     -> Result<(crate::trajectory::PersonModel, crate::decompose::Prepared)> {
+        let prep = prepare(
+            s,
+            &PrepareOptions {
+                points: None,
+                align,
+            },
+        )?;
+        let layout = prep
+            .layout
+            .as_ref()
+            .ok_or_else(|| Error::invalid("[map] needs a known layout"))?;
+        let regions = crate::modes::ModeRegions::builtin(layout)?.points(layout)?;
+        let acts = crate::modes::Actions::read(&base.join(actions))?;
+        Ok((
+            person_model(
+                &prep.seq.coords,
+                &prep.seq.frames,
+                prep.seq.dims,
+                &regions,
+                &acts,
+                m.modes,
+            )?,
+            prep,
+        ))
+    };
+    let (src, prep) = model_of(seq, &m.actions)?;
+    let tseq = read_sequence(&base.join(&m.target_sequence), &ReadOptions::default())?;
+    let (tgt, _) = model_of(&tseq, &m.target_actions)?;
+    let alignment = ModeAlignment::by_actions(&src, &tgt);
+    let traj = trajectories(&src, &prep.seq.coords);
+    let actions: Vec<String> = src.actions.iter().map(|a| a.0.clone()).collect();
+    let at = DMatrix::from_fn(actions.len(), traj.ncols(), |i, t| {
+        src.actions[i].2 * traj[(src.actions[i].1, t)]
+    });
+    let morph = match &m.morph {
+        None => None,
+        Some(dir) => {
+            let dir = base.join(dir);
+            let mesh = crate::io::obj::read_obj(&dir.join("neutral_face.obj"))?;
+            let targets = crate::morph::MorphTargets::read(
+                &dir.join("expressions.csv"),
+                &dir.join("expression_deltas.csv"),
+                mesh.positions.len(),
+            )?;
+            let w = crate::morph::MorphMapping::builtin()?.weights(&targets, &actions, &at)?;
+            let used: Vec<usize> = (0..targets.names.len())
+                .filter(|&s| w.row(s).iter().any(|v| *v > 0.0))
+                .collect();
+            let dense = used
+                .iter()
+                .map(|&s| {
+                    let mut d = vec![[0.0; 3]; mesh.positions.len()];
+                    for &(v, o) in &targets.deltas[s] {
+                        d[v] = o;
+                    }
+                    (targets.names[s].clone(), d)
+                })
+                .collect();
+            Some(MorphFace {
+                neutral: mesh.positions,
+                faces: mesh.faces,
+                targets: dense,
+                weights: w.select_rows(&used),
+            })
+        }
+    };
+    Ok(MapOutcome {
+        alignment,
+        actions,
+        trajectories: at,
+        frames: prep.seq.frames.clone(),
+        fps: seq.fps().unwrap_or(30.0),
+        morph,
     })
 }
 

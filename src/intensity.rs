@@ -101,3 +101,169 @@ pub fn correlation(a: &[f64], b: &[f64]) -> f64 {
         sab / (saa * sbb).sqrt()
     }
 }
+
+/// Actions scored in the study, each the mean of its ARKit-style columns.
+pub const STUDY_ACTIONS: [(&str, &[&str]); 3] = [
+    ("smile", &["mouthSmileLeft", "mouthSmileRight"]),
+    ("brow_raise", &["browInnerUp"]),
+    ("blink", &["eyeBlinkLeft", "eyeBlinkRight"]),
+];
+
+/// Settings of the intensity study.
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StudySettings {
+    /// Training clips, inclusive range.
+    pub train_clips: (usize, usize),
+    /// K of the soft KNN.
+    pub k: usize,
+    /// Polynomial degree.
+    pub degree: usize,
+    /// Labelling threshold on the scores.
+    pub threshold: f64,
+}
+
+impl Default for StudySettings {
+    fn default() -> Self {
+        StudySettings {
+            train_clips: (1, 14),
+            k: 10,
+            degree: 5,
+            threshold: 0.4,
+        }
+    }
+}
+
+/// One action's result.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct StudyRow {
+    /// Action.
+    pub action: String,
+    /// Training frames labelled with it.
+    pub training_frames_labelled: usize,
+    /// Eq. (10) of the raw proportions.
+    pub correlation_raw: f64,
+    /// After the median filter.
+    pub correlation_median3: f64,
+    /// After the polynomial fit.
+    pub correlation_smoothed: f64,
+}
+
+/// The study's result.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct Study {
+    /// Training frames.
+    pub train_frames: usize,
+    /// Test frames.
+    pub test_frames: usize,
+    /// Per action.
+    pub actions: Vec<StudyRow>,
+}
+
+/// Soft-KNN intensities on a py-feat table (landmarks, `clip`, ARKit-style scores): train on
+/// some clips, test on the rest. Features are aligned shapes minus their clip's mean shape
+/// (clips are different people; otherwise KNN matches identity, not expression).
+pub fn study(path: &std::path::Path, st: &StudySettings) -> Result<Study> {
+    use crate::decompose::{prepare, PrepareOptions};
+    use crate::io::{read_columns, read_sequence, ReadOptions};
+    let seq = read_sequence(path, &ReadOptions::default())?;
+    let clips: Vec<usize> = seq
+        .segments
+        .as_ref()
+        .ok_or_else(|| Error::file(path, "no `clip` column"))?
+        .iter()
+        .map(|c| {
+            c.parse::<f64>()
+                .map(|v| v as usize)
+                .map_err(|_| Error::file(path, format!("clip id '{c}' is not a number")))
+        })
+        .collect::<Result<_>>()?;
+    let names: Vec<&str> = STUDY_ACTIONS
+        .iter()
+        .flat_map(|(_, c)| c.iter().copied())
+        .collect();
+    let cols = read_columns(path, &names)?;
+    let mut truth = Vec::new();
+    let mut at = 0;
+    for (_, c) in STUDY_ACTIONS {
+        let n = c.len();
+        truth.push(
+            (0..seq.n_frames())
+                .map(|t| (at..at + n).map(|k| cols[k][t]).sum::<f64>() / n as f64)
+                .collect::<Vec<f64>>(),
+        );
+        at += n;
+    }
+    let prep = prepare(
+        &seq,
+        &PrepareOptions {
+            points: None,
+            align: true,
+        },
+    )?;
+    let mut x = prep.seq.coords.clone();
+    let ids: std::collections::BTreeSet<usize> = clips.iter().copied().collect();
+    for &c in &ids {
+        let members: Vec<usize> = (0..clips.len()).filter(|&t| clips[t] == c).collect();
+        let mean = x.select_columns(&members).column_mean();
+        for &t in &members {
+            let mut col = x.column_mut(t);
+            col -= &mean;
+        }
+    }
+    let is_train = |c: usize| c >= st.train_clips.0 && c <= st.train_clips.1;
+    let train: Vec<usize> = (0..clips.len()).filter(|&t| is_train(clips[t])).collect();
+    let test: Vec<usize> = (0..clips.len()).filter(|&t| !is_train(clips[t])).collect();
+    if train.is_empty() || test.is_empty() {
+        return Err(Error::invalid(format!(
+            "train clips {}..{} leave no training or no test frames",
+            st.train_clips.0, st.train_clips.1
+        )));
+    }
+    let labels: Vec<usize> = train
+        .iter()
+        .map(|&t| {
+            let (best, v) = (0..STUDY_ACTIONS.len())
+                .map(|k| (k, truth[k][t]))
+                .fold((0, f64::MIN), |m, x| if x.1 > m.1 { x } else { m });
+            if v > st.threshold {
+                best + 1
+            } else {
+                0
+            }
+        })
+        .collect();
+    let p = soft_knn(
+        &x.select_columns(&train),
+        &labels,
+        STUDY_ACTIONS.len() + 1,
+        &x.select_columns(&test),
+        st.k,
+    )?;
+    let mut rows = Vec::new();
+    for (k, (name, _)) in STUDY_ACTIONS.iter().enumerate() {
+        let (mut raw, mut med, mut smooth, mut gt) =
+            (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+        for &c in ids.iter().filter(|c| !is_train(**c)) {
+            let idx: Vec<usize> = (0..test.len()).filter(|&i| clips[test[i]] == c).collect();
+            let r: Vec<f64> = idx.iter().map(|&i| p[(k + 1, i)]).collect();
+            let m = median3(&r);
+            smooth.extend(polyfit_smooth(&m, st.degree));
+            raw.extend(r);
+            med.extend(m);
+            gt.extend(idx.iter().map(|&i| truth[k][test[i]]));
+        }
+        rows.push(StudyRow {
+            action: name.to_string(),
+            training_frames_labelled: labels.iter().filter(|&&l| l == k + 1).count(),
+            correlation_raw: correlation(&raw, &gt),
+            correlation_median3: correlation(&med, &gt),
+            correlation_smoothed: correlation(&smooth, &gt),
+        });
+    }
+    Ok(Study {
+        train_frames: train.len(),
+        test_frames: test.len(),
+        actions: rows,
+    })
+}

@@ -38,6 +38,7 @@ pub mod intensity;
 pub mod io;
 pub mod keyshapes;
 pub mod modes;
+pub mod morph;
 pub mod pca;
 pub mod plot;
 pub mod render;
@@ -45,6 +46,7 @@ pub mod report;
 pub mod retarget;
 pub mod sequence;
 pub mod solve;
+pub mod trajectory;
 pub mod transfer;
 pub mod tui;
 

@@ -72,6 +72,89 @@ pub fn write_outcome(o: &Outcome, dir: &Path) -> Result<Vec<PathBuf>> {
         save_png(&render_strip(strip)?, &dir.join("strip.png"))?;
         figures.push("strip.png".to_string());
     }
+    if let Some(st) = &o.orthogonality {
+        let csv = dir.join("orthogonality.csv");
+        write_atomic(&csv, |w| {
+            writeln!(w, "model,action_i,action_j,eq9")?;
+            for (model, m) in [
+                ("action_specific", &st.action_model),
+                ("plain_pca", &st.plain),
+            ] {
+                for i in 0..st.names.len() {
+                    for j in i + 1..st.names.len() {
+                        writeln!(
+                            w,
+                            "{model},{},{},{}",
+                            st.names[i],
+                            st.names[j],
+                            fmt_num(m[(i, j)])
+                        )?;
+                    }
+                }
+            }
+            Ok(())
+        })?;
+        files.push(csv);
+        if o.spec.png {
+            let pm = crate::render::heat::heat_maps(
+                &[
+                    ("action-specific model", &st.action_model),
+                    ("plain PCA", &st.plain),
+                ],
+                &st.names,
+                44,
+            )?;
+            save_png(&pm, &dir.join("orthogonality.png"))?;
+            figures.push("orthogonality.png".to_string());
+        }
+    }
+    if let Some(st) = &o.intensity {
+        let csv = dir.join("intensity.csv");
+        write_atomic(&csv, |w| {
+            writeln!(w, "action,training_frames_labelled,correlation_raw,correlation_median3,correlation_smoothed")?;
+            for r in &st.actions {
+                writeln!(
+                    w,
+                    "{},{},{},{},{}",
+                    r.action,
+                    r.training_frames_labelled,
+                    fmt_num(r.correlation_raw),
+                    fmt_num(r.correlation_median3),
+                    fmt_num(r.correlation_smoothed)
+                )?;
+            }
+            Ok(())
+        })?;
+        files.push(csv);
+    }
+    if let Some(m) = &o.map {
+        let csv = dir.join("trajectories.csv");
+        write_atomic(&csv, |w| {
+            writeln!(w, "frame,{}", m.actions.join(","))?;
+            for (t, f) in m.frames.iter().enumerate() {
+                let v: Vec<String> = (0..m.actions.len())
+                    .map(|i| fmt_num(m.trajectories[(i, t)]))
+                    .collect();
+                writeln!(w, "{f},{}", v.join(","))?;
+            }
+            Ok(())
+        })?;
+        files.push(csv);
+        let al = dir.join("alignment.json");
+        let text = serde_json::to_string_pretty(&m.alignment)
+            .map_err(|e| Error::invalid(e.to_string()))?;
+        write_atomic(&al, |w| w.write_all(text.as_bytes()))?;
+        files.push(al);
+        if let Some(f) = &m.morph {
+            let glb = dir.join("morph.glb");
+            write_atomic(&glb, |w| {
+                crate::io::gltf::write_morph_glb(
+                    w, &f.neutral, &f.faces, &f.targets, &f.weights, m.fps,
+                )
+            })?;
+            files.push(glb);
+        }
+    }
     if o.spec.png && !o.rows.is_empty() {
         for s in &o.spec.solvers {
             let name = format!("curves_{}.png", s.name());
@@ -92,6 +175,12 @@ pub fn write_outcome(o: &Outcome, dir: &Path) -> Result<Vec<PathBuf>> {
         "rows": o.rows,
         "retarget": o.retarget,
         "strip_frames": o.strip.as_ref().map(|s| s.frames.clone()),
+        "intensity": o.intensity,
+        "orthogonality_mean": o.orthogonality.as_ref().map(|st| json!({
+            "action_specific": crate::modes::OrthogonalityStudy::mean_upper(&st.action_model),
+            "plain_pca": crate::modes::OrthogonalityStudy::mean_upper(&st.plain),
+        })),
+        "alignment": o.map.as_ref().map(|m| m.alignment.clone()),
     });
     let path = dir.join("report.json");
     let text = serde_json::to_string_pretty(&report).map_err(|e| Error::invalid(e.to_string()))?;

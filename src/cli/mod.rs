@@ -6,6 +6,7 @@ mod info;
 mod input;
 mod intensity;
 mod keys;
+mod map;
 mod modes;
 mod progress;
 mod retarget;
@@ -47,6 +48,8 @@ enum Command {
     Transfer(transfer::TransferArgs),
     /// Action-specific modes and their orthogonality (Cosker et al., paper 002 Table 2).
     Modes(modes::ModesArgs),
+    /// Map action-mode trajectories onto a second person and onto morph targets (paper 002 §3.2–3.3).
+    Map(map::MapArgs),
     /// Soft-KNN action intensities against ground-truth scores (Cosker et al. §4.1, Eq. 10).
     Intensity(intensity::IntensityArgs),
     /// Run a scripted experiment (experiments/*.toml): CSV, JSON and PNG reports.
@@ -69,6 +72,7 @@ pub fn main() -> ExitCode {
         Command::Transfer(a) => transfer::run(&a),
         Command::Modes(a) => modes::run(&a),
         Command::Intensity(a) => intensity::run(&a),
+        Command::Map(a) => map::run(&a),
         Command::Run(a) => run::run(&a),
         Command::Bench(a) => bench::run(&a),
     };

@@ -26,6 +26,9 @@ pub struct ModesArgs {
     /// Print JSON.
     #[arg(long)]
     json: bool,
+    /// Write both tables as a heat map PNG.
+    #[arg(long)]
+    png: Option<PathBuf>,
 }
 
 fn print_table(title: &str, names: &[String], m: &nalgebra::DMatrix<f64>) {
@@ -76,6 +79,18 @@ pub fn run(a: &ModesArgs) -> Result<()> {
         a.modes,
     )
     .with_context(|| format!("{}", a.actions.display()))?;
+    if let Some(p) = &a.png {
+        let pm = keyshape_lab::render::heat::heat_maps(
+            &[
+                ("action-specific model", &st.action_model),
+                ("plain PCA", &st.plain),
+            ],
+            &st.names,
+            44,
+        )?;
+        keyshape_lab::render::save_png(&pm, p)?;
+        eprintln!("wrote {}", p.display());
+    }
     if a.json {
         let rows = |m: &nalgebra::DMatrix<f64>| {
             (0..m.nrows())

@@ -205,3 +205,93 @@ pub fn check(tr: &Transfer) -> Result<()> {
     }
     Ok(())
 }
+
+/// Writes a mesh with morph targets and a weights animation as GLB: `targets` are
+/// (name, dense per-vertex offsets), `weights` is targets × frames. Target names go in
+/// `mesh.extras.targetNames` (Blender, three.js).
+pub fn write_morph_glb(
+    w: &mut dyn Write,
+    neutral: &[[f64; 3]],
+    faces: &[Vec<usize>],
+    targets: &[(String, Vec<[f64; 3]>)],
+    weights: &nalgebra::DMatrix<f64>,
+    fps: f64,
+) -> std::io::Result<()> {
+    let mut bin = Bin {
+        data: Vec::new(),
+        views: Vec::new(),
+        accessors: Vec::new(),
+    };
+    let nv = neutral.len();
+    let (pos_bytes, pos) = f32s(neutral.iter().flatten().copied());
+    let (lo, hi) = min_max3(&pos);
+    let a_pos = bin.push(
+        &pos_bytes,
+        Some(34962),
+        json!({ "componentType": 5126, "count": nv, "type": "VEC3", "min": lo, "max": hi }),
+    );
+    let tris: Vec<u32> = faces
+        .iter()
+        .flat_map(|f| {
+            (1..f.len() - 1).flat_map(move |k| [f[0] as u32, f[k] as u32, f[k + 1] as u32])
+        })
+        .collect();
+    let idx: Vec<u8> = tris.iter().flat_map(|x| x.to_le_bytes()).collect();
+    let a_idx = bin.push(
+        &idx,
+        Some(34963),
+        json!({ "componentType": 5125, "count": tris.len(), "type": "SCALAR" }),
+    );
+    let mut tacc = Vec::new();
+    for (_, d) in targets {
+        let (bytes, vals) = f32s(d.iter().flatten().copied());
+        let (lo, hi) = min_max3(&vals);
+        tacc.push(json!({ "POSITION": bin.push(&bytes, Some(34962), json!({ "componentType": 5126, "count": nv, "type": "VEC3", "min": lo, "max": hi })) }));
+    }
+    let n = weights.ncols();
+    let times: Vec<f32> = (0..n).map(|t| (t as f64 / fps) as f32).collect();
+    let tb: Vec<u8> = times.iter().flat_map(|x| x.to_le_bytes()).collect();
+    let a_time = bin.push(&tb, None, json!({ "componentType": 5126, "count": n, "type": "SCALAR", "min": [times[0]], "max": [times[n - 1]] }));
+    let (wb, _) =
+        f32s((0..n).flat_map(|t| (0..targets.len()).map(move |s| weights[(s, t)].clamp(0.0, 1.0))));
+    let a_w = bin.push(
+        &wb,
+        None,
+        json!({ "componentType": 5126, "count": n * targets.len(), "type": "SCALAR" }),
+    );
+    let names: Vec<&str> = targets.iter().map(|t| t.0.as_str()).collect();
+    let doc = json!({
+        "asset": { "version": "2.0", "generator": concat!("keyshape-lab ", env!("CARGO_PKG_VERSION")) },
+        "scene": 0,
+        "scenes": [{ "nodes": [0] }],
+        "nodes": [{ "name": "face", "mesh": 0 }],
+        "meshes": [{ "name": "face", "primitives": [{ "attributes": { "POSITION": a_pos }, "indices": a_idx, "mode": 4, "targets": tacc }],
+                     "weights": vec![0.0; targets.len()], "extras": { "targetNames": names } }],
+        "animations": [{ "name": "performance", "samplers": [{ "input": a_time, "output": a_w, "interpolation": "LINEAR" }],
+                         "channels": [{ "sampler": 0, "target": { "node": 0, "path": "weights" } }] }],
+        "accessors": bin.accessors,
+        "bufferViews": bin.views,
+        "buffers": [{ "byteLength": bin.data.len() }],
+    });
+    write_glb_chunks(w, doc, bin.data)
+}
+
+fn write_glb_chunks(w: &mut dyn Write, doc: Value, mut data: Vec<u8>) -> std::io::Result<()> {
+    let mut js = serde_json::to_vec(&doc).map_err(std::io::Error::other)?;
+    while js.len() % 4 != 0 {
+        js.push(b' ');
+    }
+    while data.len() % 4 != 0 {
+        data.push(0);
+    }
+    let total = 12 + 8 + js.len() + 8 + data.len();
+    w.write_all(b"glTF")?;
+    w.write_all(&2u32.to_le_bytes())?;
+    w.write_all(&(total as u32).to_le_bytes())?;
+    w.write_all(&(js.len() as u32).to_le_bytes())?;
+    w.write_all(b"JSON")?;
+    w.write_all(&js)?;
+    w.write_all(&(data.len() as u32).to_le_bytes())?;
+    w.write_all(b"BIN\0")?;
+    w.write_all(&data)
+}

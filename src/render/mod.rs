@@ -4,6 +4,7 @@
 pub mod apng;
 mod chart;
 pub mod face;
+pub mod heat;
 pub mod mesh;
 pub mod text;
 

@@ -191,3 +191,196 @@ fn intensity_study_on_the_news_sample_finds_smiles() {
         477
     );
 }
+
+fn person(rel: &str, actions: &str) -> (keyshape_lab::trajectory::PersonModel, DMatrixF) {
+    let seq = keyshape_lab::io::read_sequence(&shared(rel), &Default::default()).unwrap();
+    let prep = keyshape_lab::decompose::prepare(
+        &seq,
+        &keyshape_lab::decompose::PrepareOptions {
+            points: None,
+            align: true,
+        },
+    )
+    .unwrap();
+    let layout = Layout::mediapipe468();
+    let regions = ModeRegions::builtin(&layout)
+        .unwrap()
+        .points(&layout)
+        .unwrap();
+    let acts = Actions::read(std::path::Path::new(&format!(
+        "{}/assets/cosker/{actions}",
+        env!("CARGO_MANIFEST_DIR")
+    )))
+    .unwrap();
+    let m = keyshape_lab::trajectory::person_model(
+        &prep.seq.coords,
+        &prep.seq.frames,
+        2,
+        &regions,
+        &acts,
+        10,
+    )
+    .unwrap();
+    (m, prep.seq.coords)
+}
+
+type DMatrixF = nalgebra::DMatrix<f64>;
+
+#[test]
+fn trajectories_are_normalised_and_map_between_people() {
+    use keyshape_lab::trajectory::{synthesise, trajectories, ModeAlignment, ModePair};
+    let (src, q) = person(
+        "mediapipe_face_tracks/liveportrait_d6.csv",
+        "actions_liveportrait_d6.json",
+    );
+    let traj = trajectories(&src, &q);
+    assert!(traj.iter().all(|v| (-1.0..=1.0).contains(v)));
+    for k in 0..traj.nrows() {
+        assert!(
+            (traj.row(k).amax() - 1.0).abs() < 1e-12,
+            "each mode reaches its extreme once"
+        );
+    }
+    // Identity alignment on the same person reproduces the projection on the model's modes.
+    let id = ModeAlignment {
+        pairs: (0..10)
+            .map(|m| ModePair {
+                source_mode: m,
+                target_mode: m,
+                flip: false,
+                action: String::new(),
+            })
+            .collect(),
+    };
+    let x = synthesise(&src, &id, &traj);
+    let u = &src.pca.components;
+    let mut c = q.column(100) - &src.pca.mean;
+    c = u * u.tr_mul(&c);
+    assert!((x.column(100) - (&src.pca.mean + c)).amax() < 1e-9);
+    // By action labels onto d9: every pair names modes that exist, a source mode once.
+    let (tgt, _) = person(
+        "mediapipe_face_tracks/liveportrait_d9.csv",
+        "actions_liveportrait_d9.json",
+    );
+    let al = ModeAlignment::by_actions(&src, &tgt);
+    al.check(&src, &tgt).unwrap();
+    let mut s: Vec<usize> = al.pairs.iter().map(|p| p.source_mode).collect();
+    s.dedup();
+    assert_eq!(s.len(), al.pairs.len());
+    let bad = ModeAlignment {
+        pairs: vec![ModePair {
+            source_mode: 0,
+            target_mode: 99,
+            flip: false,
+            action: String::new(),
+        }],
+    };
+    assert!(bad.check(&src, &tgt).is_err());
+}
+
+#[test]
+fn eq8_with_one_hot_weights_reproduces_each_morph_target() {
+    use keyshape_lab::morph::{MorphMapping, MorphTargets};
+    let mesh =
+        keyshape_lab::io::obj::read_obj(&shared("ict_facekit_face/neutral_face.obj")).unwrap();
+    let t = MorphTargets::read(
+        &shared("ict_facekit_face/expressions.csv"),
+        &shared("ict_facekit_face/expression_deltas.csv"),
+        mesh.positions.len(),
+    )
+    .unwrap();
+    assert_eq!(
+        t.names.len(),
+        55,
+        "the README of ict_facekit_face lists 55 shapes"
+    );
+    let mut out = mesh.positions.clone();
+    for s in [0, 28, 54] {
+        let mut w = vec![0.0; t.names.len()];
+        w[s] = 1.0;
+        t.blend(&mesh.positions, &w, &mut out);
+        let mut want = mesh.positions.clone();
+        for &(v, d) in &t.deltas[s] {
+            for k in 0..3 {
+                want[v][k] += d[k];
+            }
+        }
+        assert_eq!(out, want, "shape {}", t.names[s]);
+    }
+    // The built-in mapping names only shapes and actions that exist; others are errors.
+    let names: Vec<String> = [
+        "jaw_drop",
+        "smile",
+        "pucker",
+        "brow_raise_left",
+        "brow_lower_left",
+        "brow_raise_right",
+        "brow_lower_right",
+        "eyes_wide",
+        "blink",
+    ]
+    .iter()
+    .map(|s| s.to_string())
+    .collect();
+    let traj = DMatrixF::from_element(names.len(), 3, 0.5);
+    let w = MorphMapping::builtin()
+        .unwrap()
+        .weights(&t, &names, &traj)
+        .unwrap();
+    assert!(w.iter().all(|v| (0.0..=1.0).contains(v)));
+    let bad: MorphMapping =
+        serde_json::from_str(r#"{"actions": {"smile": [["mouthGrin", 1.0]]}}"#).unwrap();
+    let e = bad.weights(&t, &names, &traj).unwrap_err().to_string();
+    assert!(e.contains("shape 'mouthGrin'"), "{e}");
+    let bad: MorphMapping =
+        serde_json::from_str(r#"{"actions": {"wink": [["jawOpen", 1.0]]}}"#).unwrap();
+    assert!(bad
+        .weights(&t, &names, &traj)
+        .unwrap_err()
+        .to_string()
+        .contains("action 'wink'"));
+}
+
+#[test]
+fn morph_gltf_passes_the_khronos_validator() {
+    let dir = tempfile::tempdir().unwrap();
+    let spec = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/experiments/cosker_transfer_d6_to_d9.toml"
+    );
+    let (spec, base) =
+        keyshape_lab::experiment::Spec::from_path(std::path::Path::new(spec)).unwrap();
+    let o = keyshape_lab::experiment::run(&spec, &base, &|_, _| {}).unwrap();
+    keyshape_lab::report::write_outcome(&o, dir.path()).unwrap();
+    let glb = dir.path().join("morph.glb");
+    assert!(glb.exists());
+    let tool = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tools/gltf");
+    if !tool.join("node_modules/gltf-validator").exists() {
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "gltf-validator missing on CI"
+        );
+        return;
+    }
+    let out = std::process::Command::new("node")
+        .arg(tool.join("validate.js"))
+        .arg(&glb)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stdout)
+    );
+}
+
+#[test]
+fn empty_or_unknown_regions_are_explained() {
+    let layout = Layout::mediapipe468();
+    let r: ModeRegions = serde_json::from_str(r#"{"layout": "mediapipe_face_mesh_468", "regions": {"mouth": []}}"#).unwrap();
+    assert!(r.points(&layout).unwrap_err().to_string().contains("region 'mouth' names no groups"));
+    let r: ModeRegions = serde_json::from_str(r#"{"layout": "mediapipe_face_mesh_468", "regions": {"mouth": ["lipz"]}}"#).unwrap();
+    assert!(r.points(&layout).unwrap_err().to_string().contains("region 'mouth': unknown point group 'lipz'"));
+    let r: ModeRegions = serde_json::from_str(r#"{"layout": "ibug68", "regions": {"mouth": ["lips"]}}"#).unwrap();
+    assert!(r.points(&layout).unwrap_err().to_string().contains("regions are for layout ibug68"));
+}

@@ -1,0 +1,318 @@
+//! `kslab map`: action-mode trajectories of one person drive a second person's model and
+//! the ICT face's morph targets (paper 002 §3.2–3.3).
+
+use super::input::InputArgs;
+use anyhow::{Context, Result};
+use clap::Args;
+use keyshape_lab::decompose::{prepare, PrepareOptions, Prepared};
+use keyshape_lab::io::obj::{read_obj, write_obj};
+use keyshape_lab::io::{read_sequence, write_atomic, ReadOptions};
+use keyshape_lab::modes::{Actions, ModeRegions};
+use keyshape_lab::morph::{MorphMapping, MorphTargets};
+use keyshape_lab::render::face::{bounds_of, col, render_panels, Layer, Panel};
+use keyshape_lab::render::{apng::write_apng, save_png};
+use keyshape_lab::retarget::setup::polylines_for;
+use keyshape_lab::trajectory::{
+    person_model, synthesise, trajectories, ModeAlignment, PersonModel,
+};
+use nalgebra::DMatrix;
+use std::path::{Path, PathBuf};
+
+/// Arguments of `kslab map`.
+#[derive(Debug, Args)]
+pub struct MapArgs {
+    #[command(flatten)]
+    input: InputArgs,
+    /// Actions of the source sequence (name, region, example frame).
+    #[arg(long)]
+    actions: PathBuf,
+    /// Modes of each person's action-specific model.
+    #[arg(long, default_value_t = 10)]
+    modes: usize,
+    /// A second person's sequence, whose model the trajectories drive.
+    #[arg(long)]
+    target_sequence: Option<PathBuf>,
+    /// The second person's actions.
+    #[arg(long, requires = "target_sequence")]
+    target_actions: Option<PathBuf>,
+    /// Mode alignment (default: pair the modes of identically named actions).
+    #[arg(long)]
+    alignment: Option<PathBuf>,
+    /// Write the alignment used, to edit and pass back with --alignment.
+    #[arg(long)]
+    write_alignment: Option<PathBuf>,
+    /// Write the normalised action trajectories as CSV.
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Side-by-side PNGs (source beside the second person) here.
+    #[arg(long)]
+    png_dir: Option<PathBuf>,
+    /// The same as an animated PNG.
+    #[arg(long)]
+    apng: Option<PathBuf>,
+    /// Folder of the ICT face (neutral_face.obj, expressions.csv, expression_deltas.csv) to
+    /// drive with morph targets (Eq. 8).
+    #[arg(long)]
+    morph: Option<PathBuf>,
+    /// Action → morph-target mapping (JSON, or `builtin`).
+    #[arg(long, default_value = "builtin")]
+    mapping: String,
+    /// Write one OBJ per frame of the morphed face here.
+    #[arg(long)]
+    morph_obj_dir: Option<PathBuf>,
+    /// Write one PNG per frame of the morphed face (wireframe) here.
+    #[arg(long)]
+    morph_png_dir: Option<PathBuf>,
+    /// Write the morphed face as glTF with morph-target animation.
+    #[arg(long)]
+    morph_gltf: Option<PathBuf>,
+    /// Only every N-th frame for the per-frame outputs.
+    #[arg(long, default_value_t = 1)]
+    every: usize,
+}
+
+fn model_of(prep: &Prepared, actions: &Actions, modes: usize) -> Result<PersonModel> {
+    let layout = prep
+        .layout
+        .as_ref()
+        .context("needs a known layout (468 or 68 points)")?;
+    let regions = ModeRegions::builtin(layout)?.points(layout)?;
+    Ok(person_model(
+        &prep.seq.coords,
+        &prep.seq.frames,
+        prep.seq.dims,
+        &regions,
+        actions,
+        modes,
+    )?)
+}
+
+pub fn run(a: &MapArgs) -> Result<()> {
+    if a.input.points.is_some() {
+        anyhow::bail!("--points does not apply: the regions choose the points");
+    }
+    let (_, prep) = a.input.prepare()?;
+    let actions = Actions::read(&a.actions)?;
+    let src =
+        model_of(&prep, &actions, a.modes).with_context(|| format!("{}", a.actions.display()))?;
+    let traj = trajectories(&src, &prep.seq.coords);
+    let names: Vec<String> = src.actions.iter().map(|x| x.0.clone()).collect();
+    let action_traj = DMatrix::from_fn(names.len(), traj.ncols(), |i, t| {
+        src.actions[i].2 * traj[(src.actions[i].1, t)]
+    });
+    if let Some(p) = &a.out {
+        write_atomic(p, |w| {
+            writeln!(w, "frame,{}", names.join(","))?;
+            for (t, f) in prep.seq.frames.iter().enumerate() {
+                let v: Vec<String> = (0..names.len())
+                    .map(|i| format!("{:.5}", action_traj[(i, t)]))
+                    .collect();
+                writeln!(w, "{f},{}", v.join(","))?;
+            }
+            Ok(())
+        })?;
+    }
+    let every = a.every.max(1);
+    if let Some(tpath) = &a.target_sequence {
+        let tseq = read_sequence(tpath, &ReadOptions::default())?;
+        let tprep = prepare(
+            &tseq,
+            &PrepareOptions {
+                points: None,
+                align: true,
+            },
+        )?;
+        let tact = Actions::read(
+            a.target_actions
+                .as_deref()
+                .context("--target-sequence needs --target-actions")?,
+        )?;
+        let tgt = model_of(&tprep, &tact, a.modes)?;
+        let alignment = match &a.alignment {
+            Some(p) => ModeAlignment::read(p)?,
+            None => ModeAlignment::by_actions(&src, &tgt),
+        };
+        alignment.check(&src, &tgt)?;
+        if let Some(p) = &a.write_alignment {
+            let text = serde_json::to_string_pretty(&alignment)?;
+            write_atomic(p, |w| w.write_all(text.as_bytes()))?;
+        }
+        let shapes = synthesise(&tgt, &alignment, &traj);
+        println!(
+            "mapped {} frames through {} mode pairs onto {}",
+            traj.ncols(),
+            alignment.pairs.len(),
+            tpath.display()
+        );
+        side_by_side(a, &prep, &tprep, &shapes, every)?;
+    }
+    if let Some(dir) = &a.morph {
+        morph(a, &prep, dir, &names, &action_traj, every)?;
+    }
+    if a.target_sequence.is_none() && a.morph.is_none() && a.out.is_none() {
+        anyhow::bail!("nothing to do: give --target-sequence, --morph or --out");
+    }
+    Ok(())
+}
+
+fn side_by_side(
+    a: &MapArgs,
+    prep: &Prepared,
+    tprep: &Prepared,
+    shapes: &DMatrix<f64>,
+    every: usize,
+) -> Result<()> {
+    if a.png_dir.is_none() && a.apng.is_none() {
+        return Ok(());
+    }
+    let dims = prep.seq.dims;
+    let lines = prep
+        .layout
+        .as_ref()
+        .map(|l| polylines_for(l, &prep.point_indices))
+        .unwrap_or_default();
+    let tlines = tprep
+        .layout
+        .as_ref()
+        .map(|l| polylines_for(l, &tprep.point_indices))
+        .unwrap_or_default();
+    let (sb, tb) = (
+        bounds_of(&[&prep.seq.coords], dims),
+        bounds_of(&[shapes], dims),
+    );
+    let frame = |t: usize| {
+        let panels = [
+            Panel {
+                title: "source performance".into(),
+                layers: vec![Layer {
+                    name: "tracked",
+                    shape: col(&prep.seq.coords, t),
+                    dims,
+                    polylines: &lines,
+                    color: [20, 20, 20],
+                    dashed: false,
+                }],
+                bounds: sb,
+            },
+            Panel {
+                title: "second person's model".into(),
+                layers: vec![Layer {
+                    name: "mapped",
+                    shape: col(shapes, t),
+                    dims,
+                    polylines: &tlines,
+                    color: [200, 30, 30],
+                    dashed: false,
+                }],
+                bounds: tb,
+            },
+        ];
+        render_panels(&panels, &format!("frame {}", prep.seq.frames[t]), 320)
+    };
+    if let Some(dir) = &a.png_dir {
+        std::fs::create_dir_all(dir).with_context(|| format!("{}", dir.display()))?;
+        for t in (0..shapes.ncols()).step_by(every) {
+            save_png(
+                &frame(t)?,
+                &dir.join(format!("map_{:06}.png", prep.seq.frames[t])),
+            )?;
+        }
+    }
+    if let Some(p) = &a.apng {
+        write_apng(p, shapes.ncols(), prep.seq.fps().unwrap_or(30.0), &frame)?;
+    }
+    Ok(())
+}
+
+fn morph(
+    a: &MapArgs,
+    prep: &Prepared,
+    dir: &Path,
+    names: &[String],
+    traj: &DMatrix<f64>,
+    every: usize,
+) -> Result<()> {
+    let mesh = read_obj(&dir.join("neutral_face.obj"))?;
+    let targets = MorphTargets::read(
+        &dir.join("expressions.csv"),
+        &dir.join("expression_deltas.csv"),
+        mesh.positions.len(),
+    )?;
+    let mapping = if a.mapping == "builtin" {
+        MorphMapping::builtin()?
+    } else {
+        MorphMapping::read(Path::new(&a.mapping))?
+    };
+    let w = mapping.weights(&targets, names, traj)?;
+    let n = w.ncols();
+    if let Some(d) = &a.morph_obj_dir {
+        std::fs::create_dir_all(d).with_context(|| format!("{}", d.display()))?;
+        let mut out = mesh.positions.clone();
+        for t in (0..n).step_by(every) {
+            targets.blend(&mesh.positions, w.column(t).as_slice(), &mut out);
+            let p = d.join(format!("frame_{:06}.obj", prep.seq.frames[t]));
+            write_atomic(&p, |f| {
+                write_obj(
+                    f,
+                    &out,
+                    &mesh.faces,
+                    &format!("kslab map: Eq. 8 morph of frame {}", prep.seq.frames[t]),
+                )
+            })?;
+        }
+    }
+    if let Some(d) = &a.morph_png_dir {
+        std::fs::create_dir_all(d).with_context(|| format!("{}", d.display()))?;
+        let mb = keyshape_lab::render::mesh::mesh_bounds(&mesh.positions);
+        let mut out = mesh.positions.clone();
+        for t in (0..n).step_by(every) {
+            targets.blend(&mesh.positions, w.column(t).as_slice(), &mut out);
+            let pic = keyshape_lab::render::mesh::wireframe(
+                &out,
+                &mesh.faces,
+                &[],
+                mb,
+                420,
+                &format!("ICT face, Eq. 8 morph, frame {}", prep.seq.frames[t]),
+            )?;
+            save_png(
+                &pic,
+                &d.join(format!("morph_{:06}.png", prep.seq.frames[t])),
+            )?;
+        }
+    }
+    if let Some(p) = &a.morph_gltf {
+        // Only the shapes the mapping uses, densified.
+        let used: Vec<usize> = (0..targets.names.len())
+            .filter(|&s| w.row(s).iter().any(|v| *v > 0.0))
+            .collect();
+        let dense: Vec<(String, Vec<[f64; 3]>)> = used
+            .iter()
+            .map(|&s| {
+                let mut d = vec![[0.0; 3]; mesh.positions.len()];
+                for &(v, o) in &targets.deltas[s] {
+                    d[v] = o;
+                }
+                (targets.names[s].clone(), d)
+            })
+            .collect();
+        let wu = w.select_rows(&used);
+        let fps = prep.seq.fps().unwrap_or(30.0);
+        write_atomic(p, |f| {
+            keyshape_lab::io::gltf::write_morph_glb(
+                f,
+                &mesh.positions,
+                &mesh.faces,
+                &dense,
+                &wu,
+                fps,
+            )
+        })?;
+    }
+    println!(
+        "drove {} morph targets of {} over {n} frames",
+        mapping.actions.values().map(|v| v.len()).sum::<usize>(),
+        dir.display()
+    );
+    Ok(())
+}
