@@ -377,10 +377,28 @@ fn morph_gltf_passes_the_khronos_validator() {
 #[test]
 fn empty_or_unknown_regions_are_explained() {
     let layout = Layout::mediapipe468();
-    let r: ModeRegions = serde_json::from_str(r#"{"layout": "mediapipe_face_mesh_468", "regions": {"mouth": []}}"#).unwrap();
-    assert!(r.points(&layout).unwrap_err().to_string().contains("region 'mouth' names no groups"));
-    let r: ModeRegions = serde_json::from_str(r#"{"layout": "mediapipe_face_mesh_468", "regions": {"mouth": ["lipz"]}}"#).unwrap();
-    assert!(r.points(&layout).unwrap_err().to_string().contains("region 'mouth': unknown point group 'lipz'"));
-    let r: ModeRegions = serde_json::from_str(r#"{"layout": "ibug68", "regions": {"mouth": ["lips"]}}"#).unwrap();
-    assert!(r.points(&layout).unwrap_err().to_string().contains("regions are for layout ibug68"));
+    let r: ModeRegions =
+        serde_json::from_str(r#"{"layout": "mediapipe_face_mesh_468", "regions": {"mouth": []}}"#)
+            .unwrap();
+    assert!(r
+        .points(&layout)
+        .unwrap_err()
+        .to_string()
+        .contains("region 'mouth' names no groups"));
+    let r: ModeRegions = serde_json::from_str(
+        r#"{"layout": "mediapipe_face_mesh_468", "regions": {"mouth": ["lipz"]}}"#,
+    )
+    .unwrap();
+    assert!(r
+        .points(&layout)
+        .unwrap_err()
+        .to_string()
+        .contains("region 'mouth': unknown point group 'lipz'"));
+    let r: ModeRegions =
+        serde_json::from_str(r#"{"layout": "ibug68", "regions": {"mouth": ["lips"]}}"#).unwrap();
+    assert!(r
+        .points(&layout)
+        .unwrap_err()
+        .to_string()
+        .contains("regions are for layout ibug68"));
 }
