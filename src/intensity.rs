@@ -59,7 +59,7 @@ pub fn median3(x: &[f64]) -> Vec<f64> {
         .collect()
 }
 
-/// Least-squares polynomial of `degree` through (t, x[t]), t scaled to [−1, 1] for
+/// Least-squares polynomial of `degree` through `(t, x[t])`, t scaled to \[−1, 1\] for
 /// conditioning, evaluated at every t. The degree drops to fit short signals.
 pub fn polyfit_smooth(x: &[f64], degree: usize) -> Vec<f64> {
     let n = x.len();
