@@ -564,24 +564,12 @@ fn map_study(
                 mesh.positions.len(),
             )?;
             let w = crate::morph::MorphMapping::builtin()?.weights(&targets, &actions, &at)?;
-            let used: Vec<usize> = (0..targets.names.len())
-                .filter(|&s| w.row(s).iter().any(|v| *v > 0.0))
-                .collect();
-            let dense = used
-                .iter()
-                .map(|&s| {
-                    let mut d = vec![[0.0; 3]; mesh.positions.len()];
-                    for &(v, o) in &targets.deltas[s] {
-                        d[v] = o;
-                    }
-                    (targets.names[s].clone(), d)
-                })
-                .collect();
+            let (targets, weights) = targets.used_dense(&w, mesh.positions.len());
             Some(MorphFace {
                 neutral: mesh.positions,
                 faces: mesh.faces,
-                targets: dense,
-                weights: w.select_rows(&used),
+                targets,
+                weights,
             })
         }
     };

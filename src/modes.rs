@@ -45,9 +45,7 @@ impl ModeRegions {
 
     /// Reads a regions file.
     pub fn read(path: &Path) -> Result<ModeRegions> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-        serde_json::from_str(&text)
-            .map_err(|e| Error::parse(path, e.line() as u64, e.column() as u64, e.to_string()))
+        crate::io::read_json(path)
     }
 
     /// Point indices of each region (name order); unknown groups and empty regions are errors.
@@ -169,10 +167,50 @@ pub struct Actions {
 impl Actions {
     /// Reads an actions file.
     pub fn read(path: &Path) -> Result<Actions> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-        serde_json::from_str(&text)
-            .map_err(|e| Error::parse(path, e.line() as u64, e.column() as u64, e.to_string()))
+        crate::io::read_json(path)
     }
+}
+
+/// Each action's shape vector: the mean shape with only its region's offsets of its
+/// example frame added (§5). Actions naming unknown regions or frames are errors.
+pub fn action_vectors(
+    coords: &DMatrix<f64>,
+    frames: &[i64],
+    dims: usize,
+    regions: &[(String, Vec<usize>)],
+    actions: &Actions,
+) -> Result<Vec<DVector<f64>>> {
+    let mean = coords.column_mean();
+    actions
+        .actions
+        .iter()
+        .map(|a| {
+            let (_, pts) = regions
+                .iter()
+                .find(|(n, _)| *n == a.region)
+                .ok_or_else(|| {
+                    let names: Vec<&str> = regions.iter().map(|r| r.0.as_str()).collect();
+                    Error::invalid(format!(
+                        "action '{}' names region '{}' (regions: {})",
+                        a.name,
+                        a.region,
+                        names.join(", ")
+                    ))
+                })?;
+            let col = frames.iter().position(|&f| f == a.frame).ok_or_else(|| {
+                Error::invalid(format!(
+                    "action '{}' names frame {}, which is not a tracked frame",
+                    a.name, a.frame
+                ))
+            })?;
+            Ok(region_shape(
+                &mean,
+                coords.column(col).as_slice(),
+                pts,
+                dims,
+            ))
+        })
+        .collect()
 }
 
 /// Table 2 for one sequence: the Eq. (9) tables of the action-specific model and of plain
@@ -223,34 +261,7 @@ pub fn orthogonality_study(
             "the orthogonality table needs at least two actions",
         ));
     }
-    let mean = coords.column_mean();
-    let mut vecs = Vec::new();
-    for a in &actions.actions {
-        let (_, pts) = regions
-            .iter()
-            .find(|(n, _)| *n == a.region)
-            .ok_or_else(|| {
-                let names: Vec<&str> = regions.iter().map(|r| r.0.as_str()).collect();
-                Error::invalid(format!(
-                    "action '{}' names region '{}' (regions: {})",
-                    a.name,
-                    a.region,
-                    names.join(", ")
-                ))
-            })?;
-        let col = frames.iter().position(|&f| f == a.frame).ok_or_else(|| {
-            Error::invalid(format!(
-                "action '{}' names frame {}, which is not a tracked frame",
-                a.name, a.frame
-            ))
-        })?;
-        vecs.push(region_shape(
-            &mean,
-            coords.column(col).as_slice(),
-            pts,
-            dims,
-        ));
-    }
+    let vecs = action_vectors(coords, frames, dims, regions, actions)?;
     let artificial = artificial_set(coords, regions, dims);
     let action_model = Pca::fit_leading(&artificial, modes)?;
     let plain = Pca::fit_leading(coords, modes)?;

@@ -7,6 +7,9 @@ use serde::Deserialize;
 use std::collections::BTreeMap;
 use std::path::Path;
 
+/// A named morph target as dense per-vertex offsets.
+pub type DenseTarget = (String, Vec<[f64; 3]>);
+
 /// Morph targets as sparse offsets from the neutral mesh.
 #[derive(Debug, Clone)]
 pub struct MorphTargets {
@@ -71,6 +74,29 @@ impl MorphTargets {
         Ok(MorphTargets { names, deltas: out })
     }
 
+    /// The shapes with any nonzero weight in `weights` (shapes × frames), as (name, dense
+    /// per-vertex offsets), with their weight rows — what a glTF export needs.
+    pub fn used_dense(
+        &self,
+        weights: &nalgebra::DMatrix<f64>,
+        vertices: usize,
+    ) -> (Vec<DenseTarget>, nalgebra::DMatrix<f64>) {
+        let used: Vec<usize> = (0..self.names.len())
+            .filter(|&s| weights.row(s).iter().any(|v| *v > 0.0))
+            .collect();
+        let dense = used
+            .iter()
+            .map(|&s| {
+                let mut d = vec![[0.0; 3]; vertices];
+                for &(v, o) in &self.deltas[s] {
+                    d[v] = o;
+                }
+                (self.names[s].clone(), d)
+            })
+            .collect();
+        (dense, weights.select_rows(&used))
+    }
+
     /// Eq. (8) into `out` (starting from `neutral`), weights clamped to [0, 1].
     pub fn blend(&self, neutral: &[[f64; 3]], weights: &[f64], out: &mut [[f64; 3]]) {
         out.copy_from_slice(neutral);
@@ -105,9 +131,7 @@ impl MorphMapping {
 
     /// Reads a mapping file.
     pub fn read(path: &Path) -> Result<MorphMapping> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-        serde_json::from_str(&text)
-            .map_err(|e| Error::parse(path, e.line() as u64, e.column() as u64, e.to_string()))
+        crate::io::read_json(path)
     }
 
     /// Shape weights per frame (shapes × frames) from action trajectories (actions ×

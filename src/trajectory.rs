@@ -7,7 +7,7 @@
 //! tracks, scaled by the target's own extremes, synthesise the target person's shapes.
 
 use crate::error::{Error, Result};
-use crate::modes::{artificial_set, region_shape, Actions};
+use crate::modes::{action_vectors, artificial_set, Actions};
 use crate::pca::Pca;
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
@@ -44,29 +44,15 @@ pub fn person_model(
                 .max(f64::MIN_POSITIVE)
         })
         .collect();
-    let mean = coords.column_mean();
-    let mut located = Vec::new();
-    for a in &actions.actions {
-        let (_, pts) = regions
-            .iter()
-            .find(|(n, _)| *n == a.region)
-            .ok_or_else(|| {
-                Error::invalid(format!(
-                    "action '{}' names unknown region '{}'",
-                    a.name, a.region
-                ))
-            })?;
-        let col = frames.iter().position(|&f| f == a.frame).ok_or_else(|| {
-            Error::invalid(format!(
-                "action '{}' names frame {}, which is not a tracked frame",
-                a.name, a.frame
-            ))
-        })?;
-        let v = region_shape(&mean, coords.column(col).as_slice(), pts, dims);
-        let c = pca.components.tr_mul(&(v - &pca.mean));
-        let mode = c.iamax();
-        located.push((a.name.clone(), mode, c[mode].signum()));
-    }
+    let located = action_vectors(coords, frames, dims, regions, actions)?
+        .into_iter()
+        .zip(&actions.actions)
+        .map(|(v, a)| {
+            let c = pca.components.tr_mul(&(v - &pca.mean));
+            let mode = c.iamax();
+            (a.name.clone(), mode, c[mode].signum())
+        })
+        .collect();
     Ok(PersonModel {
         pca,
         limits,
@@ -113,9 +99,7 @@ pub struct ModeAlignment {
 impl ModeAlignment {
     /// Reads an alignment file.
     pub fn read(path: &Path) -> Result<ModeAlignment> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-        serde_json::from_str(&text)
-            .map_err(|e| Error::parse(path, e.line() as u64, e.column() as u64, e.to_string()))
+        crate::io::read_json(path)
     }
 
     /// Pairs the modes of actions both models label alike (the paper aligns by hand; the

@@ -283,20 +283,7 @@ fn morph(
     }
     if let Some(p) = &a.morph_gltf {
         // Only the shapes the mapping uses, densified.
-        let used: Vec<usize> = (0..targets.names.len())
-            .filter(|&s| w.row(s).iter().any(|v| *v > 0.0))
-            .collect();
-        let dense: Vec<(String, Vec<[f64; 3]>)> = used
-            .iter()
-            .map(|&s| {
-                let mut d = vec![[0.0; 3]; mesh.positions.len()];
-                for &(v, o) in &targets.deltas[s] {
-                    d[v] = o;
-                }
-                (targets.names[s].clone(), d)
-            })
-            .collect();
-        let wu = w.select_rows(&used);
+        let (dense, wu) = targets.used_dense(&w, mesh.positions.len());
         let fps = prep.seq.fps().unwrap_or(30.0);
         write_atomic(p, |f| {
             keyshape_lab::io::gltf::write_morph_glb(

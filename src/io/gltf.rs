@@ -178,24 +178,7 @@ pub fn write_glb(
         "bufferViews": bin.views,
         "buffers": [{ "byteLength": bin.data.len() }],
     });
-    let mut js = serde_json::to_vec(&doc).map_err(std::io::Error::other)?;
-    while js.len() % 4 != 0 {
-        js.push(b' ');
-    }
-    let mut data = bin.data;
-    while data.len() % 4 != 0 {
-        data.push(0);
-    }
-    let total = 12 + 8 + js.len() + 8 + data.len();
-    w.write_all(b"glTF")?;
-    w.write_all(&2u32.to_le_bytes())?;
-    w.write_all(&(total as u32).to_le_bytes())?;
-    w.write_all(&(js.len() as u32).to_le_bytes())?;
-    w.write_all(b"JSON")?;
-    w.write_all(&js)?;
-    w.write_all(&(data.len() as u32).to_le_bytes())?;
-    w.write_all(b"BIN\0")?;
-    w.write_all(&data)
+    write_glb_chunks(w, doc, bin.data)
 }
 
 /// Checks that the joint count fits glTF's 16-bit joint indices.

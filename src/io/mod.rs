@@ -179,3 +179,10 @@ pub fn read_columns(path: &Path, names: &[&str]) -> Result<Vec<Vec<f64>>> {
     }
     Ok(out)
 }
+
+/// Reads a JSON file into `T`; errors name the file, line and column.
+pub fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    serde_json::from_str(&text)
+        .map_err(|e| Error::parse(path, e.line() as u64, e.column() as u64, e.to_string()))
+}

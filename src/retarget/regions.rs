@@ -55,9 +55,7 @@ impl Regions {
 
     /// Reads a regions file.
     pub fn read(path: &Path) -> Result<Regions> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-        serde_json::from_str(&text)
-            .map_err(|e| Error::parse(path, e.line() as u64, e.column() as u64, e.to_string()))
+        crate::io::read_json(path)
     }
 }
 
