@@ -133,10 +133,13 @@ where
                 let area = terminal.size()?;
                 let [_, _, tl, _, _] =
                     view::regions(ratatui::layout::Rect::new(0, 0, area.width, area.height));
+                let full = ratatui::layout::Rect::new(0, 0, area.width, area.height);
                 if m.row >= tl.y && m.row < tl.y + tl.height && tl.width > 2 {
                     actions.push(Action::Seek(
                         f64::from(m.column.saturating_sub(tl.x + 1)) / f64::from(tl.width - 3),
                     ));
+                } else if let Some((method, k)) = view::chart_pick(full, s, m.column, m.row) {
+                    actions.push(Action::Pick(method, k));
                 }
             }
             _ => {}
@@ -164,6 +167,7 @@ pub fn run(
     mesh: Option<mesh::MeshView>,
 ) -> anyhow::Result<()> {
     let mut s = State::new(&seq.source, seq.n_frames(), seq.fps().unwrap_or(30.0));
+    s.target_keys = target.is_some();
     s.mesh = mesh.map(std::sync::Arc::new);
     s.show_mesh = s.mesh.is_some();
     let (jobs, results) = compute::spawn(seq, target);

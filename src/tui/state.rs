@@ -79,6 +79,8 @@ pub enum Action {
     Tick(Duration),
     /// Seek to a fraction of the sequence (timeline click).
     Seek(f64),
+    /// Choose a method and k (a click on the error chart).
+    Pick(Method, usize),
     /// The worker finished a request.
     Computed(Box<Computed>),
     /// The worker finished the error curves of a request.
@@ -152,6 +154,8 @@ pub struct State {
     pub mesh: Option<std::sync::Arc<super::mesh::MeshView>>,
     /// Show the mesh in the target panel.
     pub show_mesh: bool,
+    /// The key frames come from a user target set (`kslab tui --target`), not a method.
+    pub target_keys: bool,
     clock: f64,
 }
 
@@ -179,6 +183,7 @@ impl State {
             ticks: 0,
             mesh: None,
             show_mesh: false,
+            target_keys: false,
             clock: 0.0,
         }
     }
@@ -266,6 +271,14 @@ pub fn update(s: &mut State, action: Action) -> Vec<Effect> {
             };
             return s.recompute();
         }
+        Action::Pick(m, k) => {
+            if m == s.settings.method && k == s.settings.k {
+                return vec![];
+            }
+            s.settings.method = m;
+            s.settings.k = k.clamp(1, 64);
+            return s.recompute();
+        }
         Action::Split => s.split = !s.split,
         Action::Mesh if s.mesh.is_some() => s.show_mesh = !s.show_mesh,
         Action::Mesh => s.status = "no mesh: open the lab with --mesh M.obj".into(),
@@ -304,6 +317,7 @@ pub fn update(s: &mut State, action: Action) -> Vec<Effect> {
                 s.curves = None;
                 s.mesh = None;
                 s.show_mesh = false;
+                s.target_keys = false;
                 return s.recompute();
             }
         }

@@ -99,8 +99,16 @@ fn header(f: &mut Frame, s: &State, area: Rect) {
             Style::default().add_modifier(Modifier::BOLD | Modifier::REVERSED),
         ),
         Span::raw(format!(
-            " {short} · {} frames · {} · {} {k} · {} · frame {frame_no} {play} {}×{busy}",
-            s.frames, st.points, st.method, st.solver, s.speed
+            " {short} · {} frames · {} · {} · {} · frame {frame_no} {play} {}×{busy}",
+            s.frames,
+            st.points,
+            if s.target_keys {
+                "keys from --target".to_string()
+            } else {
+                format!("{} {k}", st.method)
+            },
+            st.solver,
+            s.speed
         )),
     ]);
     f.render_widget(Paragraph::new(line), area);
@@ -440,7 +448,7 @@ fn footer(f: &mut Frame, s: &State, area: Rect) {
 }
 
 /// Every key, for the help overlay and the README.
-pub const KEYS: [(&str, &str); 18] = [
+pub const KEYS: [(&str, &str); 19] = [
     ("space", "play / pause"),
     ("← / →", "step one frame"),
     ("Home / End", "first / last frame"),
@@ -455,6 +463,7 @@ pub const KEYS: [(&str, &str); 18] = [
     ("o", "open another sequence"),
     ("x", "3-D mesh of `--mesh` in place of the 2-D target"),
     ("click timeline", "seek"),
+    ("click chart", "pick the nearest method and k"),
     ("?", "this help"),
     ("Esc", "close help / prompt, else quit"),
     ("q", "quit"),
@@ -503,4 +512,36 @@ fn prompt(f: &mut Frame, p: &Prompt, area: Rect) {
         Paragraph::new(format!("{text}▏")).block(Block::bordered().title(title)),
         r,
     );
+}
+
+/// The error chart's region of the screen (inside its border) for a terminal `area`.
+pub fn chart_area(area: Rect) -> Rect {
+    let [_, _, _, bottom, _] = regions(area);
+    let [chart, _] =
+        Layout::horizontal([Constraint::Percentage(55), Constraint::Percentage(45)]).areas(bottom);
+    chart
+}
+
+/// The curve point nearest a click at (`col`, `row`) on the error chart, as (method, k):
+/// the plot spans the chart's inside less the y-axis labels (5 columns) and the x axis
+/// (2 rows), x from k = 2 to the largest k, y from 0 to the largest RMS.
+pub fn chart_pick(area: Rect, s: &State, col: u16, row: u16) -> Option<(Method, usize)> {
+    let rows = s.curves.as_ref()?;
+    let c = chart_area(area);
+    let (x0, x1) = (c.x + 1 + 5, c.x + c.width.saturating_sub(1));
+    let (y0, y1) = (c.y + 1, c.y + c.height.saturating_sub(3));
+    if col < x0 || col >= x1 || row < y0 || row >= y1 {
+        return None;
+    }
+    let kmax = rows.iter().map(|r| r.k).max()? as f64;
+    let ymax = rows.iter().map(|r| r.rms).fold(0.0, f64::max).max(1e-9);
+    let fx = f64::from(col - x0) / f64::from((x1 - x0).max(1) - 1).max(1.0);
+    let fy = 1.0 - f64::from(row - y0) / f64::from((y1 - y0).max(1) - 1).max(1.0);
+    let best = rows.iter().min_by(|a, b| {
+        let d = |r: &crate::keyshapes::curves::CurveRow| {
+            ((r.k as f64 - 2.0) / (kmax - 2.0).max(1.0) - fx).powi(2) + (r.rms / ymax - fy).powi(2)
+        };
+        d(a).total_cmp(&d(b))
+    })?;
+    Some((Method::parse(&best.method).ok()?, best.k))
 }

@@ -265,3 +265,37 @@ fn the_binary_runs_in_tmux() {
     tmux(&["kill-session", "-t", &name]);
     panic!("kslab did not quit on q");
 }
+
+#[test]
+fn clicking_the_error_chart_picks_the_nearest_method_and_k() {
+    let mut s = computed_state(Settings::default());
+    let area = ratatui::layout::Rect::new(0, 0, 80, 24);
+    let c = view::chart_area(area);
+    // Bottom-right corner of the plot: the largest k, the lowest error.
+    let (col, row) = (c.x + c.width - 2, c.y + c.height - 4);
+    let (m, k) = view::chart_pick(area, &s, col, row).unwrap();
+    assert_eq!(k, 24);
+    let rows = s.curves.clone().unwrap();
+    let lowest = rows
+        .iter()
+        .filter(|r| r.k == 24)
+        .min_by(|a, b| a.rms.total_cmp(&b.rms))
+        .unwrap();
+    assert_eq!(m.name(), lowest.method);
+    assert!(
+        view::chart_pick(area, &s, 1, 1).is_none(),
+        "a click outside the chart picks nothing"
+    );
+    let fx = update(&mut s, Action::Pick(m, k));
+    assert_eq!(
+        fx,
+        vec![Effect::Compute(
+            2,
+            Settings {
+                method: m,
+                k,
+                ..Settings::default()
+            }
+        )]
+    );
+}
