@@ -38,6 +38,32 @@ impl Bin {
     }
 }
 
+impl Bin {
+    /// The mesh's POSITION accessor (with bounds) and triangulated index accessor.
+    fn geometry(&mut self, positions: &[[f64; 3]], faces: &[Vec<usize>]) -> (usize, usize) {
+        let (pos_bytes, pos) = f32s(positions.iter().flatten().copied());
+        let (lo, hi) = min_max3(&pos);
+        let a_pos = self.push(
+            &pos_bytes,
+            Some(34962),
+            json!({ "componentType": 5126, "count": positions.len(), "type": "VEC3", "min": lo, "max": hi }),
+        );
+        let tris: Vec<u32> = faces
+            .iter()
+            .flat_map(|f| {
+                (1..f.len() - 1).flat_map(move |k| [f[0] as u32, f[k] as u32, f[k + 1] as u32])
+            })
+            .collect();
+        let idx: Vec<u8> = tris.iter().flat_map(|x| x.to_le_bytes()).collect();
+        let a_idx = self.push(
+            &idx,
+            Some(34963),
+            json!({ "componentType": 5125, "count": tris.len(), "type": "SCALAR" }),
+        );
+        (a_pos, a_idx)
+    }
+}
+
 fn f32s(v: impl IntoIterator<Item = f64>) -> (Vec<u8>, Vec<f32>) {
     let vals: Vec<f32> = v.into_iter().map(|x| x as f32).collect();
     (vals.iter().flat_map(|x| x.to_le_bytes()).collect(), vals)
@@ -70,13 +96,7 @@ pub fn write_glb(
     let nv = tr.mesh.positions.len();
     let nf = tr.t0.len();
     // Geometry.
-    let (pos_bytes, pos) = f32s(tr.mesh.positions.iter().flatten().copied());
-    let (lo, hi) = min_max3(&pos);
-    let a_pos = bin.push(
-        &pos_bytes,
-        Some(34962),
-        json!({ "componentType": 5126, "count": nv, "type": "VEC3", "min": lo, "max": hi }),
-    );
+    let (a_pos, a_idx) = bin.geometry(&tr.mesh.positions, &tr.mesh.faces);
     let mut joints = Vec::with_capacity(nv * 8);
     let mut weights = Vec::with_capacity(nv * 4);
     for inf in &tr.skin.influences {
@@ -108,20 +128,6 @@ pub fn write_glb(
         &weights,
         Some(34962),
         json!({ "componentType": 5126, "count": nv, "type": "VEC4" }),
-    );
-    let tris: Vec<u32> = tr
-        .mesh
-        .faces
-        .iter()
-        .flat_map(|f| {
-            (1..f.len() - 1).flat_map(move |k| [f[0] as u32, f[k] as u32, f[k + 1] as u32])
-        })
-        .collect();
-    let idx: Vec<u8> = tris.iter().flat_map(|x| x.to_le_bytes()).collect();
-    let a_idx = bin.push(
-        &idx,
-        Some(34963),
-        json!({ "componentType": 5125, "count": tris.len(), "type": "SCALAR" }),
     );
     // Skin: inverse bind matrices (column-major), identity for the root, −t0 for features.
     let mut ibm = Vec::new();
@@ -206,25 +212,7 @@ pub fn write_morph_glb(
         accessors: Vec::new(),
     };
     let nv = neutral.len();
-    let (pos_bytes, pos) = f32s(neutral.iter().flatten().copied());
-    let (lo, hi) = min_max3(&pos);
-    let a_pos = bin.push(
-        &pos_bytes,
-        Some(34962),
-        json!({ "componentType": 5126, "count": nv, "type": "VEC3", "min": lo, "max": hi }),
-    );
-    let tris: Vec<u32> = faces
-        .iter()
-        .flat_map(|f| {
-            (1..f.len() - 1).flat_map(move |k| [f[0] as u32, f[k] as u32, f[k + 1] as u32])
-        })
-        .collect();
-    let idx: Vec<u8> = tris.iter().flat_map(|x| x.to_le_bytes()).collect();
-    let a_idx = bin.push(
-        &idx,
-        Some(34963),
-        json!({ "componentType": 5125, "count": tris.len(), "type": "SCALAR" }),
-    );
+    let (a_pos, a_idx) = bin.geometry(neutral, faces);
     let mut tacc = Vec::new();
     for (_, d) in targets {
         let (bytes, vals) = f32s(d.iter().flatten().copied());
