@@ -212,7 +212,7 @@ fn k_range<'de, D: Deserializer<'de>>(d: D) -> std::result::Result<(usize, usize
 impl Spec {
     /// Reads and validates a spec; errors name the file, line, column and key.
     pub fn from_path(path: &Path) -> Result<(Spec, PathBuf)> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let text = crate::io::read_text(path)?;
         let spec = Spec::from_str(path, &text)?;
         let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
         Ok((spec, base))

@@ -88,6 +88,7 @@ impl Pca {
     /// Much faster than the full decomposition when r is a small part of the rank.
     pub fn fit_leading(coords: &DMatrix<f64>, r: usize) -> Result<Pca> {
         let (rows, n) = coords.shape();
+        let r = r.min(rows.min(n));
         let l = r + 12;
         if n < 2 || rows.min(n) <= 2 * l {
             let mut p = Pca::fit(coords)?;

@@ -49,12 +49,12 @@ pub fn run(a: &InfoArgs) -> Result<()> {
             "segments": seq.segments.as_ref().map(|s| count_segments(s)),
             "ranges": r,
         });
-        println!("{}", serde_json::to_string_pretty(&v)?);
+        outln!("{}", serde_json::to_string_pretty(&v)?);
         return Ok(());
     }
-    println!("source         {}", seq.source);
-    println!("format         {}", seq.format);
-    println!("frames         {} tracked", seq.n_frames());
+    outln!("source         {}", seq.source);
+    outln!("format         {}", seq.format);
+    outln!("frames         {} tracked", seq.n_frames());
     let failed = if seq.failed.is_empty() {
         "none".to_string()
     } else {
@@ -62,37 +62,37 @@ pub fn run(a: &InfoArgs) -> Result<()> {
         let more = if seq.failed.len() > 12 { ", …" } else { "" };
         format!("{} ({}{more})", seq.failed.len(), shown.join(", "))
     };
-    println!("failed frames  {failed}");
+    outln!("failed frames  {failed}");
     if let (Some(first), Some(last)) = (seq.frames.first(), seq.frames.last()) {
-        println!("frame numbers  {first}..={last}");
+        outln!("frame numbers  {first}..={last}");
     }
-    println!(
+    outln!(
         "points         {}{}",
         seq.points,
         selected
             .map(|s| format!(" ({s} selected)"))
             .unwrap_or_default()
     );
-    println!("dims           {}", seq.dims);
+    outln!("dims           {}", seq.dims);
     match &layout {
-        Some(l) => println!(
+        Some(l) => outln!(
             "layout         {} (groups: {})",
             l.name,
             l.names().join(", ")
         ),
-        None => println!(
+        None => outln!(
             "layout         none built in for {} points (--points unavailable)",
             seq.points
         ),
     }
     if let Some(fps) = seq.fps() {
-        println!("fps            {fps:.3}");
+        outln!("fps            {fps:.3}");
     }
     if let Some(s) = &seq.segments {
-        println!("segments       {}", count_segments(s));
+        outln!("segments       {}", count_segments(s));
     }
     for ((lo, hi), ax) in ranges.iter().zip(axes) {
-        println!("{ax} range        {lo:.3} .. {hi:.3}");
+        outln!("{ax} range        {lo:.3} .. {hi:.3}");
     }
     Ok(())
 }

@@ -47,18 +47,18 @@ pub fn run(a: &IntensityArgs) -> Result<()> {
         let mut v = serde_json::to_value(&r)?;
         v["file"] = serde_json::json!(path.display().to_string());
         v["settings"] = serde_json::to_value(&st)?;
-        println!("{}", serde_json::to_string_pretty(&v)?);
+        outln!("{}", serde_json::to_string_pretty(&v)?);
     } else {
-        println!(
+        outln!(
             "{} training frames (clips {}..{}), {} test frames, K = {}, polynomial degree {}",
             r.train_frames, st.train_clips.0, st.train_clips.1, r.test_frames, st.k, st.degree
         );
-        println!(
+        outln!(
             "{:<12} {:>10} {:>8} {:>10} {:>10}",
             "action", "labelled", "raw C", "median-3 C", "smoothed C"
         );
         for x in &r.actions {
-            println!(
+            outln!(
                 "{:<12} {:>10} {:>8.3} {:>10.3} {:>10.3}",
                 x.action,
                 x.training_frames_labelled,

@@ -94,16 +94,16 @@ pub fn run(a: &KeysArgs) -> Result<()> {
             "centres_pca": centres,
             "note": sel.centres.as_ref().map(|_| "centres_pca are k-means centres in PCA coordinates; they are not frames, the keys are the nearest frames"),
         });
-        println!("{}", serde_json::to_string_pretty(&v)?);
+        outln!("{}", serde_json::to_string_pretty(&v)?);
     } else {
         let list: Vec<String> = frames.iter().map(i64::to_string).collect();
-        println!(
+        outln!(
             "{} key frames by {}: {}",
             frames.len(),
             method,
             list.join(",")
         );
-        println!(
+        outln!(
             "Eq. 5 error under {}: {e:.6e} (RMS {:.4} per point)",
             a.solver,
             an.rms(e)

@@ -138,7 +138,7 @@ pub fn run(a: &MapArgs) -> Result<()> {
             write_atomic(p, |w| w.write_all(text.as_bytes()))?;
         }
         let shapes = synthesise(&tgt, &alignment, &traj);
-        println!(
+        outln!(
             "mapped {} frames through {} mode pairs onto {}",
             traj.ncols(),
             alignment.pairs.len(),
@@ -296,7 +296,7 @@ fn morph(
             )
         })?;
     }
-    println!(
+    outln!(
         "drove {} morph targets of {} over {n} frames",
         mapping.actions.values().map(|v| v.len()).sum::<usize>(),
         dir.display()

@@ -1,5 +1,25 @@
 //! Command-line parsing and the subcommands. Only arranges library calls and prints.
 
+/// `println!` that returns an error instead of panicking when standard output cannot be
+/// written (a full disk, a closed pipe).
+macro_rules! outln {
+    ($($t:tt)*) => {{
+        use std::io::Write as _;
+        writeln!(std::io::stdout().lock(), $($t)*)
+            .map_err(|e| anyhow::anyhow!("writing to standard output: {e}"))?;
+    }};
+}
+
+/// `print!` that returns an error instead of panicking (see [`outln`]).
+#[allow(unused_macros)]
+macro_rules! out {
+    ($($t:tt)*) => {{
+        use std::io::Write as _;
+        write!(std::io::stdout().lock(), $($t)*)
+            .map_err(|e| anyhow::anyhow!("writing to standard output: {e}"))?;
+    }};
+}
+
 mod bench;
 mod curves;
 mod info;

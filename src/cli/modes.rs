@@ -31,27 +31,28 @@ pub struct ModesArgs {
     png: Option<PathBuf>,
 }
 
-fn print_table(title: &str, names: &[String], m: &nalgebra::DMatrix<f64>) {
-    println!(
+fn print_table(title: &str, names: &[String], m: &nalgebra::DMatrix<f64>) -> Result<()> {
+    outln!(
         "{title} (mean of the upper triangle {:.3}; 0 = orthogonal, 1 = parallel)",
         OrthogonalityStudy::mean_upper(m)
     );
-    print!("{:>18}", "");
+    out!("{:>18}", "");
     for j in 1..names.len() {
-        print!(" {:>6}", j + 1);
+        out!(" {:>6}", j + 1);
     }
-    println!();
+    outln!();
     for i in 0..names.len() - 1 {
-        print!("{:>2} {:<15}", i + 1, names[i]);
+        out!("{:>2} {:<15}", i + 1, names[i]);
         for j in 1..names.len() {
             if j > i {
-                print!(" {:>6.3}", m[(i, j)])
+                out!(" {:>6.3}", m[(i, j)]);
             } else {
-                print!(" {:>6}", "")
+                out!(" {:>6}", "");
             }
         }
-        println!();
+        outln!();
     }
+    Ok(())
 }
 
 pub fn run(a: &ModesArgs) -> Result<()> {
@@ -103,7 +104,7 @@ pub fn run(a: &ModesArgs) -> Result<()> {
             "mean_action_model": OrthogonalityStudy::mean_upper(&st.action_model),
             "mean_plain_pca": OrthogonalityStudy::mean_upper(&st.plain),
         });
-        println!("{}", serde_json::to_string_pretty(&v)?);
+        outln!("{}", serde_json::to_string_pretty(&v)?);
         return Ok(());
     }
     if a.table {
@@ -111,15 +112,15 @@ pub fn run(a: &ModesArgs) -> Result<()> {
             &format!("action-specific model, {} modes", st.modes),
             &st.names,
             &st.action_model,
-        );
-        println!();
+        )?;
+        outln!();
         print_table(
             &format!("plain PCA, {} modes", st.modes),
             &st.names,
             &st.plain,
-        );
+        )?;
     } else {
-        println!(
+        outln!(
             "{} actions, {} modes: mean Eq. 9 score {:.3} (action-specific model) vs {:.3} (plain PCA); --table prints both tables",
             st.names.len(),
             st.modes,

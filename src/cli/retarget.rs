@@ -177,12 +177,12 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
         "target": a.target.as_ref().map_or("builtin:cartoon".to_string(), |p| p.display().to_string()),
     });
     if a.json {
-        println!("{}", serde_json::to_string_pretty(&summary)?);
+        outln!("{}", serde_json::to_string_pretty(&summary)?);
     } else {
         let t = r
             .target_rms()
             .map_or("n/a (no ground truth)".to_string(), |v| format!("{v:.4}"));
-        println!(
+        outln!(
             "{} frames, {} keys, {}: source RMS {:.4}, target RMS {t}, jitter {:.3e}, negative weights {:.1}%",
             s.n_frames(),
             key_frames.len(),

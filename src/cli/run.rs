@@ -34,7 +34,7 @@ pub fn run(a: &RunArgs) -> Result<()> {
     let outcome = run_spec(&spec, &base, &|d, t| progress.tick(d, t))?;
     progress.finish();
     for f in write_outcome(&outcome, &dir)? {
-        println!("{}", f.display());
+        outln!("{}", f.display());
     }
     Ok(())
 }

@@ -92,9 +92,9 @@ pub fn run(a: &SolveArgs) -> Result<()> {
             "unconverged_frames": d.unconverged,
             "out": a.out,
         });
-        println!("{}", serde_json::to_string_pretty(&v)?);
+        outln!("{}", serde_json::to_string_pretty(&v)?);
     } else if let Some(p) = &a.out {
-        println!(
+        outln!(
             "{} frames, {} keys, {}: mean RMS {:.4}, negative weights {:.1}%, max |w| {:.3} → {}",
             seq.n_frames(),
             d.key_columns.len(),

@@ -160,9 +160,9 @@ pub fn run(a: &TransferArgs) -> Result<()> {
         "max_vertex_displacement": max_disp,
     });
     if a.json {
-        println!("{}", serde_json::to_string_pretty(&summary)?);
+        outln!("{}", serde_json::to_string_pretty(&summary)?);
     } else {
-        println!(
+        outln!(
             "{} frames onto {} vertices ({} skinned) from {} feature points: trained in {:.1} ms, deformed at {:.0} frames/s, largest displacement {:.3}",
             s.n_frames(),
             tr.mesh.positions.len(),

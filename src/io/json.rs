@@ -103,7 +103,32 @@ pub(super) fn read(path: &Path, text: &str, dims: usize) -> Result<Sequence> {
             ),
         ));
     }
-    let want = file.dims * file.points;
+    let want = file
+        .dims
+        .checked_mul(file.points)
+        .filter(|&w| w <= crate::sequence::MAX_SHAPE_VALUES)
+        .ok_or_else(|| {
+            Error::file(
+                path,
+                format!(
+                    "points {} is too large (at most {} values per frame)",
+                    file.points,
+                    crate::sequence::MAX_SHAPE_VALUES
+                ),
+            )
+        })?;
+    let mut seen = std::collections::HashMap::new();
+    for (i, f) in file.frames.iter().enumerate() {
+        if let Some(first) = seen.insert(f.frame, i) {
+            return Err(Error::file(
+                path,
+                format!(
+                    "frames[{i}] repeats frame number {} (first at frames[{first}]): frame numbers must be unique",
+                    f.frame
+                ),
+            ));
+        }
+    }
     let (mut data, mut frames, mut failed) = (Vec::new(), Vec::new(), Vec::new());
     let (mut times, mut segments) = (Vec::new(), Vec::new());
     for (i, f) in file.frames.iter().enumerate() {

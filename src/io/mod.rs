@@ -66,34 +66,101 @@ pub fn read_sequence(path: &Path, opts: &ReadOptions) -> Result<Sequence> {
         };
     }
     let text = read_text(path)?;
+    parse_sequence(path, &text, opts)
+}
+
+/// Parses a sequence from text already read (`path` names it in errors and picks the
+/// format by extension). What the fuzz targets call.
+pub fn parse_sequence(path: &Path, text: &str, opts: &ReadOptions) -> Result<Sequence> {
+    if opts.dims != 2 && opts.dims != 3 {
+        return Err(Error::invalid(format!(
+            "--dims must be 2 or 3, got {}",
+            opts.dims
+        )));
+    }
     if text.trim().is_empty() {
         return Err(Error::file(path, "file is empty"));
     }
     let format = match opts.format {
         Some(f) => f,
-        None => detect_format(path, &text)?,
+        None => detect_format(path, text)?,
     };
     let seq = match format {
-        Format::Pts => pts::read_file(path, &text, opts.dims),
-        Format::Json => json::read(path, &text, opts.dims),
-        f => table::read(path, &text, f, opts.dims),
+        Format::Pts => pts::read_file(path, text, opts.dims),
+        Format::Json => json::read(path, text, opts.dims),
+        f => table::read(path, text, f, opts.dims),
     }?;
     seq.validate()?;
     Ok(seq)
 }
 
-/// Reads a whole file as UTF-8 text, un-gzipping `*.gz` files.
-fn read_text(path: &Path) -> Result<String> {
+/// The largest input file read, and the largest text a gzip file may expand to.
+pub const MAX_INPUT_BYTES: u64 = 4 << 30;
+/// The longest line an input may have (a 468-point 3-D MediaPipe row is about 25 KB).
+pub const MAX_LINE_BYTES: usize = 16 << 20;
+
+/// Reads a whole input file as UTF-8 text, un-gzipping `*.gz` files (every member of a
+/// multi-member gzip; trailing bytes that are not gzip are an error). Only regular files are
+/// read: a directory, a FIFO or a device (`/dev/zero`) is refused with a message, so nothing
+/// blocks or reads without end. Files over [`MAX_INPUT_BYTES`] and lines over
+/// [`MAX_LINE_BYTES`] are refused.
+pub fn read_text(path: &Path) -> Result<String> {
+    let meta = std::fs::metadata(path).map_err(|e| Error::io(path, e))?;
+    if !meta.is_file() {
+        let what = if meta.is_dir() {
+            "a directory"
+        } else {
+            "not a regular file (a device, FIFO or socket)"
+        };
+        return Err(Error::file(path, format!("is {what}; give a file")));
+    }
+    if meta.len() > MAX_INPUT_BYTES {
+        return Err(Error::file(
+            path,
+            format!(
+                "is {} bytes; inputs are limited to {MAX_INPUT_BYTES} bytes",
+                meta.len()
+            ),
+        ));
+    }
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-    let bytes = if path.extension().is_some_and(|e| e == "gz") {
+    let gz = path.extension().is_some_and(|e| e == "gz");
+    text_from_bytes(path, bytes, gz)
+}
+
+/// [`read_text`] on bytes already in memory (`gz`: un-gzip first).
+pub fn text_from_bytes(path: &Path, bytes: Vec<u8>, gz: bool) -> Result<String> {
+    let bytes = if gz {
         let mut out = Vec::new();
-        flate2::read::GzDecoder::new(&bytes[..])
+        flate2::read::MultiGzDecoder::new(&bytes[..])
+            .take(MAX_INPUT_BYTES + 1)
             .read_to_end(&mut out)
             .map_err(|e| Error::file(path, format!("not a valid gzip file: {e}")))?;
+        if out.len() as u64 > MAX_INPUT_BYTES {
+            return Err(Error::file(
+                path,
+                format!("expands to more than {MAX_INPUT_BYTES} bytes"),
+            ));
+        }
         out
     } else {
         bytes
     };
+    let mut line = 1u64;
+    let mut start = 0usize;
+    for (i, &b) in bytes.iter().enumerate() {
+        if b == b'\n' {
+            line += 1;
+            start = i + 1;
+        } else if i - start >= MAX_LINE_BYTES {
+            return Err(Error::parse(
+                path,
+                line,
+                0,
+                format!("line is longer than {MAX_LINE_BYTES} bytes: not a text table"),
+            ));
+        }
+    }
     String::from_utf8(bytes).map_err(|e| {
         let upto = &e.as_bytes()[..e.utf8_error().valid_up_to()];
         let line = upto.iter().filter(|&&b| b == b'\n').count() as u64 + 1;
@@ -182,7 +249,7 @@ pub fn read_columns(path: &Path, names: &[&str]) -> Result<Vec<Vec<f64>>> {
 
 /// Reads a JSON file into `T`; errors name the file, line and column.
 pub fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let text = read_text(path)?;
     serde_json::from_str(&text)
         .map_err(|e| Error::parse(path, e.line() as u64, e.column() as u64, e.to_string()))
 }

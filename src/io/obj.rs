@@ -17,7 +17,7 @@ pub struct Mesh {
 
 /// Reads an OBJ file.
 pub fn read_obj(path: &Path) -> Result<Mesh> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let text = crate::io::read_text(path)?;
     parse_obj(path, &text)
 }
 

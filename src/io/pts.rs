@@ -132,7 +132,7 @@ pub(super) fn read_dir(dir: &Path, dims: usize) -> Result<Sequence> {
     let mut data = Vec::new();
     let mut points = None;
     for f in &files {
-        let text = std::fs::read_to_string(f).map_err(|e| Error::io(f, e))?;
+        let text = super::read_text(f)?;
         let shape = parse(f, &text)?;
         let n = shape.len() / 2;
         match points {

@@ -172,7 +172,7 @@ fn collect<'a>(
 
 /// Reads an edited template back as a target set (one shape per key group).
 pub fn read_template(path: &Path) -> Result<TargetSet> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let text = crate::io::read_text(path)?;
     let meta = find_meta(path, &text)?;
     let tree = usvg::Tree::from_str(&text, &usvg::Options::default())
         .map_err(|e| Error::file(path, format!("SVG: {e}")))?;

@@ -86,6 +86,7 @@ pub(super) fn read(path: &Path, text: &str, format: Format, dims: usize) -> Resu
     let (mut times, mut segments) = (Vec::new(), Vec::new());
     let mut record = csv::StringRecord::new();
     let mut row = 0i64;
+    let mut seen: HashMap<i64, u64> = HashMap::new();
     while rdr
         .read_record(&mut record)
         .map_err(|e| csv_error(path, &e))?
@@ -112,6 +113,15 @@ pub(super) fn read(path: &Path, text: &str, format: Format, dims: usize) -> Resu
             None => row,
         };
         row += 1;
+        if let Some(first) = seen.insert(frame, line) {
+            let c = frame_col.map_or(0, |c| c as u64 + 1);
+            return Err(Error::parse(
+                path,
+                line,
+                c,
+                format!("frame {frame} appears twice (first on line {first}): frame numbers must be unique"),
+            ));
+        }
         let ok = match valid_col {
             Some(c) => parse_num(path, line, c, &header[c], &record[c])? != 0.0,
             None => true,
@@ -182,6 +192,39 @@ fn coordinate_columns(
                 }
             }
         }
+    }
+    // Every other `<axis><n>` column is a gap or a renamed column: refuse rather than read
+    // fewer points than the file has.
+    let points = out.len() / dims;
+    let mut stray: Vec<(usize, &str)> = index
+        .iter()
+        .filter(|(name, _)| {
+            cols.axes[..dims].iter().any(|a| {
+                name.strip_prefix(a).is_some_and(|n| {
+                    !n.is_empty()
+                        && n.bytes().all(|b| b.is_ascii_digit())
+                        && n.parse::<usize>().map_or(true, |i| i >= points)
+                })
+            })
+        })
+        .map(|(name, &c)| (c, *name))
+        .collect();
+    stray.sort();
+    if let Some(&(c, name)) = stray.first() {
+        let missing = cols.axes[..dims]
+            .iter()
+            .map(|a| format!("{a}{points}"))
+            .find(|n| !index.contains_key(n.as_str()))
+            .unwrap_or_else(|| format!("{}{points}", cols.axes[0]));
+        return Err(Error::parse(
+            path,
+            1,
+            c as u64 + 1,
+            format!(
+                "header has '{name}' but no '{missing}': landmark columns must run without gaps from {}0 (read {points} points before the gap)",
+                cols.axes[0]
+            ),
+        ));
     }
     if out.is_empty() {
         return Err(Error::parse(

