@@ -113,10 +113,12 @@ impl Decomposition {
         r.iter().sum::<f64>() / r.len().max(1) as f64
     }
 
-    /// Share of weights below zero.
+    /// Share of weights below zero; a weight within rounding of zero
+    /// ([`NEGATIVE_TOLERANCE`] × the largest |w|) does not count.
     pub fn negative_share(&self) -> f64 {
         let n = self.weights.len().max(1);
-        self.weights.iter().filter(|&&w| w < 0.0).count() as f64 / n as f64
+        let tol = NEGATIVE_TOLERANCE * self.max_abs_weight();
+        self.weights.iter().filter(|&&w| w < -tol).count() as f64 / n as f64
     }
 
     /// Largest |w|.
@@ -124,6 +126,10 @@ impl Decomposition {
         self.weights.iter().fold(0.0, |m, w| m.max(w.abs()))
     }
 }
+
+/// A weight counts as negative below −this × the largest |w|: an LS weight of −3e-14 is
+/// rounding, not a negative weight.
+pub const NEGATIVE_TOLERANCE: f64 = 1e-9;
 
 /// Solves weights for every column of `coords` (shapes with `points` points) on the key
 /// shapes at `key_columns`; with `neutral`, on deltas from that frame.

@@ -55,6 +55,11 @@ pub fn parse_range(s: &str) -> Result<(usize, usize), String> {
 }
 
 pub fn run(a: &CurvesArgs) -> Result<()> {
+    super::check_outputs(
+        &[a.out.as_ref(), a.png.as_ref()],
+        &[],
+        &[a.input.file.as_deref()],
+    )?;
     let (_, prep) = a.input.prepare()?;
     let methods: Vec<Method> = a.methods.iter().map(|m| a.heuristic.apply(*m)).collect();
     let axes = keyshape_lab::keyshapes::axes_needed(&methods, a.k.1);

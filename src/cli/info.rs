@@ -17,9 +17,18 @@ pub struct InfoArgs {
 }
 
 pub fn run(a: &InfoArgs) -> Result<()> {
+    if a.input.no_align {
+        anyhow::bail!("--no-align does not apply to info: it always reports the file's own coordinates");
+    }
     let seq = a.input.read()?;
+    let mut ranges = seq.ranges();
     let selected = match (&a.input.points, Layout::for_points(seq.points)) {
-        (Some(spec), Some(l)) => Some(l.select(spec)?.len()),
+        (Some(spec), Some(l)) => {
+            let idx = l.select(spec)?;
+            // Ranges of the selected points only.
+            ranges = seq.select_points(&idx)?.ranges();
+            Some(idx.len())
+        }
         (Some(spec), None) => anyhow::bail!(
             "--points {spec}: no built-in layout has {} points",
             seq.points
@@ -27,7 +36,6 @@ pub fn run(a: &InfoArgs) -> Result<()> {
         _ => None,
     };
     let layout = Layout::for_points(seq.points);
-    let ranges = seq.ranges();
     let axes = ["x", "y", "z"];
     if a.json {
         let r: serde_json::Map<_, _> = ranges

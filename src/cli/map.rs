@@ -36,39 +36,39 @@ pub struct MapArgs {
     #[arg(long, requires = "target_sequence")]
     target_actions: Option<PathBuf>,
     /// Mode alignment (default: pair the modes of identically named actions).
-    #[arg(long)]
+    #[arg(long, requires = "target_sequence")]
     alignment: Option<PathBuf>,
     /// Write the alignment used, to edit and pass back with --alignment.
-    #[arg(long)]
+    #[arg(long, requires = "target_sequence")]
     write_alignment: Option<PathBuf>,
     /// Write the normalised action trajectories as CSV.
     #[arg(long)]
     out: Option<PathBuf>,
     /// Side-by-side PNGs (source beside the second person) here.
-    #[arg(long)]
+    #[arg(long, requires = "target_sequence")]
     png_dir: Option<PathBuf>,
     /// The same as an animated PNG.
-    #[arg(long)]
+    #[arg(long, requires = "target_sequence")]
     apng: Option<PathBuf>,
     /// Folder of the ICT face (neutral_face.obj, expressions.csv, expression_deltas.csv) to
     /// drive with morph targets (Eq. 8).
     #[arg(long)]
     morph: Option<PathBuf>,
     /// Action → morph-target mapping (JSON, or `builtin`).
-    #[arg(long, default_value = "builtin")]
+    #[arg(long, default_value = "builtin", requires = "morph")]
     mapping: String,
     /// Write one OBJ per frame of the morphed face here.
-    #[arg(long)]
+    #[arg(long, requires = "morph")]
     morph_obj_dir: Option<PathBuf>,
     /// Write one PNG per frame of the morphed face (wireframe) here.
-    #[arg(long)]
+    #[arg(long, requires = "morph")]
     morph_png_dir: Option<PathBuf>,
     /// Write the morphed face as glTF with morph-target animation.
-    #[arg(long)]
+    #[arg(long, requires = "morph")]
     morph_gltf: Option<PathBuf>,
     /// Only every N-th frame for the per-frame outputs.
-    #[arg(long, default_value_t = 1)]
-    every: usize,
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..))]
+    every: u64,
 }
 
 fn model_of(prep: &Prepared, actions: &Actions, modes: usize) -> Result<PersonModel> {
@@ -91,6 +91,29 @@ pub fn run(a: &MapArgs) -> Result<()> {
     if a.input.points.is_some() {
         anyhow::bail!("--points does not apply: the regions choose the points");
     }
+    if a.target_sequence.is_none() && a.morph.is_none() && a.out.is_none() {
+        anyhow::bail!("nothing to do: give --target-sequence, --morph or --out");
+    }
+    super::check_outputs(
+        &[
+            a.out.as_ref(),
+            a.apng.as_ref(),
+            a.write_alignment.as_ref(),
+            a.morph_gltf.as_ref(),
+        ],
+        &[
+            a.png_dir.as_ref(),
+            a.morph_obj_dir.as_ref(),
+            a.morph_png_dir.as_ref(),
+        ],
+        &[
+            a.input.file.as_deref(),
+            Some(&a.actions),
+            a.target_sequence.as_deref(),
+            a.target_actions.as_deref(),
+            a.alignment.as_deref(),
+        ],
+    )?;
     let (_, prep) = a.input.prepare()?;
     let actions = Actions::read(&a.actions)?;
     let src =
@@ -112,7 +135,7 @@ pub fn run(a: &MapArgs) -> Result<()> {
             Ok(())
         })?;
     }
-    let every = a.every.max(1);
+    let every = a.every as usize;
     if let Some(tpath) = &a.target_sequence {
         let tseq = read_sequence(tpath, &ReadOptions::default())?;
         let tprep = prepare(
@@ -148,9 +171,6 @@ pub fn run(a: &MapArgs) -> Result<()> {
     }
     if let Some(dir) = &a.morph {
         morph(a, &prep, dir, &names, &action_traj, every)?;
-    }
-    if a.target_sequence.is_none() && a.morph.is_none() && a.out.is_none() {
-        anyhow::bail!("nothing to do: give --target-sequence, --morph or --out");
     }
     Ok(())
 }

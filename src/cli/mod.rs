@@ -37,7 +37,32 @@ mod transfer;
 mod tui;
 
 use clap::{Parser, Subcommand};
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+
+/// Checks every output a command will write before it does any work: each file's directory
+/// takes new files, each directory can be made, no output is an input (`inputs`, or any file
+/// already read) and no two outputs name the same path. A command that cannot write one of
+/// its outputs then fails before writing any.
+pub(crate) fn check_outputs(
+    files: &[Option<&PathBuf>],
+    dirs: &[Option<&PathBuf>],
+    inputs: &[Option<&Path>],
+) -> anyhow::Result<()> {
+    let inputs: Vec<&Path> = inputs.iter().flatten().copied().collect();
+    let mut seen: Vec<&Path> = Vec::new();
+    for f in files.iter().flatten() {
+        keyshape_lab::io::check_output(f, &inputs)?;
+        if seen.contains(&f.as_path()) && f.as_os_str() != "-" {
+            anyhow::bail!("{}: named as two outputs", f.display());
+        }
+        seen.push(f);
+    }
+    for d in dirs.iter().flatten() {
+        keyshape_lab::io::check_output_dir(d)?;
+    }
+    Ok(())
+}
 
 /// keyshape-lab: with no command, the interactive lab on the built-in sequence. Pick key shapes from a tracked facial performance, solve blend weights,
 /// and see how they retarget.

@@ -59,6 +59,11 @@ pub fn run(a: &ModesArgs) -> Result<()> {
     if a.input.points.is_some() {
         anyhow::bail!("--points does not apply: the regions choose the points");
     }
+    super::check_outputs(
+        &[a.png.as_ref()],
+        &[],
+        &[a.input.file.as_deref(), Some(&a.actions)],
+    )?;
     let (_, prep) = a.input.prepare()?;
     let layout = prep
         .layout

@@ -100,6 +100,11 @@ fn target_for(
 }
 
 pub fn run(a: &RetargetArgs) -> Result<()> {
+    super::check_outputs(
+        &[a.out.as_ref(), a.apng.as_ref()],
+        &[a.png_dir.as_ref()],
+        &[a.input.file.as_deref(), a.target.as_deref()],
+    )?;
     let (seq, prep) = a.input.prepare()?;
     let s = &prep.seq;
     let opts = KeyOptions {

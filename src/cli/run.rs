@@ -30,6 +30,7 @@ pub fn run(a: &RunArgs) -> Result<()> {
             .unwrap_or_else(|| "experiment".into());
         PathBuf::from("out").join(stem)
     });
+    super::check_outputs(&[], &[Some(&dir)], &[Some(&a.spec)])?;
     let progress = Progress::new(&spec.title, a.quiet);
     let outcome = run_spec(&spec, &base, &|d, t| progress.tick(d, t))?;
     progress.finish();

@@ -41,6 +41,7 @@ pub fn parse_solver(s: &str) -> Result<Solver, String> {
 }
 
 pub fn run(a: &SolveArgs) -> Result<()> {
+    super::check_outputs(&[a.out.as_ref()], &[], &[a.input.file.as_deref()])?;
     let (_, prep) = a.input.prepare()?;
     let seq = &prep.seq;
     let cols = a

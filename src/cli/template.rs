@@ -25,6 +25,7 @@ pub struct TemplateArgs {
 }
 
 pub fn run(a: &TemplateArgs) -> Result<()> {
+    super::check_outputs(&[Some(&a.out)], &[], &[a.input.file.as_deref()])?;
     let (_, prep) = a.input.prepare()?;
     let s = &prep.seq;
     if s.dims != 2 {

@@ -24,7 +24,9 @@ pub struct TransferArgs {
     /// Target mesh (OBJ), e.g. ../shared/data/ict_facekit_face/neutral_face.obj.
     #[arg(long)]
     mesh: PathBuf,
-    /// Correspondences: a JSON file, or `builtin` (MediaPipe → canonical face, 68 → ICT).
+    /// Correspondences: a JSON file, a built-in name (mediapipe_to_canonical,
+    /// ibug68_to_ict), or `builtin`: the built-in one made for this track's layout and this
+    /// mesh (a mismatch is refused, naming the file that fits).
     #[arg(long, default_value = "builtin")]
     features: String,
     /// Partial retargeting: only these feature groups move (e.g. `mouth,jaw`).
@@ -46,8 +48,8 @@ pub struct TransferArgs {
     #[arg(long)]
     png_dir: Option<PathBuf>,
     /// Only every N-th frame for --obj-dir / --png-dir.
-    #[arg(long, default_value_t = 1)]
-    every: usize,
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..))]
+    every: u64,
     /// Print a JSON summary.
     #[arg(long)]
     json: bool,
@@ -57,14 +59,26 @@ pub fn run(a: &TransferArgs) -> Result<()> {
     if a.input.points.is_some() {
         anyhow::bail!("--points does not apply to transfer: the feature correspondence chooses the points (use --groups)");
     }
+    super::check_outputs(
+        &[a.gltf.as_ref()],
+        &[a.obj_dir.as_ref(), a.png_dir.as_ref()],
+        &[
+            a.input.file.as_deref(),
+            Some(&a.mesh),
+            a.weights.as_deref(),
+            Some(std::path::Path::new(&a.features)),
+        ],
+    )?;
     let (_, prep) = a.input.prepare()?;
     let s = &prep.seq;
-    let features = if a.features == "builtin" {
-        Features::builtin_for(s.points)?
-    } else {
-        Features::read(std::path::Path::new(&a.features))?
-    };
     let mesh = read_obj(&a.mesh)?;
+    let layout = keyshape_lab::sequence::Layout::for_points(s.points);
+    let features = Features::choose(
+        &a.features,
+        layout.as_ref().map(|l| l.name.as_str()),
+        s.points,
+        mesh.positions.len(),
+    )?;
     let ncol = match a.neutral {
         Some(f) => s
             .column_of_frame(f)
@@ -93,7 +107,7 @@ pub fn run(a: &TransferArgs) -> Result<()> {
     let t1 = Instant::now();
     let frames = tr.all_frames(&s.coords);
     let deform = t1.elapsed().as_secs_f64();
-    let every = a.every.max(1);
+    let every = a.every as usize;
     if let Some(dir) = &a.obj_dir {
         std::fs::create_dir_all(dir).with_context(|| format!("{}", dir.display()))?;
         for (t, pos) in frames.iter().enumerate().step_by(every) {

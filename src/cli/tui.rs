@@ -41,12 +41,14 @@ pub fn run(a: &TuiArgs) -> Result<()> {
     let mesh = match &a.mesh {
         None => None,
         Some(m) => {
-            let features = if a.features == "builtin" {
-                keyshape_lab::transfer::features::Features::builtin_for(seq.points)?
-            } else {
-                keyshape_lab::transfer::features::Features::read(std::path::Path::new(&a.features))?
-            };
             let obj = keyshape_lab::io::obj::read_obj(m)?;
+            let layout = keyshape_lab::sequence::Layout::for_points(seq.points);
+            let features = keyshape_lab::transfer::features::Features::choose(
+                &a.features,
+                layout.as_ref().map(|l| l.name.as_str()),
+                seq.points,
+                obj.positions.len(),
+            )?;
             Some(keyshape_lab::tui::mesh::mesh_view(&seq, obj, features)?)
         }
     };

@@ -10,7 +10,7 @@ mod pts;
 pub mod svg;
 mod table;
 
-pub use atomic::write_atomic;
+pub use atomic::{check_output, check_output_dir, write_atomic};
 pub use builtin::{builtin_sequence, BUILTIN_NAME};
 
 use crate::error::{Error, Result};
@@ -124,6 +124,7 @@ pub fn read_text(path: &Path) -> Result<String> {
         ));
     }
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    atomic::register_input(path);
     let gz = path.extension().is_some_and(|e| e == "gz");
     text_from_bytes(path, bytes, gz)
 }

@@ -99,8 +99,14 @@ impl Retargeted {
 
     /// Share of negative weights.
     pub fn negative_share(&self) -> f64 {
+        let max = self
+            .weights
+            .iter()
+            .flat_map(|w| w.iter())
+            .fold(0.0f64, |m, v| m.max(v.abs()));
+        let tol = crate::decompose::NEGATIVE_TOLERANCE * max;
         let (neg, all) = self.weights.iter().fold((0usize, 0usize), |(n, a), w| {
-            (n + w.iter().filter(|v| **v < 0.0).count(), a + w.len())
+            (n + w.iter().filter(|v| **v < -tol).count(), a + w.len())
         });
         neg as f64 / all.max(1) as f64
     }

@@ -36,6 +36,9 @@ pub struct Features {
     /// What mesh the target indices refer to.
     #[serde(default)]
     pub target: String,
+    /// The vertex count of that mesh, when known: a mesh with another count is refused.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub target_vertices: Option<usize>,
     /// Skin radius factor per group (× distance to the 2nd-nearest other feature point).
     pub radius_factor: BTreeMap<String, f64>,
     /// The feature points.
@@ -59,15 +62,101 @@ impl Features {
         serde_json::from_str(text).map_err(|e| Error::invalid(format!("built-in features: {e}")))
     }
 
-    /// The built-in correspondence for a source point count.
-    pub fn builtin_for(points: usize) -> Result<Features> {
-        match points {
-            468 => Features::builtin("mediapipe_to_canonical"),
-            68 => Features::builtin("ibug68_to_ict"),
-            n => Err(Error::invalid(format!(
-                "no built-in features for {n}-point sequences: give --features"
-            ))),
+    /// The names of the built-in correspondences.
+    pub const BUILTIN: [&'static str; 2] = ["mediapipe_to_canonical", "ibug68_to_ict"];
+
+    /// One line saying what this correspondence fits.
+    pub fn fits(&self) -> String {
+        format!(
+            "{}-point {} tracks onto {}{}",
+            self.source_points,
+            self.source_layout,
+            if self.target.is_empty() {
+                "a mesh"
+            } else {
+                &self.target
+            },
+            self.target_vertices
+                .map_or(String::new(), |v| format!(" ({v} vertices)"))
+        )
+    }
+
+    /// Errors unless this correspondence was made for a track of `points` landmarks in
+    /// `layout` and a mesh of `vertices` vertices. `name` names it in the message.
+    pub fn check_fits(
+        &self,
+        name: &str,
+        layout: Option<&str>,
+        points: usize,
+        vertices: usize,
+    ) -> Result<()> {
+        let layout_ok = layout.is_none_or(|l| l == self.source_layout);
+        let mesh_ok = self.target_vertices.is_none_or(|v| v == vertices);
+        if self.source_points == points && layout_ok && mesh_ok {
+            return Ok(());
         }
+        let track = match layout {
+            Some(l) => format!("{points}-point {l} track"),
+            None => format!("{points}-point track"),
+        };
+        let fitting: Vec<String> = Features::BUILTIN
+            .iter()
+            .filter_map(|b| Features::builtin(b).ok().map(|f| (b, f)))
+            .filter(|(_, f)| {
+                f.source_points == points
+                    && layout.is_none_or(|l| l == f.source_layout)
+                    && f.target_vertices.is_none_or(|v| v == vertices)
+            })
+            .map(|(b, _)| b.to_string())
+            .collect();
+        let hint = if fitting.is_empty() {
+            format!(
+                "no built-in correspondence fits a {track} and a {vertices}-vertex mesh: write a features file for them (see assets/features/)"
+            )
+        } else {
+            format!("use --features {}", fitting.join(" or "))
+        };
+        Err(Error::invalid(format!(
+            "features {name} are for {}, not a {track} onto a {vertices}-vertex mesh: {hint}",
+            self.fits()
+        )))
+    }
+
+    /// The correspondence `spec` names (`builtin`: the built-in one that fits; a built-in
+    /// name; or a JSON file), checked against the track (`layout`, `points`) and the mesh
+    /// (`vertices`) by layout and size, never picked by point count alone.
+    pub fn choose(
+        spec: &str,
+        layout: Option<&str>,
+        points: usize,
+        vertices: usize,
+    ) -> Result<Features> {
+        if spec == "builtin" {
+            for b in Features::BUILTIN {
+                let f = Features::builtin(b)?;
+                if f.check_fits(b, layout, points, vertices).is_ok() {
+                    return Ok(f);
+                }
+            }
+            let all: Vec<String> = Features::BUILTIN
+                .iter()
+                .filter_map(|b| Features::builtin(b).ok().map(|f| format!("{b} fits {}", f.fits())))
+                .collect();
+            let track = layout.map_or(format!("{points}-point track"), |l| {
+                format!("{points}-point {l} track")
+            });
+            return Err(Error::invalid(format!(
+                "no built-in feature correspondence fits a {track} onto a {vertices}-vertex mesh ({}); give --features FILE",
+                all.join("; ")
+            )));
+        }
+        let (f, name) = if Features::BUILTIN.contains(&spec) {
+            (Features::builtin(spec)?, spec.to_string())
+        } else {
+            (Features::read(Path::new(spec))?, spec.to_string())
+        };
+        f.check_fits(&name, layout, points, vertices)?;
+        Ok(f)
     }
 
     /// Reads a correspondence file.

@@ -169,7 +169,7 @@ pub fn run(
     let mut s = State::new(&seq.source, seq.n_frames(), seq.fps().unwrap_or(30.0));
     s.target_keys = target.is_some();
     s.mesh = mesh.map(std::sync::Arc::new);
-    s.show_mesh = s.mesh.is_some();
+    s.show_mesh = false; // the 2-D target first; `x` shows the mesh
     let (jobs, results) = compute::spawn(seq, target);
     let mut terminal = ratatui::try_init()?;
     let _ = crossterm::execute!(std::io::stdout(), crossterm::event::EnableMouseCapture);
