@@ -6,7 +6,7 @@ use super::progress::Progress;
 use anyhow::Result;
 use clap::Args;
 use keyshape_lab::keyshapes::curves::sweep;
-use keyshape_lab::keyshapes::{Analysis, KeyOptions, Method};
+use keyshape_lab::keyshapes::{Analysis, Method};
 use keyshape_lab::report::write_curves_csv;
 use keyshape_lab::solve::Solver;
 use std::path::PathBuf;
@@ -60,15 +60,15 @@ pub fn run(a: &CurvesArgs) -> Result<()> {
         &[],
         &[a.input.file.as_deref()],
     )?;
+    // --shortlist counts if any solver of the sweep uses it.
+    let constrained = a.solvers.iter().copied().find(|s| *s != Solver::Ls);
+    a.heuristic
+        .check(&a.methods, constrained.unwrap_or(a.solvers[0]))?;
     let (_, prep) = a.input.prepare()?;
     let methods: Vec<Method> = a.methods.iter().map(|m| a.heuristic.apply(*m)).collect();
     let axes = keyshape_lab::keyshapes::axes_needed(&methods, a.k.1);
     let an = Analysis::with_axes(prep.seq.coords.clone(), prep.seq.points, axes)?;
-    let opts = KeyOptions {
-        solver: a.solvers[0],
-        seed: a.heuristic.seed,
-        shortlist: a.heuristic.shortlist,
-    };
+    let opts = a.heuristic.options(a.solvers[0]);
     let progress = Progress::new("curves", a.quiet);
     let rows = sweep(&an, &methods, a.k.0..=a.k.1, &a.solvers, &opts, &|d, t| {
         progress.tick(d, t)

@@ -11,26 +11,65 @@ use serde_json::json;
 /// Options every key-shape command shares.
 #[derive(Debug, Clone, Args)]
 pub struct HeuristicArgs {
-    /// Seed for kmeans and random.
-    #[arg(long, default_value_t = 7)]
-    pub seed: u64,
-    /// greedy with nnls/bounded: exact solves per step for this many candidates, ranked by
-    /// least-squares gain (0 = every frame, exact and slow).
-    #[arg(long, default_value_t = 8)]
-    pub shortlist: usize,
-    /// Principal components k-means clusters (overrides the N of kmeansN).
+    /// Seed for kmeans and random [default: 7].
     #[arg(long)]
-    pub pcs: Option<usize>,
+    pub seed: Option<u64>,
+    /// greedy with nnls/bounded: exact solves per step for this many candidates, ranked by
+    /// least-squares gain (0 = every frame, exact and slow) [default: 8].
+    #[arg(long)]
+    pub shortlist: Option<usize>,
+    /// Principal components k-means clusters (overrides the N of kmeansN; 1–64).
+    #[arg(long, value_parser = clap::value_parser!(u64).range(1..=64))]
+    pub pcs: Option<u64>,
 }
 
 impl HeuristicArgs {
     /// `method` with `--pcs` applied to k-means.
     pub fn apply(&self, method: Method) -> Method {
         match (method, self.pcs) {
-            (Method::KMeans { .. }, Some(pcs)) => Method::KMeans {
-                pcs: pcs.clamp(1, 64),
-            },
+            (Method::KMeans { .. }, Some(pcs)) => Method::KMeans { pcs: pcs as usize },
             (m, _) => m,
+        }
+    }
+
+    /// Errors when an option was given that none of `methods` uses (with `solver`), so no
+    /// option is silently ignored.
+    pub fn check(&self, methods: &[Method], solver: Solver) -> Result<()> {
+        let names = || {
+            methods
+                .iter()
+                .map(|m| m.name())
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        if methods.is_empty() {
+            if self.pcs.is_some() || self.seed.is_some() || self.shortlist.is_some() {
+                anyhow::bail!("--pcs, --seed and --shortlist apply when --method chooses the keys, not with --keys");
+            }
+            return Ok(());
+        }
+        let any = |f: fn(&Method) -> bool| methods.iter().any(f);
+        if self.pcs.is_some() && !any(|m| matches!(m, Method::KMeans { .. })) {
+            anyhow::bail!("--pcs applies to k-means only, not to {}", names());
+        }
+        if self.seed.is_some() && !any(|m| matches!(m, Method::KMeans { .. } | Method::Random)) {
+            anyhow::bail!("--seed applies to kmeans and random only, not to {}", names());
+        }
+        if self.shortlist.is_some() && (!any(|m| *m == Method::Greedy) || solver == Solver::Ls) {
+            anyhow::bail!(
+                "--shortlist applies to greedy with the nnls or bounded solver only (here: {} with {solver})",
+                names()
+            );
+        }
+        Ok(())
+    }
+
+    /// The key options these arguments set.
+    pub fn options(&self, solver: Solver) -> KeyOptions {
+        KeyOptions {
+            solver,
+            seed: self.seed.unwrap_or(7),
+            shortlist: self.shortlist.unwrap_or(8),
         }
     }
 }
@@ -43,9 +82,9 @@ pub struct KeysArgs {
     /// spread, kmeans2, kmeans3, kmeansN (N principal components), hull, greedy or random.
     #[arg(long, value_parser = parse_method)]
     method: Method,
-    /// Number of key shapes (hull ignores it: k is whatever the hull gives).
-    #[arg(long, required_unless_present_any = ["method"], default_value_t = 0)]
-    k: usize,
+    /// Number of key shapes (required, except for hull: the hull gives its own k).
+    #[arg(long)]
+    k: Option<usize>,
     /// Solver for the reported error and for greedy's choices.
     #[arg(long, default_value = "nnls", value_parser = super::solve::parse_solver)]
     solver: Solver,
@@ -61,19 +100,14 @@ pub fn parse_method(s: &str) -> Result<Method, String> {
 }
 
 pub fn run(a: &KeysArgs) -> Result<()> {
-    if a.k == 0 && a.method != Method::Hull {
-        anyhow::bail!("--k is required for --method {}", a.method);
-    }
+    let k = k_for(a.method, a.k)?;
+    a.heuristic.check(&[a.method], a.solver)?;
     let (_, prep) = a.input.prepare()?;
     let method = a.heuristic.apply(a.method);
-    let axes = keyshape_lab::keyshapes::axes_needed(&[method], a.k);
+    let axes = keyshape_lab::keyshapes::axes_needed(&[method], k);
     let an = Analysis::with_axes(prep.seq.coords.clone(), prep.seq.points, axes)?;
-    let opts = KeyOptions {
-        solver: a.solver,
-        seed: a.heuristic.seed,
-        shortlist: a.heuristic.shortlist,
-    };
-    let sel = method.heuristic(&opts).select(&an, a.k)?;
+    let opts = a.heuristic.options(a.solver);
+    let sel = method.heuristic(&opts).select(&an, k)?;
     let frames: Vec<i64> = sel.columns.iter().map(|&c| prep.seq.frames[c]).collect();
     let e = an.error(&sel.columns, a.solver)?;
     if a.json {
@@ -122,9 +156,32 @@ pub struct KeyChoiceArgs {
     /// Heuristic choosing the key frames (default spread).
     #[arg(long, value_parser = parse_method)]
     pub method: Option<Method>,
-    /// Number of key shapes for --method.
-    #[arg(long, default_value_t = 12)]
-    pub k: usize,
+    /// Number of key shapes for --method [default: 12; hull gives its own k].
+    #[arg(long, conflicts_with = "keys")]
+    pub k: Option<usize>,
+}
+
+impl KeyChoiceArgs {
+    /// The heuristic that will choose the keys (none with `--keys`).
+    pub fn methods(&self) -> Vec<Method> {
+        if self.keys.is_empty() {
+            vec![self.method.unwrap_or(Method::Spread)]
+        } else {
+            Vec::new()
+        }
+    }
+}
+
+/// The k a method runs with: `k` as given (required unless hull); hull refuses one.
+pub fn k_for(method: Method, k: Option<usize>) -> Result<usize> {
+    match (method, k) {
+        (Method::Hull, Some(_)) => anyhow::bail!(
+            "--method hull chooses its own k (the frames on the hull of the first two principal components): drop --k"
+        ),
+        (Method::Hull, None) => Ok(0),
+        (_, Some(k)) => Ok(k),
+        (m, None) => anyhow::bail!("--k is required for --method {m}"),
+    }
 }
 
 impl KeyChoiceArgs {
@@ -147,11 +204,15 @@ impl KeyChoiceArgs {
                 .collect();
         }
         let m = self.method.unwrap_or(Method::Spread);
+        let k = match (m, self.k) {
+            (Method::Hull, _) => k_for(m, self.k)?,
+            (_, k) => k.unwrap_or(12),
+        };
         let an = Analysis::with_axes(
             coords,
             points,
-            keyshape_lab::keyshapes::axes_needed(&[m], self.k),
+            keyshape_lab::keyshapes::axes_needed(&[m], k),
         )?;
-        Ok(m.heuristic(opts).select(&an, self.k)?.columns)
+        Ok(m.heuristic(opts).select(&an, k)?.columns)
     }
 }

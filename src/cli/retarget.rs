@@ -6,7 +6,6 @@ use anyhow::{Context, Result};
 use clap::Args;
 use keyshape_lab::decompose::Prepared;
 use keyshape_lab::io::{fmt_num, write_atomic};
-use keyshape_lab::keyshapes::KeyOptions;
 use keyshape_lab::render::face::{bounds_of, col, render_frame, FrameShapes};
 use keyshape_lab::render::{apng::write_apng, save_png};
 use keyshape_lab::retarget::regions::{plan, Regions};
@@ -60,13 +59,31 @@ pub struct RetargetArgs {
     json: bool,
 }
 
+/// The target set of `--target` (JSON or an SVG template), if given.
+fn read_target(a: &RetargetArgs) -> Result<Option<TargetSet>> {
+    let Some(path) = &a.target else {
+        return Ok(None);
+    };
+    Ok(Some(
+        if path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("svg"))
+        {
+            keyshape_lab::io::svg::read_template(path)?
+        } else {
+            TargetSet::read_json(path)?
+        },
+    ))
+}
+
 fn target_for(
     a: &RetargetArgs,
     seq: &Sequence,
     prep: &Prepared,
+    set: Option<&TargetSet>,
     key_frames: &[i64],
 ) -> Result<(Target, Vec<Vec<usize>>)> {
-    let Some(path) = &a.target else {
+    let (Some(path), Some(set)) = (&a.target, set) else {
         let layout_lines = prep
             .layout
             .as_ref()
@@ -80,14 +97,6 @@ fn target_for(
             },
             layout_lines,
         ));
-    };
-    let set = if path
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("svg"))
-    {
-        keyshape_lab::io::svg::read_template(path)?
-    } else {
-        TargetSet::read_json(path)?
     };
     let keys = set
         .for_frames(key_frames)
@@ -105,13 +114,22 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
         &[a.png_dir.as_ref()],
         &[a.input.file.as_deref(), a.target.as_deref()],
     )?;
+    a.heuristic.check(&a.choice.methods(), a.solver)?;
+    if a.regions.is_some() && a.choice.k.is_some() {
+        anyhow::bail!("--regions gives each region its own k (from the regions file): drop --k");
+    }
+    if a.trace_noise != 0.0 && a.target.is_some() {
+        anyhow::bail!("--trace-noise applies to the built-in target only, not to --target");
+    }
+    if !(a.trace_noise.is_finite() && (0.0..=1.0).contains(&a.trace_noise)) {
+        anyhow::bail!(
+            "--trace-noise {:?} is not a fraction of the inter-ocular distance in [0, 1]",
+            a.trace_noise
+        );
+    }
     let (seq, prep) = a.input.prepare()?;
     let s = &prep.seq;
-    let opts = KeyOptions {
-        solver: a.solver,
-        seed: a.heuristic.seed,
-        shortlist: a.heuristic.shortlist,
-    };
+    let opts = a.heuristic.options(a.solver);
     let neutral = a
         .neutral
         .map(|f| {
@@ -119,7 +137,37 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
                 .with_context(|| format!("--neutral {f}"))
         })
         .transpose()?;
+    let set = read_target(a)?;
+    if set.is_some() && a.regions.is_some() {
+        anyhow::bail!(
+            "--regions works with the built-in target only (each region picks its own key frames)"
+        );
+    }
+    let chosen = !a.choice.keys.is_empty() || a.choice.method.is_some();
+    if set.is_some() && !chosen && a.choice.k.is_some() {
+        anyhow::bail!("--k applies with --method; without it the key frames are the target's own");
+    }
     let plan_keys = match &a.regions {
+        // A target set stands for the frames it was drawn from: those are the keys, unless
+        // --keys or --method asks for others (then the frames must match, said below).
+        None if set.is_some() && !chosen => {
+            let set = set.as_ref().expect("checked above");
+            let path = a.target.as_deref().unwrap_or(std::path::Path::new(""));
+            let cols = set
+                .keys
+                .iter()
+                .map(|k| {
+                    s.column_of_frame(k.frame).with_context(|| {
+                        format!(
+                            "{}: key shape for frame {} does not fit this sequence",
+                            path.display(),
+                            k.frame
+                        )
+                    })
+                })
+                .collect::<Result<Vec<_>>>()?;
+            KeyPlan::Global(cols)
+        }
         None => KeyPlan::Global(a.choice.columns(s, s.coords.clone(), s.points, &opts)?),
         Some(r) => {
             let layout = prep
@@ -146,7 +194,9 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
             for (members, &k) in p.members.iter().zip(&p.k) {
                 let sub = s.select_points(members)?;
                 let choice = KeyChoiceArgs {
-                    k,
+                    // hull gives each region the k of its hull.
+                    k: (a.choice.method != Some(keyshape_lab::keyshapes::Method::Hull))
+                        .then_some(k),
                     ..a.choice.clone()
                 };
                 keys.push(choice.columns(s, sub.coords, sub.points, &opts)?);
@@ -159,20 +209,53 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
         KeyPlan::Regions(_, ks) => ks.iter().flatten().copied().collect(),
     };
     let key_frames: Vec<i64> = all_keys.iter().map(|&c| s.frames[c]).collect();
-    if a.target.is_some() && matches!(plan_keys, KeyPlan::Regions(..)) {
-        anyhow::bail!(
-            "--regions works with the built-in target only (each region picks its own key frames)"
-        );
+    // One weight column per key, named by frame (and by region, which may share frames).
+    let columns: Vec<String> = match &plan_keys {
+        KeyPlan::Global(k) => k.iter().map(|&c| format!("w_{}", s.frames[c])).collect(),
+        KeyPlan::Regions(p, ks) => p
+            .names
+            .iter()
+            .zip(ks)
+            .flat_map(|(n, k)| k.iter().map(move |&c| format!("{n}/w_{}", s.frames[c])))
+            .collect(),
+    };
+    let keys_json = match &plan_keys {
+        KeyPlan::Global(_) => json!(key_frames),
+        KeyPlan::Regions(p, ks) => serde_json::Value::Object(
+            p.names
+                .iter()
+                .zip(ks)
+                .map(|(n, k)| {
+                    (
+                        n.clone(),
+                        json!(k.iter().map(|&c| s.frames[c]).collect::<Vec<_>>()),
+                    )
+                })
+                .collect(),
+        ),
+    };
+    if let (Some(set), Some(path)) = (&set, &a.target) {
+        let mut have: Vec<i64> = set.keys.iter().map(|k| k.frame).collect();
+        let mut want = key_frames.clone();
+        have.sort_unstable();
+        want.sort_unstable();
+        if have != want {
+            anyhow::bail!(
+                "{} holds key shapes for frames {have:?}, but {} chose frames {want:?}: drop --keys/--method to use the target's own frames",
+                path.display(),
+                if a.choice.keys.is_empty() { "--method" } else { "--keys" }
+            );
+        }
     }
-    let (target, target_lines) = target_for(a, &seq, &prep, &key_frames)?;
+    let (target, target_lines) = target_for(a, &seq, &prep, set.as_ref(), &key_frames)?;
     let r = retarget(&s.coords, s.dims, &plan_keys, &target, neutral, a.solver)?;
     if let Some(p) = &a.out {
-        write_atomic(p, |w| write_csv(w, s, &r, &key_frames))?;
+        write_atomic(p, |w| write_csv(w, s, &r, &columns))?;
     }
     let summary = json!({
         "source": s.source,
         "solver": a.solver.name(),
-        "keys": key_frames,
+        "keys": keys_json,
         "regions": match &plan_keys { KeyPlan::Regions(p, _) => Some(p.names.clone()), _ => None },
         "frames": s.n_frames(),
         "source_rms": r.source_rms(),
@@ -207,11 +290,12 @@ fn write_csv(
     w: &mut dyn Write,
     s: &Sequence,
     r: &Retargeted,
-    key_frames: &[i64],
+    columns: &[String],
 ) -> std::io::Result<()> {
     let mut head = String::from("frame,source_rms,target_rms");
-    for f in key_frames {
-        head.push_str(&format!(",w_{f}"));
+    for c in columns {
+        head.push(',');
+        head.push_str(c);
     }
     writeln!(w, "{head}")?;
     let trms = r.target_rms_per_frame();

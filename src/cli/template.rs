@@ -5,7 +5,6 @@ use super::keys::{HeuristicArgs, KeyChoiceArgs};
 use anyhow::Result;
 use clap::Args;
 use keyshape_lab::io::{svg::write_template, write_atomic};
-use keyshape_lab::keyshapes::KeyOptions;
 use keyshape_lab::retarget::setup::polylines_for;
 use keyshape_lab::solve::Solver;
 use std::path::PathBuf;
@@ -26,16 +25,13 @@ pub struct TemplateArgs {
 
 pub fn run(a: &TemplateArgs) -> Result<()> {
     super::check_outputs(&[Some(&a.out)], &[], &[a.input.file.as_deref()])?;
+    a.heuristic.check(&a.choice.methods(), Solver::Nnls)?;
     let (_, prep) = a.input.prepare()?;
     let s = &prep.seq;
     if s.dims != 2 {
         anyhow::bail!("SVG templates are 2-D: use --dims 2");
     }
-    let opts = KeyOptions {
-        solver: Solver::Nnls,
-        seed: a.heuristic.seed,
-        shortlist: a.heuristic.shortlist,
-    };
+    let opts = a.heuristic.options(Solver::Nnls);
     let cols = a.choice.columns(s, s.coords.clone(), s.points, &opts)?;
     let keys: Vec<(i64, Vec<f64>)> = cols
         .iter()

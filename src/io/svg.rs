@@ -173,6 +173,12 @@ fn collect<'a>(
 /// Reads an edited template back as a target set (one shape per key group).
 pub fn read_template(path: &Path) -> Result<TargetSet> {
     let text = crate::io::read_text(path)?;
+    parse_template(path, &text)
+}
+
+/// Parses template text (`path` names the file in errors).
+pub fn parse_template(path: &Path, text: &str) -> Result<TargetSet> {
+    let text = text.to_string();
     let meta = find_meta(path, &text)?;
     let tree = usvg::Tree::from_str(&text, &usvg::Options::default())
         .map_err(|e| Error::file(path, format!("SVG: {e}")))?;
