@@ -46,7 +46,23 @@ pub fn prepare(seq: &Sequence, opts: &PrepareOptions) -> Result<Prepared> {
     };
     let mut base = seq.clone();
     let head = if opts.align {
-        let al = procrustes(&seq.coords, seq.dims)?;
+        // Name the frame and file, not an internal column, when a shape cannot be aligned.
+        for (c, col) in seq.coords.column_iter().enumerate() {
+            let v = col.as_slice();
+            let d = seq.dims;
+            let same = v.chunks(d).all(|p| p.iter().zip(&v[..d]).all(|(a, b)| a == b));
+            if same {
+                return Err(Error::file(
+                    &seq.source,
+                    format!(
+                        "frame {}: all {} points coincide, so the shape cannot be aligned (use --no-align, or drop the frame)",
+                        seq.frames[c], seq.points
+                    ),
+                ));
+            }
+        }
+        let al = procrustes(&seq.coords, seq.dims)
+            .map_err(|e| Error::file(&seq.source, e.to_string()))?;
         base.coords = al.coords;
         Some(al.head)
     } else {
@@ -194,6 +210,13 @@ pub fn decompose(
         }
     };
     let (sol, sq_error) = solution;
+    if let Some(t) = (0..n).find(|&t| {
+        !sq_error[t].is_finite() || sol.weights.column(t).iter().any(|w| !w.is_finite())
+    }) {
+        return Err(Error::invalid(format!(
+            "the solve gave non-finite weights or error at frame column {t} (coordinates too large or degenerate key shapes); nothing written"
+        )));
+    }
     Ok(Decomposition {
         key_columns: key_columns.to_vec(),
         neutral,

@@ -11,7 +11,8 @@ use std::path::PathBuf;
 #[derive(Debug, Args)]
 pub struct IntensityArgs {
     /// A py-feat table with landmarks, a `clip` column and ARKit-style scores (default
-    /// ../shared/data/pyfeat_samples/news_sample_compact.csv).
+    /// shared/data/pyfeat_samples/news_sample_compact.csv, found through $KSLAB_SHARED or
+    /// beside the repository, never from the current directory).
     file: Option<PathBuf>,
     /// Clips used for training (the rest are tested), `A..B` inclusive.
     #[arg(long, default_value = "1..14", value_parser = super::curves::parse_range)]
@@ -32,10 +33,10 @@ pub struct IntensityArgs {
 }
 
 pub fn run(a: &IntensityArgs) -> Result<()> {
-    let path = a
-        .file
-        .clone()
-        .unwrap_or_else(|| PathBuf::from("../shared/data/pyfeat_samples/news_sample_compact.csv"));
+    let path = match &a.file {
+        Some(p) => p.clone(),
+        None => keyshape_lab::io::shared_data("pyfeat_samples/news_sample_compact.csv")?,
+    };
     let st = StudySettings {
         train_clips: a.train_clips,
         k: a.k,

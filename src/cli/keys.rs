@@ -151,7 +151,12 @@ pub fn run(a: &KeysArgs) -> Result<()> {
 #[derive(Debug, Clone, Args)]
 pub struct KeyChoiceArgs {
     /// Key frames by frame number (or choose them with --method and --k).
-    #[arg(long, value_delimiter = ',', conflicts_with = "method")]
+    #[arg(
+        long,
+        value_delimiter = ',',
+        conflicts_with = "method",
+        allow_negative_numbers = true
+    )]
     pub keys: Vec<i64>,
     /// Heuristic choosing the key frames (default spread).
     #[arg(long, value_parser = parse_method)]
@@ -170,6 +175,22 @@ impl KeyChoiceArgs {
             Vec::new()
         }
     }
+}
+
+/// Columns of the key frames `--keys` names by frame number; a frame listed twice, failed
+/// or out of range is an error naming the frame.
+pub fn frame_columns(seq: &keyshape_lab::sequence::Sequence, frames: &[i64]) -> Result<Vec<usize>> {
+    let mut seen = std::collections::HashSet::new();
+    frames
+        .iter()
+        .map(|&f| {
+            if !seen.insert(f) {
+                anyhow::bail!("--keys: frame {f} is listed twice");
+            }
+            seq.column_of_frame(f)
+                .with_context(|| format!("--keys {f}"))
+        })
+        .collect()
 }
 
 /// The k a method runs with: `k` as given (required unless hull); hull refuses one.
@@ -194,14 +215,7 @@ impl KeyChoiceArgs {
         opts: &KeyOptions,
     ) -> Result<Vec<usize>> {
         if !self.keys.is_empty() {
-            return self
-                .keys
-                .iter()
-                .map(|&f| {
-                    seq.column_of_frame(f)
-                        .with_context(|| format!("--keys {f}"))
-                })
-                .collect();
+            return frame_columns(seq, &self.keys);
         }
         let m = self.method.unwrap_or(Method::Spread);
         let k = match (m, self.k) {

@@ -17,7 +17,13 @@ pub struct SolveArgs {
     #[command(flatten)]
     input: InputArgs,
     /// Key frames, by the frame numbers the file uses, e.g. `3,17,42`.
-    #[arg(long, value_delimiter = ',', required = true, num_args = 1..)]
+    #[arg(
+        long,
+        value_delimiter = ',',
+        required = true,
+        num_args = 1..,
+        allow_negative_numbers = true
+    )]
     keys: Vec<i64>,
     /// ls (Eq. 3), nnls (Eq. 4, w ≥ 0) or bounded (0 ≤ w ≤ 1).
     #[arg(long, default_value = "nnls", value_parser = parse_solver)]
@@ -44,14 +50,7 @@ pub fn run(a: &SolveArgs) -> Result<()> {
     super::check_outputs(&[a.out.as_ref()], &[], &[a.input.file.as_deref()])?;
     let (_, prep) = a.input.prepare()?;
     let seq = &prep.seq;
-    let cols = a
-        .keys
-        .iter()
-        .map(|&f| {
-            seq.column_of_frame(f)
-                .with_context(|| format!("--keys {f}"))
-        })
-        .collect::<Result<Vec<_>>>()?;
+    let cols = super::keys::frame_columns(seq, &a.keys)?;
     let neutral = match a.neutral {
         Some(f) => Some(
             seq.column_of_frame(f)

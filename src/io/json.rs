@@ -148,6 +148,17 @@ pub(super) fn read(path: &Path, text: &str, dims: usize) -> Result<Sequence> {
                 ),
             ));
         }
+        if let Some((j, why)) = f
+            .coords
+            .iter()
+            .enumerate()
+            .find_map(|(j, v)| crate::sequence::coord_problem(*v).map(|w| (j, w)))
+        {
+            return Err(Error::file(
+                path,
+                format!("frames[{i}] (frame {}) coords[{j}]: {why}", f.frame),
+            ));
+        }
         for p in f.coords.chunks(file.dims) {
             data.extend_from_slice(&p[..dims]);
         }

@@ -61,6 +61,9 @@ fn parse(path: &Path, text: &str) -> Result<Vec<f64>> {
                     format!("non-finite value '{tok}'"),
                 ));
             }
+            if let Some(why) = crate::sequence::coord_problem(v) {
+                return Err(Error::parse(path, line_no, col, why));
+            }
             out.push(v);
             count += 1;
         }

@@ -26,6 +26,12 @@ struct Meta {
     polylines: Vec<Vec<usize>>,
     /// The last polyline is the run of points on no contour (`key-<frame>-rest`).
     rest: bool,
+    /// Where the template placed each key shape's origin in the document (frame → x, y).
+    /// A redrawn shape is read in document coordinates, with every transform the artist
+    /// or the editor added resolved, and then moved back by this offset. Templates written
+    /// before this field fall back to undoing the group's translation.
+    #[serde(default)]
+    origins: BTreeMap<i64, [f64; 2]>,
 }
 
 /// Contours for a template: the given polylines plus one run of every point on none.
@@ -69,18 +75,27 @@ pub fn write_template(
         w,
         r#"<svg xmlns="http://www.w3.org/2000/svg" width="{wd:.3}" height="{ht:.3}" viewBox="0 0 {wd:.3} {ht:.3}">"#
     )?;
+    let origins = keys
+        .iter()
+        .enumerate()
+        .map(|(i, (frame, _))| {
+            let ox = (i % cols) as f64 * cell + 0.1 * cell - lo[0];
+            let oy = (i / cols) as f64 * cell + 0.1 * cell - lo[1];
+            (*frame, [ox, oy])
+        })
+        .collect::<BTreeMap<i64, [f64; 2]>>();
     let meta = serde_json::to_string(&Meta {
         points,
         polylines: contours.clone(),
         rest,
+        origins: origins.clone(),
     })
     .map_err(std::io::Error::other)?;
     writeln!(w, r#"<desc id="kslab-template">{meta}</desc>"#)?;
     writeln!(w, "<!-- keyshape-lab key-shape template: redraw each key shape, keep the ids and the number of points of every contour. -->")?;
     let stroke = cell / 300.0;
-    for (i, (frame, s)) in keys.iter().enumerate() {
-        let ox = (i % cols) as f64 * cell + 0.1 * cell - lo[0];
-        let oy = (i / cols) as f64 * cell + 0.1 * cell - lo[1];
+    for (frame, s) in keys {
+        let [ox, oy] = origins[frame];
         writeln!(
             w,
             r#"<g id="key-{frame}" transform="translate({ox} {oy})"><title>key frame {frame}</title>"#
@@ -192,9 +207,27 @@ pub fn parse_template(path: &Path, text: &str) -> Result<TargetSet> {
                 format!("group id '{}' is not key-<frame number>", g.id()),
             )
         })?;
-        let inv = g.abs_transform().invert().ok_or_else(|| {
-            Error::file(path, format!("group {} has a singular transform", g.id()))
-        })?;
+        // Document coordinates → the key shape's own: minus the template's offset.
+        let origin = match meta.origins.get(&frame) {
+            Some(o) => *o,
+            None if !meta.origins.is_empty() => {
+                return Err(Error::file(
+                    path,
+                    format!("group {} is not a key of this template (its keys: {:?})", g.id(), meta.origins.keys().collect::<Vec<_>>()),
+                ))
+            }
+            None => {
+                // A template from before `origins`: its group carried only the offset.
+                let t = g.transform();
+                if (t.sx, t.kx, t.ky, t.sy) != (1.0, 0.0, 0.0, 1.0) {
+                    return Err(Error::file(
+                        path,
+                        format!("group {} was scaled or rotated, and this template predates kslab's record of where each key sits; write it again with `kslab template`", g.id()),
+                    ));
+                }
+                [f64::from(t.tx), f64::from(t.ty)]
+            }
+        };
         let mut sum = vec![0.0; 2 * meta.points];
         let mut count = vec![0usize; meta.points];
         let mine: BTreeMap<String, &usvg::Path> = paths
@@ -209,20 +242,31 @@ pub fn parse_template(path: &Path, text: &str) -> Result<TargetSet> {
                 format!("{}-c{c}", g.id())
             };
             let p = mine.get(&id).ok_or_else(|| {
-                Error::file(
-                    path,
-                    format!("contour '{id}' is missing (keep the template's ids)"),
-                )
+                if text.contains(&format!("id=\"{id}\"")) {
+                    Error::file(
+                        path,
+                        format!("contour '{id}' is in the file, but its points could not be read (a coordinate that is not a number?)"),
+                    )
+                } else {
+                    Error::file(
+                        path,
+                        format!("contour '{id}' is missing (keep the template's ids)"),
+                    )
+                }
             })?;
             let v = vertices(p);
             if v.len() != line.len() {
                 return Err(Error::file(path, format!("contour '{id}' has {} points, the template had {} (move points, do not add or remove them)", v.len(), line.len())));
             }
             for (&pi, xy) in line.iter().zip(v) {
-                let mut q = usvg::tiny_skia_path::Point::from_xy(xy[0] as f32, xy[1] as f32);
-                inv.map_points(std::slice::from_mut(&mut q));
-                sum[2 * pi] += f64::from(q.x);
-                sum[2 * pi + 1] += f64::from(q.y);
+                if !(xy[0].is_finite() && xy[1].is_finite()) {
+                    return Err(Error::file(
+                        path,
+                        format!("contour '{id}': point {pi} is not a finite number"),
+                    ));
+                }
+                sum[2 * pi] += xy[0] - origin[0];
+                sum[2 * pi + 1] += xy[1] - origin[1];
                 count[pi] += 1;
             }
         }

@@ -256,6 +256,9 @@ fn parse_num(path: &Path, line: u64, col: usize, name: &str, cell: &str) -> Resu
     if !v.is_finite() {
         return Err(at(format!("non-finite value '{cell}' in column '{name}'")));
     }
+    if let Some(why) = crate::sequence::coord_problem(v) {
+        return Err(at(format!("{why} in column '{name}'")));
+    }
     Ok(v)
 }
 

@@ -311,7 +311,7 @@ impl Analysis {
     fn need_axes(&self, n: usize, what: &str) -> Result<()> {
         if self.proj.nrows() < n {
             return Err(Error::invalid(format!(
-                "{what} needs {n} principal axes, but only {} are available (the shapes vary along fewer, or the analysis keeps fewer: see Analysis::with_axes)",
+                "{what} needs {n} principal axes, but only {} are available (the shapes vary along fewer: choose fewer principal components, e.g. a smaller --pcs or kmeans2)",
                 self.proj.nrows()
             )));
         }

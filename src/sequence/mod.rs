@@ -100,6 +100,24 @@ pub struct Sequence {
 /// 468 × 3, low enough that sizes computed from it cannot overflow.
 pub const MAX_SHAPE_VALUES: usize = 1 << 24;
 
+/// The largest coordinate magnitude read. Pixels and millimetres are nowhere near it; far
+/// beyond it, squared distances summed over a sequence overflow double precision and every
+/// error would read `inf`.
+pub const MAX_COORD: f64 = 1e100;
+
+/// Why `v` cannot be a coordinate, if it cannot (non-finite, or beyond [`MAX_COORD`]).
+pub fn coord_problem(v: f64) -> Option<String> {
+    if !v.is_finite() {
+        Some("non-finite value".into())
+    } else if v.abs() > MAX_COORD {
+        Some(format!(
+            "coordinate {v:e} is beyond ±{MAX_COORD:e} (squared errors would overflow); rescale the data"
+        ))
+    } else {
+        None
+    }
+}
+
 impl Sequence {
     /// Checks the invariants every reader promises: at least one valid frame, finite values,
     /// one frame number per column, side tables of matching length.
@@ -158,12 +176,18 @@ impl Sequence {
                 "{src}: side tables do not match frames"
             )));
         }
-        if let Some((i, v)) = self.coords.iter().enumerate().find(|(_, v)| !v.is_finite()) {
+        if let Some((i, v)) = self
+            .coords
+            .iter()
+            .enumerate()
+            .find(|(_, v)| coord_problem(**v).is_some())
+        {
             let (row, col) = (i % self.coords.nrows(), i / self.coords.nrows());
             return Err(Error::file(
                 src,
                 format!(
-                    "non-finite value {v} at frame {} point {} axis {}",
+                    "{} at frame {} point {} axis {}",
+                    coord_problem(*v).unwrap_or_default(),
                     self.frames[col],
                     row / self.dims,
                     row % self.dims

@@ -41,7 +41,8 @@ fn textbook_error(an: &Analysis, keys: &[usize]) -> f64 {
 
 pub fn run(a: &CurvesBenchArgs) -> Result<()> {
     let t0 = Instant::now();
-    let default = PathBuf::from("../shared/data/mediapipe_face_tracks/liveportrait_d6.csv");
+    let default = keyshape_lab::io::shared_data("mediapipe_face_tracks/liveportrait_d6.csv")
+        .unwrap_or_else(|_| PathBuf::from("builtin"));
     let seq = match (&a.file, default.exists()) {
         (Some(f), _) => read_sequence(f, &ReadOptions::default())?,
         (None, true) => read_sequence(&default, &ReadOptions::default())?,

@@ -46,11 +46,9 @@ fn inputs(a: &NnlsArgs) -> Result<Vec<Sequence>> {
         no_align: false,
     }
     .read()?];
-    let news = PathBuf::from("../shared/data/pyfeat_samples/news_sample_compact.csv");
-    if news.exists() {
-        v.push(read_sequence(&news, &ReadOptions::default())?);
-    } else {
-        eprintln!("note: {} not found; 68-point case skipped", news.display());
+    match keyshape_lab::io::shared_data("pyfeat_samples/news_sample_compact.csv") {
+        Ok(news) => v.push(read_sequence(&news, &ReadOptions::default())?),
+        Err(e) => eprintln!("note: {e}; 68-point case skipped"),
     }
     Ok(v)
 }

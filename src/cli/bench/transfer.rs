@@ -7,7 +7,6 @@ use keyshape_lab::io::obj::read_obj;
 use keyshape_lab::io::{read_sequence, ReadOptions};
 use keyshape_lab::transfer::features::Features;
 use keyshape_lab::transfer::Transfer;
-use std::path::PathBuf;
 use std::time::Instant;
 
 /// Arguments of `kslab bench transfer`.
@@ -19,9 +18,8 @@ pub struct TransferBenchArgs {
 }
 
 pub fn run(a: &TransferBenchArgs) -> Result<()> {
-    let data = PathBuf::from("../shared/data");
     let seq = read_sequence(
-        &data.join("pyfeat_samples/news_sample_compact.csv"),
+        &keyshape_lab::io::shared_data("pyfeat_samples/news_sample_compact.csv")?,
         &ReadOptions::default(),
     )?;
     let prep = prepare(
@@ -31,7 +29,9 @@ pub fn run(a: &TransferBenchArgs) -> Result<()> {
             align: true,
         },
     )?;
-    let mesh = read_obj(&data.join("ict_facekit_face/neutral_face.obj"))?;
+    let mesh = read_obj(&keyshape_lab::io::shared_data(
+        "ict_facekit_face/neutral_face.obj",
+    )?)?;
     let (nv, nfaces) = (mesh.positions.len(), mesh.faces.len());
     let t = Instant::now();
     let tr = Transfer::new(

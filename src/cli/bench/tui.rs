@@ -22,7 +22,8 @@ pub struct TuiBenchArgs {
 }
 
 pub fn run(a: &TuiBenchArgs) -> Result<()> {
-    let default = PathBuf::from("../shared/data/mediapipe_face_tracks/liveportrait_d6.csv");
+    let default = keyshape_lab::io::shared_data("mediapipe_face_tracks/liveportrait_d6.csv")
+        .unwrap_or_else(|_| PathBuf::from("builtin"));
     let path = a.file.clone().unwrap_or_else(|| {
         if default.exists() {
             default
