@@ -50,7 +50,9 @@ pub fn prepare(seq: &Sequence, opts: &PrepareOptions) -> Result<Prepared> {
         for (c, col) in seq.coords.column_iter().enumerate() {
             let v = col.as_slice();
             let d = seq.dims;
-            let same = v.chunks(d).all(|p| p.iter().zip(&v[..d]).all(|(a, b)| a == b));
+            let same = v
+                .chunks(d)
+                .all(|p| p.iter().zip(&v[..d]).all(|(a, b)| a == b));
             if same {
                 return Err(Error::file(
                     &seq.source,
@@ -210,9 +212,9 @@ pub fn decompose(
         }
     };
     let (sol, sq_error) = solution;
-    if let Some(t) = (0..n).find(|&t| {
-        !sq_error[t].is_finite() || sol.weights.column(t).iter().any(|w| !w.is_finite())
-    }) {
+    if let Some(t) = (0..n)
+        .find(|&t| !sq_error[t].is_finite() || sol.weights.column(t).iter().any(|w| !w.is_finite()))
+    {
         return Err(Error::invalid(format!(
             "the solve gave non-finite weights or error at frame column {t} (coordinates too large or degenerate key shapes); nothing written"
         )));

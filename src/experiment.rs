@@ -189,7 +189,12 @@ fn k_range<'de, D: Deserializer<'de>>(d: D) -> std::result::Result<(usize, usize
             "'{s}' is not a k range: write \"2..24\", [2, 24] or 12"
         ))
     };
-    match K::deserialize(d)? {
+    let k = K::deserialize(d).map_err(|_| {
+        serde::de::Error::custom(
+            "not a k range: write a whole number (12), a string \"2..24\" or an array [2, 24]",
+        )
+    })?;
+    match k {
         K::One(k) => Ok((k, k)),
         K::Pair([a, b]) => Ok((a, b)),
         K::Text(t) => {

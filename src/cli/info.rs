@@ -18,7 +18,9 @@ pub struct InfoArgs {
 
 pub fn run(a: &InfoArgs) -> Result<()> {
     if a.input.no_align {
-        anyhow::bail!("--no-align does not apply to info: it always reports the file's own coordinates");
+        anyhow::bail!(
+            "--no-align does not apply to info: it always reports the file's own coordinates"
+        );
     }
     let seq = a.input.read()?;
     let mut ranges = seq.ranges();

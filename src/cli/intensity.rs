@@ -52,11 +52,20 @@ pub fn run(a: &IntensityArgs) -> Result<()> {
     } else {
         outln!(
             "{} training frames (clips {}..{}), {} test frames, K = {}, polynomial degree {}",
-            r.train_frames, st.train_clips.0, st.train_clips.1, r.test_frames, st.k, st.degree
+            r.train_frames,
+            st.train_clips.0,
+            st.train_clips.1,
+            r.test_frames,
+            st.k,
+            st.degree
         );
         outln!(
             "{:<12} {:>10} {:>8} {:>10} {:>10}",
-            "action", "labelled", "raw C", "median-3 C", "smoothed C"
+            "action",
+            "labelled",
+            "raw C",
+            "median-3 C",
+            "smoothed C"
         );
         for x in &r.actions {
             outln!(

@@ -53,7 +53,10 @@ impl HeuristicArgs {
             anyhow::bail!("--pcs applies to k-means only, not to {}", names());
         }
         if self.seed.is_some() && !any(|m| matches!(m, Method::KMeans { .. } | Method::Random)) {
-            anyhow::bail!("--seed applies to kmeans and random only, not to {}", names());
+            anyhow::bail!(
+                "--seed applies to kmeans and random only, not to {}",
+                names()
+            );
         }
         if self.shortlist.is_some() && (!any(|m| *m == Method::Greedy) || solver == Solver::Ls) {
             anyhow::bail!(

@@ -54,6 +54,14 @@ pub struct RetargetArgs {
     /// Write an animated PNG at the sequence's frame rate.
     #[arg(long)]
     apng: Option<PathBuf>,
+    /// Head motion (removed by alignment) in the outputs: `apply` re-applies it to the
+    /// pictures (the target follows the source's scaled 2-D translation and rotation; a
+    /// target with other points, relative to the first frame about its own centre) and
+    /// adds its per-frame pose to `--out` (head_scale, head_angle_deg, head_tx, head_ty);
+    /// `none` leaves every output in aligned coordinates. Default `apply`; refused with
+    /// --no-align, where no head motion was taken out.
+    #[arg(long, value_parser = ["apply", "none"])]
+    head_motion: Option<String>,
     /// Print source RMS, target-domain RMS and jitter as JSON.
     #[arg(long)]
     json: bool,
@@ -127,7 +135,14 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
             a.trace_noise
         );
     }
+    if a.input.no_align && a.head_motion.is_some() {
+        anyhow::bail!("--head-motion does not apply with --no-align: no head motion is taken out, so the outputs keep the file's own coordinates");
+    }
     let (seq, prep) = a.input.prepare()?;
+    let head = match a.head_motion.as_deref() {
+        Some("none") => None,
+        _ => prep.head.as_deref(),
+    };
     let s = &prep.seq;
     let opts = a.heuristic.options(a.solver);
     let neutral = a
@@ -250,7 +265,7 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
     let (target, target_lines) = target_for(a, &seq, &prep, set.as_ref(), &key_frames)?;
     let r = retarget(&s.coords, s.dims, &plan_keys, &target, neutral, a.solver)?;
     if let Some(p) = &a.out {
-        write_atomic(p, |w| write_csv(w, s, &r, &columns))?;
+        write_atomic(p, |w| write_csv(w, s, &r, &columns, head))?;
     }
     let summary = json!({
         "source": s.source,
@@ -263,6 +278,12 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
         "jitter": r.jitter(),
         "negative_share": r.negative_share(),
         "target": a.target.as_ref().map_or("builtin:cartoon".to_string(), |p| p.display().to_string()),
+        "head_motion": match (head, r.target.nrows() == s.coords.nrows()) {
+            (None, _) if a.input.no_align => "kept in the coordinates (--no-align)",
+            (None, _) => "none (aligned coordinates)",
+            (Some(_), true) => "applied (image coordinates)",
+            (Some(_), false) => "applied relative to the first frame (target in its own coordinates)",
+        },
     });
     if a.json {
         outln!("{}", serde_json::to_string_pretty(&summary)?);
@@ -281,7 +302,7 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
         );
     }
     if a.png_dir.is_some() || a.apng.is_some() {
-        pictures(a, &seq, &prep, &r, &target_lines)?;
+        pictures(a, &seq, &prep, head, &r, &target_lines)?;
     }
     Ok(())
 }
@@ -291,11 +312,15 @@ fn write_csv(
     s: &Sequence,
     r: &Retargeted,
     columns: &[String],
+    motion: Option<&[keyshape_lab::align::Similarity]>,
 ) -> std::io::Result<()> {
     let mut head = String::from("frame,source_rms,target_rms");
     for c in columns {
         head.push(',');
         head.push_str(c);
+    }
+    if motion.is_some() {
+        head.push_str(",head_scale,head_angle_deg,head_tx,head_ty");
     }
     writeln!(w, "{head}")?;
     let trms = r.target_rms_per_frame();
@@ -308,38 +333,85 @@ fn write_csv(
                 write!(w, ",{}", fmt_num(*v))?;
             }
         }
+        if let Some(m) = motion {
+            let h = m[t];
+            write!(
+                w,
+                ",{},{},{},{}",
+                fmt_num(h.scale),
+                fmt_num(h.angle.to_degrees()),
+                fmt_num(h.t[0]),
+                fmt_num(h.t[1])
+            )?;
+        }
         writeln!(w)?;
     }
     Ok(())
 }
 
-/// Image-space shapes (head motion re-applied when the sequence was aligned).
-fn image_space(m: &DMatrix<f64>, prep: &Prepared, dims: usize) -> Result<DMatrix<f64>> {
-    Ok(match &prep.head {
+/// Image-space shapes (head motion re-applied when asked for).
+fn image_space(
+    m: &DMatrix<f64>,
+    head: Option<&[keyshape_lab::align::Similarity]>,
+    dims: usize,
+) -> Result<DMatrix<f64>> {
+    Ok(match head {
         Some(h) => with_head_motion(m, h, dims)?,
         None => m.clone(),
     })
+}
+
+/// Root-mean-square distance of the points from their centroid, averaged over frames.
+fn mean_size(m: &DMatrix<f64>, dims: usize) -> f64 {
+    let n = m.ncols().max(1) as f64;
+    m.column_iter()
+        .map(|c| {
+            let pts = (c.len() / dims).max(1) as f64;
+            let mut centre = [0.0; 3];
+            for p in c.as_slice().chunks(dims) {
+                for d in 0..dims {
+                    centre[d] += p[d] / pts;
+                }
+            }
+            let ss: f64 = c
+                .as_slice()
+                .chunks(dims)
+                .map(|p| (0..dims).map(|d| (p[d] - centre[d]).powi(2)).sum::<f64>())
+                .sum();
+            (ss / pts).sqrt()
+        })
+        .sum::<f64>()
+        / n
 }
 
 fn pictures(
     a: &RetargetArgs,
     seq: &Sequence,
     prep: &Prepared,
+    head: Option<&[keyshape_lab::align::Similarity]>,
     r: &Retargeted,
     target_lines: &[Vec<usize>],
 ) -> Result<()> {
     let s = &prep.seq;
     let dims = s.dims;
-    let tracked = seq.select_points(&prep.point_indices)?.coords;
-    let recon = image_space(&r.source, prep, dims)?;
+    // The tracked points as the recon is drawn: in the file's coordinates with head
+    // motion, else aligned.
+    let tracked = match (head, &prep.head) {
+        (None, Some(_)) => s.coords.clone(),
+        _ => seq.select_points(&prep.point_indices)?.coords,
+    };
+    let recon = image_space(&r.source, head, dims)?;
     let same_points = r.target.nrows() == s.coords.nrows();
-    let target = if same_points {
-        image_space(&r.target, prep, dims)?
-    } else {
-        r.target.clone()
+    let target = match (head, same_points) {
+        (Some(_), true) => image_space(&r.target, head, dims)?,
+        (Some(h), false) => {
+            let ratio = mean_size(&r.target, dims) / mean_size(&s.coords, dims).max(1e-300);
+            keyshape_lab::retarget::with_relative_head_motion(&r.target, h, dims, ratio)?
+        }
+        (None, _) => r.target.clone(),
     };
     let truth = match (&r.truth, same_points) {
-        (Some(t), true) => Some(image_space(t, prep, dims)?),
+        (Some(t), true) => Some(image_space(t, head, dims)?),
         _ => None,
     };
     let src_lines = prep

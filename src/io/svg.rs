@@ -213,7 +213,11 @@ pub fn parse_template(path: &Path, text: &str) -> Result<TargetSet> {
             None if !meta.origins.is_empty() => {
                 return Err(Error::file(
                     path,
-                    format!("group {} is not a key of this template (its keys: {:?})", g.id(), meta.origins.keys().collect::<Vec<_>>()),
+                    format!(
+                        "group {} is not a key of this template (its keys: {:?})",
+                        g.id(),
+                        meta.origins.keys().collect::<Vec<_>>()
+                    ),
                 ))
             }
             None => {

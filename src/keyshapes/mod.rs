@@ -242,7 +242,7 @@ impl Analysis {
     pub fn frame_gram(&self) -> Result<&DMatrix<f64>> {
         if self.frames() > GRAM_LIMIT {
             return Err(Error::invalid(format!(
-                "{} frames: the frames' Gram matrix is limited to {GRAM_LIMIT} frames",
+                "method greedy is limited to {GRAM_LIMIT} frames (it keeps the frames' Gram matrix); this sequence has {}",
                 self.frames()
             )));
         }

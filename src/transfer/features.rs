@@ -140,7 +140,11 @@ impl Features {
             }
             let all: Vec<String> = Features::BUILTIN
                 .iter()
-                .filter_map(|b| Features::builtin(b).ok().map(|f| format!("{b} fits {}", f.fits())))
+                .filter_map(|b| {
+                    Features::builtin(b)
+                        .ok()
+                        .map(|f| format!("{b} fits {}", f.fits()))
+                })
                 .collect();
             let track = layout.map_or(format!("{points}-point track"), |l| {
                 format!("{points}-point {l} track")

@@ -311,6 +311,9 @@ pub enum Job {
     Compute(u64, Settings),
     /// Load a sequence from a path.
     Load(u64, String),
+    /// Panics in the worker: how the tests check that a failing job cannot kill it.
+    #[doc(hidden)]
+    Crash(u64),
 }
 
 /// Loads a sequence for the lab (`builtin` or a path).
@@ -321,11 +324,17 @@ pub fn load(path: &str) -> Result<Sequence> {
     read_sequence(&PathBuf::from(path.trim()), &ReadOptions::default())
 }
 
-/// Starts the worker thread; results come back as [`Action`]s.
+/// The worker thread's name: the lab's panic hook leaves the terminal alone for panics
+/// there (they are caught and shown in the status line).
+pub const WORKER_THREAD: &str = "kslab-worker";
+
+/// Starts the worker thread; results come back as [`Action`]s. A job that panics is
+/// reported as [`Action::Failed`] and the worker goes on with the next job.
 pub fn spawn(seq: Sequence, target: Option<TargetSet>) -> (Sender<Job>, Receiver<Action>) {
     let (jobs_tx, jobs_rx) = channel::<Job>();
     let (out_tx, out_rx) = channel::<Action>();
-    std::thread::spawn(move || {
+    let worker = std::thread::Builder::new().name(WORKER_THREAD.into());
+    let run = move || {
         let mut engine = match target {
             Some(t) => Engine::with_target(seq, t),
             None => Engine::new(seq),
@@ -344,7 +353,13 @@ pub fn spawn(seq: Sequence, target: Option<TargetSet>) -> (Sender<Job>, Receiver
             while let Ok(j) = jobs_rx.try_recv() {
                 job = j;
             }
-            match job {
+            // A panic in a job must not kill the worker: it becomes this job's error and the
+            // worker takes the next job (the engine is replaced only by a completed load).
+            let id = match &job {
+                Job::Compute(id, _) | Job::Load(id, _) | Job::Crash(id) => *id,
+            };
+            let step = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| match job {
+                Job::Crash(id) => panic!("job {id} crashed on purpose"),
                 Job::Load(id, path) => match load(&path) {
                     Ok(seq) => {
                         let fps = seq.fps().unwrap_or(30.0);
@@ -363,7 +378,7 @@ pub fn spawn(seq: Sequence, target: Option<TargetSet>) -> (Sender<Job>, Receiver
                         }
                         Err(e) => {
                             let _ = out_tx.send(Action::Failed(id, e.to_string()));
-                            continue;
+                            return;
                         }
                     }
                     let mut abandon = || match jobs_rx.try_recv() {
@@ -384,8 +399,24 @@ pub fn spawn(seq: Sequence, target: Option<TargetSet>) -> (Sender<Job>, Receiver
                         }
                     }
                 }
+            }));
+            if let Err(payload) = step {
+                let msg = payload
+                    .downcast_ref::<&str>()
+                    .map(|s| s.to_string())
+                    .or_else(|| payload.downcast_ref::<String>().cloned())
+                    .unwrap_or_else(|| "unknown cause".into());
+                let _ = out_tx.send(Action::Failed(
+                    id,
+                    format!("internal error (please report): {msg}"),
+                ));
             }
         }
-    });
+    };
+    if let Err(e) = worker.spawn(run) {
+        let (tx, rx) = channel::<Action>();
+        let _ = tx.send(Action::Failed(0, format!("cannot start the worker: {e}")));
+        return (jobs_tx, rx);
+    }
     (jobs_tx, out_rx)
 }

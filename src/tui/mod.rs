@@ -172,6 +172,17 @@ pub fn run(
     s.show_mesh = false; // the 2-D target first; `x` shows the mesh
     let (jobs, results) = compute::spawn(seq, target);
     let mut terminal = ratatui::try_init()?;
+    // ratatui's hook restores the terminal on a panic; a panic in the worker is caught and
+    // reported in the status line instead, so the lab must keep its screen.
+    let restore_hook = std::sync::Arc::new(std::panic::take_hook());
+    {
+        let restore_hook = restore_hook.clone();
+        std::panic::set_hook(Box::new(move |info| {
+            if std::thread::current().name() != Some(compute::WORKER_THREAD) {
+                restore_hook(info);
+            }
+        }));
+    }
     let _ = crossterm::execute!(std::io::stdout(), crossterm::event::EnableMouseCapture);
     let r = run_loop(
         &mut terminal,

@@ -299,3 +299,33 @@ fn clicking_the_error_chart_picks_the_nearest_method_and_k() {
         )]
     );
 }
+
+/// A job that panics becomes that job's error, and the worker goes on: the next job is
+/// answered (issue 11 item 14: a dead worker left "computing…" spinning forever).
+#[test]
+fn a_panicking_job_does_not_kill_the_worker() {
+    use keyshape_lab::tui::compute::{spawn, Job};
+    use keyshape_lab::tui::state::Action;
+    use std::time::Duration;
+    let seq = builtin_sequence().unwrap();
+    let (jobs, results) = spawn(seq, None);
+    jobs.send(Job::Crash(7)).unwrap();
+    match results.recv_timeout(Duration::from_secs(30)).unwrap() {
+        Action::Failed(id, msg) => {
+            assert_eq!(id, 7);
+            assert!(
+                msg.contains("internal error") && msg.contains("crashed on purpose"),
+                "{msg}"
+            );
+        }
+        other => panic!("expected the crash as an error, got {other:?}"),
+    }
+    jobs.send(Job::Load(8, "builtin".into())).unwrap();
+    match results.recv_timeout(Duration::from_secs(30)).unwrap() {
+        Action::Loaded(id, _, frames, _) => {
+            assert_eq!(id, 8);
+            assert_eq!(frames, 216);
+        }
+        other => panic!("the worker did not answer after a crash: {other:?}"),
+    }
+}
