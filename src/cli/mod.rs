@@ -10,6 +10,31 @@ macro_rules! outln {
     }};
 }
 
+/// A one-line summary: to standard output, or to standard error when standard output
+/// carries the command's data (`--out -`).
+macro_rules! sayln {
+    ($taken:expr, $($t:tt)*) => {{
+        if $taken {
+            eprintln!($($t)*);
+        } else {
+            outln!($($t)*);
+        }
+    }};
+}
+
+/// Is this output path standard output (`-`)?
+pub(crate) fn is_stdout(p: Option<&PathBuf>) -> bool {
+    p.is_some_and(|p| keyshape_lab::io::atomic::is_stdout(p))
+}
+
+/// Refuses `--json` when `--out -` already sends the data to standard output.
+pub(crate) fn check_json_stdout(json: bool, out: Option<&PathBuf>) -> anyhow::Result<()> {
+    if json && is_stdout(out) {
+        anyhow::bail!("--json and --out - would both write to standard output: give --out a file");
+    }
+    Ok(())
+}
+
 /// `print!` that returns an error instead of panicking (see [`outln`]).
 #[allow(unused_macros)]
 macro_rules! out {

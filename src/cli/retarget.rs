@@ -122,6 +122,7 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
         &[a.png_dir.as_ref()],
         &[a.input.file.as_deref(), a.target.as_deref()],
     )?;
+    super::check_json_stdout(a.json, a.out.as_ref())?;
     a.heuristic.check(&a.choice.methods(), a.solver)?;
     if a.regions.is_some() && a.choice.k.is_some() {
         anyhow::bail!("--regions gives each region its own k (from the regions file): drop --k");
@@ -291,7 +292,8 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
         let t = r
             .target_rms()
             .map_or("n/a (no ground truth)".to_string(), |v| format!("{v:.4}"));
-        outln!(
+        sayln!(
+            super::is_stdout(a.out.as_ref()),
             "{} frames, {} keys, {}: source RMS {:.4}, target RMS {t}, jitter {:.3e}, negative weights {:.1}%",
             s.n_frames(),
             key_frames.len(),

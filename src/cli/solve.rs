@@ -48,6 +48,7 @@ pub fn parse_solver(s: &str) -> Result<Solver, String> {
 
 pub fn run(a: &SolveArgs) -> Result<()> {
     super::check_outputs(&[a.out.as_ref()], &[], &[a.input.file.as_deref()])?;
+    super::check_json_stdout(a.json, a.out.as_ref())?;
     let (_, prep) = a.input.prepare()?;
     let seq = &prep.seq;
     let cols = super::keys::frame_columns(seq, &a.keys)?;
@@ -94,7 +95,8 @@ pub fn run(a: &SolveArgs) -> Result<()> {
         });
         outln!("{}", serde_json::to_string_pretty(&v)?);
     } else if let Some(p) = &a.out {
-        outln!(
+        sayln!(
+            super::is_stdout(a.out.as_ref()),
             "{} frames, {} keys, {}: mean RMS {:.4}, negative weights {:.1}%, max |w| {:.3} → {}",
             seq.n_frames(),
             d.key_columns.len(),

@@ -44,7 +44,8 @@ pub fn run(a: &TemplateArgs) -> Result<()> {
         .unwrap_or_default();
     write_atomic(&a.out, |w| write_template(w, &keys, s.points, &lines))?;
     let frames: Vec<String> = keys.iter().map(|k| k.0.to_string()).collect();
-    outln!(
+    sayln!(
+        super::is_stdout(Some(&a.out)),
         "{} key shapes (frames {}) → {}",
         keys.len(),
         frames.join(","),

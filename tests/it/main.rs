@@ -6,6 +6,7 @@
 
 mod align;
 mod bad_input;
+mod catalogue;
 mod common;
 mod experiments;
 mod keyshapes;
@@ -15,5 +16,6 @@ mod readers;
 mod reference;
 mod retarget;
 mod solvers;
+mod svg_transforms;
 mod transfer;
 mod tui;

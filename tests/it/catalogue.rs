@@ -1,0 +1,476 @@
+//! The bad-input catalogue: every case is a set of files, a command line, the exact exit
+//! code, a piece of the message that names the file / line / value, and the outputs that
+//! must not exist afterwards. Each case failed (wrong result, panic or exit 0) before the
+//! fix it guards (issue 11); a new bad input found in the field becomes one more row.
+
+use crate::common::shared;
+use std::path::Path;
+use std::process::Command;
+
+/// One row of the catalogue. In `args`, `{d}` is the case's temporary directory and
+/// `{shared}` the shared data folder.
+struct Case {
+    name: &'static str,
+    files: &'static [(&'static str, &'static str)],
+    args: &'static [&'static str],
+    code: i32,
+    needle: &'static str,
+    /// Paths (under `{d}`) that must not exist after the run.
+    absent: &'static [&'static str],
+}
+
+const MP3: &str = "frame,time_s,detected,x_0,y_0,z_0,x_1,y_1,z_1,x_2,y_2,z_2\n\
+                   0,0.0,1,0,0,0,1,0,0,0,1,0\n1,0.1,1,0,0,0,2,0,0,0,1,0\n2,0.2,1,0,0,0,1,0,0,0,2,0\n3,0.3,1,0,0,0,1.5,0,0,0,1.5,0\n";
+const PLAIN: &str =
+    "frame,x0,y0,x1,y1,x2,y2\n0,0,0,1,0,0,1\n1,0,0,2,0,0,1\n2,0,0,1,0,0,2\n3,0,0,1.5,0,0,1.5\n";
+
+const CASES: &[Case] = &[
+    // ---- readers ----
+    Case { name: "missing file", files: &[], args: &["info", "{d}/nope.csv"], code: 1, needle: "nope.csv: No such file", absent: &[] },
+    Case { name: "empty file", files: &[("e.csv", "")], args: &["info", "{d}/e.csv"], code: 1, needle: "e.csv: file is empty", absent: &[] },
+    Case { name: "no landmark columns", files: &[("n.csv", "frame,a,b\n0,1,2\n")], args: &["info", "{d}/n.csv"], code: 1, needle: "n.csv:1:1: header has no landmark columns", absent: &[] },
+    Case { name: "ragged row", files: &[("r.csv", "frame,x0,y0\n0,1,2\n1,1\n")], args: &["info", "{d}/r.csv"], code: 1, needle: "r.csv:3:", absent: &[] },
+    Case { name: "text in a number", files: &[("t.csv", "frame,x0,y0\n0,1,abc\n")], args: &["info", "{d}/t.csv"], code: 1, needle: "t.csv:2:3: not a number: 'abc' in column 'y0'", absent: &[] },
+    Case { name: "NaN coordinate", files: &[("nan.csv", "frame,x0,y0\n0,NaN,2\n")], args: &["info", "{d}/nan.csv"], code: 1, needle: "nan.csv:2:2: non-finite value 'NaN'", absent: &[] },
+    Case { name: "gap in the coordinate header", files: &[("gap.csv", "frame,x0,y0,x1,y1,x3,y3\n0,1,2,3,4,5,6\n")], args: &["info", "{d}/gap.csv"], code: 1, needle: "gap.csv:1:6: header has 'x3' but no 'x2'", absent: &[] },
+    Case { name: "renamed coordinate column", files: &[("ren.csv", "frame,detected,x_0,y_0,x_1,yy_1,x_2,y_2\n0,1,1,2,3,4,5,6\n")], args: &["info", "{d}/ren.csv"], code: 1, needle: "ren.csv:1:", absent: &[] },
+    Case { name: "duplicate frame numbers", files: &[("dup.csv", "frame,x0,y0,x1,y1\n0,1,2,3,4\n3,1,2,3,5\n3,1,2,3,6\n")], args: &["info", "{d}/dup.csv"], code: 1, needle: "dup.csv:4:1: frame 3 appears twice (first on line 3)", absent: &[] },
+    Case { name: "gzip that is not gzip", files: &[("g.csv.gz", "frame,x0,y0\n0,1,2\n")], args: &["info", "{d}/g.csv.gz"], code: 1, needle: "g.csv.gz: not a valid gzip file", absent: &[] },
+    Case { name: "coordinate near 1e200", files: &[("big.csv", "frame,x0,y0,x1,y1\n0,1e200,2,3,4\n1,1,2,3,5\n")], args: &["solve", "{d}/big.csv", "--no-align", "--keys", "0"], code: 1, needle: "big.csv:2:2: coordinate 1e200 is beyond", absent: &[] },
+    Case { name: "coordinate 1e308", files: &[("huge.csv", "frame,x0,y0,x1,y1\n0,1e308,1e308,1e308,1e308\n")], args: &["info", "{d}/huge.csv"], code: 1, needle: "huge.csv:2:2: coordinate 1e308 is beyond", absent: &[] },
+    Case { name: "all points coincide", files: &[("same.csv", "frame,x0,y0,x1,y1\n0,1,2,3,4\n7,5,5,5,5\n")], args: &["keys", "{d}/same.csv", "--method", "spread", "--k", "1"], code: 1, needle: "same.csv: frame 7: all 2 points coincide", absent: &[] },
+    Case { name: "JSON points overflow", files: &[("p.json", r#"{"kslab_sequence":1,"dims":2,"points":9223372036854775876,"frames":[]}"#)], args: &["info", "{d}/p.json"], code: 1, needle: "p.json:", absent: &[] },
+    Case { name: "JSON points beyond the limit", files: &[("q.json", r#"{"kslab_sequence":1,"dims":2,"points":4611686018427387904,"frames":[{"frame":0,"valid":false}]}"#)], args: &["info", "{d}/q.json"], code: 1, needle: "q.json: points 4611686018427387904 is too large", absent: &[] },
+    Case { name: "JSON duplicate frame", files: &[("d.json", r#"{"kslab_sequence":1,"dims":2,"points":1,"frames":[{"frame":2,"coords":[1,2]},{"frame":2,"coords":[1,3]}]}"#)], args: &["info", "{d}/d.json"], code: 1, needle: "d.json: frames[1] repeats frame number 2", absent: &[] },
+    Case { name: "JSON wrong coordinate count", files: &[("c.json", r#"{"kslab_sequence":1,"dims":2,"points":2,"frames":[{"frame":0,"coords":[1,2,3]}]}"#)], args: &["info", "{d}/c.json"], code: 1, needle: "c.json: frames[0] (frame 0) has 3 coords", absent: &[] },
+    Case { name: ".pts without closing brace", files: &[("a.pts", "version: 1\nn_points: 2\n{\n1 2\n3 4\n")], args: &["info", "{d}/a.pts"], code: 1, needle: "a.pts", absent: &[] },
+    Case { name: "directory without .pts", files: &[("dir/readme.txt", "x")], args: &["info", "{d}/dir"], code: 1, needle: "dir: directory holds no .pts files", absent: &[] },
+    Case { name: "a device as input", files: &[], args: &["info", "/dev/zero"], code: 1, needle: "/dev/zero: is not a regular file", absent: &[] },
+    // ---- options ----
+    Case { name: "negative key frame", files: &[("mp.csv", MP3)], args: &["solve", "{d}/mp.csv", "--keys", "-1"], code: 1, needle: "--keys -1: frame -1 is out of range: frames run 0..=3", absent: &[] },
+    Case { name: "key frame twice", files: &[("mp.csv", MP3)], args: &["solve", "{d}/mp.csv", "--keys", "2,2"], code: 1, needle: "--keys: frame 2 is listed twice", absent: &[] },
+    Case { name: "k = u64::MAX", files: &[], args: &["keys", "--method", "spread", "--k", "18446744073709551615"], code: 1, needle: "k = 18446744073709551615 key shapes asked for, but the sequence has only 216 distinct shapes", absent: &[] },
+    Case { name: "curves k range to u64::MAX", files: &[], args: &["curves", "--methods", "spread", "--k", "2..18446744073709551615", "--out", "{d}/c.csv"], code: 1, needle: "only 216 distinct shapes", absent: &["c.csv"] },
+    Case { name: "hull with --k", files: &[], args: &["keys", "--method", "hull", "--k", "5"], code: 1, needle: "--method hull chooses its own k", absent: &[] },
+    Case { name: "--k missing", files: &[], args: &["keys", "--method", "spread"], code: 1, needle: "--k is required for --method spread", absent: &[] },
+    Case { name: "--pcs 0", files: &[], args: &["keys", "--method", "kmeans2", "--k", "3", "--pcs", "0"], code: 2, needle: "'--pcs <PCS>'", absent: &[] },
+    Case { name: "--pcs with spread", files: &[], args: &["keys", "--method", "spread", "--k", "3", "--pcs", "3"], code: 1, needle: "--pcs applies to k-means only, not to spread", absent: &[] },
+    Case { name: "--seed with spread", files: &[], args: &["template", "--method", "spread", "--seed", "3", "--out", "{d}/t.svg"], code: 1, needle: "--seed applies to kmeans and random only", absent: &["t.svg"] },
+    Case { name: "--shortlist with ls", files: &[], args: &["keys", "--method", "greedy", "--k", "3", "--solver", "ls", "--shortlist", "4"], code: 1, needle: "--shortlist applies to greedy with the nnls or bounded solver only", absent: &[] },
+    Case { name: "--every 0", files: &[], args: &["transfer", "--mesh", "{shared}/mediapipe_canonical_face/canonical_face_model.obj", "--every", "0"], code: 2, needle: "'--every <EVERY>'", absent: &[] },
+    Case { name: "--trace-noise NaN", files: &[], args: &["retarget", "--trace-noise", "NaN"], code: 1, needle: "--trace-noise NaN is not a fraction", absent: &[] },
+    Case { name: "--trace-noise 1e300", files: &[], args: &["retarget", "--trace-noise", "1e300"], code: 1, needle: "--trace-noise 1e300 is not a fraction", absent: &[] },
+    Case { name: "--regions with --k", files: &[], args: &["retarget", "--regions", "builtin", "--k", "3", "--out", "{d}/w.csv"], code: 1, needle: "--regions gives each region its own k", absent: &["w.csv"] },
+    Case { name: "--head-motion with --no-align", files: &[], args: &["retarget", "--no-align", "--head-motion", "none"], code: 1, needle: "--head-motion does not apply with --no-align", absent: &[] },
+    Case { name: "info --no-align", files: &[], args: &["info", "--no-align"], code: 1, needle: "--no-align does not apply to info", absent: &[] },
+    Case { name: "map --apng without a second person", files: &[], args: &["map", "--actions", "assets/cosker/actions_liveportrait_d6.json", "--out", "{d}/m.csv", "--apng", "{d}/m.png"], code: 2, needle: "--target-sequence", absent: &["m.csv", "m.png"] },
+    Case { name: "map with nothing to do", files: &[], args: &["map", "--actions", "assets/cosker/actions_liveportrait_d6.json"], code: 1, needle: "nothing to do", absent: &[] },
+    Case { name: "transfer: MediaPipe track onto the ICT mesh", files: &[], args: &["transfer", "{shared}/mediapipe_face_tracks/liveportrait_d6.csv", "--mesh", "{shared}/ict_facekit_face/neutral_face.obj", "--obj-dir", "{d}/objs"], code: 1, needle: "no built-in feature correspondence fits a 468-point mediapipe_face_mesh_468 track onto a 9409-vertex mesh", absent: &["objs"] },
+    Case { name: "transfer: features for another layout", files: &[], args: &["transfer", "{shared}/pyfeat_samples/news_sample_compact.csv", "--mesh", "{shared}/ict_facekit_face/neutral_face.obj", "--features", "mediapipe_to_canonical"], code: 1, needle: "features mediapipe_to_canonical are for 468-point mediapipe_face_mesh_468 tracks", absent: &[] },
+    Case { name: "TOML k = true", files: &[("e.toml", "title = \"x\"\ninput = \"builtin\"\nmethods = [\"spread\"]\nk = true\n")], args: &["run", "{d}/e.toml", "--out", "{d}/out"], code: 1, needle: "e.toml:4:5: not a k range", absent: &["out"] },
+    Case { name: "TOML k from 0", files: &[("z.toml", "title = \"x\"\ninput = \"builtin\"\nmethods = [\"spread\"]\nk = \"0..3\"\n")], args: &["run", "{d}/z.toml", "--out", "{d}/out"], code: 1, needle: "z.toml:4:1: k: range 0..3 is empty or starts at 0", absent: &["out"] },
+    // ---- outputs ----
+    Case { name: "solve --out onto its input", files: &[("x.csv", PLAIN)], args: &["solve", "{d}/x.csv", "--keys", "0", "--out", "{d}/x.csv"], code: 1, needle: "x.csv: refusing to write: this is the input file", absent: &[] },
+    Case { name: "curves --out onto its input", files: &[("x.csv", PLAIN)], args: &["curves", "{d}/x.csv", "--methods", "spread", "--k", "1..2", "--out", "{d}/x.csv"], code: 1, needle: "refusing to write: this is the input file", absent: &[] },
+    Case { name: "template --out onto its input", files: &[("x.csv", PLAIN)], args: &["template", "{d}/x.csv", "--method", "spread", "--k", "2", "--out", "{d}/x.csv"], code: 1, needle: "refusing to write: this is the input file", absent: &[] },
+    Case { name: "output in a missing directory", files: &[], args: &["solve", "--keys", "3", "--out", "{d}/no/such/w.csv"], code: 1, needle: "cannot write: directory", absent: &["no"] },
+    Case { name: "output under a file", files: &[("f", "x")], args: &["solve", "--keys", "3", "--out", "{d}/f/w.csv"], code: 1, needle: "is not a directory", absent: &[] },
+    Case { name: "output is a directory", files: &[("sub/x", "x")], args: &["solve", "--keys", "3", "--out", "{d}/sub"], code: 1, needle: "sub: is a directory; give a file name", absent: &[] },
+    Case { name: "second output unwritable: the first is not written", files: &[("f", "x")], args: &["curves", "--methods", "spread", "--k", "2..3", "--out", "{d}/c.csv", "--png", "{d}/f/c.png"], code: 1, needle: "is not a directory", absent: &["c.csv"] },
+    Case { name: "png dir under a file", files: &[("f", "x")], args: &["retarget", "--points", "lips", "--k", "3", "--out", "{d}/w.csv", "--png-dir", "{d}/f/frames"], code: 1, needle: "cannot make this directory", absent: &["w.csv"] },
+    Case { name: "two outputs, one path", files: &[], args: &["curves", "--methods", "spread", "--k", "2..3", "--out", "{d}/c", "--png", "{d}/c"], code: 1, needle: "named as two outputs", absent: &["c"] },
+    Case { name: "a full device", files: &[], args: &["solve", "--keys", "3", "--out", "/dev/full"], code: 1, needle: "/dev/full: No space left on device", absent: &[] },
+];
+
+#[test]
+fn the_catalogue_of_bad_inputs() {
+    assert!(CASES.len() >= 40, "the catalogue has {} cases", CASES.len());
+    let shared_dir = shared("");
+    let shared_dir = shared_dir.to_string_lossy();
+    let shared_dir = shared_dir.trim_end_matches('/');
+    let mut failures = Vec::new();
+    for case in CASES {
+        let d = tempfile::tempdir().unwrap();
+        for (name, text) in case.files {
+            let p = d.path().join(name);
+            std::fs::create_dir_all(p.parent().unwrap()).unwrap();
+            std::fs::write(&p, text).unwrap();
+        }
+        let before = snapshot(d.path());
+        let dir = d.path().display().to_string();
+        let args: Vec<String> = case
+            .args
+            .iter()
+            .map(|a| a.replace("{d}", &dir).replace("{shared}", shared_dir))
+            .collect();
+        let out = Command::new(env!("CARGO_BIN_EXE_kslab"))
+            .args(&args)
+            .current_dir(env!("CARGO_MANIFEST_DIR"))
+            .output()
+            .unwrap();
+        let code = out.status.code().unwrap_or(-1);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        let mut why = Vec::new();
+        if code != case.code {
+            why.push(format!("exit code {code}, expected {}", case.code));
+        }
+        if !stderr.contains(case.needle) {
+            why.push(format!("message lacks '{}'", case.needle));
+        }
+        if stderr.contains("panicked") {
+            why.push("panicked".into());
+        }
+        for a in case.absent {
+            if d.path().join(a).exists() {
+                why.push(format!("left {a} behind"));
+            }
+        }
+        // Inputs are untouched and nothing else (temporary files) is left.
+        if snapshot(d.path()) != before {
+            let extra: Vec<String> = case.absent.iter().map(|s| s.to_string()).collect();
+            why.push(format!(
+                "the directory changed (inputs modified or files left; absent: {extra:?})"
+            ));
+        }
+        if !why.is_empty() {
+            failures.push(format!(
+                "{}: {}\n    args {:?}\n    stderr {}",
+                case.name,
+                why.join("; "),
+                case.args,
+                stderr.trim()
+            ));
+        }
+    }
+    assert!(
+        failures.is_empty(),
+        "{} of {} cases failed:\n{}",
+        failures.len(),
+        CASES.len(),
+        failures.join("\n")
+    );
+}
+
+/// Every file under `dir` with its bytes.
+fn snapshot(dir: &Path) -> Vec<(String, Vec<u8>)> {
+    let mut out = Vec::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).unwrap().flatten() {
+            let p = e.path();
+            if p.is_dir() {
+                out.push((p.display().to_string(), Vec::new()));
+                stack.push(p);
+            } else {
+                out.push((
+                    p.display().to_string(),
+                    std::fs::read(&p).unwrap_or_default(),
+                ));
+            }
+        }
+    }
+    out.sort();
+    out
+}
+
+fn run(args: &[&str]) -> (i32, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_kslab"))
+        .args(args)
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .unwrap();
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+/// `--out` through a symbolic link writes the file the link names and keeps the link; a
+/// dangling link creates its target; `-` is standard output; a device is written, not
+/// replaced (issue 11 item 10).
+#[cfg(unix)]
+#[test]
+fn outputs_go_through_links_and_into_special_files() {
+    use std::os::unix::fs::{symlink, FileTypeExt};
+    let d = tempfile::tempdir().unwrap();
+    let real = d.path().join("real.csv");
+    std::fs::write(&real, "old").unwrap();
+    let sub = d.path().join("sub");
+    std::fs::create_dir(&sub).unwrap();
+    let link = sub.join("link.csv");
+    symlink(&real, &link).unwrap();
+    let (code, _, err) = run(&["solve", "--keys", "3,40", "--out", link.to_str().unwrap()]);
+    assert_eq!(code, 0, "{err}");
+    assert!(std::fs::symlink_metadata(&link)
+        .unwrap()
+        .file_type()
+        .is_symlink());
+    assert!(std::fs::read_to_string(&real)
+        .unwrap()
+        .starts_with("frame,rms,w_3,w_40\n"));
+    // no temporary file left beside the link or the file
+    let left: Vec<_> = std::fs::read_dir(&sub)
+        .unwrap()
+        .flatten()
+        .map(|e| e.file_name())
+        .collect();
+    assert_eq!(left.len(), 1, "{left:?}");
+    // a dangling relative link
+    let dangling = d.path().join("dangling.csv");
+    symlink("made.csv", &dangling).unwrap();
+    let (code, _, err) = run(&["solve", "--keys", "3", "--out", dangling.to_str().unwrap()]);
+    assert_eq!(code, 0, "{err}");
+    assert!(std::fs::read_to_string(d.path().join("made.csv"))
+        .unwrap()
+        .starts_with("frame,"));
+    assert!(std::fs::symlink_metadata(&dangling)
+        .unwrap()
+        .file_type()
+        .is_symlink());
+    // standard output
+    let (code, out, err) = run(&["solve", "--keys", "3", "--out", "-"]);
+    assert_eq!(code, 0, "{err}");
+    assert!(out.starts_with("frame,rms,w_3\n0,"), "{out}");
+    assert_eq!(out.lines().count(), 217);
+    // a device
+    let (code, _, err) = run(&["solve", "--keys", "3", "--out", "/dev/null"]);
+    assert_eq!(code, 0, "{err}");
+    assert!(std::fs::metadata("/dev/null")
+        .unwrap()
+        .file_type()
+        .is_char_device());
+}
+
+/// A link to the input is the input: refused, input untouched; so is a retarget that would
+/// write over its own --target SVG (issue 11 item 9).
+#[cfg(unix)]
+#[test]
+fn an_output_that_is_an_input_by_another_name_is_refused() {
+    let d = tempfile::tempdir().unwrap();
+    let input = d.path().join("in.csv");
+    std::fs::write(&input, PLAIN).unwrap();
+    let link = d.path().join("alias.csv");
+    std::os::unix::fs::symlink(&input, &link).unwrap();
+    let (code, _, err) = run(&[
+        "solve",
+        input.to_str().unwrap(),
+        "--keys",
+        "0",
+        "--out",
+        link.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 1);
+    assert!(
+        err.contains("refusing to write: this is the input file"),
+        "{err}"
+    );
+    assert_eq!(std::fs::read_to_string(&input).unwrap(), PLAIN);
+    let svg = d.path().join("t.svg");
+    let (code, _, err) = run(&[
+        "template",
+        "--points",
+        "lips",
+        "--method",
+        "spread",
+        "--k",
+        "3",
+        "--out",
+        svg.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let before = std::fs::read(&svg).unwrap();
+    let (code, _, err) = run(&[
+        "retarget",
+        "--points",
+        "lips",
+        "--target",
+        svg.to_str().unwrap(),
+        "--out",
+        svg.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 1);
+    assert!(
+        err.contains("refusing to write: this is the input file"),
+        "{err}"
+    );
+    assert_eq!(std::fs::read(&svg).unwrap(), before);
+}
+
+/// A FIFO is refused at once instead of blocking (issue 11 item 16).
+#[cfg(unix)]
+#[test]
+fn a_fifo_input_is_refused_without_blocking() {
+    let d = tempfile::tempdir().unwrap();
+    let fifo = d.path().join("pipe.csv");
+    let ok = Command::new("mkfifo")
+        .arg(&fifo)
+        .status()
+        .map(|s| s.success());
+    if !matches!(ok, Ok(true)) {
+        panic!("mkfifo is needed for this test");
+    }
+    let (code, _, err) = run(&["info", fifo.to_str().unwrap()]);
+    assert_eq!(code, 1);
+    assert!(err.contains("pipe.csv: is not a regular file"), "{err}");
+}
+
+/// A gzip of several members is read whole (issue 11 item 11); trailing junk is not gzip.
+#[test]
+fn every_member_of_a_multi_member_gzip_is_read() {
+    use flate2::{write::GzEncoder, Compression};
+    use std::io::Write;
+    let gz = |text: &str| {
+        let mut e = GzEncoder::new(Vec::new(), Compression::default());
+        e.write_all(text.as_bytes()).unwrap();
+        e.finish().unwrap()
+    };
+    let d = tempfile::tempdir().unwrap();
+    let p = d.path().join("m.csv.gz");
+    let mut bytes = gz("frame,x0,y0,x1,y1\n0,0,0,1,0\n1,0,0,2,0\n");
+    bytes.extend(gz("2,0,0,1,1\n3,0,0,1,2\n4,0,0,3,1\n"));
+    std::fs::write(&p, &bytes).unwrap();
+    let (code, out, err) = run(&["info", p.to_str().unwrap(), "--json"]);
+    assert_eq!(code, 0, "{err}");
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(v["frames"], 5, "{out}");
+    bytes.extend(b"trailing junk\n");
+    std::fs::write(&p, &bytes).unwrap();
+    let (code, _, err) = run(&["info", p.to_str().unwrap()]);
+    assert_eq!(code, 1);
+    assert!(err.contains("m.csv.gz: not a valid gzip file"), "{err}");
+}
+
+/// A full standard output is an error, not a panic (issue 11 item 13).
+#[cfg(target_os = "linux")]
+#[test]
+fn a_full_standard_output_is_an_error() {
+    for args in [
+        &["info"][..],
+        &["keys", "--method", "spread", "--k", "3", "--json"][..],
+    ] {
+        let full = std::fs::OpenOptions::new()
+            .write(true)
+            .open("/dev/full")
+            .unwrap();
+        let out = Command::new(env!("CARGO_BIN_EXE_kslab"))
+            .args(args)
+            .stdout(full)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
+        assert!(
+            err.contains("writing to standard output: No space left"),
+            "{err}"
+        );
+        assert!(!err.contains("panicked"), "{err}");
+    }
+}
+
+/// `--regions` names every weight column `region/w_N` (no duplicates) and keeps the
+/// regions' keys apart in JSON (issue 11 item 4).
+#[test]
+fn region_weights_are_named_by_region() {
+    let d = tempfile::tempdir().unwrap();
+    let out = d.path().join("w.csv");
+    let (code, json, err) = run(&[
+        "retarget",
+        "--regions",
+        "builtin",
+        "--out",
+        out.to_str().unwrap(),
+        "--json",
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let text = std::fs::read_to_string(&out).unwrap();
+    let header: Vec<&str> = text.lines().next().unwrap().split(',').collect();
+    let mut unique = header.clone();
+    unique.sort_unstable();
+    unique.dedup();
+    assert_eq!(
+        unique.len(),
+        header.len(),
+        "duplicate columns in {header:?}"
+    );
+    let v: serde_json::Value = serde_json::from_str(&json).unwrap();
+    let keys = v["keys"].as_object().expect("keys per region");
+    let mut expected = 0;
+    for (region, frames) in keys {
+        for f in frames.as_array().unwrap() {
+            let col = format!("{region}/w_{f}");
+            assert!(
+                header.contains(&col.as_str()),
+                "{col} missing from {header:?}"
+            );
+            expected += 1;
+        }
+    }
+    assert_eq!(header.len(), 3 + expected + 4, "{header:?}"); // frame, rms ×2, weights, head pose
+}
+
+/// `retarget --target T.svg` uses the frames the template's groups stand for (issue 11
+/// item 5): a template of frames chosen by hand is retargeted on exactly those frames.
+#[test]
+fn a_target_template_brings_its_own_key_frames() {
+    let d = tempfile::tempdir().unwrap();
+    let svg = d.path().join("t.svg");
+    let (code, _, err) = run(&[
+        "template",
+        "--points",
+        "lips",
+        "--keys",
+        "5,90,170",
+        "--out",
+        svg.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let (code, json, err) = run(&[
+        "retarget",
+        "--points",
+        "lips",
+        "--target",
+        svg.to_str().unwrap(),
+        "--json",
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let v: serde_json::Value = serde_json::from_str(&json).unwrap();
+    let mut keys: Vec<i64> = v["keys"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|k| k.as_i64().unwrap())
+        .collect();
+    keys.sort_unstable();
+    assert_eq!(keys, [5, 90, 170]);
+    let (code, _, err) = run(&[
+        "retarget",
+        "--points",
+        "lips",
+        "--target",
+        svg.to_str().unwrap(),
+        "--k",
+        "3",
+    ]);
+    assert_eq!(code, 1);
+    assert!(err.contains("--k applies with --method"), "{err}");
+}
+
+/// `info --points lips` reports the lips' coordinate ranges, not the whole face's (issue 11
+/// item 8), checked against the ranges computed here from the built-in sequence.
+#[test]
+fn info_ranges_are_those_of_the_selected_points() {
+    use keyshape_lab::sequence::Layout;
+    let seq = keyshape_lab::io::builtin_sequence().unwrap();
+    let idx = Layout::for_points(seq.points)
+        .unwrap()
+        .select("lips")
+        .unwrap();
+    let lips = seq.select_points(&idx).unwrap().ranges();
+    let (code, out, err) = run(&["info", "--points", "lips", "--json"]);
+    assert_eq!(code, 0, "{err}");
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(v["ranges"]["x"][0].as_f64().unwrap(), lips[0].0, "{out}");
+    assert_eq!(v["ranges"]["y"][1].as_f64().unwrap(), lips[1].1, "{out}");
+    assert!(lips[0].0 > seq.ranges()[0].0 + 10.0);
+}
