@@ -33,9 +33,6 @@ pub struct CurvesArgs {
     /// Write the plot as PNG (one file per solver when several: `NAME_<solver>.png`).
     #[arg(long)]
     png: Option<PathBuf>,
-    /// No progress bar.
-    #[arg(long, short)]
-    quiet: bool,
 }
 
 pub fn parse_range(s: &str) -> Result<(usize, usize), String> {
@@ -69,7 +66,7 @@ pub fn run(a: &CurvesArgs) -> Result<()> {
     let axes = keyshape_lab::keyshapes::axes_needed(&methods, a.k.1);
     let an = Analysis::with_axes(prep.seq.coords.clone(), prep.seq.points, axes)?;
     let opts = a.heuristic.options(a.solvers[0]);
-    let progress = Progress::new("curves", a.quiet);
+    let progress = Progress::new("curves");
     let rows = sweep(&an, &methods, a.k.0..=a.k.1, &a.solvers, &opts, &|d, t| {
         progress.tick(d, t)
     })?;

@@ -22,7 +22,9 @@ pub fn run(a: &InfoArgs) -> Result<()> {
             "--no-align does not apply to info: it always reports the file's own coordinates"
         );
     }
+    let progress = super::progress::Progress::new("info: reading");
     let seq = a.input.read()?;
+    progress.finish();
     let mut ranges = seq.ranges();
     let selected = match (&a.input.points, Layout::for_points(seq.points)) {
         (Some(spec), Some(l)) => {

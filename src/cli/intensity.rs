@@ -43,7 +43,9 @@ pub fn run(a: &IntensityArgs) -> Result<()> {
         degree: a.degree,
         threshold: a.threshold,
     };
+    let progress = super::progress::Progress::new("intensity");
     let r = study(&path, &st)?;
+    progress.finish();
     if a.json {
         let mut v = serde_json::to_value(&r)?;
         v["file"] = serde_json::json!(path.display().to_string());

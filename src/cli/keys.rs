@@ -105,6 +105,7 @@ pub fn parse_method(s: &str) -> Result<Method, String> {
 pub fn run(a: &KeysArgs) -> Result<()> {
     let k = k_for(a.method, a.k)?;
     a.heuristic.check(&[a.method], a.solver)?;
+    let progress = super::progress::Progress::new("keys");
     let (_, prep) = a.input.prepare()?;
     let method = a.heuristic.apply(a.method);
     let axes = keyshape_lab::keyshapes::axes_needed(&[method], k);
@@ -113,6 +114,7 @@ pub fn run(a: &KeysArgs) -> Result<()> {
     let sel = method.heuristic(&opts).select(&an, k)?;
     let frames: Vec<i64> = sel.columns.iter().map(|&c| prep.seq.frames[c]).collect();
     let e = an.error(&sel.columns, a.solver)?;
+    progress.finish();
     if a.json {
         let centres = sel.centres.as_ref().map(|c| {
             c.column_iter()

@@ -114,6 +114,7 @@ pub fn run(a: &MapArgs) -> Result<()> {
             a.alignment.as_deref(),
         ],
     )?;
+    let progress = super::progress::Progress::new("map: reading");
     let (_, prep) = a.input.prepare()?;
     let actions = Actions::read(&a.actions)?;
     let src =
@@ -167,10 +168,12 @@ pub fn run(a: &MapArgs) -> Result<()> {
             alignment.pairs.len(),
             tpath.display()
         );
-        side_by_side(a, &prep, &tprep, &shapes, every)?;
+        progress.step("map: pictures");
+        side_by_side(a, &prep, &tprep, &shapes, every, &progress)?;
     }
     if let Some(dir) = &a.morph {
-        morph(a, &prep, dir, &names, &action_traj, every)?;
+        progress.step("map: morph targets");
+        morph(a, &prep, dir, &names, &action_traj, every, &progress)?;
     }
     Ok(())
 }
@@ -181,6 +184,7 @@ fn side_by_side(
     tprep: &Prepared,
     shapes: &DMatrix<f64>,
     every: usize,
+    progress: &super::progress::Progress,
 ) -> Result<()> {
     if a.png_dir.is_none() && a.apng.is_none() {
         return Ok(());
@@ -232,6 +236,7 @@ fn side_by_side(
     if let Some(dir) = &a.png_dir {
         std::fs::create_dir_all(dir).with_context(|| format!("{}", dir.display()))?;
         for t in (0..shapes.ncols()).step_by(every) {
+            progress.tick(t, shapes.ncols());
             save_png(
                 &frame(t)?,
                 &dir.join(format!("map_{:06}.png", prep.seq.frames[t])),
@@ -239,7 +244,11 @@ fn side_by_side(
         }
     }
     if let Some(p) = &a.apng {
-        write_apng(p, shapes.ncols(), prep.seq.fps().unwrap_or(30.0), &frame)?;
+        let n = shapes.ncols();
+        write_apng(p, n, prep.seq.fps().unwrap_or(30.0), &|t| {
+            progress.tick(t, n);
+            frame(t)
+        })?;
     }
     Ok(())
 }
@@ -251,6 +260,7 @@ fn morph(
     names: &[String],
     traj: &DMatrix<f64>,
     every: usize,
+    progress: &super::progress::Progress,
 ) -> Result<()> {
     let mesh = read_obj(&dir.join("neutral_face.obj"))?;
     let targets = MorphTargets::read(
@@ -269,6 +279,7 @@ fn morph(
         std::fs::create_dir_all(d).with_context(|| format!("{}", d.display()))?;
         let mut out = mesh.positions.clone();
         for t in (0..n).step_by(every) {
+            progress.tick(t, n);
             targets.blend(&mesh.positions, w.column(t).as_slice(), &mut out);
             let p = d.join(format!("frame_{:06}.obj", prep.seq.frames[t]));
             write_atomic(&p, |f| {
@@ -286,6 +297,7 @@ fn morph(
         let mb = keyshape_lab::render::mesh::mesh_bounds(&mesh.positions);
         let mut out = mesh.positions.clone();
         for t in (0..n).step_by(every) {
+            progress.tick(t, n);
             targets.blend(&mesh.positions, w.column(t).as_slice(), &mut out);
             let pic = keyshape_lab::render::mesh::wireframe(
                 &out,

@@ -96,6 +96,9 @@ pub(crate) fn check_outputs(
 pub struct Cli {
     #[command(subcommand)]
     command: Option<Command>,
+    /// No progress bar (one appears on a terminal when a step runs longer than a second).
+    #[arg(long, short, global = true)]
+    quiet: bool,
 }
 
 #[derive(Debug, Subcommand)]
@@ -131,6 +134,7 @@ enum Command {
 /// Runs the CLI; errors print as `error: …` with exit code 1.
 pub fn main() -> ExitCode {
     let cli = Cli::parse();
+    progress::set_quiet(cli.quiet);
     let result = match cli.command.unwrap_or(Command::Tui(tui::TuiArgs::default())) {
         Command::Tui(a) => tui::run(&a),
         Command::Info(a) => info::run(&a),

@@ -64,6 +64,7 @@ pub fn run(a: &ModesArgs) -> Result<()> {
         &[],
         &[a.input.file.as_deref(), Some(&a.actions)],
     )?;
+    let progress = super::progress::Progress::new("modes");
     let (_, prep) = a.input.prepare()?;
     let layout = prep
         .layout
@@ -97,6 +98,7 @@ pub fn run(a: &ModesArgs) -> Result<()> {
         keyshape_lab::render::save_png(&pm, p)?;
         eprintln!("wrote {}", p.display());
     }
+    progress.finish();
     if a.json {
         let rows = |m: &nalgebra::DMatrix<f64>| {
             (0..m.nrows())

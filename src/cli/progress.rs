@@ -6,13 +6,21 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
 
+static QUIET: AtomicBool = AtomicBool::new(false);
+
+/// `--quiet`: no progress bar anywhere.
+pub fn set_quiet(quiet: bool) {
+    QUIET.store(quiet, Ordering::SeqCst);
+}
+
 pub struct Progress {
     bar: ProgressBar,
     done: Arc<AtomicBool>,
 }
 
 impl Progress {
-    pub fn new(message: &str, quiet: bool) -> Progress {
+    pub fn new(message: &str) -> Progress {
+        let quiet = QUIET.load(Ordering::SeqCst);
         let bar = ProgressBar::with_draw_target(Some(0), ProgressDrawTarget::hidden());
         if let Ok(style) =
             ProgressStyle::with_template("{spinner} {msg} [{bar:30}] {pos}/{len} {elapsed}")
@@ -40,8 +48,20 @@ impl Progress {
         self.bar.set_position(done as u64);
     }
 
+    /// Names the step now running.
+    pub fn step(&self, message: &str) {
+        self.bar.set_message(message.to_string());
+    }
+
     pub fn finish(&self) {
         self.done.store(true, Ordering::SeqCst);
         self.bar.finish_and_clear();
+    }
+}
+
+impl Drop for Progress {
+    /// The bar disappears however the command ends (errors included).
+    fn drop(&mut self) {
+        self.finish();
     }
 }

@@ -139,7 +139,10 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
     if a.input.no_align && a.head_motion.is_some() {
         anyhow::bail!("--head-motion does not apply with --no-align: no head motion is taken out, so the outputs keep the file's own coordinates");
     }
+    let progress = super::progress::Progress::new("retarget");
+    progress.step("retarget: reading");
     let (seq, prep) = a.input.prepare()?;
+    progress.step("retarget: key shapes and weights");
     let head = match a.head_motion.as_deref() {
         Some("none") => None,
         _ => prep.head.as_deref(),
@@ -304,7 +307,8 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
         );
     }
     if a.png_dir.is_some() || a.apng.is_some() {
-        pictures(a, &seq, &prep, head, &r, &target_lines)?;
+        progress.step("retarget: pictures");
+        pictures(a, &seq, &prep, head, &r, &target_lines, &progress)?;
     }
     Ok(())
 }
@@ -393,6 +397,7 @@ fn pictures(
     head: Option<&[keyshape_lab::align::Similarity]>,
     r: &Retargeted,
     target_lines: &[Vec<usize>],
+    progress: &super::progress::Progress,
 ) -> Result<()> {
     let s = &prep.seq;
     let dims = s.dims;
@@ -447,7 +452,9 @@ fn pictures(
     };
     if let Some(dir) = &a.png_dir {
         std::fs::create_dir_all(dir).with_context(|| format!("{}", dir.display()))?;
+        progress.step("retarget: PNG frames");
         for t in 0..s.n_frames() {
+            progress.tick(t, s.n_frames());
             save_png(
                 &frame(t)?,
                 &dir.join(format!("frame_{:06}.png", s.frames[t])),
@@ -457,7 +464,12 @@ fn pictures(
     }
     if let Some(p) = &a.apng {
         let fps = s.fps().unwrap_or(30.0);
-        write_apng(p, s.n_frames(), fps, &frame)?;
+        progress.step("retarget: animated PNG");
+        let n = s.n_frames();
+        write_apng(p, n, fps, &|t| {
+            progress.tick(t, n);
+            frame(t)
+        })?;
         eprintln!("wrote {}", p.display());
     }
     Ok(())

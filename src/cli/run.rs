@@ -15,9 +15,6 @@ pub struct RunArgs {
     /// Output folder (default: `out/<spec name>/`).
     #[arg(long)]
     out: Option<PathBuf>,
-    /// No progress bar.
-    #[arg(long, short)]
-    quiet: bool,
 }
 
 pub fn run(a: &RunArgs) -> Result<()> {
@@ -31,7 +28,7 @@ pub fn run(a: &RunArgs) -> Result<()> {
         PathBuf::from("out").join(stem)
     });
     super::check_outputs(&[], &[Some(&dir)], &[Some(&a.spec)])?;
-    let progress = Progress::new(&spec.title, a.quiet);
+    let progress = Progress::new(&spec.title);
     let outcome = run_spec(&spec, &base, &|d, t| progress.tick(d, t))?;
     progress.finish();
     for f in write_outcome(&outcome, &dir)? {

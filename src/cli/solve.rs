@@ -49,6 +49,7 @@ pub fn parse_solver(s: &str) -> Result<Solver, String> {
 pub fn run(a: &SolveArgs) -> Result<()> {
     super::check_outputs(&[a.out.as_ref()], &[], &[a.input.file.as_deref()])?;
     super::check_json_stdout(a.json, a.out.as_ref())?;
+    let progress = super::progress::Progress::new("solve");
     let (_, prep) = a.input.prepare()?;
     let seq = &prep.seq;
     let cols = super::keys::frame_columns(seq, &a.keys)?;
@@ -62,6 +63,7 @@ pub fn run(a: &SolveArgs) -> Result<()> {
     let mut opts = SolveOptions::new(a.solver);
     opts.rcond = a.rcond;
     let d = decompose(&seq.coords, seq.points, &cols, neutral, &opts)?;
+    progress.finish();
     warn(&d);
     match &a.out {
         Some(path) => write_atomic(path, |w| write_csv(w, seq, &a.keys, &d))?,

@@ -26,6 +26,7 @@ pub struct TemplateArgs {
 pub fn run(a: &TemplateArgs) -> Result<()> {
     super::check_outputs(&[Some(&a.out)], &[], &[a.input.file.as_deref()])?;
     a.heuristic.check(&a.choice.methods(), Solver::Nnls)?;
+    let progress = super::progress::Progress::new("template");
     let (_, prep) = a.input.prepare()?;
     let s = &prep.seq;
     if s.dims != 2 {
@@ -42,6 +43,7 @@ pub fn run(a: &TemplateArgs) -> Result<()> {
         .as_ref()
         .map(|l| polylines_for(l, &prep.point_indices))
         .unwrap_or_default();
+    progress.finish();
     write_atomic(&a.out, |w| write_template(w, &keys, s.points, &lines))?;
     let frames: Vec<String> = keys.iter().map(|k| k.0.to_string()).collect();
     sayln!(

@@ -69,6 +69,7 @@ pub fn run(a: &TransferArgs) -> Result<()> {
             Some(std::path::Path::new(&a.features)),
         ],
     )?;
+    let progress = super::progress::Progress::new("transfer: reading");
     let (_, prep) = a.input.prepare()?;
     let s = &prep.seq;
     let mesh = read_obj(&a.mesh)?;
@@ -110,7 +111,9 @@ pub fn run(a: &TransferArgs) -> Result<()> {
     let every = a.every as usize;
     if let Some(dir) = &a.obj_dir {
         std::fs::create_dir_all(dir).with_context(|| format!("{}", dir.display()))?;
+        progress.step("transfer: OBJ frames");
         for (t, pos) in frames.iter().enumerate().step_by(every) {
+            progress.tick(t, frames.len());
             let p = dir.join(format!("frame_{:06}.obj", s.frames[t]));
             write_atomic(&p, |w| {
                 write_obj(
@@ -139,7 +142,9 @@ pub fn run(a: &TransferArgs) -> Result<()> {
             .map(|l| polylines_for(l, &prep.point_indices))
             .unwrap_or_default();
         let marks: Vec<usize> = tr.features.features.iter().map(|f| f.target).collect();
+        progress.step("transfer: PNG frames");
         for (t, pos) in frames.iter().enumerate().step_by(every) {
+            progress.tick(t, frames.len());
             let m = wireframe(pos, &tr.mesh.faces, &marks, mb, 420, "target mesh")?;
             let pic = transfer_frame(
                 col(&s.coords, t),
@@ -152,6 +157,7 @@ pub fn run(a: &TransferArgs) -> Result<()> {
             save_png(&pic, &dir.join(format!("frame_{:06}.png", s.frames[t])))?;
         }
     }
+    progress.finish();
     let moved = tr.skin.influences.iter().filter(|i| !i.is_empty()).count();
     let max_disp = frames
         .iter()
