@@ -474,3 +474,76 @@ fn info_ranges_are_those_of_the_selected_points() {
     assert_eq!(v["ranges"]["y"][1].as_f64().unwrap(), lips[1].1, "{out}");
     assert!(lips[0].0 > seq.ranges()[0].0 + 10.0);
 }
+
+/// A weight of −3e-14 is rounding, not a negative weight: the share reads 0, not "−0.0 %"
+/// (issue 11 item 8); a real negative weight still counts.
+#[test]
+fn rounding_is_not_a_negative_weight() {
+    use keyshape_lab::decompose::Decomposition;
+    use nalgebra::DMatrix;
+    let d = |w: Vec<f64>| Decomposition {
+        key_columns: vec![0, 1],
+        neutral: None,
+        solver: keyshape_lab::solve::Solver::Ls,
+        weights: DMatrix::from_vec(2, 2, w),
+        sq_error: vec![0.0, 0.0],
+        points: 1,
+        rank: 2,
+        condition: 1.0,
+        unconverged: 0,
+    };
+    assert_eq!(d(vec![1.0, -3e-14, 0.5, 0.5]).negative_share(), 0.0);
+    assert_eq!(d(vec![1.0, -0.25, 0.5, 0.5]).negative_share(), 0.25);
+}
+
+/// Greedy over more frames than its Gram matrix allows is refused before any other method
+/// runs, naming greedy (issue 11 item 15).
+#[test]
+fn greedy_beyond_its_limit_is_refused_up_front() {
+    let d = tempfile::tempdir().unwrap();
+    let p = d.path().join("long.csv");
+    let mut text = String::from("frame,x0,y0,x1,y1,x2,y2\n");
+    for f in 0..6001 {
+        let a = (f as f64 * 0.01).sin();
+        text.push_str(&format!("{f},0,0,{},0,0,{}\n", 1.0 + a, 1.0 - 0.5 * a));
+    }
+    std::fs::write(&p, text).unwrap();
+    let t = std::time::Instant::now();
+    let (code, _, err) = run(&[
+        "curves", p.to_str().unwrap(), "--no-align", "--methods", "spread,greedy", "--k", "1..2",
+    ]);
+    assert_eq!(code, 1);
+    assert!(err.contains("method greedy is limited to 6000 frames"), "{err}");
+    assert!(err.contains("this sequence has 6001"), "{err}");
+    // refused before the sweep: no time spent on the other methods (generous bound)
+    assert!(t.elapsed().as_secs() < 20);
+}
+
+/// Default data paths do not depend on the current directory: `intensity` run from `/`
+/// finds the news sample beside the repository, and `KSLAB_SHARED` overrides it with an
+/// error naming the path tried (issue 11 item 6).
+#[test]
+fn default_data_paths_do_not_depend_on_the_current_directory() {
+    let bin = env!("CARGO_BIN_EXE_kslab");
+    let out = Command::new(bin)
+        .args(["intensity", "--json"])
+        .current_dir("/")
+        .env_remove("KSLAB_SHARED")
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert!(v["file"].as_str().unwrap().ends_with("pyfeat_samples/news_sample_compact.csv"));
+    let out = Command::new(bin)
+        .args(["intensity"])
+        .current_dir("/")
+        .env("KSLAB_SHARED", "/nonexistent-kslab")
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(
+        err.contains("/nonexistent-kslab/data/pyfeat_samples/news_sample_compact.csv not found"),
+        "{err}"
+    );
+}

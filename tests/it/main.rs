@@ -9,6 +9,7 @@ mod bad_input;
 mod catalogue;
 mod common;
 mod experiments;
+mod fuzz_smoke;
 mod keyshapes;
 mod modes;
 mod pca;
