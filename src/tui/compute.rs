@@ -359,6 +359,8 @@ pub fn spawn(seq: Sequence, target: Option<TargetSet>) -> (Sender<Job>, Receiver
                 Job::Compute(id, _) | Job::Load(id, _) | Job::Crash(id) => *id,
             };
             let step = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| match job {
+                // The one deliberate panic: the tests' way to check the worker survives one.
+                #[allow(clippy::panic)]
                 Job::Crash(id) => panic!("job {id} crashed on purpose"),
                 Job::Load(id, path) => match load(&path) {
                     Ok(seq) => {

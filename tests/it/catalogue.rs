@@ -510,10 +510,19 @@ fn greedy_beyond_its_limit_is_refused_up_front() {
     std::fs::write(&p, text).unwrap();
     let t = std::time::Instant::now();
     let (code, _, err) = run(&[
-        "curves", p.to_str().unwrap(), "--no-align", "--methods", "spread,greedy", "--k", "1..2",
+        "curves",
+        p.to_str().unwrap(),
+        "--no-align",
+        "--methods",
+        "spread,greedy",
+        "--k",
+        "1..2",
     ]);
     assert_eq!(code, 1);
-    assert!(err.contains("method greedy is limited to 6000 frames"), "{err}");
+    assert!(
+        err.contains("method greedy is limited to 6000 frames"),
+        "{err}"
+    );
     assert!(err.contains("this sequence has 6001"), "{err}");
     // refused before the sweep: no time spent on the other methods (generous bound)
     assert!(t.elapsed().as_secs() < 20);
@@ -531,9 +540,17 @@ fn default_data_paths_do_not_depend_on_the_current_directory() {
         .env_remove("KSLAB_SHARED")
         .output()
         .unwrap();
-    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
-    assert!(v["file"].as_str().unwrap().ends_with("pyfeat_samples/news_sample_compact.csv"));
+    assert!(v["file"]
+        .as_str()
+        .unwrap()
+        .ends_with("pyfeat_samples/news_sample_compact.csv"));
     let out = Command::new(bin)
         .args(["intensity"])
         .current_dir("/")

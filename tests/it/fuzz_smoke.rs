@@ -44,8 +44,24 @@ impl Rng {
 fn mutate(seed: &[u8], rng: &mut Rng) -> Vec<u8> {
     let mut v = seed.to_vec();
     let interesting: &[&[u8]] = &[
-        b",", b"\n", b"-", b"1e308", b"NaN", b"inf", b"9223372036854775807", b"\"", b"{", b"}",
-        b"<", b">", b"x_", b"frame", b"0", b"..", b"/", b" ",
+        b",",
+        b"\n",
+        b"-",
+        b"1e308",
+        b"NaN",
+        b"inf",
+        b"9223372036854775807",
+        b"\"",
+        b"{",
+        b"}",
+        b"<",
+        b">",
+        b"x_",
+        b"frame",
+        b"0",
+        b"..",
+        b"/",
+        b" ",
     ];
     for _ in 0..1 + rng.below(4) {
         if v.is_empty() {
