@@ -8,8 +8,15 @@ pub fn repo(rel: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join(rel)
 }
 
-fn update() -> bool {
-    std::env::var_os("UPDATE_SNAPSHOTS").is_some()
+/// `UPDATE_SNAPSHOTS=1` rewrites the snapshots (then review them with `git diff`); any other
+/// value is a mistake and fails, so a stray variable cannot turn every snapshot test green.
+/// `.ci/run` refuses to run with the variable set at all.
+pub fn update() -> bool {
+    match std::env::var("UPDATE_SNAPSHOTS") {
+        Err(_) => false,
+        Ok(v) if v == "1" => true,
+        Ok(v) => panic!("UPDATE_SNAPSHOTS={v:?}: set it to 1 to rewrite snapshots, or unset it"),
+    }
 }
 
 #[test]
@@ -54,7 +61,8 @@ fn every_experiment_in_the_repository_parses() {
     }
 }
 
-/// Compares a CSV against its golden file: same text columns, numbers within 1e-6 relative.
+/// Compares a CSV against its golden file: the same number of fields on every line, the
+/// same text, numbers within 1e-6 relative.
 fn assert_csv_matches(got: &str, golden: &Path) {
     if update() {
         std::fs::write(golden, got).unwrap();
@@ -74,7 +82,16 @@ fn assert_csv_matches(got: &str, golden: &Path) {
         golden.display()
     );
     for (i, (a, b)) in g.iter().zip(&w).enumerate() {
-        for (x, y) in a.split(',').zip(b.split(',')) {
+        let (xa, ya): (Vec<&str>, Vec<&str>) = (a.split(',').collect(), b.split(',').collect());
+        assert_eq!(
+            xa.len(),
+            ya.len(),
+            "line {}: {} fields, the golden file has {}",
+            i + 1,
+            xa.len(),
+            ya.len()
+        );
+        for (x, y) in xa.into_iter().zip(ya) {
             match (x.parse::<f64>(), y.parse::<f64>()) {
                 (Ok(x), Ok(y)) => assert!(
                     (x - y).abs() <= 1e-6 * y.abs().max(1e-9),
@@ -87,7 +104,8 @@ fn assert_csv_matches(got: &str, golden: &Path) {
     }
 }
 
-/// Compares decoded pixels: at most 0.5 % of pixels may differ by more than 16 in a channel.
+/// Compares decoded pixels exactly: the pictures are deterministic (tiny-skia, committed
+/// fonts), so one changed pixel is a change to review.
 pub fn assert_png_matches(got: &Path, golden: &Path) {
     if update() {
         std::fs::copy(got, golden).unwrap();
@@ -105,16 +123,11 @@ pub fn assert_png_matches(got: &Path, golden: &Path) {
         .pixels()
         .iter()
         .zip(b.pixels())
-        .filter(|(p, q)| {
-            let d = |x: u8, y: u8| x.abs_diff(y) > 16;
-            d(p.red(), q.red()) || d(p.green(), q.green()) || d(p.blue(), q.blue())
-        })
+        .filter(|(p, q)| p != q)
         .count();
-    let share = differ as f64 / a.pixels().len() as f64;
     assert!(
-        share <= 0.005,
-        "{:.2}% of pixels differ from {}",
-        share * 100.0,
+        differ == 0,
+        "{differ} pixels differ from {} (UPDATE_SNAPSHOTS=1 rewrites it; review the picture)",
         golden.display()
     );
 }
@@ -138,4 +151,34 @@ fn smoke_experiment_matches_its_reviewed_snapshots() {
     assert_eq!(report["frames"], 216);
     assert_eq!(report["settings"]["methods"][1], "kmeans2");
     assert_eq!(report["figures"][0], "curves_nnls.png");
+
+    // What the picture must show, through its specification: titles, one series per
+    // method in order with its paper-000 style, and every (k, RMS) of the CSV — so a
+    // dropped title, swapped curves or a missing last point fail here as well as in pixels.
+    use keyshape_lab::plot::{curves_plot, Style};
+    let plot = curves_plot(&outcome.rows, "nnls", &spec.title, "px");
+    assert_eq!(plot.title, "Built-in d18, lips, k = 2..8");
+    assert_eq!(plot.x_label, "number of key shapes k");
+    assert_eq!(plot.y_label, "RMS error per point (px), nnls");
+    let names: Vec<&str> = plot.series.iter().map(|s| s.name.as_str()).collect();
+    assert_eq!(names, ["spread", "kmeans2", "kmeans3", "hull", "greedy", "random"]);
+    let styles: Vec<(Style, [u8; 3])> = plot.series.iter().map(|s| (s.style, s.color)).collect();
+    assert_eq!(styles[0], (Style::Line, [31, 90, 200]));
+    assert_eq!(styles[1], (Style::Dashed, [30, 150, 60]));
+    assert_eq!(styles[2], (Style::Dashed, [190, 40, 190]));
+    assert_eq!(styles[3].0, Style::Marker);
+    for s in &plot.series {
+        let want: Vec<(f64, f64)> = csv
+            .lines()
+            .skip(1)
+            .map(|l| l.split(',').collect::<Vec<_>>())
+            .filter(|f| f[0] == s.name && f[1] == "nnls")
+            .map(|f| (f[2].parse().unwrap(), f[4].parse().unwrap()))
+            .collect();
+        assert_eq!(s.points, want, "{}", s.name);
+        if s.name != "hull" {
+            assert_eq!(s.points.first().map(|p| p.0), Some(2.0), "{}", s.name);
+            assert_eq!(s.points.last().map(|p| p.0), Some(8.0), "{}", s.name);
+        }
+    }
 }

@@ -112,7 +112,7 @@ fn assert_screen(got: &str, name: &str) {
     let p = Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("snapshots")
         .join(name);
-    if std::env::var_os("UPDATE_SNAPSHOTS").is_some() {
+    if crate::experiments::update() {
         std::fs::write(&p, got).unwrap();
         return;
     }
