@@ -268,6 +268,12 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
     }
     let (target, target_lines) = target_for(a, &seq, &prep, set.as_ref(), &key_frames)?;
     let r = retarget(&s.coords, s.dims, &plan_keys, &target, neutral, a.solver)?;
+    if r.unconverged > 0 {
+        eprintln!(
+            "warning: {} did not converge on {} frames (iteration cap); their weights are the last iterate",
+            a.solver, r.unconverged
+        );
+    }
     if let Some(p) = &a.out {
         write_atomic(p, |w| write_csv(w, s, &r, &columns, head))?;
     }
@@ -281,6 +287,7 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
         "target_rms": r.target_rms(),
         "jitter": r.jitter(),
         "negative_share": r.negative_share(),
+        "unconverged_frames": r.unconverged,
         "target": a.target.as_ref().map_or("builtin:cartoon".to_string(), |p| p.display().to_string()),
         "head_motion": match (head, r.target.nrows() == s.coords.nrows()) {
             (None, _) if a.input.no_align => "kept in the coordinates (--no-align)",

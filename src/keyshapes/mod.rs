@@ -287,7 +287,15 @@ impl Analysis {
                 } else {
                     1.0
                 };
-                active_set_from_gram(&Gram::from_matrix(&g, upper), &b, true).0
+                let (w, unconverged, _) =
+                    active_set_from_gram(&Gram::from_matrix(&g, upper), &b, true);
+                // An unconverged frame would put a wrong point on an error curve.
+                if unconverged > 0 {
+                    return Err(Error::invalid(format!(
+                        "{solver} did not converge on {unconverged} frames (iteration cap) for key columns {keys:?}"
+                    )));
+                }
+                w
             }
         };
         let gw = &g * &w;

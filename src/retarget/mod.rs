@@ -69,6 +69,8 @@ pub struct Retargeted {
     pub points: usize,
     /// Points per target shape.
     pub target_points: usize,
+    /// Frames (summed over regions) where NNLS/bounded hit its iteration cap.
+    pub unconverged: usize,
 }
 
 impl Retargeted {
@@ -238,6 +240,7 @@ pub fn retarget_with_truth(
     let mut source = DMatrix::zeros(n, frames);
     let mut out = DMatrix::zeros(n_t, frames);
     let mut weights = Vec::new();
+    let mut unconverged = 0;
     for (r, keys) in key_sets.iter().enumerate() {
         let rows: Vec<usize> = match regions {
             None => (0..n).collect(),
@@ -300,12 +303,13 @@ pub fn retarget_with_truth(
         let s_d = delta(&s_full, &src_base);
         let q_d = delta(q, &src_base);
         let b_d = delta(&b_full, &tgt_base);
-        let w = solve_batch(
+        let sol = solve_batch(
             &s_d.select_rows(&rows),
             &q_d.select_rows(&rows),
             &SolveOptions::new(solver),
-        )?
-        .weights;
+        )?;
+        unconverged += sol.unconverged;
+        let w = sol.weights;
         let mut rec_s = &s_d * &w;
         let mut rec_t = &b_d * &w;
         if let (Some(sb), Some(tb)) = (&src_base, &tgt_base) {
@@ -353,6 +357,7 @@ pub fn retarget_with_truth(
             .collect()
     });
     Ok(Retargeted {
+        unconverged,
         keys: key_sets,
         weights,
         source,

@@ -85,3 +85,26 @@ pub fn brute_force(s: &DMatrix<f64>, q: &DVector<f64>, upper: f64) -> f64 {
     }
     best
 }
+
+/// Runs the Khronos glTF validator (npm `gltf-validator`, installed into `tools/gltf` by
+/// `.ci/run`, or by hand: `cd tools/gltf && npm install`) on `glb` and asserts it reports no
+/// errors. A missing validator fails the test: a test that cannot check must not pass.
+pub fn assert_valid_gltf(glb: &std::path::Path) {
+    let tool = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tools/gltf");
+    assert!(
+        tool.join("node_modules/gltf-validator").exists(),
+        "the glTF validator is not installed: run `cd tools/gltf && npm install` (.ci/run does)"
+    );
+    let out = std::process::Command::new("node")
+        .arg(tool.join("validate.js"))
+        .arg(glb)
+        .output()
+        .expect("node is needed to run the glTF validator");
+    let report = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "validator: {report} {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(report.contains("\"errors\":0"), "{report}");
+}

@@ -12,6 +12,7 @@ mod experiments;
 mod fuzz_smoke;
 mod keyshapes;
 mod modes;
+mod oracles;
 mod pca;
 mod readers;
 mod reference;

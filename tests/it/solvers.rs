@@ -214,3 +214,84 @@ proptest! {
         prop_assert!(g.amax() < 1e-9 * scale, "Sᵀr = {}", g.amax());
     }
 }
+
+/// A weight whose gradient is 22× the solver's own stopping tolerance must be freed:
+/// `S = [e₁ e₂]`, `q = e₁ + 1e-11·e₂` has the exact NNLS (and bounded) solution (1, 1e-11).
+/// A solver that stopped 100× later (tolerance 4.4e-11 here) would leave w₂ at 0 — which
+/// the KKT bound of the proptests (relative 1e-8) cannot see (issue 12 item 1).
+#[test]
+fn a_gradient_above_the_stopping_tolerance_frees_its_weight() {
+    let s = DMatrix::from_row_slice(3, 2, &[1.0, 0.0, 0.0, 1.0, 0.0, 0.0]);
+    let q = DMatrix::from_column_slice(3, 1, &[1.0, 1e-11, 0.0]);
+    for solver in [Solver::Nnls, Solver::Bounded] {
+        for warm in [false, true] {
+            let mut opts = SolveOptions::new(solver);
+            opts.warm_start = warm;
+            let sol = solve_batch(&s, &q, &opts).unwrap();
+            assert_eq!(sol.unconverged, 0);
+            assert_eq!(sol.weights[(0, 0)], 1.0, "{solver}");
+            assert!(
+                (sol.weights[(1, 0)] - 1e-11).abs() < 1e-24,
+                "{solver}: w₂ = {:e}, expected 1e-11",
+                sol.weights[(1, 0)]
+            );
+        }
+    }
+}
+
+/// A problem that forces Lawson–Hanson's step back: the largest gradient frees s₁ first,
+/// freeing s₃ then drives w₁ negative, so the step stops where w₁ reaches 0 and s₁ leaves.
+/// The optimum (brute force over active sets, exact in fractions) is (0, 9/7, 19/7);
+/// taking the full step and clipping gives (0, 2, 13/3) instead (issue 12 item 2).
+#[test]
+fn the_lawson_hanson_step_back_reaches_the_exact_optimum() {
+    let s = DMatrix::from_row_slice(3, 3, &[-1.0, -3.0, 1.0, -2.0, 1.0, -1.0, 2.0, 0.0, 1.0]);
+    let q = DMatrix::from_column_slice(3, 1, &[-1.0, -1.0, 3.0]);
+    let want = [0.0, 9.0 / 7.0, 19.0 / 7.0];
+    for warm in [false, true] {
+        let mut opts = SolveOptions::new(Solver::Nnls);
+        opts.warm_start = warm;
+        let sol = solve_batch(&s, &q, &opts).unwrap();
+        assert_eq!(sol.unconverged, 0);
+        for (i, w) in want.iter().enumerate() {
+            assert!(
+                (sol.weights[(i, 0)] - w).abs() < 1e-13,
+                "w{i} = {}, expected {w}",
+                sol.weights[(i, 0)]
+            );
+        }
+        let best = brute_force(&s, &q.column(0).clone_owned(), f64::INFINITY);
+        let ours = objective(&s, &q.column(0).clone_owned(), &sol.weights.column(0).clone_owned());
+        assert!((ours - best).abs() < 1e-12, "objective {ours} vs brute force {best}");
+    }
+    // Two weights go negative in one full step; the step back removes only the first to
+    // reach 0 and keeps the other. Optimum on {s₁, s₂, s₄}: (81/238, 440/357, 0, 664/357).
+    let s = DMatrix::from_row_slice(
+        4,
+        4,
+        &[
+            3.0, 3.0, 2.0, -2.0, 0.0, 1.0, -1.0, 1.0, -2.0, 0.0, -3.0, 1.0, -1.0, 3.0, -3.0, -2.0,
+        ],
+    );
+    let q4 = DMatrix::from_column_slice(4, 1, &[2.0, 2.0, 3.0, -1.0]);
+    let want4 = [81.0 / 238.0, 440.0 / 357.0, 0.0, 664.0 / 357.0];
+    for warm in [false, true] {
+        let mut opts = SolveOptions::new(Solver::Nnls);
+        opts.warm_start = warm;
+        let sol = solve_batch(&s, &q4, &opts).unwrap();
+        assert_eq!(sol.unconverged, 0);
+        for (i, w) in want4.iter().enumerate() {
+            assert!(
+                (sol.weights[(i, 0)] - w).abs() < 1e-13,
+                "4-key problem: w{i} = {}, expected {w}",
+                sol.weights[(i, 0)]
+            );
+        }
+    }
+    let s = DMatrix::from_row_slice(3, 3, &[-1.0, -3.0, 1.0, -2.0, 1.0, -1.0, 2.0, 0.0, 1.0]);
+    // The textbook solver agrees.
+    let t = textbook::nnls(&s, &q.column(0).clone_owned());
+    for (i, w) in want.iter().enumerate() {
+        assert!((t[i] - w).abs() < 1e-12, "textbook w{i} = {}", t[i]);
+    }
+}

@@ -1,0 +1,132 @@
+//! Oracles for numbers the other tests did not pin down (issue 12 items 3–5): each test
+//! here fails on a plausible one-line bug that the suite used to let through.
+
+use keyshape_lab::decompose::decompose;
+use keyshape_lab::intensity::median3;
+use keyshape_lab::keyshapes::{Analysis, KeyOptions, Method};
+use keyshape_lab::retarget::rbf::Rbf;
+use keyshape_lab::solve::{SolveOptions, Solver};
+use nalgebra::{DMatrix, DVector};
+
+/// Per-frame RMS is `sqrt(‖q − q̂‖² / points)` on a residual made by hand: two 2-D points,
+/// one key shape (1, 0, 0, 0); frame 1 is the key plus 3 on the last coordinate, so its
+/// residual is (0, 0, 0, 3) under every solver: RMS = sqrt(9 / 2) (not sqrt(9 / 4)).
+#[test]
+fn per_frame_rms_divides_by_the_point_count() {
+    let q = DMatrix::from_column_slice(4, 3, &[1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 3.0, 2.0, 0.0, 0.0, 4.0]);
+    for solver in Solver::ALL {
+        let d = decompose(&q, 2, &[0], None, &SolveOptions::new(solver)).unwrap();
+        let rms = d.rms();
+        assert_eq!(rms[0], 0.0, "{solver}");
+        assert!((rms[1] - 4.5f64.sqrt()).abs() < 1e-15, "{solver}: {}", rms[1]);
+        // frame 2 = 2 × key + 4 on the last coordinate: weight 2 (1 for bounded), residual 4.
+        let want2 = if solver == Solver::Bounded {
+            ((1.0 + 16.0) / 2.0f64).sqrt()
+        } else {
+            8.0f64.sqrt()
+        };
+        assert!((rms[2] - want2).abs() < 1e-15, "{solver}: {}", rms[2]);
+        let mean = (0.0 + 4.5f64.sqrt() + want2) / 3.0;
+        assert!((d.mean_rms() - mean).abs() < 1e-15, "{solver}");
+        let total = 9.0 + 2.0 * want2 * want2;
+        assert!((d.total_sq_error() - total).abs() < 1e-12, "{solver}");
+        assert!((d.overall_rms() - (total / 6.0).sqrt()).abs() < 1e-15, "{solver}");
+    }
+}
+
+/// Median of three keeps a two-sample pulse (a median of five would remove it) and removes
+/// a one-sample spike; the ends are kept.
+#[test]
+fn median3_keeps_a_two_sample_pulse_and_removes_a_spike() {
+    assert_eq!(
+        median3(&[0.0, 0.0, 9.0, 9.0, 0.0, 0.0, 0.0]),
+        [0.0, 0.0, 9.0, 9.0, 0.0, 0.0, 0.0]
+    );
+    assert_eq!(
+        median3(&[0.0, 0.0, 9.0, 0.0, 0.0]),
+        [0.0, 0.0, 0.0, 0.0, 0.0]
+    );
+    assert_eq!(median3(&[5.0, 1.0, 2.0, 3.0, 7.0]), [5.0, 2.0, 2.0, 3.0, 7.0]);
+}
+
+/// The RBF away from its centres equals the multiquadric computed here from scratch
+/// (own H, LU solve, own kernel): `F(x) = Σ wᵢ sqrt(‖x − sᵢ‖² + scᵢ²)`, `scᵢ` the distance
+/// from sᵢ to its nearest other centre. A kernel swapped for another still interpolates
+/// the centres, so only points between them can tell.
+#[test]
+fn the_rbf_between_its_centres_is_the_paper_multiquadric() {
+    let src = [0.0, 0.0, 3.0, 0.5, 1.0, 4.0, -2.0, 2.5, 2.0, 2.0];
+    let dst = [0.5, 0.1, 3.2, 1.0, 1.1, 5.0, -2.5, 2.0, 2.4, 2.6];
+    let n = 5;
+    let rbf = Rbf::fit(&src, &dst, 2).unwrap();
+    let c = |i: usize| [src[2 * i], src[2 * i + 1]];
+    let d2 = |a: [f64; 2], b: [f64; 2]| (a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2);
+    let sc2: Vec<f64> = (0..n)
+        .map(|i| {
+            (0..n)
+                .filter(|&j| j != i)
+                .map(|j| d2(c(i), c(j)))
+                .fold(f64::INFINITY, f64::min)
+        })
+        .collect();
+    let h = DMatrix::from_fn(n, n, |j, i| (d2(c(j), c(i)) + sc2[i]).sqrt());
+    let lu = h.lu();
+    let w: Vec<DVector<f64>> = (0..2)
+        .map(|d| {
+            let t = DVector::from_fn(n, |j, _| dst[2 * j + d]);
+            lu.solve(&t).unwrap()
+        })
+        .collect();
+    for x in [[1.5, 1.0], [0.3, 2.9], [-1.0, 0.0], [4.0, 4.0], [2.5, 0.2]] {
+        let mut got = [0.0; 2];
+        rbf.apply_point(&x, &mut got);
+        for d in 0..2 {
+            let want: f64 = (0..n)
+                .map(|i| w[d][i] * (d2(x, c(i)) + sc2[i]).sqrt())
+                .sum();
+            assert!(
+                (got[d] - want).abs() < 1e-10 * (1.0 + want.abs()),
+                "F({x:?})[{d}] = {}, the multiquadric gives {want}",
+                got[d]
+            );
+        }
+    }
+    // and it interpolates the centres
+    for i in 0..n {
+        let mut got = [0.0; 2];
+        rbf.apply_point(&c(i), &mut got);
+        assert!((got[0] - dst[2 * i]).abs() < 1e-10 && (got[1] - dst[2 * i + 1]).abs() < 1e-10);
+    }
+}
+
+/// k-means' key frames are, centre by centre, the unused frame nearest the centre over
+/// *every* clustered axis: checked by brute force on the built-in sequence for kmeans2,
+/// kmeans3 and kmeans5.
+#[test]
+fn kmeans_keys_are_the_frames_nearest_the_centres_over_all_axes() {
+    let seq = keyshape_lab::io::builtin_sequence().unwrap();
+    let an = Analysis::with_axes(seq.coords, seq.points, 8).unwrap();
+    for pcs in [2usize, 3, 5] {
+        let sel = Method::KMeans { pcs }
+            .heuristic(&KeyOptions::default())
+            .select(&an, 9)
+            .unwrap();
+        let centres = sel.centres.unwrap();
+        assert_eq!(centres.nrows(), pcs);
+        let mut taken = vec![false; an.frames()];
+        for (c, &got) in sel.columns.iter().enumerate() {
+            let mut best = (f64::INFINITY, usize::MAX);
+            for t in 0..an.frames() {
+                if taken[t] {
+                    continue;
+                }
+                let d: f64 = (0..pcs).map(|a| (an.proj[(a, t)] - centres[(a, c)]).powi(2)).sum();
+                if d < best.0 {
+                    best = (d, t);
+                }
+            }
+            assert_eq!(got, best.1, "kmeans{pcs}: centre {c}");
+            taken[best.1] = true;
+        }
+    }
+}
