@@ -147,9 +147,13 @@ fn find_meta(path: &Path, text: &str) -> Result<Meta> {
         })?;
     let meta: Meta = serde_json::from_str(node.text().unwrap_or(""))
         .map_err(|e| Error::file(path, format!("template description is damaged: {e}")))?;
-    let damaged = |why: String| Error::file(path, format!("template description is damaged: {why}"));
+    let damaged =
+        |why: String| Error::file(path, format!("template description is damaged: {why}"));
     if meta.points == 0 || meta.points > crate::sequence::MAX_SHAPE_VALUES {
-        return Err(damaged(format!("points {} is not a point count", meta.points)));
+        return Err(damaged(format!(
+            "points {} is not a point count",
+            meta.points
+        )));
     }
     if let Some(&bad) = meta.polylines.iter().flatten().find(|&&i| i >= meta.points) {
         return Err(damaged(format!(
@@ -158,7 +162,9 @@ fn find_meta(path: &Path, text: &str) -> Result<Meta> {
         )));
     }
     if meta.rest && meta.polylines.is_empty() {
-        return Err(damaged("it promises a run of loose points but lists no contours".into()));
+        return Err(damaged(
+            "it promises a run of loose points but lists no contours".into(),
+        ));
     }
     Ok(meta)
 }

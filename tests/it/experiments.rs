@@ -161,7 +161,10 @@ fn smoke_experiment_matches_its_reviewed_snapshots() {
     assert_eq!(plot.x_label, "number of key shapes k");
     assert_eq!(plot.y_label, "RMS error per point (px), nnls");
     let names: Vec<&str> = plot.series.iter().map(|s| s.name.as_str()).collect();
-    assert_eq!(names, ["spread", "kmeans2", "kmeans3", "hull", "greedy", "random"]);
+    assert_eq!(
+        names,
+        ["spread", "kmeans2", "kmeans3", "hull", "greedy", "random"]
+    );
     let styles: Vec<(Style, [u8; 3])> = plot.series.iter().map(|s| (s.style, s.color)).collect();
     assert_eq!(styles[0], (Style::Line, [31, 90, 200]));
     assert_eq!(styles[1], (Style::Dashed, [30, 150, 60]));

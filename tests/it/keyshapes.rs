@@ -32,14 +32,17 @@ fn shapes() -> impl Strategy<Value = DMatrix<f64>> {
 /// Full-rank shapes: a base plus independent noise on every coordinate of every frame, so
 /// any 6 frames are independent and greedy's LS path is checked at every k.
 fn full_rank_shapes() -> impl Strategy<Value = DMatrix<f64>> {
-    (6usize..12, 8usize..30, prop::collection::vec(-1.0f64..1.0, 24 * 30)).prop_map(
-        |(pts, frames, v)| {
+    (
+        6usize..12,
+        8usize..30,
+        prop::collection::vec(-1.0f64..1.0, 24 * 30),
+    )
+        .prop_map(|(pts, frames, v)| {
             let rows = pts * 2;
             DMatrix::from_fn(rows, frames, |i, t| {
                 (i as f64 * 0.7).sin() * 10.0 + v[(i * 30 + t) % v.len()]
             })
-        },
-    )
+        })
 }
 
 fn all_methods() -> Vec<Method> {

@@ -182,10 +182,9 @@ fn intensity_study_on_the_news_sample_finds_smiles() {
         .iter()
         .find(|a| a["action"] == "smile")
         .unwrap();
-    assert!(
-        smile["correlation_median3"].as_f64().unwrap() > 0.6,
-        "{smile}"
-    );
+    // Measured 0.7474 (the README's table); the pipeline is deterministic.
+    let c = smile["correlation_median3"].as_f64().unwrap();
+    assert!((c - 0.7474046986943554).abs() < 1e-6, "{smile}");
     assert_eq!(
         v["test_frames"].as_u64().unwrap() + v["train_frames"].as_u64().unwrap(),
         477

@@ -13,12 +13,20 @@ use nalgebra::{DMatrix, DVector};
 /// residual is (0, 0, 0, 3) under every solver: RMS = sqrt(9 / 2) (not sqrt(9 / 4)).
 #[test]
 fn per_frame_rms_divides_by_the_point_count() {
-    let q = DMatrix::from_column_slice(4, 3, &[1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 3.0, 2.0, 0.0, 0.0, 4.0]);
+    let q = DMatrix::from_column_slice(
+        4,
+        3,
+        &[1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 3.0, 2.0, 0.0, 0.0, 4.0],
+    );
     for solver in Solver::ALL {
         let d = decompose(&q, 2, &[0], None, &SolveOptions::new(solver)).unwrap();
         let rms = d.rms();
         assert_eq!(rms[0], 0.0, "{solver}");
-        assert!((rms[1] - 4.5f64.sqrt()).abs() < 1e-15, "{solver}: {}", rms[1]);
+        assert!(
+            (rms[1] - 4.5f64.sqrt()).abs() < 1e-15,
+            "{solver}: {}",
+            rms[1]
+        );
         // frame 2 = 2 × key + 4 on the last coordinate: weight 2 (1 for bounded), residual 4.
         let want2 = if solver == Solver::Bounded {
             ((1.0 + 16.0) / 2.0f64).sqrt()
@@ -30,7 +38,10 @@ fn per_frame_rms_divides_by_the_point_count() {
         assert!((d.mean_rms() - mean).abs() < 1e-15, "{solver}");
         let total = 9.0 + 2.0 * want2 * want2;
         assert!((d.total_sq_error() - total).abs() < 1e-12, "{solver}");
-        assert!((d.overall_rms() - (total / 6.0).sqrt()).abs() < 1e-15, "{solver}");
+        assert!(
+            (d.overall_rms() - (total / 6.0).sqrt()).abs() < 1e-15,
+            "{solver}"
+        );
     }
 }
 
@@ -46,7 +57,10 @@ fn median3_keeps_a_two_sample_pulse_and_removes_a_spike() {
         median3(&[0.0, 0.0, 9.0, 0.0, 0.0]),
         [0.0, 0.0, 0.0, 0.0, 0.0]
     );
-    assert_eq!(median3(&[5.0, 1.0, 2.0, 3.0, 7.0]), [5.0, 2.0, 2.0, 3.0, 7.0]);
+    assert_eq!(
+        median3(&[5.0, 1.0, 2.0, 3.0, 7.0]),
+        [5.0, 2.0, 2.0, 3.0, 7.0]
+    );
 }
 
 /// The RBF away from its centres equals the multiquadric computed here from scratch
@@ -120,7 +134,9 @@ fn kmeans_keys_are_the_frames_nearest_the_centres_over_all_axes() {
                 if taken[t] {
                     continue;
                 }
-                let d: f64 = (0..pcs).map(|a| (an.proj[(a, t)] - centres[(a, c)]).powi(2)).sum();
+                let d: f64 = (0..pcs)
+                    .map(|a| (an.proj[(a, t)] - centres[(a, c)]).powi(2))
+                    .sum();
                 if d < best.0 {
                     best = (d, t);
                 }

@@ -236,7 +236,10 @@ fn regions_blend_to_one_and_bad_regions_are_explained() {
     )
     .unwrap();
     assert_eq!(res.weights.len(), 2);
-    assert!(res.target_rms().unwrap() < 5.0);
+    // Measured 4.0182 px (4 + 5 keys on the whole face); a change beyond 0.1 % is a change
+    // in the solver, the regions' blend or the warp, to be looked at.
+    let rms = res.target_rms().unwrap();
+    assert!((rms - 4.0182379701623585).abs() < 4e-3, "target RMS {rms}");
 }
 
 #[test]

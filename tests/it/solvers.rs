@@ -261,8 +261,15 @@ fn the_lawson_hanson_step_back_reaches_the_exact_optimum() {
             );
         }
         let best = brute_force(&s, &q.column(0).clone_owned(), f64::INFINITY);
-        let ours = objective(&s, &q.column(0).clone_owned(), &sol.weights.column(0).clone_owned());
-        assert!((ours - best).abs() < 1e-12, "objective {ours} vs brute force {best}");
+        let ours = objective(
+            &s,
+            &q.column(0).clone_owned(),
+            &sol.weights.column(0).clone_owned(),
+        );
+        assert!(
+            (ours - best).abs() < 1e-12,
+            "objective {ours} vs brute force {best}"
+        );
     }
     // Two weights go negative in one full step; the step back removes only the first to
     // reach 0 and keeps the other. Optimum on {s₁, s₂, s₄}: (81/238, 440/357, 0, 664/357).
