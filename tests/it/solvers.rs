@@ -58,7 +58,7 @@ proptest! {
         prop_assert_eq!(sol.unconverged, 0);
         for j in 0..q.ncols() {
             let v = kkt_violation(&s, &column(&q, j), &column(&sol.weights, j), f64::INFINITY);
-            prop_assert!(v < 1e-8, "KKT violated by {v:e} at frame {j}");
+            prop_assert!(v < 1e-12, "KKT violated by {v:e} at frame {j}");
         }
     }
 
@@ -67,7 +67,7 @@ proptest! {
         let sol = solve_batch(&s, &q, &SolveOptions::new(Solver::Bounded)).unwrap();
         for j in 0..q.ncols() {
             let v = kkt_violation(&s, &column(&q, j), &column(&sol.weights, j), 1.0);
-            prop_assert!(v < 1e-8, "KKT violated by {v:e} at frame {j}");
+            prop_assert!(v < 1e-12, "KKT violated by {v:e} at frame {j}");
         }
     }
 
@@ -192,7 +192,7 @@ fn nnls_meets_kkt_on_every_frame_of_a_real_track_including_key_frames() {
             assert_eq!(sol.unconverged, 0, "k={k}");
             for j in 0..t {
                 let v = kkt_violation(&s, &column(q, j), &column(&sol.weights, j), f64::INFINITY);
-                assert!(v < 1e-8, "k={k} frame {j}: KKT violated by {v:e}");
+                assert!(v < 1e-12, "k={k} frame {j}: KKT violated by {v:e}");
             }
             for (i, &c) in keys.iter().enumerate() {
                 assert!(
