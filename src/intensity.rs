@@ -166,6 +166,12 @@ pub struct Study {
 pub fn study(path: &std::path::Path, st: &StudySettings) -> Result<Study> {
     use crate::decompose::{prepare, PrepareOptions};
     use crate::io::{read_columns, read_sequence, ReadOptions};
+    if !(st.threshold.is_finite() && st.threshold > 0.0 && st.threshold < 1.0) {
+        return Err(Error::invalid(format!(
+            "threshold {:?} must lie in (0, 1): it is an ARKit-style score",
+            st.threshold
+        )));
+    }
     let seq = read_sequence(path, &ReadOptions::default())?;
     let clips: Vec<usize> = seq
         .segments

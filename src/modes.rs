@@ -256,6 +256,11 @@ pub fn orthogonality_study(
     actions: &Actions,
     modes: usize,
 ) -> Result<OrthogonalityStudy> {
+    if modes == 0 {
+        return Err(Error::invalid(
+            "the orthogonality study needs at least 1 mode (--modes)",
+        ));
+    }
     if actions.actions.len() < 2 {
         return Err(Error::invalid(
             "the orthogonality table needs at least two actions",

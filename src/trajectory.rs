@@ -33,6 +33,11 @@ pub fn person_model(
     actions: &Actions,
     modes: usize,
 ) -> Result<PersonModel> {
+    if modes == 0 {
+        return Err(Error::invalid(
+            "a person's model needs at least 1 mode (--modes)",
+        ));
+    }
     let pca = Pca::fit_leading(&artificial_set(coords, regions, dims), modes)?;
     let m = pca.components.ncols();
     let b = pca.project(coords, m);
