@@ -17,8 +17,8 @@ pub struct TuiArgs {
     /// A target mesh (OBJ) to drive by RBF transfer + skinning (paper 004); `x` shows it.
     #[arg(long)]
     mesh: Option<PathBuf>,
-    /// Feature correspondences for --mesh (`builtin`, or a JSON file).
-    #[arg(long, default_value = "builtin")]
+    /// Feature correspondences for --mesh (`builtin`, a built-in name, or a JSON file).
+    #[arg(long, default_value = "builtin", requires = "mesh")]
     features: String,
 }
 
