@@ -126,7 +126,10 @@ pub fn shared_data(rel: &str) -> Result<std::path::PathBuf> {
         if p.exists() {
             return Ok(p);
         }
-        tried.push(p.display().to_string());
+        let shown = p.display().to_string();
+        if !tried.contains(&shown) {
+            tried.push(shown);
+        }
     }
     Err(Error::invalid(format!(
         "shared data file data/{rel} not found: tried {} (set KSLAB_SHARED to the folder holding data/, or give the file explicitly)",
