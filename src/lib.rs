@@ -34,6 +34,8 @@ pub mod align;
 pub mod decompose;
 pub mod error;
 pub mod experiment;
+#[doc(hidden)]
+pub mod fuzzing;
 pub mod intensity;
 pub mod io;
 pub mod keyshapes;

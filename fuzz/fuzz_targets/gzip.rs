@@ -1,12 +1,6 @@
-//! The gzip layer under every reader (single and multi-member, trailing bytes).
+//! The gzip layer under every reader. The body is `keyshape_lab::fuzzing::gzip`, shared with
+//! the smoke test that runs in every `cargo test` (tests/it/fuzz_smoke.rs).
 #![no_main]
-use keyshape_lab::io::{parse_sequence, text_from_bytes, ReadOptions};
 use libfuzzer_sys::fuzz_target;
-use std::path::Path;
 
-fuzz_target!(|data: &[u8]| {
-    let path = Path::new("fuzz.csv.gz");
-    if let Ok(text) = text_from_bytes(path, data.to_vec(), true) {
-        let _ = parse_sequence(path, &text, &ReadOptions::default());
-    }
-});
+fuzz_target!(|data: &[u8]| keyshape_lab::fuzzing::gzip(data));

@@ -1,14 +1,6 @@
-//! The OBJ mesh reader on arbitrary text.
+//! The OBJ mesh reader. The body is `keyshape_lab::fuzzing::obj`, shared with
+//! the smoke test that runs in every `cargo test` (tests/it/fuzz_smoke.rs).
 #![no_main]
-use keyshape_lab::io::obj::parse_obj;
 use libfuzzer_sys::fuzz_target;
-use std::path::Path;
 
-fuzz_target!(|data: &[u8]| {
-    if let Ok(text) = std::str::from_utf8(data) {
-        if let Ok(mesh) = parse_obj(Path::new("fuzz.obj"), text) {
-            let n = mesh.positions.len();
-            assert!(mesh.faces.iter().flatten().all(|&i| i < n));
-        }
-    }
-});
+fuzz_target!(|data: &[u8]| keyshape_lab::fuzzing::obj(data));

@@ -1,11 +1,6 @@
-//! The experiment spec reader (TOML) on arbitrary text.
+//! The experiment spec reader (TOML). The body is `keyshape_lab::fuzzing::toml`, shared with
+//! the smoke test that runs in every `cargo test` (tests/it/fuzz_smoke.rs).
 #![no_main]
-use keyshape_lab::experiment::Spec;
 use libfuzzer_sys::fuzz_target;
-use std::path::Path;
 
-fuzz_target!(|data: &[u8]| {
-    if let Ok(text) = std::str::from_utf8(data) {
-        let _ = Spec::from_str(Path::new("fuzz.toml"), text);
-    }
-});
+fuzz_target!(|data: &[u8]| keyshape_lab::fuzzing::toml(data));

@@ -1,15 +1,13 @@
 //! A short, deterministic smoke of the fuzz targets (fuzz/fuzz_targets/*.rs) that runs on
 //! the stable toolchain in every `cargo test`: each seed in fuzz/seeds/<target>/ and a few
 //! thousand byte-level mutations of it (bit flips, byte insertions and deletions,
-//! truncation, repeated and swapped slices) go through the same parse calls. No panic, and
+//! truncation, repeated and swapped slices) go through the same code
+//! (`keyshape_lab::fuzzing`). No panic, and
 //! whatever parses satisfies the readers' invariants. The long runs are `tools/fuzz.sh`
 //! (cargo fuzz, nightly); see the README's testing section.
 
-use keyshape_lab::io::obj::parse_obj;
-use keyshape_lab::io::svg::parse_template;
-use keyshape_lab::io::{parse_sequence, text_from_bytes, ReadOptions};
-use keyshape_lab::sequence::Format;
-use std::path::{Path, PathBuf};
+use keyshape_lab::fuzzing;
+use std::path::PathBuf;
 
 const MUTATIONS_PER_SEED: usize = 300;
 
@@ -95,7 +93,7 @@ fn mutate(seed: &[u8], rng: &mut Rng) -> Vec<u8> {
     v
 }
 
-fn each_mutation(target: &str, check: impl Fn(&[u8])) {
+fn each_mutation(target: &str, check: fn(&[u8])) {
     let mut rng = Rng(0x9E37_79B9_7F4A_7C15);
     for seed in seeds(target) {
         check(&seed);
@@ -105,76 +103,27 @@ fn each_mutation(target: &str, check: impl Fn(&[u8])) {
     }
 }
 
-fn sequence_target(data: &[u8]) {
-    let path = Path::new("fuzz.csv");
-    let Ok(text) = text_from_bytes(path, data.to_vec(), false) else {
-        return;
-    };
-    for format in [
-        None,
-        Some(Format::Mediapipe),
-        Some(Format::Openface),
-        Some(Format::Pyfeat),
-        Some(Format::Csv),
-        Some(Format::Json),
-        Some(Format::Pts),
-    ] {
-        for dims in [2, 3] {
-            if let Ok(seq) = parse_sequence(path, &text, &ReadOptions { format, dims }) {
-                assert!(seq.coords.iter().all(|v| v.is_finite()));
-                assert_eq!(seq.coords.ncols(), seq.frames.len());
-                assert!(seq.n_frames() > 0 && seq.points > 0);
-            }
-        }
-    }
-}
-
 #[test]
 fn sequence_readers_survive_mutated_real_files() {
-    each_mutation("sequence", sequence_target);
+    each_mutation("sequence", fuzzing::sequence);
 }
 
 #[test]
 fn the_gzip_layer_survives_mutated_archives() {
-    each_mutation("gzip", |data| {
-        let path = Path::new("fuzz.csv.gz");
-        if let Ok(text) = text_from_bytes(path, data.to_vec(), true) {
-            let _ = parse_sequence(path, &text, &ReadOptions::default());
-        }
-    });
+    each_mutation("gzip", fuzzing::gzip);
 }
 
 #[test]
 fn the_svg_template_reader_survives_mutated_templates() {
-    each_mutation("svg", |data| {
-        if let Ok(text) = std::str::from_utf8(data) {
-            if let Ok(set) = parse_template(Path::new("fuzz.svg"), text) {
-                assert!(set
-                    .keys
-                    .iter()
-                    .all(|k| k.coords.iter().all(|v| v.is_finite())));
-            }
-        }
-    });
+    each_mutation("svg", fuzzing::svg);
 }
 
 #[test]
 fn the_obj_reader_survives_mutated_meshes() {
-    each_mutation("obj", |data| {
-        if let Ok(text) = std::str::from_utf8(data) {
-            if let Ok(mesh) = parse_obj(Path::new("fuzz.obj"), text) {
-                let n = mesh.positions.len();
-                assert!(mesh.faces.iter().flatten().all(|&i| i < n));
-            }
-        }
-    });
+    each_mutation("obj", fuzzing::obj);
 }
 
 #[test]
 fn the_experiment_reader_survives_mutated_specs() {
-    each_mutation("toml", |data| {
-        if let Ok(text) = std::str::from_utf8(data) {
-            let _ = keyshape_lab::experiment::Spec::from_str(Path::new("fuzz.toml"), text);
-        }
-    });
+    each_mutation("toml", fuzzing::toml);
 }
