@@ -569,3 +569,81 @@ fn default_data_paths_do_not_depend_on_the_current_directory() {
         "{err}"
     );
 }
+
+/// `--head-motion` decides once for every output (issue 11 item 7): with `apply` the CSV
+/// carries the per-frame pose and the pictures differ from `none`; the relative motion for
+/// a target with its own points rotates and scales about the target's centre.
+#[test]
+fn head_motion_is_one_choice_for_every_output() {
+    let d = tempfile::tempdir().unwrap();
+    let (a, n) = (d.path().join("a.csv"), d.path().join("n.csv"));
+    let (pa, pn) = (d.path().join("a.png"), d.path().join("n.png"));
+    for (csv, png, mode) in [(&a, &pa, "apply"), (&n, &pn, "none")] {
+        let (code, _, err) = run(&[
+            "retarget",
+            "--points",
+            "lips",
+            "--k",
+            "4",
+            "--head-motion",
+            mode,
+            "--out",
+            csv.to_str().unwrap(),
+            "--apng",
+            png.to_str().unwrap(),
+        ]);
+        assert_eq!(code, 0, "{err}");
+    }
+    let (a, n) = (
+        std::fs::read_to_string(a).unwrap(),
+        std::fs::read_to_string(n).unwrap(),
+    );
+    assert!(a
+        .lines()
+        .next()
+        .unwrap()
+        .ends_with(",head_scale,head_angle_deg,head_tx,head_ty"));
+    assert!(!n.lines().next().unwrap().contains("head_"));
+    // the weights are the same either way: head motion is not part of the solve
+    let strip = |t: &str| -> Vec<String> {
+        t.lines()
+            .map(|l| l.split(',').take(7).collect::<Vec<_>>().join(","))
+            .collect()
+    };
+    assert_eq!(strip(&a), strip(&n));
+    assert_ne!(std::fs::read(&pa).unwrap(), std::fs::read(&pn).unwrap());
+
+    use keyshape_lab::align::Similarity;
+    use keyshape_lab::retarget::with_relative_head_motion;
+    use nalgebra::DMatrix;
+    // a unit square in a target's own coordinates, two frames
+    let sq = [0.0, 0.0, 2.0, 0.0, 2.0, 2.0, 0.0, 2.0];
+    let shapes = DMatrix::from_fn(8, 2, |i, _| sq[i]);
+    let head = [
+        Similarity {
+            scale: 2.0,
+            angle: 0.3,
+            t: [10.0, 5.0, 0.0],
+        },
+        Similarity {
+            scale: 4.0,
+            angle: 0.3 + std::f64::consts::FRAC_PI_2,
+            t: [14.0, 5.0, 0.0],
+        },
+    ];
+    let out = with_relative_head_motion(&shapes, &head, 2, 0.5).unwrap();
+    // frame 0: the reference, unchanged
+    for i in 0..8 {
+        assert!((out[(i, 0)] - sq[i]).abs() < 1e-12);
+    }
+    // frame 1: ×2 and +90° about the centre (1, 1), then moved by 0.5 × (4, 0) / 2 = (1, 0)
+    let want = [3.0, -1.0, 3.0, 3.0, -1.0, 3.0, -1.0, -1.0];
+    for i in 0..8 {
+        let w = want[i] + if i % 2 == 0 { 1.0 } else { 0.0 };
+        assert!(
+            (out[(i, 1)] - w).abs() < 1e-12,
+            "coord {i}: {} vs {w}",
+            out[(i, 1)]
+        );
+    }
+}
