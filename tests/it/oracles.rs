@@ -146,3 +146,85 @@ fn kmeans_keys_are_the_frames_nearest_the_centres_over_all_axes() {
         }
     }
 }
+
+/// Survivors of the first mutation run (mutants/README.md), each killed here.
+#[test]
+fn negative_share_tolerance_scales_with_the_largest_weight() {
+    use keyshape_lab::decompose::Decomposition;
+    let d = |w: Vec<f64>| Decomposition {
+        key_columns: vec![0, 1],
+        neutral: None,
+        solver: Solver::Ls,
+        weights: DMatrix::from_vec(2, 2, w),
+        sq_error: vec![0.0, 0.0],
+        points: 1,
+        rank: 2,
+        condition: 1.0,
+        unconverged: 0,
+    };
+    // tolerance 1e-9 × 1000 = 1e-6: −1e-7 is rounding, −2e-6 is a negative weight
+    let a = d(vec![1000.0, -1e-7, 0.5, -2e-6]);
+    assert_eq!(a.max_abs_weight(), 1000.0);
+    assert_eq!(a.negative_share(), 0.25);
+    // exactly at −tolerance is not negative
+    assert_eq!(d(vec![1.0, -1e-9, 0.5, 0.5]).negative_share(), 0.0);
+}
+
+/// As many key shapes as frames is allowed (every frame reconstructs itself); one more is
+/// an error. Delta mode (`neutral`) reconstructs `base + Σ wᵢ (keyᵢ − base)` exactly.
+#[test]
+fn decompose_takes_every_frame_as_a_key_and_solves_deltas_exactly() {
+    let q = DMatrix::from_column_slice(
+        4,
+        3,
+        &[1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0],
+    );
+    let d = decompose(&q, 2, &[0, 1, 2], None, &SolveOptions::new(Solver::Nnls)).unwrap();
+    assert_eq!(d.total_sq_error(), 0.0);
+    // delta mode: neutral n, keys a and b; frames n + 0.25 (a − n) + 0.5 (b − n)
+    let n = [1.0, 1.0, 3.0, 1.0];
+    let a = [2.0, 1.0, 3.0, 2.0];
+    let b = [1.0, 3.0, 4.0, 1.0];
+    let mix: Vec<f64> = (0..4)
+        .map(|i| n[i] + 0.25 * (a[i] - n[i]) + 0.5 * (b[i] - n[i]))
+        .collect();
+    let cols: Vec<f64> = [n, a, b].iter().flatten().copied().chain(mix).collect();
+    let q = DMatrix::from_column_slice(4, 4, &cols);
+    for solver in Solver::ALL {
+        let d = decompose(&q, 2, &[1, 2], Some(0), &SolveOptions::new(solver)).unwrap();
+        assert!(
+            (d.weights[(0, 3)] - 0.25).abs() < 1e-12,
+            "{solver}: {}",
+            d.weights
+        );
+        assert!(
+            (d.weights[(1, 3)] - 0.5).abs() < 1e-12,
+            "{solver}: {}",
+            d.weights
+        );
+        assert!(d.sq_error[3] < 1e-20, "{solver}: {}", d.sq_error[3]);
+        assert_eq!(
+            d.weights[(0, 0)],
+            0.0,
+            "{solver}: the neutral frame has no delta"
+        );
+    }
+}
+
+/// soft KNN refuses mismatched inputs (labels or query rows) instead of reading past them.
+#[test]
+fn soft_knn_refuses_mismatched_inputs() {
+    use keyshape_lab::intensity::soft_knn;
+    let train = DMatrix::from_column_slice(2, 3, &[0.0, 0.0, 1.0, 0.0, 0.0, 1.0]);
+    let query = DMatrix::from_column_slice(2, 1, &[0.1, 0.1]);
+    assert!(soft_knn(&train, &[0, 1, 1], 2, &query, 2).is_ok());
+    let e = soft_knn(&train, &[0, 1], 2, &query, 2)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("do not match"), "{e}");
+    let q3 = DMatrix::from_column_slice(3, 1, &[0.1, 0.1, 0.0]);
+    let e = soft_knn(&train, &[0, 1, 1], 2, &q3, 2)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("do not match"), "{e}");
+}
