@@ -240,17 +240,29 @@ fn polyfit_is_least_squares_and_correlation_handles_two_points() {
     assert_eq!(fit.len(), x.len());
     let n = x.len() as f64;
     let (mt, mx) = (3.0, x.iter().sum::<f64>() / n);
-    let slope = (0..x.len()).map(|i| (i as f64 - mt) * (x[i] - mx)).sum::<f64>()
+    let slope = (0..x.len())
+        .map(|i| (i as f64 - mt) * (x[i] - mx))
+        .sum::<f64>()
         / (0..x.len()).map(|i| (i as f64 - mt).powi(2)).sum::<f64>();
     for (i, f) in fit.iter().enumerate() {
         let want = mx + slope * (i as f64 - mt);
-        assert!((f - want).abs() < 1e-12, "fit[{i}] = {f}, regression line {want}");
+        assert!(
+            (f - want).abs() < 1e-12,
+            "fit[{i}] = {f}, regression line {want}"
+        );
     }
     assert_eq!(polyfit_smooth(&[4.0], 3), [4.0]);
     assert!((correlation(&[1.0, 2.0], &[5.0, 9.0]) - 1.0).abs() < 1e-15);
     assert_eq!(correlation(&[1.0, 2.0, 3.0], &[5.0, 5.0, 5.0]), 0.0);
     assert_eq!(correlation(&[5.0, 5.0, 5.0], &[1.0, 2.0, 3.0]), 0.0);
     let train = DMatrix::from_column_slice(1, 3, &[0.0, 1.0, 2.0]);
-    let p = soft_knn(&train, &[0, 1, 1], 2, &DMatrix::from_column_slice(1, 1, &[0.1]), 3).unwrap();
+    let p = soft_knn(
+        &train,
+        &[0, 1, 1],
+        2,
+        &DMatrix::from_column_slice(1, 1, &[0.1]),
+        3,
+    )
+    .unwrap();
     assert!((p[(1, 0)] - 2.0 / 3.0).abs() < 1e-12, "{p}");
 }
