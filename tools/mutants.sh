@@ -28,6 +28,6 @@ if [[ " $* " != *" -f "* && " $* " != *" --file "* ]]; then
 fi
 # --gitignore false: copy tools/gltf/node_modules too (the glTF tests need the validator).
 # After --: every test target but the doc test, whose recompilation would double each run,
-# and without the fuzz smoke (reader robustness, 60 s in this profile, kills no numeric mutant).
+# and without the fuzz smoke (reader robustness: it kills no numeric mutant).
 exec cargo mutants --profile mutants --gitignore false -o mutants "${args[@]}" "$@" \
   -- --all-targets -- --skip fuzz_smoke
