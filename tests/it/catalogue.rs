@@ -480,27 +480,6 @@ fn info_ranges_are_those_of_the_selected_points() {
     assert!(lips[0].0 > seq.ranges()[0].0 + 10.0);
 }
 
-/// A weight of −3e-14 is rounding, not a negative weight: the share reads 0, not "−0.0 %"
-/// (issue 11 item 8); a real negative weight still counts.
-#[test]
-fn rounding_is_not_a_negative_weight() {
-    use keyshape_lab::decompose::Decomposition;
-    use nalgebra::DMatrix;
-    let d = |w: Vec<f64>| Decomposition {
-        key_columns: vec![0, 1],
-        neutral: None,
-        solver: keyshape_lab::solve::Solver::Ls,
-        weights: DMatrix::from_vec(2, 2, w),
-        sq_error: vec![0.0, 0.0],
-        points: 1,
-        rank: 2,
-        condition: 1.0,
-        unconverged: 0,
-    };
-    assert_eq!(d(vec![1.0, -3e-14, 0.5, 0.5]).negative_share(), 0.0);
-    assert_eq!(d(vec![1.0, -0.25, 0.5, 0.5]).negative_share(), 0.25);
-}
-
 /// Greedy over more frames than its Gram matrix allows is refused before any other method
 /// runs, naming greedy (issue 11 item 15).
 #[test]

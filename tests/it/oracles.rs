@@ -168,6 +168,9 @@ fn negative_share_tolerance_scales_with_the_largest_weight() {
     assert_eq!(a.negative_share(), 0.25);
     // exactly at −tolerance is not negative
     assert_eq!(d(vec![1.0, -1e-9, 0.5, 0.5]).negative_share(), 0.0);
+    // an LS weight of −3e-14 is rounding, not "−0.0 %" (issue 11 item 8); −0.25 counts
+    assert_eq!(d(vec![1.0, -3e-14, 0.5, 0.5]).negative_share(), 0.0);
+    assert_eq!(d(vec![1.0, -0.25, 0.5, 0.5]).negative_share(), 0.25);
 }
 
 /// As many key shapes as frames is allowed (every frame reconstructs itself); one more is
