@@ -31,16 +31,14 @@
 #![allow(clippy::needless_range_loop)]
 
 pub mod align;
+pub mod cosker;
 pub mod decompose;
 pub mod error;
 pub mod experiment;
 #[doc(hidden)]
 pub mod fuzzing;
-pub mod intensity;
 pub mod io;
 pub mod keyshapes;
-pub mod modes;
-pub mod morph;
 pub mod pca;
 pub mod plot;
 pub mod render;
@@ -48,7 +46,6 @@ pub mod report;
 pub mod retarget;
 pub mod sequence;
 pub mod solve;
-pub mod trajectory;
 pub mod transfer;
 pub mod tui;
 

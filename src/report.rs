@@ -177,8 +177,8 @@ pub fn write_outcome(o: &Outcome, dir: &Path) -> Result<Vec<PathBuf>> {
         "strip_frames": o.strip.as_ref().map(|s| s.frames.clone()),
         "intensity": o.intensity,
         "orthogonality_mean": o.orthogonality.as_ref().map(|st| json!({
-            "action_specific": crate::modes::OrthogonalityStudy::mean_upper(&st.action_model),
-            "plain_pca": crate::modes::OrthogonalityStudy::mean_upper(&st.plain),
+            "action_specific": crate::cosker::modes::OrthogonalityStudy::mean_upper(&st.action_model),
+            "plain_pca": crate::cosker::modes::OrthogonalityStudy::mean_upper(&st.plain),
         })),
         "alignment": o.map.as_ref().map(|m| m.alignment.clone()),
     });

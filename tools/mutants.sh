@@ -19,7 +19,7 @@ files=(
   src/decompose.rs src/keyshapes/mod.rs src/keyshapes/spread.rs src/keyshapes/kmeans.rs
   src/keyshapes/hull.rs src/keyshapes/greedy.rs src/keyshapes/random.rs
   src/keyshapes/curves.rs
-  src/modes.rs src/trajectory.rs src/morph.rs src/intensity.rs
+  src/cosker/modes.rs src/cosker/trajectory.rs src/cosker/morph.rs src/cosker/intensity.rs
   src/retarget/rbf.rs src/transfer/mod.rs src/transfer/skin.rs
 )
 args=()

@@ -4,7 +4,7 @@
 
 use anyhow::Result;
 use clap::Args;
-use keyshape_lab::intensity::{study, StudySettings};
+use keyshape_lab::cosker::intensity::{study, StudySettings};
 use std::path::PathBuf;
 
 /// Arguments of `kslab intensity`.

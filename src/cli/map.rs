@@ -4,17 +4,17 @@
 use super::input::InputArgs;
 use anyhow::{Context, Result};
 use clap::Args;
+use keyshape_lab::cosker::modes::{Actions, ModeRegions};
+use keyshape_lab::cosker::morph::{MorphMapping, MorphTargets};
+use keyshape_lab::cosker::trajectory::{
+    person_model, synthesise, trajectories, ModeAlignment, PersonModel,
+};
 use keyshape_lab::decompose::{prepare, PrepareOptions, Prepared};
 use keyshape_lab::io::obj::{read_obj, write_obj};
 use keyshape_lab::io::{read_sequence, write_atomic, ReadOptions};
-use keyshape_lab::modes::{Actions, ModeRegions};
-use keyshape_lab::morph::{MorphMapping, MorphTargets};
 use keyshape_lab::render::face::{bounds_of, col, render_panels, Layer, Panel};
 use keyshape_lab::render::{apng::write_apng, save_png};
 use keyshape_lab::retarget::setup::polylines_for;
-use keyshape_lab::trajectory::{
-    person_model, synthesise, trajectories, ModeAlignment, PersonModel,
-};
 use nalgebra::DMatrix;
 use std::path::{Path, PathBuf};
 

@@ -3,7 +3,7 @@
 use super::input::InputArgs;
 use anyhow::{Context, Result};
 use clap::Args;
-use keyshape_lab::modes::{orthogonality_study, Actions, ModeRegions, OrthogonalityStudy};
+use keyshape_lab::cosker::modes::{orthogonality_study, Actions, ModeRegions, OrthogonalityStudy};
 use std::path::PathBuf;
 
 /// Arguments of `kslab modes`.

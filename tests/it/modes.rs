@@ -2,7 +2,7 @@
 //! the orthogonality study on a real track.
 
 use crate::common::shared;
-use keyshape_lab::modes::{
+use keyshape_lab::cosker::modes::{
     artificial_set, orthogonality, orthogonality_study, Actions, ModeRegions,
 };
 use keyshape_lab::sequence::Layout;
@@ -130,7 +130,7 @@ fn action_specific_modes_separate_regions_better_than_plain_pca_on_d6() {
 
 #[test]
 fn median_polynomial_and_correlation_on_known_signals() {
-    use keyshape_lab::intensity::{correlation, median3, polyfit_smooth, soft_knn};
+    use keyshape_lab::cosker::intensity::{correlation, median3, polyfit_smooth, soft_knn};
     assert_eq!(
         median3(&[0.0, 0.0, 9.0, 0.0, 1.0, 1.0]),
         vec![0.0, 0.0, 0.0, 1.0, 1.0, 1.0]
@@ -191,7 +191,7 @@ fn intensity_study_on_the_news_sample_finds_smiles() {
     );
 }
 
-fn person(rel: &str, actions: &str) -> (keyshape_lab::trajectory::PersonModel, DMatrixF) {
+fn person(rel: &str, actions: &str) -> (keyshape_lab::cosker::trajectory::PersonModel, DMatrixF) {
     let seq = keyshape_lab::io::read_sequence(&shared(rel), &Default::default()).unwrap();
     let prep = keyshape_lab::decompose::prepare(
         &seq,
@@ -211,7 +211,7 @@ fn person(rel: &str, actions: &str) -> (keyshape_lab::trajectory::PersonModel, D
         env!("CARGO_MANIFEST_DIR")
     )))
     .unwrap();
-    let m = keyshape_lab::trajectory::person_model(
+    let m = keyshape_lab::cosker::trajectory::person_model(
         &prep.seq.coords,
         &prep.seq.frames,
         2,
@@ -227,7 +227,7 @@ type DMatrixF = nalgebra::DMatrix<f64>;
 
 #[test]
 fn trajectories_are_normalised_and_map_between_people() {
-    use keyshape_lab::trajectory::{synthesise, trajectories, ModeAlignment, ModePair};
+    use keyshape_lab::cosker::trajectory::{synthesise, trajectories, ModeAlignment, ModePair};
     let (src, q) = person(
         "mediapipe_face_tracks/liveportrait_d6.csv",
         "actions_liveportrait_d6.json",
@@ -279,7 +279,7 @@ fn trajectories_are_normalised_and_map_between_people() {
 
 #[test]
 fn eq8_with_one_hot_weights_reproduces_each_morph_target() {
-    use keyshape_lab::morph::{MorphMapping, MorphTargets};
+    use keyshape_lab::cosker::morph::{MorphMapping, MorphTargets};
     let mesh =
         keyshape_lab::io::obj::read_obj(&shared("ict_facekit_face/neutral_face.obj")).unwrap();
     let t = MorphTargets::read(

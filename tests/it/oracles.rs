@@ -1,8 +1,8 @@
 //! Oracles for numbers the other tests did not pin down (issue 12 items 3–5): each test
 //! here fails on a plausible one-line bug that the suite used to let through.
 
+use keyshape_lab::cosker::intensity::median3;
 use keyshape_lab::decompose::decompose;
-use keyshape_lab::intensity::median3;
 use keyshape_lab::keyshapes::{Analysis, KeyOptions, Method};
 use keyshape_lab::retarget::rbf::Rbf;
 use keyshape_lab::solve::{SolveOptions, Solver};
@@ -217,7 +217,7 @@ fn decompose_takes_every_frame_as_a_key_and_solves_deltas_exactly() {
 /// soft KNN refuses mismatched inputs (labels or query rows) instead of reading past them.
 #[test]
 fn soft_knn_refuses_mismatched_inputs() {
-    use keyshape_lab::intensity::soft_knn;
+    use keyshape_lab::cosker::intensity::soft_knn;
     let train = DMatrix::from_column_slice(2, 3, &[0.0, 0.0, 1.0, 0.0, 0.0, 1.0]);
     let query = DMatrix::from_column_slice(2, 1, &[0.1, 0.1]);
     assert!(soft_knn(&train, &[0, 1, 1], 2, &query, 2).is_ok());
@@ -237,7 +237,7 @@ fn soft_knn_refuses_mismatched_inputs() {
 /// Correlation of two points is ±1; K may equal the training count.
 #[test]
 fn polyfit_is_least_squares_and_correlation_handles_two_points() {
-    use keyshape_lab::intensity::{correlation, polyfit_smooth, soft_knn};
+    use keyshape_lab::cosker::intensity::{correlation, polyfit_smooth, soft_knn};
     let x = [1.0, 3.0, 2.0, 5.0, 4.0, 7.0, 5.5];
     let fit = polyfit_smooth(&x, 1);
     assert_eq!(fit.len(), x.len());

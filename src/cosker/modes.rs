@@ -31,9 +31,9 @@ impl ModeRegions {
     pub fn builtin(layout: &Layout) -> Result<ModeRegions> {
         let text = match layout.name.as_str() {
             "mediapipe_face_mesh_468" => {
-                include_str!("../assets/cosker/regions_mediapipe_face_mesh_468.json")
+                include_str!("../../assets/cosker/regions_mediapipe_face_mesh_468.json")
             }
-            "ibug68" => include_str!("../assets/cosker/regions_ibug68.json"),
+            "ibug68" => include_str!("../../assets/cosker/regions_ibug68.json"),
             other => {
                 return Err(Error::invalid(format!(
                     "no built-in Cosker regions for layout {other}"

@@ -6,8 +6,8 @@
 //! where the two models encode the action in opposite directions), and the normalised
 //! tracks, scaled by the target's own extremes, synthesise the target person's shapes.
 
+use crate::cosker::modes::{action_vectors, artificial_set, Actions};
 use crate::error::{Error, Result};
-use crate::modes::{action_vectors, artificial_set, Actions};
 use crate::pca::Pca;
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};

@@ -1,0 +1,175 @@
+//! Scripted experiments: a TOML spec (input, points, alignment, methods, k range, solvers,
+//! outputs) run headless. [`spec`] parses and checks the file, [`run`] runs it, [`studies`]
+//! holds the studies beside the curves; [`crate::report`] writes the files.
+//!
+//! ```toml
+//! title = "Paper 000 Fig. 6: liveportrait_d6, lips"
+//! input = "../../shared/data/mediapipe_face_tracks/liveportrait_d6.csv"  # relative to this file; "builtin" for the built-in sequence
+//! points = "lips"            # optional: point groups; default the whole face
+//! align = true               # optional, default true
+//! methods = ["spread", "kmeans2", "kmeans3", "hull", "greedy", "random"]
+//! k = "2..24"                # or [2, 24], or 12
+//! solvers = ["nnls", "ls"]
+//! seed = 7                   # optional
+//! shortlist = 8              # optional (greedy with nnls/bounded)
+//! png = true                 # optional: write curves_<solver>.png
+//! ```
+
+pub mod spec;
+pub mod studies;
+
+pub use spec::{MapSpec, ModesSpec, RetargetSpec, Spec};
+pub use studies::{MapOutcome, MorphFace, RetargetRow, Strip, StripSolver};
+
+use crate::decompose::{prepare, PrepareOptions};
+use crate::error::{Error, Result};
+use crate::io::{builtin_sequence, read_sequence, ReadOptions};
+use crate::keyshapes::curves::{sweep, CurveRow};
+use crate::keyshapes::{axes_needed, Analysis, KeyOptions};
+use serde::Serialize;
+use std::path::Path;
+use std::time::Instant;
+use studies::{map_study, retarget_study};
+
+/// What a run produced, in memory.
+#[derive(Debug, Clone, Serialize)]
+pub struct Outcome {
+    /// The spec as run.
+    pub spec: Spec,
+    /// The input path as resolved.
+    pub input: String,
+    /// Valid frames analysed.
+    pub frames: usize,
+    /// Points per shape.
+    pub points: usize,
+    /// Failed frames left out.
+    pub failed_frames: usize,
+    /// Share of variance on the first principal axes.
+    pub explained_variance: Vec<f64>,
+    /// The curves.
+    pub rows: Vec<CurveRow>,
+    /// Seconds per stage: read, prepare, pca, sweep.
+    pub timings: Vec<(String, f64)>,
+    /// Retargeting study rows (one per trace-noise level and solver).
+    pub retarget: Vec<RetargetRow>,
+    /// The frames where the first solver distorts most, for the strip picture.
+    #[serde(skip)]
+    pub strip: Option<Strip>,
+    /// Paper 002 orthogonality tables.
+    #[serde(skip)]
+    pub orthogonality: Option<crate::cosker::modes::OrthogonalityStudy>,
+    /// Paper 002 intensity study.
+    pub intensity: Option<crate::cosker::intensity::Study>,
+    /// Paper 002 mapping.
+    #[serde(skip)]
+    pub map: Option<MapOutcome>,
+}
+
+/// Runs a spec whose relative paths are relative to `base`.
+pub fn run(spec: &Spec, base: &Path, tick: &(dyn Fn(usize, usize) + Sync)) -> Result<Outcome> {
+    let mut timings = Vec::new();
+    let t = Instant::now();
+    let (seq, input) = if spec.input == "builtin" {
+        (builtin_sequence()?, crate::io::BUILTIN_NAME.to_string())
+    } else {
+        let p = base.join(&spec.input);
+        let opts = ReadOptions {
+            format: spec.format,
+            dims: spec.dims,
+        };
+        (read_sequence(&p, &opts)?, p.display().to_string())
+    };
+    timings.push(("read".to_string(), t.elapsed().as_secs_f64()));
+    let t = Instant::now();
+    let prep = prepare(
+        &seq,
+        &PrepareOptions {
+            points: spec.points.clone(),
+            align: spec.align,
+        },
+    )?;
+    timings.push(("prepare".to_string(), t.elapsed().as_secs_f64()));
+    let t = Instant::now();
+    let axes = axes_needed(&spec.methods, spec.k.1);
+    let an = Analysis::with_axes(prep.seq.coords.clone(), prep.seq.points, axes)?;
+    timings.push(("pca".to_string(), t.elapsed().as_secs_f64()));
+    let t = Instant::now();
+    let opts = KeyOptions {
+        solver: spec.solvers[0],
+        seed: spec.seed,
+        shortlist: spec.shortlist,
+    };
+    let rows = if spec.methods.is_empty() {
+        Vec::new()
+    } else {
+        sweep(
+            &an,
+            &spec.methods,
+            spec.k.0..=spec.k.1,
+            &spec.solvers,
+            &opts,
+            tick,
+        )?
+    };
+    timings.push(("sweep".to_string(), t.elapsed().as_secs_f64()));
+    let t = Instant::now();
+    let (retarget, strip) = match &spec.retarget {
+        Some(r) => retarget_study(r, &seq, &prep, &an, &opts)?,
+        None => (Vec::new(), None),
+    };
+    timings.push(("retarget".to_string(), t.elapsed().as_secs_f64()));
+    let t = Instant::now();
+    let orthogonality = match &spec.modes {
+        Some(m) => {
+            let full = prepare(
+                &seq,
+                &PrepareOptions {
+                    points: None,
+                    align: spec.align,
+                },
+            )?;
+            let layout = full
+                .layout
+                .as_ref()
+                .ok_or_else(|| Error::invalid("[modes] needs a known layout"))?;
+            let regions = crate::cosker::modes::ModeRegions::builtin(layout)?.points(layout)?;
+            let actions = crate::cosker::modes::Actions::read(&base.join(&m.actions))?;
+            Some(crate::cosker::modes::orthogonality_study(
+                &full.seq.coords,
+                &full.seq.frames,
+                full.seq.dims,
+                &regions,
+                &actions,
+                m.modes,
+            )?)
+        }
+        None => None,
+    };
+    let intensity = match &spec.intensity {
+        Some(st) => Some(crate::cosker::intensity::study(
+            &base.join(&spec.input),
+            st,
+        )?),
+        None => None,
+    };
+    let map = match &spec.map {
+        Some(m) => Some(map_study(m, &seq, base, spec.align)?),
+        None => None,
+    };
+    timings.push(("paper002".to_string(), t.elapsed().as_secs_f64()));
+    Ok(Outcome {
+        spec: spec.clone(),
+        input,
+        frames: an.frames(),
+        points: an.points,
+        failed_frames: seq.failed.len(),
+        explained_variance: an.pca.explained_ratio().into_iter().take(6).collect(),
+        rows,
+        timings,
+        retarget,
+        strip,
+        orthogonality,
+        intensity,
+        map,
+    })
+}

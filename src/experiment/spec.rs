@@ -1,0 +1,271 @@
+//! The experiment file: TOML parsed into [`Spec`], checked, with errors naming file, line,
+//! column and key.
+
+use crate::error::{Error, Result};
+use crate::keyshapes::Method;
+use crate::sequence::Format;
+use crate::solve::Solver;
+use serde::{Deserialize, Deserializer, Serialize};
+use std::path::{Path, PathBuf};
+
+/// An experiment file.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Spec {
+    /// Title for plots and the report.
+    pub title: String,
+    /// Input sequence, relative to the spec file, or `builtin`.
+    pub input: String,
+    /// Force an input format.
+    #[serde(default)]
+    pub format: Option<Format>,
+    /// 2 or 3.
+    #[serde(default = "two")]
+    pub dims: usize,
+    /// Point groups (e.g. `lips`); None = whole face.
+    #[serde(default)]
+    pub points: Option<String>,
+    /// Remove 2-D head motion first.
+    #[serde(default = "yes")]
+    pub align: bool,
+    /// Key-shape methods for error curves (empty: no curves).
+    #[serde(default, deserialize_with = "methods", serialize_with = "method_names")]
+    pub methods: Vec<Method>,
+    /// Inclusive k range of the curves.
+    #[serde(default = "k_default", deserialize_with = "k_range")]
+    pub k: (usize, usize),
+    /// Solvers of the curves.
+    #[serde(default = "nnls_only")]
+    pub solvers: Vec<Solver>,
+    /// A retargeting study (paper 000 Figs. 4–5), optional.
+    #[serde(default)]
+    pub retarget: Option<RetargetSpec>,
+    /// Paper 002 orthogonality table, optional.
+    #[serde(default)]
+    pub modes: Option<ModesSpec>,
+    /// Paper 002 soft-KNN intensity study (the input must be a py-feat table), optional.
+    #[serde(default)]
+    pub intensity: Option<crate::cosker::intensity::StudySettings>,
+    /// Paper 002 trajectory mapping onto a second person and the ICT morph targets, optional.
+    #[serde(default)]
+    pub map: Option<MapSpec>,
+    /// Seed for kmeans and random.
+    #[serde(default = "seven")]
+    pub seed: u64,
+    /// Greedy shortlist for nnls/bounded.
+    #[serde(default = "eight")]
+    pub shortlist: usize,
+    /// Write PNG plots.
+    #[serde(default = "yes")]
+    pub png: bool,
+}
+
+/// `[retarget]`: LS against NNLS through a target face.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RetargetSpec {
+    /// Heuristic choosing the key frames.
+    #[serde(deserialize_with = "method", serialize_with = "method_name")]
+    pub method: Method,
+    /// Number of key shapes.
+    pub k: usize,
+    /// Solvers compared (the first is the one whose distortion the strip shows).
+    pub solvers: Vec<Solver>,
+    /// Tracing noise levels on the built-in target, in inter-ocular distances.
+    #[serde(default = "zero_noise")]
+    pub trace_noise: Vec<f64>,
+    /// Frames in the strip of worst frames (0 = none).
+    #[serde(default = "four")]
+    pub strip: usize,
+}
+
+/// `[modes]`: the orthogonality table (paper 002 Table 2).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ModesSpec {
+    /// Actions file, relative to the spec.
+    pub actions: String,
+    /// Modes of each model.
+    #[serde(default = "ten")]
+    pub modes: usize,
+}
+
+/// `[map]`: trajectories onto a second person's model and onto morph targets.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MapSpec {
+    /// Source actions file.
+    pub actions: String,
+    /// Second person's sequence.
+    pub target_sequence: String,
+    /// Second person's actions.
+    pub target_actions: String,
+    /// Modes of each model.
+    #[serde(default = "ten")]
+    pub modes: usize,
+    /// Folder of the ICT face (optional).
+    #[serde(default)]
+    pub morph: Option<String>,
+}
+
+fn ten() -> usize {
+    10
+}
+
+fn zero_noise() -> Vec<f64> {
+    vec![0.0]
+}
+fn four() -> usize {
+    4
+}
+fn k_default() -> (usize, usize) {
+    (2, 24)
+}
+fn nnls_only() -> Vec<Solver> {
+    vec![Solver::Nnls]
+}
+
+fn method<'de, D: Deserializer<'de>>(d: D) -> std::result::Result<Method, D::Error> {
+    Method::parse(&String::deserialize(d)?).map_err(serde::de::Error::custom)
+}
+
+fn method_name<S: serde::Serializer>(m: &Method, s: S) -> std::result::Result<S::Ok, S::Error> {
+    s.serialize_str(&m.name())
+}
+
+fn two() -> usize {
+    2
+}
+fn yes() -> bool {
+    true
+}
+fn seven() -> u64 {
+    7
+}
+fn eight() -> usize {
+    8
+}
+
+fn methods<'de, D: Deserializer<'de>>(d: D) -> std::result::Result<Vec<Method>, D::Error> {
+    let names = Vec::<String>::deserialize(d)?;
+    names
+        .iter()
+        .map(|n| Method::parse(n).map_err(serde::de::Error::custom))
+        .collect()
+}
+
+fn method_names<S: serde::Serializer>(m: &[Method], s: S) -> std::result::Result<S::Ok, S::Error> {
+    s.collect_seq(m.iter().map(Method::name))
+}
+
+fn k_range<'de, D: Deserializer<'de>>(d: D) -> std::result::Result<(usize, usize), D::Error> {
+    #[derive(Deserialize)]
+    #[serde(untagged)]
+    enum K {
+        One(usize),
+        Pair([usize; 2]),
+        Text(String),
+    }
+    let bad = |s: &str| {
+        serde::de::Error::custom(format!(
+            "'{s}' is not a k range: write \"2..24\", [2, 24] or 12"
+        ))
+    };
+    let k = K::deserialize(d).map_err(|_| {
+        serde::de::Error::custom(
+            "not a k range: write a whole number (12), a string \"2..24\" or an array [2, 24]",
+        )
+    })?;
+    match k {
+        K::One(k) => Ok((k, k)),
+        K::Pair([a, b]) => Ok((a, b)),
+        K::Text(t) => {
+            let parts: Vec<&str> = t.split("..").collect();
+            let num = |s: &str| {
+                s.trim()
+                    .trim_start_matches('=')
+                    .parse::<usize>()
+                    .map_err(|_| bad(&t))
+            };
+            match parts.as_slice() {
+                [a, b] => Ok((num(a)?, num(b)?)),
+                [a] => num(a).map(|k| (k, k)),
+                _ => Err(bad(&t)),
+            }
+        }
+    }
+}
+
+impl Spec {
+    /// Reads and validates a spec; errors name the file, line, column and key.
+    pub fn from_path(path: &Path) -> Result<(Spec, PathBuf)> {
+        let text = crate::io::read_text(path)?;
+        let spec = Spec::from_str(path, &text)?;
+        let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        Ok((spec, base))
+    }
+
+    /// Parses spec text (`path` only names the file in errors).
+    pub fn from_str(path: &Path, text: &str) -> Result<Spec> {
+        let spec: Spec = toml::from_str(text).map_err(|e| {
+            let (line, col) = e.span().map_or((0, 0), |s| line_col(text, s.start));
+            Error::parse(path, line, col, e.message().to_string())
+        })?;
+        let at = |key: &str, msg: String| {
+            let (line, col) = find_key(text, key);
+            Error::parse(path, line, col, format!("{key}: {msg}"))
+        };
+        if spec.k.0 == 0 || spec.k.0 > spec.k.1 {
+            return Err(at(
+                "k",
+                format!("range {}..{} is empty or starts at 0", spec.k.0, spec.k.1),
+            ));
+        }
+        let studies = spec.retarget.is_some()
+            || spec.modes.is_some()
+            || spec.intensity.is_some()
+            || spec.map.is_some();
+        if spec.methods.is_empty() && !studies {
+            return Err(at("methods", "name at least one method (or add a [retarget], [modes], [intensity] or [map] table)".into()));
+        }
+        if spec.solvers.is_empty() {
+            return Err(at("solvers", "name at least one solver".into()));
+        }
+        if let Some(r) = &spec.retarget {
+            if r.solvers.is_empty()
+                || r.k == 0
+                || r.trace_noise.iter().any(|v| !(v.is_finite() && *v >= 0.0))
+            {
+                return Err(at(
+                    "retarget",
+                    "needs k ≥ 1, at least one solver, and trace_noise values ≥ 0".into(),
+                ));
+            }
+        }
+        if spec.dims != 2 && spec.dims != 3 {
+            return Err(at("dims", format!("must be 2 or 3, got {}", spec.dims)));
+        }
+        Ok(spec)
+    }
+}
+
+/// 1-based line and column of a byte offset.
+fn line_col(text: &str, offset: usize) -> (u64, u64) {
+    let before = &text[..offset.min(text.len())];
+    let line = before.matches('\n').count() as u64 + 1;
+    let col = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) as u64 + 1;
+    (line, col)
+}
+
+/// Line and column of `key = …` at the start of a line (0, 0 if absent).
+fn find_key(text: &str, key: &str) -> (u64, u64) {
+    for (i, l) in text.lines().enumerate() {
+        let t = l.trim_start();
+        if t.strip_prefix(key)
+            .is_some_and(|r| r.trim_start().starts_with('='))
+        {
+            return (i as u64 + 1, (l.len() - t.len()) as u64 + 1);
+        }
+    }
+    (0, 0)
+}
