@@ -140,6 +140,27 @@ pub fn write_outcome(o: &Outcome, dir: &Path) -> Result<Vec<PathBuf>> {
             Ok(())
         })?;
         files.push(csv);
+        let ex = dir.join("normalisation.csv");
+        write_atomic(&ex, |w| {
+            writeln!(w, "action,source_mode,target_mode,side,source_extreme,target_extreme,two_sided,one_sided,ratio")?;
+            for r in &m.extremes {
+                writeln!(
+                    w,
+                    "{},{},{},{},{},{},{},{},{}",
+                    r.action,
+                    r.source_mode,
+                    r.target_mode,
+                    r.side,
+                    fmt_num(r.source_extreme),
+                    fmt_num(r.target_extreme),
+                    fmt_num(r.two_sided),
+                    fmt_num(r.one_sided),
+                    fmt_num(r.ratio)
+                )?;
+            }
+            Ok(())
+        })?;
+        files.push(ex);
         let al = dir.join("alignment.json");
         let text = serde_json::to_string_pretty(&m.alignment)
             .map_err(|e| Error::invalid(e.to_string()))?;
@@ -181,6 +202,9 @@ pub fn write_outcome(o: &Outcome, dir: &Path) -> Result<Vec<PathBuf>> {
             "plain_pca": crate::cosker::modes::OrthogonalityStudy::mean_upper(&st.plain),
         })),
         "alignment": o.map.as_ref().map(|m| m.alignment.clone()),
+        "normalisation_extremes": o.map.as_ref().map(|m| m.extremes.clone()),
+        "paper002_features": (o.orthogonality.is_some() || o.map.is_some())
+            .then_some("shape only: landmark tracks, no texture (the paper's appearance models had both)"),
     });
     let path = dir.join("report.json");
     let text = serde_json::to_string_pretty(&report).map_err(|e| Error::invalid(e.to_string()))?;

@@ -39,10 +39,10 @@ def main(path):
         m["rbrow"].append((cy(r, R_EYE) - cy(r, R_BROW)) / iod)
         m["lid"].append((d(p(r, 159), p(r, 145)) + d(p(r, 386), p(r, 374))) / 2 / iod)
     frame = lambda k, f: int(rows[max(range(len(rows)), key=lambda i: f * m[k][i])]["frame"])
-    acts = [("jaw_drop", "mouth", frame("gap", 1)), ("smile", "mouth", frame("width", 1)), ("pucker", "mouth", frame("width", -1)),
+    acts = [("jaw_drop", "lower_face", frame("gap", 1)), ("smile", "lower_face", frame("width", 1)), ("pucker", "lower_face", frame("width", -1)),
             ("brow_raise_left", "left_brow", frame("lbrow", 1)), ("brow_lower_left", "left_brow", frame("lbrow", -1)),
             ("brow_raise_right", "right_brow", frame("rbrow", 1)), ("brow_lower_right", "right_brow", frame("rbrow", -1)),
-            ("eyes_wide", "eyes", frame("lid", 1)), ("blink", "eyes", frame("lid", -1))]
+            ("eyes_wide", "forehead", frame("lid", 1)), ("blink", "forehead", frame("lid", -1))]
     print(json.dumps({"kslab_actions": 1, "sequence": path.split("shared/data/")[-1],
                       "how_chosen": __doc__.split("Usage:")[0].strip(),
                       "actions": [{"name": n, "region": g, "frame": f} for n, g, f in acts]}, indent=1))

@@ -2,12 +2,13 @@
 //! the ICT face's morph targets (paper 002 §3.2–3.3).
 
 use super::input::InputArgs;
+use super::modes::RegionArgs;
 use anyhow::{Context, Result};
 use clap::Args;
-use keyshape_lab::cosker::modes::{Actions, ModeRegions};
+use keyshape_lab::cosker::modes::Actions;
 use keyshape_lab::cosker::morph::{MorphMapping, MorphTargets};
 use keyshape_lab::cosker::trajectory::{
-    person_model, synthesise, trajectories, ModeAlignment, PersonModel,
+    person_model, synthesise, trajectories, ModeAlignment, Normalisation, PersonModel,
 };
 use keyshape_lab::decompose::{prepare, PrepareOptions, Prepared};
 use keyshape_lab::io::obj::{read_obj, write_obj};
@@ -29,6 +30,13 @@ pub struct MapArgs {
     /// Modes of each person's action-specific model.
     #[arg(long, default_value_t = 10)]
     modes: usize,
+    #[command(flatten)]
+    regions: RegionArgs,
+    /// How trajectories are normalised to [-1, 1] and scaled onto the target: `two-sided`
+    /// (the paper's: positive values by the training maximum, negative by the minimum's
+    /// magnitude, so both extremes map to ±1) or `one-sided` (both by the largest magnitude).
+    #[arg(long, default_value = "two-sided", value_parser = parse_normalisation)]
+    normalisation: Normalisation,
     /// A second person's sequence, whose model the trajectories drive.
     #[arg(long)]
     target_sequence: Option<PathBuf>,
@@ -71,19 +79,24 @@ pub struct MapArgs {
     every: u64,
 }
 
-fn model_of(prep: &Prepared, actions: &Actions, modes: usize) -> Result<PersonModel> {
-    let layout = prep
-        .layout
-        .as_ref()
-        .context("needs a known layout (468 or 68 points)")?;
-    let regions = ModeRegions::builtin(layout)?.points(layout)?;
+fn parse_normalisation(s: &str) -> std::result::Result<Normalisation, String> {
+    match s {
+        "two-sided" => Ok(Normalisation::TwoSided),
+        "one-sided" => Ok(Normalisation::OneSided),
+        _ => Err(format!("'{s}': choose two-sided or one-sided")),
+    }
+}
+
+fn model_of(prep: &Prepared, actions: &Actions, a: &MapArgs) -> Result<PersonModel> {
+    let (regions, _) = a.regions.build(prep)?;
     Ok(person_model(
         &prep.seq.coords,
         &prep.seq.frames,
         prep.seq.dims,
         &regions,
         actions,
-        modes,
+        a.modes,
+        a.normalisation,
     )?)
 }
 
@@ -112,13 +125,13 @@ pub fn run(a: &MapArgs) -> Result<()> {
             a.target_sequence.as_deref(),
             a.target_actions.as_deref(),
             a.alignment.as_deref(),
+            a.regions.file(),
         ],
     )?;
     let progress = super::progress::Progress::new("map: reading");
     let (_, prep) = a.input.prepare()?;
     let actions = Actions::read(&a.actions)?;
-    let src =
-        model_of(&prep, &actions, a.modes).with_context(|| format!("{}", a.actions.display()))?;
+    let src = model_of(&prep, &actions, a).with_context(|| format!("{}", a.actions.display()))?;
     let traj = trajectories(&src, &prep.seq.coords);
     let names: Vec<String> = src.actions.iter().map(|x| x.0.clone()).collect();
     let action_traj = DMatrix::from_fn(names.len(), traj.ncols(), |i, t| {
@@ -151,7 +164,7 @@ pub fn run(a: &MapArgs) -> Result<()> {
                 .as_deref()
                 .context("--target-sequence needs --target-actions")?,
         )?;
-        let tgt = model_of(&tprep, &tact, a.modes)?;
+        let tgt = model_of(&tprep, &tact, a)?;
         let alignment = match &a.alignment {
             Some(p) => ModeAlignment::read(p)?,
             None => ModeAlignment::by_actions(&src, &tgt),
@@ -163,11 +176,23 @@ pub fn run(a: &MapArgs) -> Result<()> {
         }
         let shapes = synthesise(&tgt, &alignment, &traj);
         outln!(
-            "mapped {} frames through {} mode pairs onto {}",
+            "mapped {} frames through {} mode pairs onto {} ({} normalisation)",
             traj.ncols(),
             alignment.pairs.len(),
-            tpath.display()
+            tpath.display(),
+            a.normalisation.name()
         );
+        let ex = keyshape_lab::cosker::trajectory::extremes(&src, &tgt, &alignment);
+        let (lo, hi) = ex
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), r| {
+                (l.min(r.ratio), h.max(r.ratio))
+            });
+        if !ex.is_empty() {
+            outln!(
+                "a source extreme reaches the target's extreme exactly two-sided; one-sided it reaches {lo:.2}–{hi:.2}× it"
+            );
+        }
         progress.step("map: pictures");
         side_by_side(a, &prep, &tprep, &shapes, every, &progress)?;
     }

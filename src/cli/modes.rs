@@ -3,17 +3,68 @@
 use super::input::InputArgs;
 use anyhow::{Context, Result};
 use clap::Args;
-use keyshape_lab::cosker::modes::{orthogonality_study, Actions, ModeRegions, OrthogonalityStudy};
+use keyshape_lab::cosker::modes::{
+    orthogonality_study, Actions, Boundary, ModeRegions, OrthogonalityStudy, Region, RegionOptions,
+};
+use keyshape_lab::decompose::Prepared;
 use std::path::PathBuf;
+
+/// The regions of paper 002 §3.1 and how their boundaries blend (shared by `modes` and `map`).
+#[derive(Debug, Args)]
+pub struct RegionArgs {
+    /// Regions (`builtin`, or a JSON file naming layout groups per region).
+    #[arg(long, default_value = "builtin")]
+    regions: String,
+    /// Region boundaries: `blended` (the paper's: offsets fade out across a band of points,
+    /// so regions overlap) or `disjoint` (hard edges; non-overlapping regions then score 0
+    /// against each other in Table 2 by construction).
+    #[arg(long, default_value = "blended", value_parser = parse_boundary)]
+    boundary: Boundary,
+    /// Radius of the averaging filter that blends region boundaries, as a fraction of the
+    /// face's size (RMS distance of the mean shape's points from their centroid) [default:
+    /// 0.15]. Refused with `--boundary disjoint`.
+    #[arg(long)]
+    blend_radius: Option<f64>,
+}
+
+fn parse_boundary(s: &str) -> std::result::Result<Boundary, String> {
+    match s {
+        "blended" => Ok(Boundary::Blended),
+        "disjoint" => Ok(Boundary::Disjoint),
+        _ => Err(format!("'{s}': choose blended or disjoint")),
+    }
+}
+
+impl RegionArgs {
+    /// The regions as per-point weights on the prepared (aligned) sequence's mean shape.
+    pub fn build(&self, prep: &Prepared) -> Result<(Vec<Region>, RegionOptions)> {
+        let opts = RegionOptions::from_user(self.boundary, self.blend_radius)?;
+        let layout = prep
+            .layout
+            .as_ref()
+            .context("needs a known layout (468 or 68 points)")?;
+        let regions = if self.regions == "builtin" {
+            ModeRegions::builtin(layout)?
+        } else {
+            ModeRegions::read(std::path::Path::new(&self.regions))?
+        };
+        let w = regions.weights(layout, &prep.seq.coords, prep.seq.dims, &opts)?;
+        Ok((w, opts))
+    }
+
+    /// The user's regions file, if any (an input that outputs must not overwrite).
+    pub fn file(&self) -> Option<&std::path::Path> {
+        (self.regions != "builtin").then(|| std::path::Path::new(&self.regions))
+    }
+}
 
 /// Arguments of `kslab modes`.
 #[derive(Debug, Args)]
 pub struct ModesArgs {
     #[command(flatten)]
     input: InputArgs,
-    /// Regions (`builtin`, or a JSON file naming layout groups per region).
-    #[arg(long, default_value = "builtin")]
-    regions: String,
+    #[command(flatten)]
+    regions: RegionArgs,
     /// Actions file: name, region and example frame of each action.
     #[arg(long)]
     actions: PathBuf,
@@ -29,6 +80,14 @@ pub struct ModesArgs {
     /// Write both tables as a heat map PNG.
     #[arg(long)]
     png: Option<PathBuf>,
+}
+
+/// `blended (radius 0.15)` or `disjoint`.
+pub fn region_label(o: &RegionOptions) -> String {
+    match o.boundary {
+        Boundary::Blended => format!("blended (radius {})", o.blend_radius),
+        Boundary::Disjoint => "disjoint".to_string(),
+    }
 }
 
 fn print_table(title: &str, names: &[String], m: &nalgebra::DMatrix<f64>) -> Result<()> {
@@ -62,20 +121,11 @@ pub fn run(a: &ModesArgs) -> Result<()> {
     super::check_outputs(
         &[a.png.as_ref()],
         &[],
-        &[a.input.file.as_deref(), Some(&a.actions)],
+        &[a.input.file.as_deref(), Some(&a.actions), a.regions.file()],
     )?;
     let progress = super::progress::Progress::new("modes");
     let (_, prep) = a.input.prepare()?;
-    let layout = prep
-        .layout
-        .as_ref()
-        .context("modes need a known layout (468 or 68 points)")?;
-    let regions = if a.regions == "builtin" {
-        ModeRegions::builtin(layout)?
-    } else {
-        ModeRegions::read(std::path::Path::new(&a.regions))?
-    };
-    let pts = regions.points(layout)?;
+    let (pts, ropts) = a.regions.build(&prep)?;
     let actions = Actions::read(&a.actions)?;
     let st = orthogonality_study(
         &prep.seq.coords,
@@ -107,6 +157,9 @@ pub fn run(a: &ModesArgs) -> Result<()> {
         };
         let v = serde_json::json!({
             "actions": st.names, "modes": st.modes,
+            "boundary": ropts.boundary.name(),
+            "blend_radius": (ropts.boundary == Boundary::Blended).then_some(ropts.blend_radius),
+            "features": "shape only (landmarks; the paper's appearance models also had texture)",
             "action_model": rows(&st.action_model), "plain_pca": rows(&st.plain),
             "mean_action_model": OrthogonalityStudy::mean_upper(&st.action_model),
             "mean_plain_pca": OrthogonalityStudy::mean_upper(&st.plain),
@@ -116,7 +169,11 @@ pub fn run(a: &ModesArgs) -> Result<()> {
     }
     if a.table {
         print_table(
-            &format!("action-specific model, {} modes", st.modes),
+            &format!(
+                "action-specific model ({} regions), {} modes",
+                region_label(&ropts),
+                st.modes
+            ),
             &st.names,
             &st.action_model,
         )?;
@@ -128,9 +185,10 @@ pub fn run(a: &ModesArgs) -> Result<()> {
         )?;
     } else {
         outln!(
-            "{} actions, {} modes: mean Eq. 9 score {:.3} (action-specific model) vs {:.3} (plain PCA); --table prints both tables",
+            "{} actions, {} modes, {} regions, shape only: mean Eq. 9 score {:.3} (action-specific model) vs {:.3} (plain PCA); --table prints both tables",
             st.names.len(),
             st.modes,
+            region_label(&ropts),
             OrthogonalityStudy::mean_upper(&st.action_model),
             OrthogonalityStudy::mean_upper(&st.plain)
         );

@@ -2,14 +2,23 @@
 //! orthogonality measure of their Table 2 (§5, Eq. 9).
 //!
 //! From N training shapes the artificial set holds, for every region j and frame i, the mean
-//! shape with only region j's offsets of frame i added (4N shapes for four regions). Its PCA
+//! shape with region j's offsets of frame i added (4N shapes for four regions). Its PCA
 //! gives modes that act locally; plain PCA of the same frames mixes regions.
+//!
+//! As in the paper, the regions overlap (the forehead R1 contains both brows, R3 and R4) and
+//! a region's boundary is **blended**: each point carries a weight in [0, 1], the region's
+//! indicator passed through an averaging filter over the mean shape (the mean of the
+//! indicator over the points within a radius), so the offsets fade out across a band of
+//! points instead of stopping at the region's edge ([`Boundary::Blended`]). The disjoint
+//! variant ([`Boundary::Disjoint`]: weight 1 inside, 0 outside) makes the covariance of
+//! non-overlapping regions block-diagonal, so their cross terms in Table 2 are 0 by
+//! construction; it is kept only as an explicitly named option.
 
 use crate::error::{Error, Result};
 use crate::pca::Pca;
 use crate::sequence::Layout;
 use nalgebra::{DMatrix, DVector};
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::Path;
 
@@ -72,19 +81,193 @@ impl ModeRegions {
             })
             .collect()
     }
+
+    /// Each region's per-point weights on the mean of `coords` (shapes as columns, `dims`
+    /// values per point), by [`region_weights`].
+    pub fn weights(
+        &self,
+        layout: &Layout,
+        coords: &DMatrix<f64>,
+        dims: usize,
+        opts: &RegionOptions,
+    ) -> Result<Vec<Region>> {
+        let mean = coords.column_mean();
+        self.points(layout)?
+            .into_iter()
+            .map(|(name, pts)| {
+                Ok(Region {
+                    weights: region_weights(mean.as_slice(), dims, &pts, opts)?,
+                    name,
+                })
+            })
+            .collect()
+    }
 }
 
-/// The mean shape with only `points`' offsets of `shape` added (`dims` values per point).
+/// How a region's boundary meets the mean shape.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum Boundary {
+    /// The paper's: the region's indicator through an averaging filter of radius
+    /// [`RegionOptions::blend_radius`] over the mean shape.
+    #[default]
+    Blended,
+    /// Weight 1 on the region's points, 0 elsewhere (non-overlapping regions then give
+    /// exactly 0 cross terms in Table 2, by construction).
+    Disjoint,
+}
+
+impl Boundary {
+    /// `blended` or `disjoint`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Boundary::Blended => "blended",
+            Boundary::Disjoint => "disjoint",
+        }
+    }
+}
+
+/// The default averaging-filter radius, as a fraction of the mean shape's size (the RMS
+/// distance of its points from their centroid).
+pub const DEFAULT_BLEND_RADIUS: f64 = 0.15;
+
+/// How regions become per-point weights.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct RegionOptions {
+    /// Blended or disjoint.
+    pub boundary: Boundary,
+    /// Averaging-filter radius (blended only), as a fraction of the mean shape's size.
+    pub blend_radius: f64,
+}
+
+impl Default for RegionOptions {
+    fn default() -> Self {
+        RegionOptions {
+            boundary: Boundary::Blended,
+            blend_radius: DEFAULT_BLEND_RADIUS,
+        }
+    }
+}
+
+impl RegionOptions {
+    /// Options from what a user gave: a radius only applies to blended boundaries, so a
+    /// radius with `disjoint` is an error rather than ignored.
+    pub fn from_user(boundary: Boundary, blend_radius: Option<f64>) -> Result<RegionOptions> {
+        if boundary == Boundary::Disjoint && blend_radius.is_some() {
+            return Err(Error::invalid(
+                "a blend radius applies only to blended region boundaries, not to disjoint ones",
+            ));
+        }
+        let o = RegionOptions {
+            boundary,
+            blend_radius: blend_radius.unwrap_or(DEFAULT_BLEND_RADIUS),
+        };
+        o.check()?;
+        Ok(o)
+    }
+
+    /// Checks the radius (finite, ≥ 0).
+    pub fn check(&self) -> Result<()> {
+        if !(self.blend_radius.is_finite() && self.blend_radius >= 0.0) {
+            return Err(Error::invalid(format!(
+                "blend radius {} must be a finite number ≥ 0 (a fraction of the face's size)",
+                self.blend_radius
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// A region as per-point weights in [0, 1] (one per point): the share of each point's
+/// offset from the mean that the region's artificial shapes carry.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Region {
+    /// Region name.
+    pub name: String,
+    /// Per-point weight.
+    pub weights: Vec<f64>,
+}
+
+/// The size of a shape: RMS distance of its points from their centroid.
+pub fn shape_size(shape: &[f64], dims: usize) -> f64 {
+    let n = shape.len() / dims.max(1);
+    if n == 0 {
+        return 0.0;
+    }
+    let c: Vec<f64> = (0..dims)
+        .map(|d| (0..n).map(|p| shape[p * dims + d]).sum::<f64>() / n as f64)
+        .collect();
+    let ss: f64 = (0..n)
+        .map(|p| {
+            (0..dims)
+                .map(|d| (shape[p * dims + d] - c[d]).powi(2))
+                .sum::<f64>()
+        })
+        .sum();
+    (ss / n as f64).sqrt()
+}
+
+/// Per-point weights of a region (`points` of the `mean` shape): the indicator itself
+/// (disjoint), or its average over the points within `blend_radius × size` of each point
+/// (blended: 1 deep inside, 0 far outside, a ramp across the boundary).
+pub fn region_weights(
+    mean: &[f64],
+    dims: usize,
+    points: &[usize],
+    opts: &RegionOptions,
+) -> Result<Vec<f64>> {
+    opts.check()?;
+    let n = mean.len() / dims.max(1);
+    let mut inside = vec![false; n];
+    for &p in points {
+        if p >= n {
+            return Err(Error::invalid(format!(
+                "region point {p} is beyond the shape's {n} points"
+            )));
+        }
+        inside[p] = true;
+    }
+    let indicator: Vec<f64> = inside.iter().map(|&i| f64::from(u8::from(i))).collect();
+    if opts.boundary == Boundary::Disjoint || opts.blend_radius == 0.0 {
+        return Ok(indicator);
+    }
+    let r = opts.blend_radius * shape_size(mean, dims);
+    let r2 = r * r;
+    let at = |p: usize| &mean[p * dims..(p + 1) * dims];
+    Ok((0..n)
+        .map(|p| {
+            let (mut sum, mut count) = (0.0, 0usize);
+            for q in 0..n {
+                let d2: f64 = at(p)
+                    .iter()
+                    .zip(at(q))
+                    .map(|(a, b)| (a - b) * (a - b))
+                    .sum();
+                if d2 <= r2 {
+                    sum += indicator[q];
+                    count += 1;
+                }
+            }
+            sum / count as f64
+        })
+        .collect())
+}
+
+/// The mean shape plus `weights` × the offsets of `shape` from it (`dims` values per point).
 pub fn region_shape(
     mean: &DVector<f64>,
     shape: &[f64],
-    points: &[usize],
+    weights: &[f64],
     dims: usize,
 ) -> DVector<f64> {
     let mut v = mean.clone();
-    for &p in points {
+    for (p, &w) in weights.iter().enumerate() {
+        if w == 0.0 {
+            continue;
+        }
         for d in 0..dims {
-            v[p * dims + d] = shape[p * dims + d];
+            let i = p * dims + d;
+            v[i] = mean[i] + w * (shape[i] - mean[i]);
         }
     }
     v
@@ -92,19 +275,15 @@ pub fn region_shape(
 
 /// The artificial training set: for every region and frame, [`region_shape`] (regions in
 /// order, frames in order within each).
-pub fn artificial_set(
-    coords: &DMatrix<f64>,
-    regions: &[(String, Vec<usize>)],
-    dims: usize,
-) -> DMatrix<f64> {
+pub fn artificial_set(coords: &DMatrix<f64>, regions: &[Region], dims: usize) -> DMatrix<f64> {
     let mean = coords.column_mean();
     let n = coords.ncols();
     let mut out = DMatrix::zeros(coords.nrows(), n * regions.len());
-    for (r, (_, pts)) in regions.iter().enumerate() {
+    for (r, region) in regions.iter().enumerate() {
         for i in 0..n {
             out.set_column(
                 r * n + i,
-                &region_shape(&mean, coords.column(i).as_slice(), pts, dims),
+                &region_shape(&mean, coords.column(i).as_slice(), &region.weights, dims),
             );
         }
     }
@@ -177,7 +356,7 @@ pub fn action_vectors(
     coords: &DMatrix<f64>,
     frames: &[i64],
     dims: usize,
-    regions: &[(String, Vec<usize>)],
+    regions: &[Region],
     actions: &Actions,
 ) -> Result<Vec<DVector<f64>>> {
     let mean = coords.column_mean();
@@ -185,18 +364,15 @@ pub fn action_vectors(
         .actions
         .iter()
         .map(|a| {
-            let (_, pts) = regions
-                .iter()
-                .find(|(n, _)| *n == a.region)
-                .ok_or_else(|| {
-                    let names: Vec<&str> = regions.iter().map(|r| r.0.as_str()).collect();
-                    Error::invalid(format!(
-                        "action '{}' names region '{}' (regions: {})",
-                        a.name,
-                        a.region,
-                        names.join(", ")
-                    ))
-                })?;
+            let region = regions.iter().find(|r| r.name == a.region).ok_or_else(|| {
+                let names: Vec<&str> = regions.iter().map(|r| r.name.as_str()).collect();
+                Error::invalid(format!(
+                    "action '{}' names region '{}' (regions: {})",
+                    a.name,
+                    a.region,
+                    names.join(", ")
+                ))
+            })?;
             let col = frames.iter().position(|&f| f == a.frame).ok_or_else(|| {
                 Error::invalid(format!(
                     "action '{}' names frame {}, which is not a tracked frame",
@@ -206,7 +382,7 @@ pub fn action_vectors(
             Ok(region_shape(
                 &mean,
                 coords.column(col).as_slice(),
-                pts,
+                &region.weights,
                 dims,
             ))
         })
@@ -252,7 +428,7 @@ pub fn orthogonality_study(
     coords: &DMatrix<f64>,
     frames: &[i64],
     dims: usize,
-    regions: &[(String, Vec<usize>)],
+    regions: &[Region],
     actions: &Actions,
     modes: usize,
 ) -> Result<OrthogonalityStudy> {

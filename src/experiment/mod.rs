@@ -132,7 +132,13 @@ pub fn run(spec: &Spec, base: &Path, tick: &(dyn Fn(usize, usize) + Sync)) -> Re
                 .layout
                 .as_ref()
                 .ok_or_else(|| Error::invalid("[modes] needs a known layout"))?;
-            let regions = crate::cosker::modes::ModeRegions::builtin(layout)?.points(layout)?;
+            let opts = crate::cosker::modes::RegionOptions::from_user(m.boundary, m.blend_radius)?;
+            let regions = crate::cosker::modes::ModeRegions::builtin(layout)?.weights(
+                layout,
+                &full.seq.coords,
+                full.seq.dims,
+                &opts,
+            )?;
             let actions = crate::cosker::modes::Actions::read(&base.join(&m.actions))?;
             Some(crate::cosker::modes::orthogonality_study(
                 &full.seq.coords,

@@ -1,6 +1,8 @@
 //! The experiment file: TOML parsed into [`Spec`], checked, with errors naming file, line,
 //! column and key.
 
+use crate::cosker::modes::{Boundary, RegionOptions};
+use crate::cosker::trajectory::Normalisation;
 use crate::error::{Error, Result};
 use crate::keyshapes::Method;
 use crate::sequence::Format;
@@ -88,6 +90,12 @@ pub struct ModesSpec {
     /// Modes of each model.
     #[serde(default = "ten")]
     pub modes: usize,
+    /// Region boundaries: `blended` (the paper's, default) or `disjoint`.
+    #[serde(default)]
+    pub boundary: Boundary,
+    /// Averaging-filter radius of blended boundaries, a fraction of the face's size.
+    #[serde(default)]
+    pub blend_radius: Option<f64>,
 }
 
 /// `[map]`: trajectories onto a second person's model and onto morph targets.
@@ -106,6 +114,15 @@ pub struct MapSpec {
     /// Folder of the ICT face (optional).
     #[serde(default)]
     pub morph: Option<String>,
+    /// Region boundaries: `blended` (the paper's, default) or `disjoint`.
+    #[serde(default)]
+    pub boundary: Boundary,
+    /// Averaging-filter radius of blended boundaries, a fraction of the face's size.
+    #[serde(default)]
+    pub blend_radius: Option<f64>,
+    /// Trajectory normalisation: `two-sided` (the paper's, default) or `one-sided`.
+    #[serde(default)]
+    pub normalisation: Normalisation,
 }
 
 fn ten() -> usize {
@@ -241,6 +258,14 @@ impl Spec {
                     "needs k ≥ 1, at least one solver, and trace_noise values ≥ 0".into(),
                 ));
             }
+        }
+        if let Some(m) = &spec.modes {
+            RegionOptions::from_user(m.boundary, m.blend_radius)
+                .map_err(|e| at("blend_radius", e.to_string()))?;
+        }
+        if let Some(m) = &spec.map {
+            RegionOptions::from_user(m.boundary, m.blend_radius)
+                .map_err(|e| at("blend_radius", e.to_string()))?;
         }
         if spec.dims != 2 && spec.dims != 3 {
             return Err(at("dims", format!("must be 2 or 3, got {}", spec.dims)));

@@ -28,6 +28,8 @@ pub struct MorphFace {
 /// What `[map]` produced.
 #[derive(Debug, Clone)]
 pub struct MapOutcome {
+    /// Where each source extreme lands on the target under both normalisations.
+    pub extremes: Vec<crate::cosker::trajectory::ExtremeRow>,
     /// The mode alignment used.
     pub alignment: crate::cosker::trajectory::ModeAlignment,
     /// Action names and their normalised trajectories (actions × frames).
@@ -103,7 +105,8 @@ pub(crate) fn map_study(
     base: &Path,
     align: bool,
 ) -> Result<MapOutcome> {
-    use crate::cosker::trajectory::{person_model, trajectories, ModeAlignment};
+    use crate::cosker::trajectory::{extremes, person_model, trajectories, ModeAlignment};
+    let region_opts = crate::cosker::modes::RegionOptions::from_user(m.boundary, m.blend_radius)?;
     let model_of = |s: &crate::sequence::Sequence,
                     actions: &str|
      -> Result<(
@@ -121,7 +124,12 @@ pub(crate) fn map_study(
             .layout
             .as_ref()
             .ok_or_else(|| Error::invalid("[map] needs a known layout"))?;
-        let regions = crate::cosker::modes::ModeRegions::builtin(layout)?.points(layout)?;
+        let regions = crate::cosker::modes::ModeRegions::builtin(layout)?.weights(
+            layout,
+            &prep.seq.coords,
+            prep.seq.dims,
+            &region_opts,
+        )?;
         let acts = crate::cosker::modes::Actions::read(&base.join(actions))?;
         Ok((
             person_model(
@@ -131,6 +139,7 @@ pub(crate) fn map_study(
                 &regions,
                 &acts,
                 m.modes,
+                m.normalisation,
             )?,
             prep,
         ))
@@ -139,6 +148,7 @@ pub(crate) fn map_study(
     let tseq = read_sequence(&base.join(&m.target_sequence), &ReadOptions::default())?;
     let (tgt, _) = model_of(&tseq, &m.target_actions)?;
     let alignment = ModeAlignment::by_actions(&src, &tgt);
+    let extremes = extremes(&src, &tgt, &alignment);
     let traj = trajectories(&src, &prep.seq.coords);
     let actions: Vec<String> = src.actions.iter().map(|a| a.0.clone()).collect();
     let at = DMatrix::from_fn(actions.len(), traj.ncols(), |i, t| {
@@ -166,6 +176,7 @@ pub(crate) fn map_study(
         }
     };
     Ok(MapOutcome {
+        extremes,
         alignment,
         actions,
         trajectories: at,

@@ -3,8 +3,10 @@
 
 use crate::common::shared;
 use keyshape_lab::cosker::modes::{
-    artificial_set, orthogonality, orthogonality_study, Actions, ModeRegions,
+    action_vectors, artificial_set, orthogonality, orthogonality_study, region_weights, shape_size,
+    Actions, Boundary, ModeRegions, RegionOptions, DEFAULT_BLEND_RADIUS,
 };
+use keyshape_lab::cosker::trajectory::Normalisation;
 use keyshape_lab::sequence::Layout;
 use nalgebra::DVector;
 use proptest::prelude::*;
@@ -23,100 +25,217 @@ proptest! {
     }
 }
 
-#[test]
-fn the_artificial_set_changes_nothing_outside_its_region() {
-    let seq = keyshape_lab::io::builtin_sequence().unwrap();
-    let layout = Layout::mediapipe468();
-    let regions = ModeRegions::builtin(&layout)
-        .unwrap()
-        .points(&layout)
-        .unwrap();
-    let q = seq.coords.columns(0, 30).clone_owned();
-    let art = artificial_set(&q, &regions, 2);
-    assert_eq!(art.ncols(), 30 * regions.len());
-    let mean = q.column_mean();
-    for (r, (_, pts)) in regions.iter().enumerate() {
-        for i in [0, 17, 29] {
-            let col = art.column(r * 30 + i);
-            for p in 0..468 {
-                for d in 0..2 {
-                    let want = if pts.contains(&p) {
-                        q[(2 * p + d, i)]
-                    } else {
-                        mean[2 * p + d]
-                    };
-                    assert_eq!(col[2 * p + d], want);
-                }
-            }
-        }
-    }
-}
-
-#[test]
-fn action_specific_modes_separate_regions_better_than_plain_pca_on_d6() {
+fn d6_prepared() -> keyshape_lab::decompose::Prepared {
     let seq = keyshape_lab::io::read_sequence(
         &shared("mediapipe_face_tracks/liveportrait_d6.csv"),
         &Default::default(),
     )
     .unwrap();
-    let prep = keyshape_lab::decompose::prepare(
+    keyshape_lab::decompose::prepare(
         &seq,
         &keyshape_lab::decompose::PrepareOptions {
             points: None,
             align: true,
         },
     )
-    .unwrap();
+    .unwrap()
+}
+
+fn opts(boundary: Boundary, blend_radius: f64) -> RegionOptions {
+    RegionOptions {
+        boundary,
+        blend_radius,
+    }
+}
+
+#[test]
+fn the_averaging_filter_ramps_across_a_boundary_on_a_line_of_points() {
+    // Ten points on a line, the first five in the region; the RMS distance from the centroid
+    // is sqrt(8.25), so this radius takes each point's two neighbours (distance 1).
+    let mean: Vec<f64> = (0..10).flat_map(|i| [i as f64, 0.0]).collect();
+    let r = 1.0001 / 8.25f64.sqrt();
+    let w = region_weights(&mean, 2, &[0, 1, 2, 3, 4], &opts(Boundary::Blended, r)).unwrap();
+    let want = [1.0, 1.0, 1.0, 1.0, 2.0 / 3.0, 1.0 / 3.0, 0.0, 0.0, 0.0, 0.0];
+    for (a, b) in w.iter().zip(want) {
+        assert!((a - b).abs() < 1e-15, "{w:?}");
+    }
+    // Disjoint, and blended with radius 0, are the indicator itself.
+    let ind = [1.0, 1.0, 1.0, 1.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0];
+    let d = region_weights(&mean, 2, &[0, 1, 2, 3, 4], &opts(Boundary::Disjoint, r)).unwrap();
+    assert_eq!(d, ind);
+    let z = region_weights(&mean, 2, &[0, 1, 2, 3, 4], &opts(Boundary::Blended, 0.0)).unwrap();
+    assert_eq!(z, ind);
+    // A radius wider than the line averages everything: 5 of 10 points inside.
+    let all = region_weights(&mean, 2, &[0, 1, 2, 3, 4], &opts(Boundary::Blended, 10.0)).unwrap();
+    assert!(all.iter().all(|&v| v == 0.5), "{all:?}");
+    // Bad radii and a radius with disjoint boundaries are refused.
+    assert!(region_weights(&mean, 2, &[0], &opts(Boundary::Blended, f64::NAN)).is_err());
+    assert!(region_weights(&mean, 2, &[0], &opts(Boundary::Blended, -0.1)).is_err());
+    assert!(RegionOptions::from_user(Boundary::Disjoint, Some(0.1)).is_err());
+    assert_eq!(
+        RegionOptions::from_user(Boundary::Blended, None).unwrap(),
+        opts(Boundary::Blended, DEFAULT_BLEND_RADIUS)
+    );
+}
+
+#[test]
+fn the_artificial_set_adds_each_regions_weighted_offsets_to_the_mean() {
+    let seq = keyshape_lab::io::builtin_sequence().unwrap();
     let layout = Layout::mediapipe468();
-    let regions = ModeRegions::builtin(&layout)
-        .unwrap()
-        .points(&layout)
-        .unwrap();
+    let q = seq.coords.columns(0, 30).clone_owned();
+    let mean = q.column_mean();
+    let defs = ModeRegions::builtin(&layout).unwrap();
+    let pts = defs.points(&layout).unwrap();
+    for o in [opts(Boundary::Disjoint, 0.0), RegionOptions::default()] {
+        let regions = defs.weights(&layout, &q, 2, &o).unwrap();
+        let art = artificial_set(&q, &regions, 2);
+        assert_eq!(art.ncols(), 30 * regions.len());
+        for (r, region) in regions.iter().enumerate() {
+            // Brute force: the averaging filter computed here from its definition.
+            let size = shape_size(mean.as_slice(), 2);
+            for p in 0..468 {
+                let inside = |x: usize| pts[r].1.contains(&x);
+                let want = if o.boundary == Boundary::Disjoint {
+                    f64::from(u8::from(inside(p)))
+                } else {
+                    let near: Vec<usize> = (0..468)
+                        .filter(|&x| {
+                            let dx = mean[2 * x] - mean[2 * p];
+                            let dy = mean[2 * x + 1] - mean[2 * p + 1];
+                            (dx * dx + dy * dy).sqrt() <= o.blend_radius * size
+                        })
+                        .collect();
+                    near.iter().filter(|&&x| inside(x)).count() as f64 / near.len() as f64
+                };
+                assert!(
+                    (region.weights[p] - want).abs() < 1e-12,
+                    "{} {p}",
+                    region.name
+                );
+            }
+            for i in [0, 17, 29] {
+                let col = art.column(r * 30 + i);
+                for k in 0..2 * 468 {
+                    let want = mean[k] + region.weights[k / 2] * (q[(k, i)] - mean[k]);
+                    assert!((col[k] - want).abs() < 1e-9);
+                }
+            }
+        }
+        // The brows lie inside the forehead (paper Fig. 4): blended, the forehead's weights
+        // reach past its own points.
+        if o.boundary == Boundary::Blended {
+            let fh = regions.iter().find(|r| r.name == "forehead").unwrap();
+            assert!(fh.weights.iter().any(|&w| w > 0.0 && w < 1.0));
+            let n_out = (0..468).filter(|p| !pts[0].1.contains(p) && fh.weights[*p] > 0.0);
+            assert!(
+                n_out.count() > 0,
+                "the blend reaches points outside the region"
+            );
+        }
+    }
+}
+
+/// Properties Table 2 has on any data: symmetric, 1 on the diagonal, every value in [0, 1],
+/// and each entry Eq. 9 of the two actions' projections.
+fn check_table(m: &nalgebra::DMatrix<f64>) {
+    for i in 0..m.nrows() {
+        assert!((m[(i, i)] - 1.0).abs() < 1e-12, "diagonal {}", m[(i, i)]);
+        for j in 0..m.ncols() {
+            assert_eq!(m[(i, j)], m[(j, i)]);
+            assert!((0.0..=1.0 + 1e-12).contains(&m[(i, j)]));
+        }
+    }
+}
+
+#[test]
+fn table_2_on_d6_is_a_measurement_with_blended_regions() {
+    let prep = d6_prepared();
+    let layout = Layout::mediapipe468();
+    let defs = ModeRegions::builtin(&layout).unwrap();
     let actions = Actions::read(std::path::Path::new(concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/assets/cosker/actions_liveportrait_d6.json"
     )))
     .unwrap();
-    let st = orthogonality_study(
-        &prep.seq.coords,
-        &prep.seq.frames,
-        2,
-        &regions,
-        &actions,
-        10,
-    )
-    .unwrap();
-    // Actions in different regions: orthogonal in the action model, not always in plain PCA.
-    let region_of: Vec<&str> = actions.actions.iter().map(|a| a.region.as_str()).collect();
-    let mut worst_cross = (0.0f64, 0.0f64);
-    for i in 0..st.names.len() {
-        for j in i + 1..st.names.len() {
-            if region_of[i] != region_of[j] {
-                worst_cross = (
-                    worst_cross.0.max(st.action_model[(i, j)]),
-                    worst_cross.1.max(st.plain[(i, j)]),
-                );
-            }
-            assert!((st.action_model[(i, j)] - st.action_model[(j, i)]).abs() < 1e-12);
+    let study = |o: &RegionOptions| {
+        let regions = defs.weights(&layout, &prep.seq.coords, 2, o).unwrap();
+        let st = orthogonality_study(
+            &prep.seq.coords,
+            &prep.seq.frames,
+            2,
+            &regions,
+            &actions,
+            10,
+        )
+        .unwrap();
+        (st, regions)
+    };
+    let (blended, regions) = study(&RegionOptions::default());
+    check_table(&blended.action_model);
+    check_table(&blended.plain);
+    // Each entry is Eq. 9 of the actions' projections on the leading modes, computed here.
+    let vecs = action_vectors(&prep.seq.coords, &prep.seq.frames, 2, &regions, &actions).unwrap();
+    let model =
+        keyshape_lab::pca::Pca::fit_leading(&artificial_set(&prep.seq.coords, &regions, 2), 10)
+            .unwrap();
+    let proj: Vec<DVector<f64>> = vecs
+        .iter()
+        .map(|v| model.components.tr_mul(&(v - &model.mean)))
+        .collect();
+    for i in 0..9 {
+        for j in 0..9 {
+            let (a, b) = (&proj[i], &proj[j]);
+            let want = a.dot(b).powi(2) / (a.dot(a) * b.dot(b));
+            assert!((blended.action_model[(i, j)] - want).abs() < 1e-12);
         }
     }
-    assert!(
-        worst_cross.0 < 0.01,
-        "action model cross-region score {}",
-        worst_cross.0
-    );
-    assert!(
-        worst_cross.1 > 0.1,
-        "plain PCA mixes regions: {}",
-        worst_cross.1
-    );
+    // Disjoint regions make the covariance block-diagonal between groups of regions that
+    // share no point (directly or through a third region: the brows share points with the
+    // forehead, not with each other), so entries across groups are 0 by construction (the
+    // reason it is not the default).
+    let (disjoint, dregions) = study(&opts(Boundary::Disjoint, 0.0));
+    check_table(&disjoint.action_model);
+    let shares = |a: usize, b: usize| {
+        dregions[a]
+            .weights
+            .iter()
+            .zip(&dregions[b].weights)
+            .any(|(x, y)| x * y > 0.0)
+    };
+    let mut group: Vec<usize> = (0..dregions.len()).collect();
+    for _ in 0..dregions.len() {
+        for a in 0..dregions.len() {
+            for b in 0..dregions.len() {
+                if shares(a, b) {
+                    let g = group[a].min(group[b]);
+                    group[a] = g;
+                    group[b] = g;
+                }
+            }
+        }
+    }
+    let group_of = |i: usize| {
+        let r = &actions.actions[i].region;
+        group[dregions.iter().position(|x| &x.name == r).unwrap()]
+    };
+    let overlap = |i: usize, j: usize| group_of(i) == group_of(j);
+    let mut cross = 0;
+    for i in 0..9 {
+        for j in 0..9 {
+            if !overlap(i, j) {
+                cross += 1;
+                assert!(disjoint.action_model[(i, j)] < 1e-12);
+            }
+        }
+    }
+    assert!(cross > 0);
     // Bad labels are explained.
     let mut bad = actions.clone();
-    bad.actions[0].region = "forehead".into();
+    bad.actions[0].region = "cheeks".into();
     let e = orthogonality_study(&prep.seq.coords, &prep.seq.frames, 2, &regions, &bad, 10)
         .unwrap_err()
         .to_string();
-    assert!(e.contains("names region 'forehead'"), "{e}");
+    assert!(e.contains("names region 'cheeks'"), "{e}");
     let mut bad = actions;
     bad.actions[1].frame = 5000;
     let e = orthogonality_study(&prep.seq.coords, &prep.seq.frames, 2, &regions, &bad, 10)
@@ -191,7 +310,11 @@ fn intensity_study_on_the_news_sample_finds_smiles() {
     );
 }
 
-fn person(rel: &str, actions: &str) -> (keyshape_lab::cosker::trajectory::PersonModel, DMatrixF) {
+fn person(
+    rel: &str,
+    actions: &str,
+    normalisation: Normalisation,
+) -> (keyshape_lab::cosker::trajectory::PersonModel, DMatrixF) {
     let seq = keyshape_lab::io::read_sequence(&shared(rel), &Default::default()).unwrap();
     let prep = keyshape_lab::decompose::prepare(
         &seq,
@@ -204,7 +327,7 @@ fn person(rel: &str, actions: &str) -> (keyshape_lab::cosker::trajectory::Person
     let layout = Layout::mediapipe468();
     let regions = ModeRegions::builtin(&layout)
         .unwrap()
-        .points(&layout)
+        .weights(&layout, &prep.seq.coords, 2, &RegionOptions::default())
         .unwrap();
     let acts = Actions::read(std::path::Path::new(&format!(
         "{}/assets/cosker/{actions}",
@@ -218,6 +341,7 @@ fn person(rel: &str, actions: &str) -> (keyshape_lab::cosker::trajectory::Person
         &regions,
         &acts,
         10,
+        normalisation,
     )
     .unwrap();
     (m, prep.seq.coords)
@@ -227,20 +351,37 @@ type DMatrixF = nalgebra::DMatrix<f64>;
 
 #[test]
 fn trajectories_are_normalised_and_map_between_people() {
-    use keyshape_lab::cosker::trajectory::{synthesise, trajectories, ModeAlignment, ModePair};
-    let (src, q) = person(
-        "mediapipe_face_tracks/liveportrait_d6.csv",
-        "actions_liveportrait_d6.json",
-    );
+    use keyshape_lab::cosker::trajectory::{
+        extremes, synthesise, trajectories, ModeAlignment, ModePair,
+    };
+    let d6 = "mediapipe_face_tracks/liveportrait_d6.csv";
+    let d9 = "mediapipe_face_tracks/liveportrait_d9.csv";
+    let (src, q) = person(d6, "actions_liveportrait_d6.json", Normalisation::TwoSided);
+    let (one, _) = person(d6, "actions_liveportrait_d6.json", Normalisation::OneSided);
     let traj = trajectories(&src, &q);
-    assert!(traj.iter().all(|v| (-1.0..=1.0).contains(v)));
+    let traj1 = trajectories(&one, &q);
+    let b = src.pca.project(&q, 10);
     for k in 0..traj.nrows() {
-        assert!(
-            (traj.row(k).amax() - 1.0).abs() < 1e-12,
-            "each mode reaches its extreme once"
-        );
+        // Two-sided (§3.2): both observed extremes map to ±1 exactly; every value keeps its
+        // sign and is divided by its own side's extreme.
+        let row = traj.row(k);
+        assert_eq!(row.max(), 1.0, "mode {k}");
+        assert_eq!(row.min(), -1.0, "mode {k}");
+        let (hi, lo) = (b.row(k).max(), b.row(k).min());
+        assert_eq!((src.upper[k], src.lower[k]), (hi, lo));
+        for t in [0, 100, 500] {
+            let v = b[(k, t)];
+            let want = if v >= 0.0 { v / hi } else { v / -lo };
+            assert!((traj[(k, t)] - want).abs() < 1e-15);
+            // One-sided: both sides over the largest magnitude.
+            assert!((traj1[(k, t)] - v / hi.max(-lo)).abs() < 1e-15);
+        }
+        let row1 = traj1.row(k);
+        assert!((row1.amax() - 1.0).abs() < 1e-15);
+        assert!((row1.max().min(-row1.min()) - hi.min(-lo) / hi.max(-lo)).abs() < 1e-12);
     }
-    // Identity alignment on the same person reproduces the projection on the model's modes.
+    // Identity alignment on the same person reproduces the projection on the model's modes,
+    // under either normalisation (each scales back by what it divided by).
     let id = ModeAlignment {
         pairs: (0..10)
             .map(|m| ModePair {
@@ -251,21 +392,38 @@ fn trajectories_are_normalised_and_map_between_people() {
             })
             .collect(),
     };
-    let x = synthesise(&src, &id, &traj);
     let u = &src.pca.components;
-    let mut c = q.column(100) - &src.pca.mean;
-    c = u * u.tr_mul(&c);
-    assert!((x.column(100) - (&src.pca.mean + c)).amax() < 1e-9);
+    let c = u * u.tr_mul(&(q.column(100) - &src.pca.mean));
+    for (model, tr) in [(&src, &traj), (&one, &traj1)] {
+        let x = synthesise(model, &id, tr);
+        assert!((x.column(100) - (&src.pca.mean + &c)).amax() < 1e-9);
+    }
     // By action labels onto d9: every pair names modes that exist, a source mode once.
-    let (tgt, _) = person(
-        "mediapipe_face_tracks/liveportrait_d9.csv",
-        "actions_liveportrait_d9.json",
-    );
+    let (tgt, _) = person(d9, "actions_liveportrait_d9.json", Normalisation::TwoSided);
     let al = ModeAlignment::by_actions(&src, &tgt);
     al.check(&src, &tgt).unwrap();
     let mut s: Vec<usize> = al.pairs.iter().map(|p| p.source_mode).collect();
     s.dedup();
     assert_eq!(s.len(), al.pairs.len());
+    // Where a source extreme lands: two-sided on the target's own extreme of that side;
+    // one-sided by the closed form (s / max|s|) · max|t|.
+    let ex = extremes(&src, &tgt, &al);
+    assert_eq!(ex.len(), 2 * al.pairs.len());
+    for r in &ex {
+        let p = al
+            .pairs
+            .iter()
+            .find(|p| p.source_mode == r.source_mode)
+            .unwrap();
+        let sign = if p.flip { -1.0 } else { 1.0 };
+        let (shi, slo) = (src.upper[r.source_mode], src.lower[r.source_mode]);
+        let (thi, tlo) = (tgt.upper[r.target_mode], tgt.lower[r.target_mode]);
+        let s = if r.side == "+" { shi } else { slo };
+        let t = if sign * s > 0.0 { thi } else { tlo };
+        assert_eq!(r.two_sided, t);
+        let one = sign * s / shi.max(-slo) * thi.max(-tlo);
+        assert!((r.one_sided - one).abs() < 1e-12 * one.abs());
+    }
     let bad = ModeAlignment {
         pairs: vec![ModePair {
             source_mode: 0,
