@@ -33,6 +33,12 @@ pub struct ModeRegions {
     pub description: String,
     /// Region name → layout groups.
     pub regions: BTreeMap<String, Vec<String>>,
+    /// Regions that tile the face between them (the paper's R1 and R2): every point no
+    /// region's groups name joins the region of the nearest named point of these regions in
+    /// the mean shape, so they meet at a boundary (which blending then softens) instead of
+    /// leaving cheeks and forehead at the mean.
+    #[serde(default)]
+    pub cover: Vec<String>,
 }
 
 impl ModeRegions {
@@ -82,6 +88,64 @@ impl ModeRegions {
             .collect()
     }
 
+    /// Gives every point no region names to the `cover` region of its nearest named point.
+    fn fill_cover(
+        &self,
+        regions: &mut [(String, Vec<usize>)],
+        mean: &[f64],
+        dims: usize,
+    ) -> Result<()> {
+        if self.cover.is_empty() {
+            return Ok(());
+        }
+        let idx: Vec<usize> = self
+            .cover
+            .iter()
+            .map(|c| {
+                regions.iter().position(|r| &r.0 == c).ok_or_else(|| {
+                    Error::invalid(format!(
+                        "cover names region '{c}', which the file does not define"
+                    ))
+                })
+            })
+            .collect::<Result<_>>()?;
+        let n = mean.len() / dims.max(1);
+        let mut named = vec![false; n];
+        for (_, pts) in regions.iter() {
+            for &p in pts {
+                if p < n {
+                    named[p] = true;
+                }
+            }
+        }
+        let owners: Vec<(usize, usize)> = idx
+            .iter()
+            .flat_map(|&r| regions[r].1.iter().map(move |&p| (p, r)))
+            .filter(|&(p, _)| p < n)
+            .collect();
+        let at = |p: usize| &mean[p * dims..(p + 1) * dims];
+        let d2 = |a: usize, b: usize| -> f64 {
+            at(a)
+                .iter()
+                .zip(at(b))
+                .map(|(x, y)| (x - y) * (x - y))
+                .sum()
+        };
+        let mut extra: Vec<(usize, usize)> = Vec::new();
+        for p in (0..n).filter(|&p| !named[p]) {
+            if let Some(&(_, r)) = owners
+                .iter()
+                .min_by(|a, b| d2(p, a.0).total_cmp(&d2(p, b.0)))
+            {
+                extra.push((r, p));
+            }
+        }
+        for (r, p) in extra {
+            regions[r].1.push(p);
+        }
+        Ok(())
+    }
+
     /// Each region's per-point weights on the mean of `coords` (shapes as columns, `dims`
     /// values per point), by [`region_weights`].
     pub fn weights(
@@ -92,7 +156,9 @@ impl ModeRegions {
         opts: &RegionOptions,
     ) -> Result<Vec<Region>> {
         let mean = coords.column_mean();
-        self.points(layout)?
+        let mut regions = self.points(layout)?;
+        self.fill_cover(&mut regions, mean.as_slice(), dims)?;
+        regions
             .into_iter()
             .map(|(name, pts)| {
                 Ok(Region {

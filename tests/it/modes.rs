@@ -85,7 +85,46 @@ fn the_artificial_set_adds_each_regions_weighted_offsets_to_the_mean() {
     let q = seq.coords.columns(0, 30).clone_owned();
     let mean = q.column_mean();
     let defs = ModeRegions::builtin(&layout).unwrap();
-    let pts = defs.points(&layout).unwrap();
+    let named = defs.points(&layout).unwrap();
+    // Disjoint weights are the indicator of each region after `cover` hands every point no
+    // group names to the forehead or the lower face, whichever has the nearest named point.
+    let hard = defs
+        .weights(&layout, &q, 2, &opts(Boundary::Disjoint, 0.0))
+        .unwrap();
+    let d2 = |a: usize, b: usize| {
+        (mean[2 * a] - mean[2 * b]).powi(2) + (mean[2 * a + 1] - mean[2 * b + 1]).powi(2)
+    };
+    let cover = ["forehead", "lower_face"].map(|c| named.iter().position(|r| r.0 == c).unwrap());
+    for p in 0..468 {
+        let inside: Vec<bool> = hard.iter().map(|r| r.weights[p] == 1.0).collect();
+        assert!(hard
+            .iter()
+            .all(|r| r.weights[p] == 0.0 || r.weights[p] == 1.0));
+        if named.iter().any(|r| r.1.contains(&p)) {
+            for (r, region) in named.iter().enumerate() {
+                assert_eq!(inside[r], region.1.contains(&p));
+            }
+        } else {
+            let nearest = |r: usize| {
+                named[r]
+                    .1
+                    .iter()
+                    .map(|&x| d2(p, x))
+                    .fold(f64::MAX, f64::min)
+            };
+            let want = if nearest(cover[0]) <= nearest(cover[1]) {
+                cover[0]
+            } else {
+                cover[1]
+            };
+            assert!(inside[want], "point {p}");
+            assert_eq!(inside.iter().filter(|&&b| b).count(), 1, "point {p}");
+        }
+        assert!(
+            inside[cover[0]] || inside[cover[1]],
+            "R1 and R2 tile the face"
+        );
+    }
     for o in [opts(Boundary::Disjoint, 0.0), RegionOptions::default()] {
         let regions = defs.weights(&layout, &q, 2, &o).unwrap();
         let art = artificial_set(&q, &regions, 2);
@@ -94,18 +133,13 @@ fn the_artificial_set_adds_each_regions_weighted_offsets_to_the_mean() {
             // Brute force: the averaging filter computed here from its definition.
             let size = shape_size(mean.as_slice(), 2);
             for p in 0..468 {
-                let inside = |x: usize| pts[r].1.contains(&x);
                 let want = if o.boundary == Boundary::Disjoint {
-                    f64::from(u8::from(inside(p)))
+                    hard[r].weights[p]
                 } else {
                     let near: Vec<usize> = (0..468)
-                        .filter(|&x| {
-                            let dx = mean[2 * x] - mean[2 * p];
-                            let dy = mean[2 * x + 1] - mean[2 * p + 1];
-                            (dx * dx + dy * dy).sqrt() <= o.blend_radius * size
-                        })
+                        .filter(|&x| d2(p, x).sqrt() <= o.blend_radius * size)
                         .collect();
-                    near.iter().filter(|&&x| inside(x)).count() as f64 / near.len() as f64
+                    near.iter().map(|&x| hard[r].weights[x]).sum::<f64>() / near.len() as f64
                 };
                 assert!(
                     (region.weights[p] - want).abs() < 1e-12,
@@ -121,16 +155,11 @@ fn the_artificial_set_adds_each_regions_weighted_offsets_to_the_mean() {
                 }
             }
         }
-        // The brows lie inside the forehead (paper Fig. 4): blended, the forehead's weights
-        // reach past its own points.
+        // Blended, the forehead and the lower face overlap across their boundary.
         if o.boundary == Boundary::Blended {
-            let fh = regions.iter().find(|r| r.name == "forehead").unwrap();
-            assert!(fh.weights.iter().any(|&w| w > 0.0 && w < 1.0));
-            let n_out = (0..468).filter(|p| !pts[0].1.contains(p) && fh.weights[*p] > 0.0);
-            assert!(
-                n_out.count() > 0,
-                "the blend reaches points outside the region"
-            );
+            let (f, l) = (&regions[cover[0]].weights, &regions[cover[1]].weights);
+            assert!(f.iter().zip(l).any(|(a, b)| *a > 0.0 && *b > 0.0));
+            assert!(f.iter().any(|&w| w > 0.0 && w < 1.0));
         }
     }
 }
