@@ -111,16 +111,43 @@ pub fn write_outcome(o: &Outcome, dir: &Path) -> Result<Vec<PathBuf>> {
     if let Some(st) = &o.intensity {
         let csv = dir.join("intensity.csv");
         write_atomic(&csv, |w| {
-            writeln!(w, "action,training_frames_labelled,correlation_raw,correlation_median3,correlation_smoothed")?;
+            writeln!(w, "action,training_frames_labelled,correlation_raw,correlation_median3,correlation_smoothed,clips,clip_median_raw,clip_median_median3,clip_median_smoothed,clip_q1_smoothed,clip_q3_smoothed")?;
             for r in &st.actions {
                 writeln!(
                     w,
-                    "{},{},{},{},{}",
+                    "{},{},{},{},{},{},{},{},{},{},{}",
                     r.action,
                     r.training_frames_labelled,
                     fmt_num(r.correlation_raw),
                     fmt_num(r.correlation_median3),
-                    fmt_num(r.correlation_smoothed)
+                    fmt_num(r.correlation_smoothed),
+                    r.clips_smoothed.clips,
+                    fmt_num(r.clips_raw.median),
+                    fmt_num(r.clips_median3.median),
+                    fmt_num(r.clips_smoothed.median),
+                    fmt_num(r.clips_smoothed.q1),
+                    fmt_num(r.clips_smoothed.q3)
+                )?;
+            }
+            Ok(())
+        })?;
+        files.push(csv);
+        let csv = dir.join("intensity_clips.csv");
+        write_atomic(&csv, |w| {
+            writeln!(
+                w,
+                "action,clip,frames,correlation_raw,correlation_median3,correlation_smoothed"
+            )?;
+            for r in &st.clips {
+                writeln!(
+                    w,
+                    "{},{},{},{},{},{}",
+                    r.action,
+                    r.clip,
+                    r.frames,
+                    fmt_num(r.raw),
+                    fmt_num(r.median3),
+                    fmt_num(r.smoothed)
                 )?;
             }
             Ok(())

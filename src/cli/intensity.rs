@@ -4,7 +4,7 @@
 
 use anyhow::Result;
 use clap::Args;
-use keyshape_lab::cosker::intensity::{study, StudySettings};
+use keyshape_lab::cosker::intensity::{study, Centring, Evaluation, StudySettings};
 use std::path::PathBuf;
 
 /// Arguments of `kslab intensity`.
@@ -14,9 +14,21 @@ pub struct IntensityArgs {
     /// shared/data/pyfeat_samples/news_sample_compact.csv, found through $KSLAB_SHARED or
     /// beside the repository, never from the current directory).
     file: Option<PathBuf>,
-    /// Clips used for training (the rest are tested), `A..B` inclusive.
-    #[arg(long, default_value = "1..14", value_parser = super::curves::parse_range)]
-    train_clips: (usize, usize),
+    /// Clips used for training (the rest are tested), `A..B` inclusive [default: 1..14].
+    /// Split evaluation only.
+    #[arg(long, value_parser = super::curves::parse_range)]
+    train_clips: Option<(usize, usize)>,
+    /// `split` (train on --train-clips, test the rest) or `leave-one-clip-out` (each clip,
+    /// a different person, tested by a model trained on all the others).
+    #[arg(long, default_value = "split", value_parser = parse_evaluation)]
+    evaluation: Evaluation,
+    /// The reference shape subtracted per clip: `clip-mean` (all its frames: offline),
+    /// `causal` (its frames so far) or `neutral` (its first --neutral-frames frames).
+    #[arg(long, default_value = "clip-mean", value_parser = parse_centring)]
+    centring: Centring,
+    /// Frames of the neutral segment at the start of each clip (`--centring neutral`).
+    #[arg(long)]
+    neutral_frames: Option<usize>,
     /// K of the soft KNN.
     #[arg(long, default_value_t = 10)]
     k: usize,
@@ -30,6 +42,26 @@ pub struct IntensityArgs {
     /// Print JSON.
     #[arg(long)]
     json: bool,
+    /// Also print each test clip's correlations.
+    #[arg(long)]
+    clips: bool,
+}
+
+fn parse_evaluation(s: &str) -> std::result::Result<Evaluation, String> {
+    match s {
+        "split" => Ok(Evaluation::Split),
+        "leave-one-clip-out" => Ok(Evaluation::LeaveOneClipOut),
+        _ => Err(format!("'{s}': choose split or leave-one-clip-out")),
+    }
+}
+
+fn parse_centring(s: &str) -> std::result::Result<Centring, String> {
+    match s {
+        "clip-mean" => Ok(Centring::ClipMean),
+        "causal" => Ok(Centring::Causal),
+        "neutral" => Ok(Centring::Neutral),
+        _ => Err(format!("'{s}': choose clip-mean, causal or neutral")),
+    }
 }
 
 pub fn run(a: &IntensityArgs) -> Result<()> {
@@ -42,7 +74,11 @@ pub fn run(a: &IntensityArgs) -> Result<()> {
         k: a.k,
         degree: a.degree,
         threshold: a.threshold,
+        centring: a.centring,
+        neutral_frames: a.neutral_frames,
+        evaluation: a.evaluation,
     };
+    st.check()?;
     let progress = super::progress::Progress::new("intensity");
     let r = study(&path, &st)?;
     progress.finish();
@@ -52,32 +88,68 @@ pub fn run(a: &IntensityArgs) -> Result<()> {
         v["settings"] = serde_json::to_value(&st)?;
         outln!("{}", serde_json::to_string_pretty(&v)?);
     } else {
+        let how = match st.evaluation {
+            Evaluation::Split => {
+                let (a, b) = st.train_range();
+                format!("trained on clips {a}..{b}")
+            }
+            Evaluation::LeaveOneClipOut => "leave-one-clip-out".to_string(),
+        };
         outln!(
-            "{} training frames (clips {}..{}), {} test frames, K = {}, polynomial degree {}",
+            "{how}: {} training frames, {} test frames in {} held-out clips, K = {}, polynomial degree {}",
             r.train_frames,
-            st.train_clips.0,
-            st.train_clips.1,
             r.test_frames,
+            r.test_clips.len(),
             st.k,
             st.degree
         );
+        outln!("features: {}", r.features);
         outln!(
-            "{:<12} {:>10} {:>8} {:>10} {:>10}",
+            "{:<12} {:>9} {:>8} {:>10} {:>10}   {:<34}",
             "action",
             "labelled",
             "raw C",
             "median-3 C",
-            "smoothed C"
+            "smoothed C",
+            "per clip (smoothed): median [q1, q3] of n"
         );
         for x in &r.actions {
+            let c = &x.clips_smoothed;
             outln!(
-                "{:<12} {:>10} {:>8.3} {:>10.3} {:>10.3}",
+                "{:<12} {:>9} {:>8.3} {:>10.3} {:>10.3}   {:.3} [{:.3}, {:.3}] of {}",
                 x.action,
                 x.training_frames_labelled,
                 x.correlation_raw,
                 x.correlation_median3,
-                x.correlation_smoothed
+                x.correlation_smoothed,
+                c.median,
+                c.q1,
+                c.q3,
+                c.clips
             );
+        }
+        if a.clips {
+            outln!();
+            outln!(
+                "{:<12} {:>5} {:>7} {:>8} {:>10} {:>10}",
+                "action",
+                "clip",
+                "frames",
+                "raw C",
+                "median-3 C",
+                "smoothed C"
+            );
+            for c in &r.clips {
+                outln!(
+                    "{:<12} {:>5} {:>7} {:>8.3} {:>10.3} {:>10.3}",
+                    c.action,
+                    c.clip,
+                    c.frames,
+                    c.raw,
+                    c.median3,
+                    c.smoothed
+                );
+            }
         }
     }
     Ok(())

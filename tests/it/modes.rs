@@ -339,6 +339,100 @@ fn intensity_study_on_the_news_sample_finds_smiles() {
     );
 }
 
+#[test]
+fn intensity_centring_and_spread_follow_their_definitions() {
+    use keyshape_lab::cosker::intensity::{centre, spread, Centring, Evaluation, StudySettings};
+    // One feature, clip 1 = [1, 2, 6], clip 2 = [10, 20].
+    let x0 = nalgebra::DMatrix::from_row_slice(1, 5, &[1.0, 2.0, 6.0, 10.0, 20.0]);
+    let clips = [1, 1, 1, 2, 2];
+    let run = |c: Centring, n: Option<usize>| {
+        let mut x = x0.clone();
+        let st = StudySettings {
+            centring: c,
+            neutral_frames: n,
+            ..Default::default()
+        };
+        centre(&mut x, &clips, &st).map(|_| x.iter().copied().collect::<Vec<f64>>())
+    };
+    assert_eq!(
+        run(Centring::ClipMean, None).unwrap(),
+        [-2.0, -1.0, 3.0, -5.0, 5.0]
+    );
+    // Causal: each frame minus the mean of its clip's frames so far.
+    assert_eq!(
+        run(Centring::Causal, None).unwrap(),
+        [0.0, 0.5, 3.0, 0.0, 5.0]
+    );
+    // Neutral: minus the mean of the first n frames of the clip.
+    assert_eq!(
+        run(Centring::Neutral, Some(2)).unwrap(),
+        [-0.5, 0.5, 4.5, -5.0, 5.0]
+    );
+    let e = run(Centring::Neutral, Some(3)).unwrap_err().to_string();
+    assert!(e.contains("clip 2 has 2 frames"), "{e}");
+    // Options that cannot apply are refused.
+    let bad = [
+        StudySettings {
+            centring: Centring::Neutral,
+            ..Default::default()
+        },
+        StudySettings {
+            neutral_frames: Some(3),
+            ..Default::default()
+        },
+        StudySettings {
+            evaluation: Evaluation::LeaveOneClipOut,
+            train_clips: Some((1, 3)),
+            ..Default::default()
+        },
+        StudySettings {
+            threshold: 1.0,
+            ..Default::default()
+        },
+    ];
+    for st in bad {
+        assert!(st.check().is_err(), "{st:?}");
+    }
+    // Median and quartiles by linear interpolation; undefined correlations are left out.
+    let sp = spread(&[4.0, f64::NAN, 1.0, 3.0, 2.0]);
+    assert_eq!((sp.median, sp.q1, sp.q3, sp.clips), (2.5, 1.75, 3.25, 4));
+    assert!(spread(&[f64::NAN]).median.is_nan());
+}
+
+#[test]
+fn leave_one_clip_out_holds_out_every_person_once() {
+    use keyshape_lab::cosker::intensity::{correlation, study, Evaluation, StudySettings};
+    let st = StudySettings {
+        evaluation: Evaluation::LeaveOneClipOut,
+        ..Default::default()
+    };
+    let r = study(&shared("pyfeat_samples/news_sample_compact.csv"), &st).unwrap();
+    assert_eq!(r.test_clips, (1..=20).collect::<Vec<_>>());
+    assert_eq!(r.test_frames, 477);
+    assert_eq!(r.train_frames, 477 * 19);
+    // Each clip row is Eq. 10 on that clip alone; the summary's median is the median of them.
+    for row in &r.actions {
+        let per: Vec<f64> = r
+            .clips
+            .iter()
+            .filter(|c| c.action == row.action)
+            .map(|c| c.smoothed)
+            .collect();
+        assert_eq!(per.len(), 20);
+        let mut v: Vec<f64> = per.iter().copied().filter(|x| x.is_finite()).collect();
+        v.sort_by(f64::total_cmp);
+        let n = v.len();
+        let med = if n % 2 == 1 {
+            v[n / 2]
+        } else {
+            (v[n / 2 - 1] + v[n / 2]) / 2.0
+        };
+        assert!((row.clips_smoothed.median - med).abs() < 1e-15);
+    }
+    // numpy.corrcoef([1, 2, 3], [2, 4, 6.5]).
+    assert!((correlation(&[1.0, 2.0, 3.0], &[2.0, 4.0, 6.5]) - 0.9979487157886733).abs() < 1e-12);
+}
+
 fn person(
     rel: &str,
     actions: &str,
