@@ -62,12 +62,15 @@ impl PlotSpec {
 }
 
 /// Colour and style of each key-shape method, after paper 000 Fig. 6 (spread solid blue,
-/// k-means dashed green / magenta, hull a red dot) plus ours.
+/// k-means dashed green / magenta, hull a red dot) plus ours; the k-means centre-of-mass
+/// variants (`kmeansN-mean`) solid in a darker shade of their k-means colour.
 pub fn method_style(method: &str) -> ([u8; 3], Style) {
     match method {
         "spread" => ([31, 90, 200], Style::Line),
         "kmeans2" => ([30, 150, 60], Style::Dashed),
         "kmeans3" => ([190, 40, 190], Style::Dashed),
+        "kmeans2-mean" => ([10, 90, 30], Style::Line),
+        "kmeans3-mean" => ([110, 20, 120], Style::Line),
         "hull" => ([220, 30, 30], Style::Marker),
         "greedy" => ([20, 20, 20], Style::Line),
         "random" => ([150, 150, 150], Style::Dashed),

@@ -27,7 +27,10 @@ impl HeuristicArgs {
     /// `method` with `--pcs` applied to k-means.
     pub fn apply(&self, method: Method) -> Method {
         match (method, self.pcs) {
-            (Method::KMeans { .. }, Some(pcs)) => Method::KMeans { pcs: pcs as usize },
+            (Method::KMeans { mean, .. }, Some(pcs)) => Method::KMeans {
+                pcs: pcs as usize,
+                mean,
+            },
             (m, _) => m,
         }
     }
@@ -82,7 +85,9 @@ impl HeuristicArgs {
 pub struct KeysArgs {
     #[command(flatten)]
     input: InputArgs,
-    /// spread, kmeans2, kmeans3, kmeansN (N principal components), hull, greedy or random.
+    /// spread, kmeans2, kmeans3, kmeansN (N principal components), kmeansN-mean (the
+    /// clusters' mean shapes, the paper's "center of mass", which are not frames), hull,
+    /// greedy or random.
     #[arg(long, value_parser = parse_method)]
     method: Method,
     /// Number of key shapes (required, except for hull: the hull gives its own k).
@@ -113,7 +118,7 @@ pub fn run(a: &KeysArgs) -> Result<()> {
     let opts = a.heuristic.options(a.solver);
     let sel = method.heuristic(&opts).select(&an, k)?;
     let frames: Vec<i64> = sel.columns.iter().map(|&c| prep.seq.frames[c]).collect();
-    let e = an.error(&sel.columns, a.solver)?;
+    let e = an.selection_error(&sel, a.solver)?;
     progress.finish();
     if a.json {
         let centres = sel.centres.as_ref().map(|c| {
@@ -131,17 +136,39 @@ pub fn run(a: &KeysArgs) -> Result<()> {
             "total_sq_error": e,
             "rms": an.rms(e),
             "centres_pca": centres,
-            "note": sel.centres.as_ref().map(|_| "centres_pca are k-means centres in PCA coordinates; they are not frames, the keys are the nearest frames"),
+            "cluster_sizes": sel.sizes,
+            "key_shapes": sel.shapes.as_ref().map(|s| {
+                s.column_iter()
+                    .map(|col| col.iter().copied().collect::<Vec<f64>>())
+                    .collect::<Vec<_>>()
+            }),
+            "note": sel.centres.as_ref().map(|_| if sel.shapes.is_some() {
+                "the key shapes are the clusters' mean shapes (key_shapes, aligned coordinates), not frames; frames are the frames nearest each centre, for reference; centres_pca are the centres in PCA coordinates"
+            } else {
+                "centres_pca are k-means centres in PCA coordinates; they are not frames, the keys are the nearest frames"
+            }),
         });
         outln!("{}", serde_json::to_string_pretty(&v)?);
     } else {
         let list: Vec<String> = frames.iter().map(i64::to_string).collect();
-        outln!(
-            "{} key frames by {}: {}",
-            frames.len(),
-            method,
-            list.join(",")
-        );
+        match &sel.sizes {
+            None => outln!(
+                "{} key frames by {}: {}",
+                frames.len(),
+                method,
+                list.join(",")
+            ),
+            Some(sizes) => {
+                let sizes: Vec<String> = sizes.iter().map(usize::to_string).collect();
+                outln!(
+                    "{} key shapes by {}: the clusters' mean shapes (not frames; --json gives them), of {} frames; frames nearest the centres: {}",
+                    frames.len(),
+                    method,
+                    sizes.join(", "),
+                    list.join(",")
+                );
+            }
+        }
         outln!(
             "Eq. 5 error under {}: {e:.6e} (RMS {:.4} per point)",
             a.solver,
@@ -232,6 +259,7 @@ impl KeyChoiceArgs {
             points,
             keyshape_lab::keyshapes::axes_needed(&[m], k),
         )?;
-        Ok(m.heuristic(opts).select(&an, k)?.columns)
+        let sel = m.heuristic(opts).select(&an, k)?;
+        Ok(sel.key_frames(&m, "retargeting")?.to_vec())
     }
 }

@@ -226,6 +226,7 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
     let all_keys: Vec<usize> = match &plan_keys {
         KeyPlan::Global(k) => k.clone(),
         KeyPlan::Regions(_, ks) => ks.iter().flatten().copied().collect(),
+        KeyPlan::Shapes(_) => Vec::new(),
     };
     let key_frames: Vec<i64> = all_keys.iter().map(|&c| s.frames[c]).collect();
     // One weight column per key, named by frame (and by region, which may share frames).
@@ -237,9 +238,10 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
             .zip(ks)
             .flat_map(|(n, k)| k.iter().map(move |&c| format!("{n}/w_{}", s.frames[c])))
             .collect(),
+        KeyPlan::Shapes(m) => (0..m.ncols()).map(|j| format!("w_mean{j}")).collect(),
     };
     let keys_json = match &plan_keys {
-        KeyPlan::Global(_) => json!(key_frames),
+        KeyPlan::Global(_) | KeyPlan::Shapes(_) => json!(key_frames),
         KeyPlan::Regions(p, ks) => serde_json::Value::Object(
             p.names
                 .iter()

@@ -197,12 +197,13 @@ pub(crate) fn retarget_study(
     opts: &KeyOptions,
 ) -> Result<(Vec<RetargetRow>, Option<Strip>)> {
     use crate::retarget::{retarget, setup, KeyPlan, Target};
-    let keys = if an.proj.nrows() >= crate::keyshapes::axes_needed(&[r.method], r.k) {
-        r.method.heuristic(opts).select(an, r.k)?.columns
+    let sel = if an.proj.nrows() >= crate::keyshapes::axes_needed(&[r.method], r.k) {
+        r.method.heuristic(opts).select(an, r.k)?
     } else {
         let an2 = Analysis::with_axes(an.coords.clone(), an.points, axes_needed(&[r.method], r.k))?;
-        r.method.heuristic(opts).select(&an2, r.k)?.columns
+        r.method.heuristic(opts).select(&an2, r.k)?
     };
+    let keys = sel.key_frames(&r.method, "the [retarget] study")?.to_vec();
     let key_frames: Vec<i64> = keys.iter().map(|&c| prep.seq.frames[c]).collect();
     let (g, iod) = setup::builtin_target(seq, prep)?;
     let mut rows = Vec::new();

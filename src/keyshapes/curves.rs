@@ -18,7 +18,8 @@ pub struct CurveRow {
     pub total_sq_error: f64,
     /// `sqrt(total_sq_error / (frames · points))`, in input units.
     pub rms: f64,
-    /// The key frames (columns); for `random`, those of the first draw.
+    /// The key frames (columns); for `random`, those of the first draw; for `kmeansN-mean`
+    /// (whose key shapes are cluster means), the frame nearest each centre.
     pub keys: Vec<usize>,
 }
 
@@ -131,7 +132,7 @@ fn curve(
             .into_par_iter()
             .map(|k| {
                 let sel = m.heuristic(&opts).select(an, k)?;
-                let e = an.error(&sel.columns, s)?;
+                let e = an.selection_error(&sel, s)?;
                 Ok(row(an, m, s, k, e, sel.columns))
             })
             .collect(),

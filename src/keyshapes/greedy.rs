@@ -32,10 +32,7 @@ impl Heuristic for Greedy {
 
     fn select(&self, an: &Analysis, k: usize) -> Result<Selection> {
         let (columns, _) = greedy_path(an, k, self.solver, self.shortlist)?;
-        Ok(Selection {
-            columns,
-            centres: None,
-        })
+        Ok(Selection::frames(columns))
     }
 }
 

@@ -78,10 +78,7 @@ impl Heuristic for Hull {
                 .collect();
             corners(&ring, extent)
         };
-        Ok(Selection {
-            columns,
-            centres: None,
-        })
+        Ok(Selection::frames(columns))
     }
 }
 

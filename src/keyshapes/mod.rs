@@ -32,13 +32,52 @@ use std::sync::OnceLock;
 /// sequences evaluate errors from the shapes directly and cannot use `greedy`.
 pub const GRAM_LIMIT: usize = 6000;
 
-/// Frames chosen as key shapes.
+/// Key shapes chosen: frames of the sequence, or (`kmeansN-mean`) shapes that are not frames.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Selection {
     /// Column indices of the chosen frames (into the analysed sequence), in choice order.
+    /// For `kmeansN-mean`, the frame nearest each cluster centre (for reference only: the
+    /// key shapes are `shapes`).
     pub columns: Vec<usize>,
     /// k-means only: the cluster centres in PCA coordinates (pcs × k), which are not frames.
     pub centres: Option<DMatrix<f64>>,
+    /// `kmeansN-mean` only: the key shapes themselves, each cluster's mean shape in full
+    /// coordinates (paper 000 §4.2's "center of mass"), one per column.
+    pub shapes: Option<DMatrix<f64>>,
+    /// `kmeansN-mean` only: frames in each cluster.
+    pub sizes: Option<Vec<usize>>,
+}
+
+impl Selection {
+    /// Key shapes that are frames.
+    pub fn frames(columns: Vec<usize>) -> Selection {
+        Selection {
+            columns,
+            centres: None,
+            shapes: None,
+            sizes: None,
+        }
+    }
+
+    /// The key frames, or an error naming `method` when its key shapes are not frames
+    /// (`what` says what needed frames).
+    pub fn key_frames(&self, method: &Method, what: &str) -> Result<&[usize]> {
+        if self.shapes.is_some() {
+            return Err(Error::invalid(format!(
+                "{method} keys are cluster mean shapes, not frames, and {what} needs key frames (an artist redraws frames); use {} for the frame nearest each centre",
+                method.name().trim_end_matches("-mean")
+            )));
+        }
+        Ok(&self.columns)
+    }
+
+    /// The key shapes of `an` as columns (dims · points × k).
+    pub fn key_shapes(&self, an: &Analysis) -> DMatrix<f64> {
+        match &self.shapes {
+            Some(s) => s.clone(),
+            None => an.coords.select_columns(&self.columns),
+        }
+    }
 }
 
 /// A key-shape heuristic.
@@ -58,6 +97,9 @@ pub enum Method {
     KMeans {
         /// Number of principal components clustered.
         pcs: usize,
+        /// Key shapes are the clusters' mean shapes (paper 000's "center of mass",
+        /// `kmeansN-mean`) instead of the frames nearest the centres (`kmeansN`).
+        mean: bool,
     },
     /// Frames on the convex hull of the first two principal components.
     Hull,
@@ -69,29 +111,42 @@ pub enum Method {
 
 impl Method {
     /// The methods of paper 000's Fig. 6 plus ours, in plotting order.
-    pub const ALL: [Method; 6] = [
+    pub const ALL: [Method; 8] = [
         Method::Spread,
-        Method::KMeans { pcs: 2 },
-        Method::KMeans { pcs: 3 },
+        Method::KMeans {
+            pcs: 2,
+            mean: false,
+        },
+        Method::KMeans {
+            pcs: 3,
+            mean: false,
+        },
+        Method::KMeans { pcs: 2, mean: true },
+        Method::KMeans { pcs: 3, mean: true },
         Method::Hull,
         Method::Greedy,
         Method::Random,
     ];
 
-    /// Parses `spread`, `kmeans2`, `kmeans3`, `kmeansN`, `hull`, `greedy`, `random`.
+    /// Parses `spread`, `kmeans2`, `kmeans3`, `kmeansN`, `kmeansN-mean`, `hull`, `greedy`,
+    /// `random`.
     pub fn parse(s: &str) -> Result<Method> {
         let t = s.trim().to_ascii_lowercase();
-        let m = match t.as_str() {
-            "spread" => Method::Spread,
-            "hull" => Method::Hull,
-            "greedy" => Method::Greedy,
-            "random" => Method::Random,
-            "kmeans" => Method::KMeans { pcs: 2 },
-            _ => match t.strip_prefix("kmeans").map(str::parse::<usize>) {
-                Some(Ok(pcs)) if (1..=64).contains(&pcs) => Method::KMeans { pcs },
+        let (base, mean) = match t.strip_suffix("-mean") {
+            Some(b) => (b, true),
+            None => (t.as_str(), false),
+        };
+        let m = match base {
+            "spread" if !mean => Method::Spread,
+            "hull" if !mean => Method::Hull,
+            "greedy" if !mean => Method::Greedy,
+            "random" if !mean => Method::Random,
+            "kmeans" => Method::KMeans { pcs: 2, mean },
+            _ => match base.strip_prefix("kmeans").map(str::parse::<usize>) {
+                Some(Ok(pcs)) if (1..=64).contains(&pcs) => Method::KMeans { pcs, mean },
                 _ => {
                     return Err(Error::invalid(format!(
-                        "unknown key-shape method '{s}' (expected spread, kmeans2, kmeans3, kmeansN, hull, greedy or random)"
+                        "unknown key-shape method '{s}' (expected spread, kmeans2, kmeans3, kmeansN, kmeansN-mean, hull, greedy or random)"
                     )))
                 }
             },
@@ -103,7 +158,8 @@ impl Method {
     pub fn name(&self) -> String {
         match self {
             Method::Spread => "spread".into(),
-            Method::KMeans { pcs } => format!("kmeans{pcs}"),
+            Method::KMeans { pcs, mean: false } => format!("kmeans{pcs}"),
+            Method::KMeans { pcs, mean: true } => format!("kmeans{pcs}-mean"),
             Method::Hull => "hull".into(),
             Method::Greedy => "greedy".into(),
             Method::Random => "random".into(),
@@ -114,9 +170,10 @@ impl Method {
     pub fn heuristic(&self, opts: &KeyOptions) -> Box<dyn Heuristic + Send + Sync> {
         match *self {
             Method::Spread => Box::new(Spread),
-            Method::KMeans { pcs } => Box::new(KMeans {
+            Method::KMeans { pcs, mean } => Box::new(KMeans {
                 pcs,
                 seed: opts.seed,
+                mean,
             }),
             Method::Hull => Box::new(Hull),
             Method::Greedy => Box::new(Greedy {
@@ -162,7 +219,7 @@ pub fn axes_needed(methods: &[Method], kmax: usize) -> usize {
     methods
         .iter()
         .fold(DEFAULT_AXES.max(kmax.div_ceil(2)), |a: usize, m| match m {
-            Method::KMeans { pcs } => a.max(*pcs),
+            Method::KMeans { pcs, .. } => a.max(*pcs),
             _ => a,
         })
 }
@@ -279,8 +336,49 @@ impl Analysis {
     /// The weights (k × frames) and Eq. (5) error of key columns `keys` under `solver`.
     pub fn weights_and_error(&self, keys: &[usize], solver: Solver) -> Result<(DMatrix<f64>, f64)> {
         let (g, b) = self.products(keys)?;
+        self.solve_products(&g, &b, solver, &format!("key columns {keys:?}"))
+    }
+
+    /// The weights and Eq. (5) error of a selection: its key frames, or its key shapes
+    /// when they are not frames (`kmeansN-mean`).
+    pub fn selection_weights_and_error(
+        &self,
+        sel: &Selection,
+        solver: Solver,
+    ) -> Result<(DMatrix<f64>, f64)> {
+        match &sel.shapes {
+            None => self.weights_and_error(&sel.columns, solver),
+            Some(s) => {
+                if s.nrows() != self.coords.nrows() {
+                    return Err(Error::invalid(format!(
+                        "key shapes have {} values, the frames {}",
+                        s.nrows(),
+                        self.coords.nrows()
+                    )));
+                }
+                let (g, b) = (s.tr_mul(s), s.tr_mul(&self.coords));
+                self.solve_products(&g, &b, solver, "the cluster mean shapes")
+            }
+        }
+    }
+
+    /// Eq. (5) of a selection (see [`Analysis::selection_weights_and_error`]).
+    pub fn selection_error(&self, sel: &Selection, solver: Solver) -> Result<f64> {
+        self.selection_weights_and_error(sel, solver)
+            .map(|(_, e)| e)
+    }
+
+    /// Weights from `G = SᵀS`, `B = SᵀQ` and the Eq. (5) error from inner products.
+    fn solve_products(
+        &self,
+        g: &DMatrix<f64>,
+        b: &DMatrix<f64>,
+        solver: Solver,
+        what: &str,
+    ) -> Result<(DMatrix<f64>, f64)> {
+        let keys = what;
         let w = match solver {
-            Solver::Ls => lstsq::gram_pseudo_inverse(&g, None) * &b,
+            Solver::Ls => lstsq::gram_pseudo_inverse(g, None) * b,
             Solver::Nnls | Solver::Bounded => {
                 let upper = if solver == Solver::Nnls {
                     f64::INFINITY
@@ -288,17 +386,17 @@ impl Analysis {
                     1.0
                 };
                 let (w, unconverged, _) =
-                    active_set_from_gram(&Gram::from_matrix(&g, upper), &b, true);
+                    active_set_from_gram(&Gram::from_matrix(g, upper), b, true);
                 // An unconverged frame would put a wrong point on an error curve.
                 if unconverged > 0 {
                     return Err(Error::invalid(format!(
-                        "{solver} did not converge on {unconverged} frames (iteration cap) for key columns {keys:?}"
+                        "{solver} did not converge on {unconverged} frames (iteration cap) for {keys}"
                     )));
                 }
                 w
             }
         };
-        let gw = &g * &w;
+        let gw = g * &w;
         let mut e = 0.0;
         for t in 0..w.ncols() {
             let (wt, bt, gwt) = (w.column(t), b.column(t), gw.column(t));

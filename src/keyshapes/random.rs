@@ -26,9 +26,6 @@ impl Heuristic for Random {
             idx.swap(i, j);
         }
         idx.truncate(k);
-        Ok(Selection {
-            columns: idx,
-            centres: None,
-        })
+        Ok(Selection::frames(idx))
     }
 }

@@ -40,9 +40,6 @@ impl Heuristic for Spread {
                 }
             }
         }
-        Ok(Selection {
-            columns,
-            centres: None,
-        })
+        Ok(Selection::frames(columns))
     }
 }

@@ -46,6 +46,10 @@ pub enum KeyPlan {
     Global(Vec<usize>),
     /// Per region: its key columns, with the region plan.
     Regions(RegionPlan, Vec<Vec<usize>>),
+    /// Key shapes that are not frames (`kmeansN-mean`: cluster means), one per column, for
+    /// every point; only a [`Target::Warp`] can map them (a drawn target has shapes for
+    /// frames). [`Retargeted::keys`] is then empty.
+    Shapes(DMatrix<f64>),
 }
 
 /// Everything a retargeting run produced.
@@ -225,6 +229,25 @@ pub fn retarget_with_truth(
     let (regions, key_sets): (Option<&RegionPlan>, Vec<Vec<usize>>) = match plan {
         KeyPlan::Global(k) => (None, vec![k.clone()]),
         KeyPlan::Regions(p, k) => (Some(p), k.clone()),
+        KeyPlan::Shapes(m) => {
+            if !matches!(target, Target::Warp { .. }) {
+                return Err(Error::invalid(
+                    "key shapes that are not frames (cluster means) need the built-in target: a drawn target has shapes for key frames",
+                ));
+            }
+            if m.nrows() != n || m.ncols() == 0 {
+                return Err(Error::invalid(format!(
+                    "{} key shapes of {} values for frames of {n}",
+                    m.ncols(),
+                    m.nrows()
+                )));
+            }
+            (None, vec![(0..m.ncols()).collect()])
+        }
+    };
+    let given = match plan {
+        KeyPlan::Shapes(m) => Some(m),
+        _ => None,
     };
     if let (Some(_), Target::Shapes { keys, .. }) = (regions, target) {
         if keys.nrows() != n {
@@ -249,7 +272,10 @@ pub fn retarget_with_truth(
                 .flat_map(|&i| (0..dims).map(move |d| i * dims + d))
                 .collect(),
         };
-        let s_full = q.select_columns(keys);
+        let s_full = match given {
+            Some(m) => m.clone(),
+            None => q.select_columns(keys),
+        };
         let b_full = match target {
             Target::Warp { g, trace_noise } => {
                 let mut b = g.apply_all(&s_full);
@@ -358,7 +384,11 @@ pub fn retarget_with_truth(
     });
     Ok(Retargeted {
         unconverged,
-        keys: key_sets,
+        keys: if given.is_some() {
+            Vec::new()
+        } else {
+            key_sets
+        },
         weights,
         source,
         target: out,

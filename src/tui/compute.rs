@@ -167,6 +167,7 @@ impl Engine {
             solver: settings.solver,
             ..KeyOptions::default()
         };
+        let mut shapes = None;
         let (keys, target) = match &user_target {
             None => {
                 let k = if settings.method == Method::Hull {
@@ -174,9 +175,12 @@ impl Engine {
                 } else {
                     settings.k.min(c.an.distinct)
                 };
-                let keys = settings.method.heuristic(&opts).select(&c.an, k)?.columns;
+                let sel = settings.method.heuristic(&opts).select(&c.an, k)?;
+                // kmeansN-mean: the key shapes are cluster means; the timeline marks the
+                // frames nearest the centres.
+                shapes = sel.shapes;
                 (
-                    keys,
+                    sel.columns,
                     Target::Warp {
                         g: c.warp.clone(),
                         trace_noise: 0.0,
@@ -221,7 +225,10 @@ impl Engine {
             let r = retarget_with_truth(
                 coords,
                 dims,
-                &KeyPlan::Global(keys.clone()),
+                &match &shapes {
+                    Some(m) => KeyPlan::Shapes(m.clone()),
+                    None => KeyPlan::Global(keys.clone()),
+                },
                 &target,
                 None,
                 s,

@@ -15,11 +15,20 @@ pub fn export(s: &State, seq_path: &str, dir: &Path) -> Result<Vec<String>> {
     let v = c.views.first().context("no solver view")?;
     std::fs::create_dir_all(dir).with_context(|| format!("{}", dir.display()))?;
     let csv = dir.join("weights.csv");
+    let mean_keys = matches!(c.settings.method, Method::KMeans { mean: true, .. });
     write_atomic(&csv, |w| {
+        // kmeansN-mean: the key shapes are cluster means, not frames.
         let keys: Vec<String> = c
             .keys
             .iter()
-            .map(|&k| format!("w_{}", c.frames[k]))
+            .enumerate()
+            .map(|(j, &k)| {
+                if mean_keys {
+                    format!("w_mean{j}")
+                } else {
+                    format!("w_{}", c.frames[k])
+                }
+            })
             .collect();
         writeln!(w, "frame,source_rms,target_rms,{}", keys.join(","))?;
         for (t, f) in c.frames.iter().enumerate() {
@@ -75,15 +84,21 @@ pub fn export(s: &State, seq_path: &str, dir: &Path) -> Result<Vec<String>> {
     } else {
         st.k
     };
+    let methods: Vec<String> = Method::ALL.iter().map(|m| format!("\"{m}\"")).collect();
+    let retarget = if mean_keys {
+        format!("# [retarget] is left out: {} key shapes are cluster means, not frames, and the\n# retargeting study draws its target on key frames.\n", st.method)
+    } else {
+        format!("[retarget]\nmethod = \"{}\"\nk = {k}\nsolvers = [\"ls\", \"nnls\"]\ntrace_noise = [0.0, 0.01]\nstrip = 4\n", st.method)
+    };
     let text = format!(
-        "# Exported from the kslab lab: reproduces the current settings. Run: kslab run {}\ntitle = \"{} {} k={} {}\"\ninput = \"{input}\"\n{points}\nalign = true\nmethods = [\"spread\", \"kmeans2\", \"kmeans3\", \"hull\", \"greedy\", \"random\"]\nk = \"2..24\"\nsolvers = [\"{}\"]\n\n[retarget]\nmethod = \"{}\"\nk = {k}\nsolvers = [\"ls\", \"nnls\"]\ntrace_noise = [0.0, 0.01]\nstrip = 4\n",
+        "# Exported from the kslab lab: reproduces the current settings. Run: kslab run {}\ntitle = \"{} {} k={} {}\"\ninput = \"{input}\"\n{points}\nalign = true\nmethods = [{}]\nk = \"2..24\"\nsolvers = [\"{}\"]\n\n{retarget}",
         toml.display(),
         st.points,
         st.method,
         k,
         st.solver,
+        methods.join(", "),
         st.solver,
-        st.method
     );
     write_atomic(&toml, |w| w.write_all(text.as_bytes()))?;
     Ok(vec![

@@ -201,7 +201,7 @@ impl State {
     }
 }
 
-const METHODS: [Method; 6] = Method::ALL;
+const METHODS: [Method; 8] = Method::ALL;
 
 /// Applies an action; returns the effects the loop must carry out.
 pub fn update(s: &mut State, action: Action) -> Vec<Effect> {

@@ -309,16 +309,27 @@ fn time_line(f: &mut Frame, s: &State, c: &Computed, area: Rect) {
     f.render_widget(Paragraph::new(lines), area);
 }
 
+/// A method's name in the chart legend, short enough for all eight to fit: `km2` is
+/// kmeans2 (the frame nearest each centre), `km2m` kmeans2-mean (the cluster means).
+pub fn short_label(m: &Method) -> String {
+    match m {
+        Method::KMeans { pcs, mean: false } => format!("km{pcs}"),
+        Method::KMeans { pcs, mean: true } => format!("km{pcs}m"),
+        Method::Random => "rand".into(),
+        other => other.name(),
+    }
+}
+
 fn colour(rgb: [u8; 3]) -> Color {
     Color::Rgb(rgb[0], rgb[1], rgb[2])
 }
 
 fn error_chart(f: &mut Frame, s: &State, area: Rect) {
-    let mut title = vec![Span::raw(format!("error vs k ({}) ", s.settings.solver))];
+    let mut title = vec![Span::raw(format!("E(k) {}: ", s.settings.solver))];
     for m in Method::ALL {
         let (rgb, _) = method_style(&m.name());
         title.push(Span::styled(
-            format!("{} ", m.name()),
+            format!("{} ", short_label(&m)),
             Style::default().fg(colour(rgb)),
         ));
     }
@@ -454,7 +465,7 @@ pub const KEYS: [(&str, &str); 19] = [
     ("Home / End", "first / last frame"),
     ("0-9 … Enter", "jump to a frame number"),
     ("[ / ]", "slower / faster playback"),
-    ("m / M", "next / previous key-shape method"),
+    ("m / M", "next / prev method; km2 = kmeans2, km2m = kmeans2-mean"),
     ("+ / -", "more / fewer key shapes"),
     ("g", "next point group (lips, all, eyes, brows, eyes+brows)"),
     ("s", "next solver (nnls, ls, bounded)"),

@@ -153,13 +153,16 @@ fn kmeans_is_deterministic_for_a_seed_and_differs_across_seeds() {
     let seq = keyshape_lab::io::builtin_sequence().unwrap();
     let an = Analysis::new(seq.coords, seq.points).unwrap();
     let pick = |seed| {
-        Method::KMeans { pcs: 3 }
-            .heuristic(&KeyOptions {
-                seed,
-                ..KeyOptions::default()
-            })
-            .select(&an, 10)
-            .unwrap()
+        Method::KMeans {
+            pcs: 3,
+            mean: false,
+        }
+        .heuristic(&KeyOptions {
+            seed,
+            ..KeyOptions::default()
+        })
+        .select(&an, 10)
+        .unwrap()
     };
     assert_eq!(pick(7), pick(7));
     // Another seed gives other clusters on this sequence (k-means++ starts differ).
@@ -179,7 +182,10 @@ fn asking_for_more_keys_than_distinct_shapes_is_a_clear_error() {
     assert_eq!(an.distinct, 4);
     for m in [
         Method::Spread,
-        Method::KMeans { pcs: 2 },
+        Method::KMeans {
+            pcs: 2,
+            mean: false,
+        },
         Method::Greedy,
         Method::Random,
     ] {
@@ -255,8 +261,14 @@ fn fig6_shape_holds_on_real_lips_spread_is_nested_and_decreasing() {
         .unwrap();
     for m in [
         Method::Spread,
-        Method::KMeans { pcs: 2 },
-        Method::KMeans { pcs: 3 },
+        Method::KMeans {
+            pcs: 2,
+            mean: false,
+        },
+        Method::KMeans {
+            pcs: 3,
+            mean: false,
+        },
         Method::Greedy,
     ] {
         let e = an

@@ -121,7 +121,7 @@ fn kmeans_keys_are_the_frames_nearest_the_centres_over_all_axes() {
     let seq = keyshape_lab::io::builtin_sequence().unwrap();
     let an = Analysis::with_axes(seq.coords, seq.points, 8).unwrap();
     for pcs in [2usize, 3, 5] {
-        let sel = Method::KMeans { pcs }
+        let sel = Method::KMeans { pcs, mean: false }
             .heuristic(&KeyOptions::default())
             .select(&an, 9)
             .unwrap();
@@ -145,6 +145,84 @@ fn kmeans_keys_are_the_frames_nearest_the_centres_over_all_axes() {
             taken[best.1] = true;
         }
     }
+}
+
+/// Paper 000 §4.2's k-means variant: the key shapes are the clusters' centres of mass — the
+/// mean, in full coordinates, of the frames nearest each centre on the clustered axes —
+/// checked by brute force, with Eq. 5 checked against the textbook NNLS frame by frame.
+#[test]
+fn kmeans_mean_keys_are_the_clusters_mean_shapes() {
+    use keyshape_lab::solve::textbook;
+    let seq = keyshape_lab::io::builtin_sequence().unwrap();
+    let an = Analysis::with_axes(seq.coords.clone(), seq.points, 8).unwrap();
+    for pcs in [2usize, 3] {
+        let m = Method::KMeans { pcs, mean: true };
+        let sel = m.heuristic(&KeyOptions::default()).select(&an, 6).unwrap();
+        // Same clustering as kmeansN: same centres and nearest frames.
+        let plain = Method::KMeans { pcs, mean: false }
+            .heuristic(&KeyOptions::default())
+            .select(&an, 6)
+            .unwrap();
+        assert_eq!(sel.centres, plain.centres);
+        assert_eq!(sel.columns, plain.columns);
+        let centres = sel.centres.clone().unwrap();
+        let shapes = sel.shapes.clone().unwrap();
+        assert_eq!(shapes.shape(), (an.coords.nrows(), 6));
+        let mut sums = DMatrix::<f64>::zeros(an.coords.nrows(), 6);
+        let mut sizes = vec![0usize; 6];
+        for t in 0..an.frames() {
+            let d = |c: usize| -> f64 {
+                (0..pcs)
+                    .map(|a| (an.proj[(a, t)] - centres[(a, c)]).powi(2))
+                    .sum()
+            };
+            let mut best = 0;
+            for c in 1..6 {
+                if d(c) < d(best) {
+                    best = c;
+                }
+            }
+            for i in 0..an.coords.nrows() {
+                sums[(i, best)] += an.coords[(i, t)];
+            }
+            sizes[best] += 1;
+        }
+        assert_eq!(sel.sizes.as_deref(), Some(&sizes[..]));
+        assert_eq!(sizes.iter().sum::<usize>(), an.frames());
+        for c in 0..6 {
+            for i in 0..an.coords.nrows() {
+                let want = sums[(i, c)] / sizes[c] as f64;
+                assert!((shapes[(i, c)] - want).abs() < 1e-9 * want.abs().max(1.0));
+            }
+        }
+        // Eq. 5 on the mean shapes, from inner products, against direct residuals.
+        let e = an.selection_error(&sel, Solver::Nnls).unwrap();
+        let mut direct = 0.0;
+        for t in 0..an.frames() {
+            let q = an.coords.column(t).clone_owned();
+            let w = textbook::nnls(&shapes, &q);
+            direct += (&shapes * &w - &q).norm_squared();
+        }
+        assert!((e - direct).abs() < 1e-6 * direct, "{e} vs {direct}");
+        // The frame variant's error is on the frames, not on the means.
+        let ef = an.selection_error(&plain, Solver::Nnls).unwrap();
+        assert_eq!(ef, an.error(&plain.columns, Solver::Nnls).unwrap());
+        assert_ne!(e, ef);
+        // Where frames are needed, the mean variant is refused with a pointer to kmeansN.
+        let msg = sel.key_frames(&m, "retargeting").unwrap_err().to_string();
+        assert!(msg.contains(&format!("use kmeans{pcs} ")), "{msg}");
+        assert_eq!(plain.key_frames(&m, "x").unwrap(), &plain.columns[..]);
+        // Names round-trip.
+        assert_eq!(Method::parse(&m.name()).unwrap(), m);
+        assert_eq!(m.name(), format!("kmeans{pcs}-mean"));
+    }
+    for bad in ["spread-mean", "hull-mean", "kmeans0-mean", "kmeans-means"] {
+        assert!(Method::parse(bad).is_err(), "{bad}");
+    }
+    assert_eq!(
+        Method::parse("kmeans-mean").unwrap(),
+        Method::KMeans { pcs: 2, mean: true }
+    );
 }
 
 /// Survivors of the first mutation run (mutants/README.md), each killed here.

@@ -250,7 +250,7 @@ fn the_binary_runs_in_tmux() {
     wait_for("k=13");
     tmux(&["send-keys", "-t", &name, "s"]);
     let screen = wait_for("· ls ·");
-    assert!(screen.contains("error vs k"));
+    assert!(screen.contains("E(k) ls:"));
     tmux(&["send-keys", "-t", &name, "q"]);
     for _ in 0..50 {
         if !tmux(&["has-session", "-t", &name]).status.success() {
