@@ -40,6 +40,8 @@ pub struct PlotSpec {
     pub series: Vec<Series>,
     /// Start the y axis at zero.
     pub y_from_zero: bool,
+    /// Extend the y axis to at least this value (to share an axis between panels).
+    pub y_at_least: Option<f64>,
 }
 
 impl PlotSpec {
@@ -57,7 +59,10 @@ impl PlotSpec {
                 Some(((x0, x1), (y0, y1))) => ((x0.min(x), x1.max(x)), (y0.min(y), y1.max(y))),
             });
         }
-        b.map(|(x, (y0, y1))| (x, (if self.y_from_zero { y0.min(0.0) } else { y0 }, y1)))
+        b.map(|(x, (y0, y1))| {
+            let y1 = self.y_at_least.map_or(y1, |m| y1.max(m));
+            (x, (if self.y_from_zero { y0.min(0.0) } else { y0 }, y1))
+        })
     }
 }
 
@@ -115,5 +120,6 @@ pub fn curves_plot(rows: &[CurveRow], solver: &str, title: &str, units: &str) ->
         y_label: format!("RMS error per point ({units}), {solver}"),
         series,
         y_from_zero: true,
+        y_at_least: None,
     }
 }

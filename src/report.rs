@@ -34,6 +34,48 @@ pub fn write_curves_png(rows: &[CurveRow], solver: &str, title: &str, path: &Pat
     save_png(&pm, path)
 }
 
+/// Aligned (left) and raw (right) curves of one solver side by side, on one y scale.
+pub fn write_aligned_vs_raw_png(
+    aligned: &[CurveRow],
+    raw: &[CurveRow],
+    solver: &str,
+    title: &str,
+    path: &Path,
+) -> Result<()> {
+    let mut a = curves_plot(
+        aligned,
+        solver,
+        &format!("{title}: head motion removed"),
+        "px",
+    );
+    let mut r = curves_plot(raw, solver, &format!("{title}: raw coordinates"), "px");
+    let top = |p: &crate::plot::PlotSpec| p.bounds().map_or(0.0, |b| b.1 .1);
+    let y = top(&a).max(top(&r));
+    a.y_at_least = Some(y);
+    r.y_at_least = Some(y);
+    let (pa, pr) = (render_plot(&a, 900, 600)?, render_plot(&r, 900, 600)?);
+    let mut out = tiny_skia::Pixmap::new(1800, 600)
+        .ok_or_else(|| Error::invalid("cannot allocate the side-by-side picture"))?;
+    let paint = tiny_skia::PixmapPaint::default();
+    out.draw_pixmap(
+        0,
+        0,
+        pa.as_ref(),
+        &paint,
+        tiny_skia::Transform::identity(),
+        None,
+    );
+    out.draw_pixmap(
+        900,
+        0,
+        pr.as_ref(),
+        &paint,
+        tiny_skia::Transform::identity(),
+        None,
+    );
+    save_png(&out, path)
+}
+
 /// Writes everything into `dir` (created if missing); returns the files written.
 pub fn write_outcome(o: &Outcome, dir: &Path) -> Result<Vec<PathBuf>> {
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
@@ -43,6 +85,24 @@ pub fn write_outcome(o: &Outcome, dir: &Path) -> Result<Vec<PathBuf>> {
         let csv = dir.join("curves.csv");
         write_atomic(&csv, |w| write_curves_csv(w, &o.rows))?;
         files.push(csv);
+    }
+    if !o.raw_rows.is_empty() {
+        let csv = dir.join("curves_raw.csv");
+        write_atomic(&csv, |w| write_curves_csv(w, &o.raw_rows))?;
+        files.push(csv);
+        if o.spec.png {
+            for s in &o.spec.solvers {
+                let name = format!("curves_{}_aligned_vs_raw.png", s.name());
+                write_aligned_vs_raw_png(
+                    &o.rows,
+                    &o.raw_rows,
+                    s.name(),
+                    &o.spec.title,
+                    &dir.join(&name),
+                )?;
+                figures.push(name);
+            }
+        }
     }
     if !o.retarget.is_empty() {
         let csv = dir.join("retarget.csv");
@@ -221,6 +281,7 @@ pub fn write_outcome(o: &Outcome, dir: &Path) -> Result<Vec<PathBuf>> {
         "timings_s": o.timings.iter().map(|(k, v)| (k.clone(), json!(v))).collect::<serde_json::Map<_, _>>(),
         "figures": figures,
         "rows": o.rows,
+        "raw_rows": (!o.raw_rows.is_empty()).then_some(&o.raw_rows),
         "retarget": o.retarget,
         "strip_frames": o.strip.as_ref().map(|s| s.frames.clone()),
         "intensity": o.intensity,

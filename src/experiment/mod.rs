@@ -48,6 +48,8 @@ pub struct Outcome {
     pub explained_variance: Vec<f64>,
     /// The curves.
     pub rows: Vec<CurveRow>,
+    /// The curves on raw (unaligned) coordinates, when `compare_raw` asks for them.
+    pub raw_rows: Vec<CurveRow>,
     /// Seconds per stage: read, prepare, pca, sweep.
     pub timings: Vec<(String, f64)>,
     /// Retargeting study rows (one per trace-noise level and solver).
@@ -113,6 +115,28 @@ pub fn run(spec: &Spec, base: &Path, tick: &(dyn Fn(usize, usize) + Sync)) -> Re
     };
     timings.push(("sweep".to_string(), t.elapsed().as_secs_f64()));
     let t = Instant::now();
+    let raw_rows = if spec.compare_raw {
+        let raw = prepare(
+            &seq,
+            &PrepareOptions {
+                points: spec.points.clone(),
+                align: false,
+            },
+        )?;
+        let an_raw = Analysis::with_axes(raw.seq.coords.clone(), raw.seq.points, axes)?;
+        sweep(
+            &an_raw,
+            &spec.methods,
+            spec.k.0..=spec.k.1,
+            &spec.solvers,
+            &opts,
+            tick,
+        )?
+    } else {
+        Vec::new()
+    };
+    timings.push(("sweep_raw".to_string(), t.elapsed().as_secs_f64()));
+    let t = Instant::now();
     let (retarget, strip) = match &spec.retarget {
         Some(r) => retarget_study(r, &seq, &prep, &an, &opts)?,
         None => (Vec::new(), None),
@@ -171,6 +195,7 @@ pub fn run(spec: &Spec, base: &Path, tick: &(dyn Fn(usize, usize) + Sync)) -> Re
         failed_frames: seq.failed.len(),
         explained_variance: an.pca.explained_ratio().into_iter().take(6).collect(),
         rows,
+        raw_rows,
         timings,
         retarget,
         strip,

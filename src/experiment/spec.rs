@@ -30,6 +30,10 @@ pub struct Spec {
     /// Remove 2-D head motion first.
     #[serde(default = "yes")]
     pub align: bool,
+    /// Also sweep the curves on the raw (unaligned) coordinates and draw both side by side
+    /// (needs `align = true`).
+    #[serde(default)]
+    pub compare_raw: bool,
     /// Key-shape methods for error curves (empty: no curves).
     #[serde(default, deserialize_with = "methods", serialize_with = "method_names")]
     pub methods: Vec<Method>,
@@ -244,6 +248,13 @@ impl Spec {
             || spec.map.is_some();
         if spec.methods.is_empty() && !studies {
             return Err(at("methods", "name at least one method (or add a [retarget], [modes], [intensity] or [map] table)".into()));
+        }
+        if spec.compare_raw && (!spec.align || spec.methods.is_empty()) {
+            return Err(at(
+                "compare_raw",
+                "compares aligned with raw curves: it needs align = true and at least one method"
+                    .into(),
+            ));
         }
         if spec.solvers.is_empty() {
             return Err(at("solvers", "name at least one solver".into()));

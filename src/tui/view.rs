@@ -465,7 +465,10 @@ pub const KEYS: [(&str, &str); 19] = [
     ("Home / End", "first / last frame"),
     ("0-9 … Enter", "jump to a frame number"),
     ("[ / ]", "slower / faster playback"),
-    ("m / M", "next / prev method; km2 = kmeans2, km2m = kmeans2-mean"),
+    (
+        "m / M",
+        "next / prev method; km2 = kmeans2, km2m = kmeans2-mean",
+    ),
     ("+ / -", "more / fewer key shapes"),
     ("g", "next point group (lips, all, eyes, brows, eyes+brows)"),
     ("s", "next solver (nnls, ls, bounded)"),
