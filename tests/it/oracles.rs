@@ -169,7 +169,7 @@ fn kmeans_mean_keys_are_the_clusters_mean_shapes() {
         let shapes = sel.shapes.clone().unwrap();
         assert_eq!(shapes.shape(), (an.coords.nrows(), 6));
         let mut sums = DMatrix::<f64>::zeros(an.coords.nrows(), 6);
-        let mut sizes = vec![0usize; 6];
+        let mut sizes = [0usize; 6];
         for t in 0..an.frames() {
             let d = |c: usize| -> f64 {
                 (0..pcs)
