@@ -294,8 +294,8 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
         "head_motion": match (head, r.target.nrows() == s.coords.nrows()) {
             (None, _) if a.input.no_align => "kept in the coordinates (--no-align)",
             (None, _) => "none (aligned coordinates)",
-            (Some(_), true) => "applied (image coordinates)",
-            (Some(_), false) => "applied relative to the first frame (target in its own coordinates)",
+            (Some(_), true) => "applied: pictures in image coordinates, per-frame pose columns in --out",
+            (Some(_), false) => "applied relative to the first frame (the target has its own points): pictures follow the source head, per-frame pose columns in --out",
         },
     });
     if a.json {
@@ -313,6 +313,11 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
             r.source_rms(),
             r.jitter(),
             100.0 * r.negative_share()
+        );
+        sayln!(
+            super::is_stdout(a.out.as_ref()),
+            "head motion: {}",
+            summary["head_motion"].as_str().unwrap_or("")
         );
     }
     if a.png_dir.is_some() || a.apng.is_some() {

@@ -20,6 +20,11 @@ pub struct TuiArgs {
     /// Feature correspondences for --mesh (`builtin`, a built-in name, or a JSON file).
     #[arg(long, default_value = "builtin", requires = "mesh")]
     features: String,
+    /// Head motion (removed by alignment) in what `e` exports: `apply` adds the per-frame
+    /// pose to weights.csv (head_scale, head_angle_deg, head_tx, head_ty) and draws view.png
+    /// in image coordinates, as `kslab retarget` does; `none` keeps both aligned.
+    #[arg(long, default_value = "apply", value_parser = ["apply", "none"])]
+    head_motion: String,
 }
 
 pub fn run(a: &TuiArgs) -> Result<()> {
@@ -52,7 +57,7 @@ pub fn run(a: &TuiArgs) -> Result<()> {
             Some(keyshape_lab::tui::mesh::mesh_view(&seq, obj, features)?)
         }
     };
-    keyshape_lab::tui::run(seq, &path, target, mesh)
+    keyshape_lab::tui::run(seq, &path, target, mesh, a.head_motion == "apply")
 }
 
 impl Default for TuiArgs {
@@ -62,6 +67,7 @@ impl Default for TuiArgs {
             target: None,
             mesh: None,
             features: "builtin".into(),
+            head_motion: "apply".into(),
         }
     }
 }

@@ -66,6 +66,8 @@ pub struct Computed {
     pub views: Vec<SolverView>,
     /// Seconds the request took.
     pub seconds: f64,
+    /// The head motion alignment removed, per frame (None when nothing was removed).
+    pub head: Option<Vec<crate::align::Similarity>>,
 }
 
 impl Computed {
@@ -269,6 +271,7 @@ impl Engine {
             },
             views,
             seconds: t0.elapsed().as_secs_f64(),
+            head: c.prep.head.clone(),
         })
     }
 

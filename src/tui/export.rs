@@ -1,5 +1,7 @@
 //! `e` in the lab: the current weights as CSV, the current view as PNG, and an experiment
-//! TOML that reproduces the settings with `kslab run`.
+//! TOML that reproduces the settings with `kslab run`. Head motion follows
+//! `kslab tui --head-motion` (default `apply`): per-frame pose columns in the CSV and the
+//! picture in image coordinates, as `kslab retarget` writes them; `none` keeps both aligned.
 
 use super::state::State;
 use crate::io::{fmt_num, write_atomic};
@@ -16,6 +18,19 @@ pub fn export(s: &State, seq_path: &str, dir: &Path) -> Result<Vec<String>> {
     std::fs::create_dir_all(dir).with_context(|| format!("{}", dir.display()))?;
     let csv = dir.join("weights.csv");
     let mean_keys = matches!(c.settings.method, Method::KMeans { mean: true, .. });
+    // Head motion as `kslab retarget --head-motion` handles it: re-applied (pose columns in
+    // the CSV, the picture in image coordinates) or not at all.
+    let head = if s.export_head_motion {
+        c.head.as_deref()
+    } else {
+        None
+    };
+    let image = |m: &nalgebra::DMatrix<f64>| -> Result<nalgebra::DMatrix<f64>> {
+        Ok(match head {
+            Some(h) => crate::retarget::with_head_motion(m, h, c.dims)?,
+            None => m.clone(),
+        })
+    };
     write_atomic(&csv, |w| {
         // kmeansN-mean: the key shapes are cluster means, not frames.
         let keys: Vec<String> = c
@@ -30,28 +45,51 @@ pub fn export(s: &State, seq_path: &str, dir: &Path) -> Result<Vec<String>> {
                 }
             })
             .collect();
-        writeln!(w, "frame,source_rms,target_rms,{}", keys.join(","))?;
+        let pose = if head.is_some() {
+            ",head_scale,head_angle_deg,head_tx,head_ty"
+        } else {
+            ""
+        };
+        writeln!(w, "frame,source_rms,target_rms,{}{pose}", keys.join(","))?;
         for (t, f) in c.frames.iter().enumerate() {
             let ws: Vec<String> = v.weights.column(t).iter().map(|x| fmt_num(*x)).collect();
-            writeln!(
+            write!(
                 w,
                 "{f},{},{},{}",
                 fmt_num(v.frame_rms[t]),
                 fmt_num(v.frame_target_rms[t]),
                 ws.join(",")
             )?;
+            if let Some(h) = head {
+                let h = h[t];
+                write!(
+                    w,
+                    ",{},{},{},{}",
+                    fmt_num(h.scale),
+                    fmt_num(h.angle.to_degrees()),
+                    fmt_num(h.t[0]),
+                    fmt_num(h.t[1])
+                )?;
+            }
+            writeln!(w)?;
         }
         Ok(())
     })?;
     let t = s.frame.min(c.frames.len().saturating_sub(1));
-    let sb = bounds_of(&[&c.tracked], c.dims);
-    let tb = bounds_of(&[&c.truth, &v.target], c.dims);
+    let (tracked, recon, truth, target) = (
+        image(&c.tracked)?,
+        image(&v.recon)?,
+        image(&c.truth)?,
+        image(&v.target)?,
+    );
+    let sb = bounds_of(&[&tracked], c.dims);
+    let tb = bounds_of(&[&truth, &target], c.dims);
     let shapes = FrameShapes {
         dims: c.dims,
-        tracked: col(&c.tracked, t),
-        recon: col(&v.recon, t),
-        truth: Some(col(&c.truth, t)),
-        target: col(&v.target, t),
+        tracked: col(&tracked, t),
+        recon: col(&recon, t),
+        truth: Some(col(&truth, t)),
+        target: col(&target, t),
         source_lines: &c.polylines,
         target_lines: &c.polylines,
         source_bounds: sb,

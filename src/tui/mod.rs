@@ -158,15 +158,18 @@ where
     Ok(())
 }
 
-/// Opens the lab in this terminal on `seq` (loaded from `path`, or `builtin`). The
+/// Opens the lab in this terminal on `seq` (loaded from `path`, or `builtin`);
+/// `export_head_motion` says whether `e` re-applies the head motion. The
 /// terminal is restored on every exit path, panics included (ratatui's panic hook).
 pub fn run(
     seq: Sequence,
     path: &str,
     target: Option<crate::retarget::target::TargetSet>,
     mesh: Option<mesh::MeshView>,
+    export_head_motion: bool,
 ) -> anyhow::Result<()> {
     let mut s = State::new(&seq.source, seq.n_frames(), seq.fps().unwrap_or(30.0));
+    s.export_head_motion = export_head_motion;
     s.target_keys = target.is_some();
     s.mesh = mesh.map(std::sync::Arc::new);
     s.show_mesh = false; // the 2-D target first; `x` shows the mesh

@@ -116,6 +116,9 @@ pub enum Prompt {
 pub struct State {
     /// Sequence name.
     pub source: String,
+    /// `e` export: re-apply the head motion alignment removed (pose columns in the CSV, the
+    /// picture in image coordinates), or keep aligned coordinates (`kslab tui --head-motion`).
+    pub export_head_motion: bool,
     /// Valid frames.
     pub frames: usize,
     /// Frames per second of the sequence.
@@ -164,6 +167,7 @@ impl State {
     pub fn new(source: &str, frames: usize, fps: f64) -> State {
         State {
             source: source.into(),
+            export_head_motion: true,
             frames,
             fps,
             frame: 0,

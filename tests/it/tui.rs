@@ -325,3 +325,65 @@ fn a_panicking_job_does_not_kill_the_worker() {
         other => panic!("the worker did not answer after a crash: {other:?}"),
     }
 }
+
+/// `e` writes head motion the way `kslab retarget --head-motion` does: with `apply` the CSV
+/// carries each frame's pose (the similarity alignment removed) and the picture is drawn in
+/// image coordinates; with `none`, neither. kmeansN-mean weights are named by cluster.
+#[test]
+fn export_applies_head_motion_or_not_and_names_mean_keys() {
+    let seq = builtin_sequence().unwrap();
+    let mut engine = Engine::new(seq);
+    let mut s = state();
+    let c = engine.compute(1, &Settings::default()).unwrap();
+    let head = c.head.clone().unwrap();
+    s.computed = Some(c);
+    s.frame = 150;
+    let dir = tempfile::tempdir().unwrap();
+    let read =
+        |sub: &str| std::fs::read_to_string(dir.path().join(sub).join("weights.csv")).unwrap();
+    keyshape_lab::tui::export::export(&s, "builtin", &dir.path().join("apply")).unwrap();
+    s.export_head_motion = false;
+    keyshape_lab::tui::export::export(&s, "builtin", &dir.path().join("none")).unwrap();
+    let (a, n) = (read("apply"), read("none"));
+    assert!(a
+        .lines()
+        .next()
+        .unwrap()
+        .ends_with(",head_scale,head_angle_deg,head_tx,head_ty"));
+    assert!(!n.contains("head_"));
+    // Row of frame 150: the pose is the alignment's similarity for that frame.
+    let row: Vec<f64> = a
+        .lines()
+        .nth(151)
+        .unwrap()
+        .split(',')
+        .map(|v| v.parse().unwrap())
+        .collect();
+    let h = head[150];
+    let pose = &row[row.len() - 4..];
+    assert!((pose[0] - h.scale).abs() < 1e-9 && (pose[1] - h.angle.to_degrees()).abs() < 1e-9);
+    assert!((pose[2] - h.t[0]).abs() < 1e-9 && (pose[3] - h.t[1]).abs() < 1e-9);
+    assert_ne!(
+        std::fs::read(dir.path().join("apply/view.png")).unwrap(),
+        std::fs::read(dir.path().join("none/view.png")).unwrap(),
+        "the picture follows the option"
+    );
+    // kmeans2-mean: weights belong to cluster means, not to frames.
+    let m = Settings {
+        method: keyshape_lab::keyshapes::Method::parse("kmeans2-mean").unwrap(),
+        ..Settings::default()
+    };
+    s.computed = Some(engine.compute(2, &m).unwrap());
+    s.settings = m;
+    keyshape_lab::tui::export::export(&s, "builtin", &dir.path().join("mean")).unwrap();
+    let header = read("mean").lines().next().unwrap().to_string();
+    assert!(
+        header.contains(",w_mean0,") && !header.contains(",w_1"),
+        "{header}"
+    );
+    let toml = std::fs::read_to_string(dir.path().join("mean/experiment.toml")).unwrap();
+    assert!(
+        toml.contains("\"kmeans2-mean\"") && !toml.contains("\n[retarget]"),
+        "{toml}"
+    );
+}
