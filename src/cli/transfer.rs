@@ -167,7 +167,24 @@ pub fn run(a: &TransferArgs) -> Result<()> {
             })
         })
         .fold(0.0, f64::max);
+    let trained_on = format!(
+        "the RBF is trained on one frame, {} ({}), mapped onto the mesh's neutral feature vertices; every frame goes through that one transform",
+        s.frames[ncol],
+        match &s.segments {
+            Some(seg) => format!("clip {} of {}", seg[ncol], s.source),
+            None => s.source.clone(),
+        }
+    );
+    // Several people (clips) through one transform: what the identity mismatch costs.
+    let mismatch = match &s.segments {
+        Some(seg) if seg.iter().any(|c| c != &seg[0]) => Some(
+            keyshape_lab::transfer::person_mismatch(&tr, &s.coords, &s.frames, seg)?,
+        ),
+        _ => None,
+    };
     let summary = json!({
+        "trained_on": trained_on,
+        "person_mismatch": mismatch,
         "frames": s.n_frames(),
         "vertices": tr.mesh.positions.len(),
         "features": tr.features.features.len(),
@@ -192,6 +209,28 @@ pub fn run(a: &TransferArgs) -> Result<()> {
             s.n_frames() as f64 / deform.max(1e-12),
             max_disp
         );
+        outln!("{trained_on}");
+        if let Some(rows) = &mismatch {
+            let trained = s
+                .segments
+                .as_ref()
+                .map(|seg| seg[ncol].clone())
+                .unwrap_or_default();
+            let others: Vec<&keyshape_lab::transfer::MismatchRow> =
+                rows.iter().filter(|r| r.segment != trained).collect();
+            let med = |f: fn(&keyshape_lab::transfer::MismatchRow) -> f64| {
+                let mut v: Vec<f64> = others.iter().map(|r| f(r)).collect();
+                v.sort_by(f64::total_cmp);
+                v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
+            };
+            outln!(
+                "{} other clips (people) through it: their neutral lands {:.3} from the mesh's (median over clips of the RMS over features, mesh units); each frame lands {:.3} from where a transform trained on the clip's own neutral puts it, against {:.3} of expression motion (--json lists every clip)",
+                others.len(),
+                med(|r| r.neutral_error),
+                med(|r| r.mismatch),
+                med(|r| r.expression)
+            );
+        }
     }
     Ok(())
 }

@@ -125,3 +125,90 @@ impl Transfer {
             .collect()
     }
 }
+
+/// What one transform trained on one person costs another (paper 004 trains on the
+/// performer's own neutral; driving other people through it carries their identity — face
+/// shape, proportions — into the target as if it were expression). Per segment (clip,
+/// person), in the target's units:
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct MismatchRow {
+    /// Segment (clip) id.
+    pub segment: String,
+    /// Frames in it.
+    pub frames: usize,
+    /// Its neutral: the segment's first frame on which an RBF can be trained (frame number;
+    /// a frame whose feature points coincide, e.g. a blink closing both lids onto each
+    /// other, cannot be).
+    pub neutral_frame: i64,
+    /// RMS over features of `F(n_c) − T₀`: where this person's neutral lands under the
+    /// shared transform (0 for the person it was trained on).
+    pub neutral_error: f64,
+    /// RMS over frames and features of `F(s_t) − F_c(s_t)`, `F_c` trained on the segment's
+    /// own neutral: what the shared transform adds to every frame.
+    pub mismatch: f64,
+    /// RMS over frames and features of `F_c(s_t) − T₀`: the expression motion itself.
+    pub expression: f64,
+}
+
+/// [`MismatchRow`] for every segment of `coords` (`segments[t]` names frame t's segment,
+/// whose frames are in time order; `frames[t]` its number).
+pub fn person_mismatch(
+    tr: &Transfer,
+    coords: &DMatrix<f64>,
+    frames: &[i64],
+    segments: &[String],
+) -> Result<Vec<MismatchRow>> {
+    if segments.len() != coords.ncols() || frames.len() != coords.ncols() {
+        return Err(Error::invalid(
+            "segments, frame numbers and frames differ in count",
+        ));
+    }
+    let mut order: Vec<&String> = Vec::new();
+    for s in segments {
+        if !order.contains(&s) {
+            order.push(s);
+        }
+    }
+    let dst: Vec<f64> = tr.t0.iter().flatten().copied().collect();
+    let nf = tr.t0.len() as f64;
+    let sq = |a: &[f64], b: &[f64]| -> f64 { a.iter().zip(b).map(|(x, y)| (x - y).powi(2)).sum() };
+    order
+        .into_iter()
+        .map(|seg| {
+            let cols: Vec<usize> = (0..segments.len())
+                .filter(|&t| &segments[t] == seg)
+                .collect();
+            let (n, own) = cols
+                .iter()
+                .find_map(|&c| {
+                    let src = source_points(coords.column(c).as_slice(), tr.dims, &tr.features);
+                    Rbf::fit(&src, &dst, 3).ok().map(|r| (c, r))
+                })
+                .ok_or_else(|| {
+                    Error::invalid(format!(
+                        "segment {seg}: no frame whose feature points can train an RBF"
+                    ))
+                })?;
+            let n0 = coords.column(n);
+            let shared0 = tr
+                .rbf
+                .apply(&source_points(n0.as_slice(), tr.dims, &tr.features));
+            let (mut mis, mut expr) = (0.0, 0.0);
+            for &c in &cols {
+                let src = source_points(coords.column(c).as_slice(), tr.dims, &tr.features);
+                let (a, b) = (tr.rbf.apply(&src), own.apply(&src));
+                mis += sq(&a, &b);
+                expr += sq(&b, &dst);
+            }
+            let denom = nf * cols.len() as f64;
+            Ok(MismatchRow {
+                segment: seg.clone(),
+                frames: cols.len(),
+                neutral_frame: frames[n],
+                neutral_error: (sq(&shared0, &dst) / nf).sqrt(),
+                mismatch: (mis / denom).sqrt(),
+                expression: (expr / denom).sqrt(),
+            })
+        })
+        .collect()
+}

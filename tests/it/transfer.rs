@@ -369,3 +369,72 @@ fn painted_weights_override_the_automatic_ones() {
     let e = t.skin.paint(&p, &names).unwrap_err().to_string();
     assert!(e.contains("no feature named 'nose_wing'"), "{e}");
 }
+
+/// One transform trained on one person, driving others (the news sample's 20 clips): the
+/// mismatch is 0 for the person it was trained on, and for another clip it equals the
+/// difference between the shared transfer's and a transfer trained on that clip's own neutral
+/// feature displacements, computed here through `Transfer` itself.
+#[test]
+fn person_mismatch_is_the_gap_to_a_transform_trained_on_each_person() {
+    use keyshape_lab::transfer::{features::Features, person_mismatch, Transfer};
+    let raw = keyshape_lab::io::read_sequence(
+        &shared("pyfeat_samples/news_sample_compact.csv"),
+        &Default::default(),
+    )
+    .unwrap();
+    // Aligned, as `kslab transfer` prepares it.
+    let seq = keyshape_lab::decompose::prepare(
+        &raw,
+        &keyshape_lab::decompose::PrepareOptions {
+            points: None,
+            align: true,
+        },
+    )
+    .unwrap()
+    .seq;
+    let mesh =
+        keyshape_lab::io::obj::read_obj(&shared("ict_facekit_face/neutral_face.obj")).unwrap();
+    let features = Features::choose("builtin", Some("ibug68"), 68, mesh.positions.len()).unwrap();
+    let seg = seq.segments.clone().unwrap();
+    let tr = Transfer::new(
+        mesh.clone(),
+        features.clone(),
+        seq.coords.column(0).as_slice(),
+        2,
+        None,
+    )
+    .unwrap();
+    let rows = person_mismatch(&tr, &seq.coords, &seq.frames, &seg).unwrap();
+    assert_eq!(rows.len(), 20);
+    assert!(
+        rows[0].mismatch < 1e-9 && rows[0].neutral_error < 1e-9,
+        "{:?}",
+        rows[0]
+    );
+    let r = rows.iter().find(|r| r.segment == "8").unwrap();
+    let n = seq.column_of_frame(r.neutral_frame).unwrap();
+    let own = Transfer::new(mesh, features, seq.coords.column(n).as_slice(), 2, None).unwrap();
+    let (mut mis, mut expr, mut count) = (0.0, 0.0, 0);
+    for t in (0..seq.n_frames()).filter(|&t| seg[t] == "8") {
+        let (a, b) = (
+            tr.displacements(seq.coords.column(t).as_slice()),
+            own.displacements(seq.coords.column(t).as_slice()),
+        );
+        for (x, y) in a.iter().zip(&b) {
+            mis += (0..3).map(|d| (x[d] - y[d]).powi(2)).sum::<f64>();
+            expr += (0..3).map(|d| y[d].powi(2)).sum::<f64>();
+            count += 1;
+        }
+    }
+    assert_eq!(count, r.frames * 25);
+    assert!(
+        (r.mismatch - (mis / count as f64).sqrt()).abs() < 1e-9,
+        "{r:?}"
+    );
+    assert!(
+        (r.expression - (expr / count as f64).sqrt()).abs() < 1e-9,
+        "{r:?}"
+    );
+    // Measured on this sample (kslab transfer --json): clip 8's neutral lands 0.64 cm off.
+    assert!((r.neutral_error - 0.6415456950357211).abs() < 1e-6, "{r:?}");
+}
