@@ -7,7 +7,8 @@
 //! input = "../../shared/data/mediapipe_face_tracks/liveportrait_d6.csv"  # relative to this file; "builtin" for the built-in sequence
 //! points = "lips"            # optional: point groups; default the whole face
 //! align = true               # optional, default true
-//! methods = ["spread", "kmeans2", "kmeans3", "hull", "greedy", "random"]
+//! methods = ["spread", "kmeans2", "kmeans3", "kmeans2-mean", "hull", "greedy", "random"]
+//! compare_raw = true         # optional: the curves on raw coordinates too, side by side
 //! k = "2..24"                # or [2, 24], or 12
 //! solvers = ["nnls", "ls"]
 //! seed = 7                   # optional

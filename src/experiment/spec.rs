@@ -278,6 +278,18 @@ impl Spec {
             RegionOptions::from_user(m.boundary, m.blend_radius)
                 .map_err(|e| at("blend_radius", e.to_string()))?;
         }
+        if let Some(i) = &spec.intensity {
+            i.check().map_err(|e| {
+                let key = if i.train_clips.is_some() && e.to_string().contains("train clips") {
+                    "train_clips"
+                } else if e.to_string().contains("threshold") {
+                    "threshold"
+                } else {
+                    "neutral_frames"
+                };
+                at(key, e.to_string())
+            })?;
+        }
         if spec.dims != 2 && spec.dims != 3 {
             return Err(at("dims", format!("must be 2 or 3, got {}", spec.dims)));
         }
