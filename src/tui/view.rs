@@ -404,6 +404,7 @@ fn weight_bars(f: &mut Frame, s: &State, c: &Computed, area: Rect) {
     let rows = area.height.saturating_sub(2) as usize;
     let wmax = v.weights.iter().fold(1e-9f64, |m, x| m.max(x.abs()));
     let shades = [' ', '░', '▒', '▓', '█'];
+    let mean_keys = matches!(c.settings.method, Method::KMeans { mean: true, .. });
     let mut lines = Vec::new();
     for (i, &k) in c.keys.iter().enumerate().take(rows) {
         let w = v.weights[(i, t)];
@@ -426,15 +427,26 @@ fn weight_bars(f: &mut Frame, s: &State, c: &Computed, area: Rect) {
         } else {
             Style::default().fg(Color::Green)
         };
+        // kmeansN-mean keys are cluster means: labelled m0, m1, … (not frames).
+        let label = if mean_keys {
+            format!("m{i}")
+        } else {
+            c.frames[k].to_string()
+        };
         lines.push(Line::from(vec![
-            Span::raw(format!("{:>5} ", c.frames[k])),
+            Span::raw(format!("{label:>5} ")),
             Span::styled(bar, style),
             Span::raw(format!("{w:>7.3} ")),
             Span::styled(strip, Style::default().fg(Color::Blue)),
         ]));
     }
     let title = format!(
-        "key frames: weight now | over time · jitter {:.1e}",
+        "{}: weight now | over time · jitter {:.1e}",
+        if mean_keys {
+            "cluster means"
+        } else {
+            "key frames"
+        },
         v.jitter
     );
     f.render_widget(
