@@ -347,3 +347,124 @@ fn polyfit_is_least_squares_and_correlation_handles_two_points() {
     .unwrap();
     assert!((p[(1, 0)] - 2.0 / 3.0).abs() < 1e-12, "{p}");
 }
+
+/// Survivors of mutation run 2 (mutants/README.md): the batch solvers over several chunks
+/// of frames, a bad frame named exactly, and the method table's edges.
+#[test]
+fn batch_solves_over_many_chunks_match_frame_by_frame_solves() {
+    use keyshape_lab::solve::{solve_batch, textbook, CHUNK};
+    // 3 key shapes of 5 values, 3 chunks and a bit of frames.
+    let s = DMatrix::from_fn(5, 3, |i, j| {
+        ((i * 7 + j * 3) % 5) as f64 + if i == j { 2.0 } else { 0.5 }
+    });
+    let frames = 3 * CHUNK + 7;
+    let q = DMatrix::from_fn(5, frames, |i, t| ((i * 13 + t * 7) % 11) as f64 * 0.3 - 1.0);
+    let ls = solve_batch(&s, &q, &SolveOptions::new(Solver::Ls)).unwrap();
+    let want = s.clone().pseudo_inverse(1e-12).unwrap() * &q;
+    assert!((&ls.weights - &want).amax() < 1e-9);
+    let nn = solve_batch(&s, &q, &SolveOptions::new(Solver::Nnls)).unwrap();
+    for t in [0, CHUNK - 1, CHUNK, 2 * CHUNK + 3, frames - 1] {
+        let w = textbook::nnls(&s, &q.column(t).clone_owned());
+        assert!((nn.weights.column(t) - w).amax() < 1e-9, "frame {t}");
+    }
+    // A frame holding NaN is named by its own column, whatever its place in a chunk.
+    let mut bad = q.clone();
+    bad[(2, CHUNK + 5)] = f64::NAN;
+    for solver in [Solver::Ls, Solver::Nnls] {
+        let e = solve_batch(&s, &bad, &SolveOptions::new(solver))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains(&format!("frame column {}:", CHUNK + 5)),
+            "{solver}: {e}"
+        );
+    }
+    // Solver names as the command line writes them.
+    let names: Vec<&str> = Solver::ALL.iter().map(|s| s.name()).collect();
+    assert_eq!(names, ["ls", "nnls", "bounded"]);
+}
+
+#[test]
+fn the_method_table_and_its_edges() {
+    use keyshape_lab::keyshapes::axes_needed;
+    assert_eq!(
+        Method::parse("kmeans").unwrap(),
+        Method::KMeans {
+            pcs: 2,
+            mean: false
+        }
+    );
+    assert_eq!(
+        Method::parse("kmeans64").unwrap(),
+        Method::KMeans {
+            pcs: 64,
+            mean: false
+        }
+    );
+    for bad in ["kmeans0", "kmeans65", "kmeansx"] {
+        assert!(Method::parse(bad).is_err(), "{bad}");
+    }
+    // k-means needs its own number of axes; spread ⌈k/2⌉; never fewer than 24.
+    assert_eq!(
+        axes_needed(
+            &[Method::KMeans {
+                pcs: 30,
+                mean: true
+            }],
+            2
+        ),
+        30
+    );
+    assert_eq!(axes_needed(&[Method::Spread], 60), 30);
+    assert_eq!(axes_needed(&[Method::Hull], 2), 24);
+    // As many key shapes as distinct shapes is allowed, one more is not.
+    let coords = DMatrix::from_fn(4, 9, |i, t| ((t % 5) * (i + 1)) as f64 + (i * t % 5) as f64);
+    let an = Analysis::new(coords, 2).unwrap();
+    assert_eq!(an.distinct, 5);
+    an.check_k(5).unwrap();
+    assert!(an.check_k(6).is_err());
+    // A method that needs more principal axes than the data has is refused, not run.
+    let flat = DMatrix::from_fn(2, 12, |i, t| (t as f64) * if i == 0 { 1.0 } else { 0.5 });
+    let an = Analysis::new(flat, 1).unwrap();
+    let e = Method::KMeans {
+        pcs: 3,
+        mean: false,
+    }
+    .heuristic(&KeyOptions::default())
+    .select(&an, 2)
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("needs 3 principal axes"), "{e}");
+}
+
+/// Past the Gram limit the key-set products come from the shapes directly: the Eq. 5 error
+/// there equals the residual computed frame by frame, and the frames' Gram matrix is refused.
+#[test]
+fn long_sequences_evaluate_errors_without_the_frames_gram_matrix() {
+    use keyshape_lab::keyshapes::GRAM_LIMIT;
+    use keyshape_lab::solve::textbook;
+    let frames = GRAM_LIMIT + 1;
+    let coords = DMatrix::from_fn(6, frames, |i, t| {
+        ((t * (i + 3)) % 17) as f64 * 0.1 + i as f64
+    });
+    let an = Analysis::new(coords.clone(), 3).unwrap();
+    assert!(an.frame_gram().is_err());
+    let keys = [0usize, 5, 11, 400];
+    let s = coords.select_columns(&keys);
+    for solver in [Solver::Ls, Solver::Nnls] {
+        let e = an.error(&keys, solver).unwrap();
+        let mut direct = 0.0;
+        for t in 0..frames {
+            let q = coords.column(t).clone_owned();
+            let w = match solver {
+                Solver::Ls => s.clone().pseudo_inverse(1e-12).unwrap() * &q,
+                _ => textbook::nnls(&s, &q),
+            };
+            direct += (&s * w - q).norm_squared();
+        }
+        assert!(
+            (e - direct).abs() < 1e-8 * direct.max(1.0),
+            "{solver}: {e} vs {direct}"
+        );
+    }
+}
