@@ -185,3 +185,59 @@ fn smoke_experiment_matches_its_reviewed_snapshots() {
         }
     }
 }
+
+/// `compare_raw`: the raw curves are exactly a sweep of the unaligned shapes, the aligned
+/// ones a sweep of the aligned shapes (computed here through the library), and the report
+/// draws them side by side on one y scale.
+#[test]
+fn compare_raw_sweeps_the_unaligned_shapes_beside_the_aligned_ones() {
+    use keyshape_lab::decompose::{prepare, PrepareOptions};
+    use keyshape_lab::keyshapes::{curves::sweep, Analysis, KeyOptions, Method};
+    use keyshape_lab::solve::Solver;
+    let text = "title = \"t\"\ninput = \"builtin\"\npoints = \"lips\"\nmethods = [\"spread\", \"kmeans2-mean\"]\ncompare_raw = true\nk = \"2..5\"\nsolvers = [\"nnls\"]\n";
+    let spec = Spec::from_str(Path::new("c.toml"), text).unwrap();
+    let o = run(&spec, Path::new("."), &|_, _| {}).unwrap();
+    let seq = keyshape_lab::io::builtin_sequence().unwrap();
+    let methods = [Method::Spread, Method::KMeans { pcs: 2, mean: true }];
+    for (align, rows) in [(true, &o.rows), (false, &o.raw_rows)] {
+        let p = prepare(
+            &seq,
+            &PrepareOptions {
+                points: Some("lips".into()),
+                align,
+            },
+        )
+        .unwrap();
+        let an = Analysis::new(p.seq.coords, p.seq.points).unwrap();
+        let want = sweep(
+            &an,
+            &methods,
+            2..=5,
+            &[Solver::Nnls],
+            &KeyOptions::default(),
+            &|_, _| {},
+        )
+        .unwrap();
+        assert_eq!(rows.len(), want.len());
+        for (a, b) in rows.iter().zip(&want) {
+            assert_eq!(
+                (&a.method, a.k, a.keys.clone()),
+                (&b.method, b.k, b.keys.clone())
+            );
+            assert!((a.rms - b.rms).abs() < 1e-12 * b.rms.max(1.0));
+        }
+    }
+    assert!(o.rows.iter().zip(&o.raw_rows).any(|(a, r)| a.rms != r.rms));
+    let dir = tempfile::tempdir().unwrap();
+    let files = write_outcome(&o, dir.path()).unwrap();
+    let png = dir.path().join("curves_nnls_aligned_vs_raw.png");
+    assert!(files.contains(&png) && files.contains(&dir.path().join("curves_raw.csv")));
+    let img = image_size(&png);
+    assert_eq!(img, (1800, 600));
+}
+
+fn image_size(p: &Path) -> (u32, u32) {
+    let d = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(p).unwrap()));
+    let r = d.read_info().unwrap();
+    (r.info().width, r.info().height)
+}
