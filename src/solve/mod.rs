@@ -13,6 +13,7 @@ pub mod active_set;
 mod chol;
 pub mod jacobi;
 pub mod lstsq;
+pub mod temporal;
 pub mod textbook;
 
 use crate::error::{Error, Result};

@@ -19,5 +19,6 @@ mod reference;
 mod retarget;
 mod solvers;
 mod svg_transforms;
+mod temporal;
 mod transfer;
 mod tui;

@@ -1,0 +1,742 @@
+//! A temporal prior inside the solver: weights that are smooth in time without a filter's
+//! lag.
+//!
+//! **Offline** (the whole sequence at once):
+//! `E(W) = Σ_t ‖S w_t − q_t‖² + λ Σ_t ‖(D w)_t‖²`, with `D` the first difference
+//! (`w_t − w_{t−1}`, order 1) or the second difference (`w_{t+1} − 2w_t + w_{t−1}`, order 2),
+//! under the solver's constraints (`ls`: none, `nnls`: w ≥ 0, `bounded`: 0 ≤ w ≤ 1). Its
+//! Hessian `H = I ⊗ SᵀS + λ DᵀD ⊗ I` is block-banded (block bandwidth = order), so one
+//! solve is a block-banded Cholesky factorisation, linear in frames
+//! ([`BandedSystem`]). `ls` needs one solve. The constrained problems use a primal–dual
+//! active set method (Hintermüller, Ito & Kunisch 2003): starting from the per-frame
+//! solution's active set, each iteration fixes the variables the current multipliers say
+//! are at a bound, solves for the others with the banded factorisation, and updates the
+//! sets; it stops when the sets no longer change (then the KKT conditions hold exactly up to
+//! rounding), and [`kkt_residual`] reports how well they hold.
+//!
+//! **Causal** (one frame at a time, for live use): `w_t = argmin ‖S w − q_t‖² + λ ‖w − p_t‖²`
+//! under the same constraints, with the prediction `p_t = w_{t−1}` (order 1) or
+//! `2w_{t−1} − w_{t−2}` (order 2): Gram `SᵀS + λI`, right side `Sᵀq_t + λ p_t`.
+//!
+//! Segments (clips, or runs of frames split by failed frames) are independent: no
+//! smoothing across their boundaries. λ has the units of the squared coordinates (px² for
+//! pixel tracks) per unit of weight change.
+
+use super::active_set::{solve_frame, Bound, Gram, Workspace};
+use super::{solve_batch, SolveOptions, Solver};
+use crate::error::{Error, Result};
+use nalgebra::DMatrix;
+use rayon::prelude::*;
+use std::ops::Range;
+
+/// Offline (whole sequence) or causal (frame by frame).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum SmoothMode {
+    /// The whole sequence at once.
+    Offline,
+    /// Each frame from the past only.
+    Causal,
+}
+
+impl SmoothMode {
+    /// `offline` or `causal`.
+    pub fn name(self) -> &'static str {
+        match self {
+            SmoothMode::Offline => "offline",
+            SmoothMode::Causal => "causal",
+        }
+    }
+}
+
+/// The temporal prior.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct Smoothing {
+    /// Weight of the prior, ≥ 0 (0 = the unsmoothed solve).
+    pub lambda: f64,
+    /// 1 (first difference: motion) or 2 (second difference: acceleration).
+    pub order: usize,
+    /// Offline or causal.
+    pub mode: SmoothMode,
+}
+
+impl Smoothing {
+    /// Checks λ (finite, ≥ 0) and the order (1 or 2).
+    pub fn check(&self) -> Result<()> {
+        if !(self.lambda.is_finite() && self.lambda >= 0.0) {
+            return Err(Error::invalid(format!(
+                "smoothing λ must be a finite number ≥ 0, got {}",
+                self.lambda
+            )));
+        }
+        if self.order != 1 && self.order != 2 {
+            return Err(Error::invalid(format!(
+                "smoothing order must be 1 (first difference) or 2 (second difference), got {}",
+                self.order
+            )));
+        }
+        Ok(())
+    }
+
+    /// The objective in words, for reports.
+    pub fn objective(&self) -> String {
+        let prior = match (self.mode, self.order) {
+            (SmoothMode::Offline, 1) => "Σ_t ‖w_t − w_{t−1}‖²",
+            (SmoothMode::Offline, _) => "Σ_t ‖w_{t+1} − 2w_t + w_{t−1}‖²",
+            (SmoothMode::Causal, 1) => "‖w_t − w_{t−1}‖² per frame",
+            (SmoothMode::Causal, _) => "‖w_t − (2w_{t−1} − w_{t−2})‖² per frame",
+        };
+        format!("Σ_t ‖S w_t − q_t‖² + λ {prior}, segments independent")
+    }
+}
+
+/// What a smoothed solve produced.
+#[derive(Debug, Clone)]
+pub struct Smoothed {
+    /// k × frames.
+    pub weights: DMatrix<f64>,
+    /// Offline: active-set iterations summed over segments (1 per segment for `ls`);
+    /// causal: active-set iterations summed over frames.
+    pub iterations: u64,
+    /// The KKT residual of the objective, relative (see [`kkt_residual`]).
+    pub kkt: f64,
+    /// Segments that stopped at the iteration cap (their KKT residual says how far off).
+    pub unconverged: usize,
+    /// The segments solved (frame column ranges).
+    pub segments: Vec<Range<usize>>,
+}
+
+/// Segments of a track: a new one starts where the segment label changes (clips) or where
+/// the frame number jumps by more than the track's usual step (failed frames removed).
+pub fn segments(frames: &[i64], labels: Option<&[String]>) -> Vec<Range<usize>> {
+    if frames.is_empty() {
+        return Vec::new();
+    }
+    let step = frames
+        .windows(2)
+        .map(|w| w[1] - w[0])
+        .filter(|d| *d > 0)
+        .min()
+        .unwrap_or(1);
+    let mut out = Vec::new();
+    let mut start = 0;
+    for t in 1..frames.len() {
+        let label_change = labels.is_some_and(|l| l[t] != l[t - 1]);
+        if label_change || frames[t] - frames[t - 1] != step {
+            out.push(start..t);
+            start = t;
+        }
+    }
+    out.push(start..frames.len());
+    out
+}
+
+/// The bands of `DᵀD` for `t` frames: `band[j][i]` is entry `(i, i − j)`, j = 0..=order.
+pub fn difference_bands(order: usize, t: usize) -> Vec<Vec<f64>> {
+    let coef: &[f64] = if order == 1 {
+        &[-1.0, 1.0]
+    } else {
+        &[1.0, -2.0, 1.0]
+    };
+    let mut band = vec![vec![0.0; t]; order + 1];
+    if t > order {
+        // Row r of D touches frames r..=r+order.
+        for r in 0..t - order {
+            for a in 0..=order {
+                for b in 0..=a {
+                    band[a - b][r + a] += coef[a] * coef[b];
+                }
+            }
+        }
+    }
+    band
+}
+
+/// A symmetric positive definite block-banded matrix `H = I ⊗ G + λ·DᵀD ⊗ I (+ δI)` over
+/// one segment, with some variables fixed at given values (eliminated: their rows and
+/// columns replaced by the identity), factorised by block Cholesky in O(frames · order² ·
+/// k³).
+pub struct BandedSystem {
+    k: usize,
+    t: usize,
+    p: usize,
+    /// Cholesky factor blocks: `l[((s * (p + 1)) + j) * k * k ..]` is `L_{s, s−j}` (row-major).
+    l: Vec<f64>,
+}
+
+impl BandedSystem {
+    /// Factorises `H` with `fixed[s * k + i]` variables eliminated; `ridge` is added to the
+    /// diagonal of the free variables. Errors if a pivot is not positive.
+    pub fn factor(
+        g: &DMatrix<f64>,
+        lambda: f64,
+        bands: &[Vec<f64>],
+        fixed: &[bool],
+        ridge: f64,
+    ) -> Result<BandedSystem> {
+        let k = g.nrows();
+        let t = bands[0].len();
+        let p = bands.len() - 1;
+        let kk = k * k;
+        let mut l = vec![0.0; t * (p + 1) * kk];
+        let idx = |s: usize, j: usize| (s * (p + 1) + j) * kk;
+        // Assemble A blocks into l.
+        for s in 0..t {
+            for j in 0..=p.min(s) {
+                let base = idx(s, j);
+                for r in 0..k {
+                    for c in 0..k {
+                        let mut v = if j == 0 { g[(r, c)] } else { 0.0 };
+                        if r == c {
+                            v += lambda * bands[j][s];
+                        }
+                        let (fr, fc) = (fixed[s * k + r], fixed[(s - j) * k + c]);
+                        if fr || fc {
+                            v = if j == 0 && r == c { 1.0 } else { 0.0 };
+                        } else if j == 0 && r == c {
+                            v += ridge;
+                        }
+                        l[base + r * k + c] = v;
+                    }
+                }
+            }
+        }
+        // In-place block Cholesky.
+        let mut tmp = vec![0.0; kk];
+        for s in 0..t {
+            for j in (1..=p.min(s)).rev() {
+                let c = s - j; // column block
+                               // M = A_{s,c} − Σ_{r = s−p}^{c−1} L_{s,r} L_{c,r}ᵀ
+                tmp.copy_from_slice(&l[idx(s, j)..idx(s, j) + kk]);
+                let lo = s.saturating_sub(p);
+                for r in lo..c {
+                    let (a, b) = (idx(s, s - r), idx(c, c - r));
+                    for x in 0..k {
+                        for y in 0..k {
+                            let mut acc = 0.0;
+                            for z in 0..k {
+                                acc += l[a + x * k + z] * l[b + y * k + z];
+                            }
+                            tmp[x * k + y] -= acc;
+                        }
+                    }
+                }
+                // L_{s,c} = M L_{c,c}^{-T}: row x solves L_{c,c} yᵀ = M[x, :]ᵀ.
+                let d = idx(c, 0);
+                for x in 0..k {
+                    for y in 0..k {
+                        let mut v = tmp[x * k + y];
+                        for z in 0..y {
+                            v -= tmp[x * k + z] * l[d + y * k + z];
+                        }
+                        tmp[x * k + y] = v / l[d + y * k + y];
+                    }
+                }
+                l[idx(s, j)..idx(s, j) + kk].copy_from_slice(&tmp);
+            }
+            // Diagonal: D = A_{s,s} − Σ_{r = s−p}^{s−1} L_{s,r} L_{s,r}ᵀ, then Cholesky.
+            let d = idx(s, 0);
+            tmp.copy_from_slice(&l[d..d + kk]);
+            for r in s.saturating_sub(p)..s {
+                let a = idx(s, s - r);
+                for x in 0..k {
+                    for y in 0..=x {
+                        let mut acc = 0.0;
+                        for z in 0..k {
+                            acc += l[a + x * k + z] * l[a + y * k + z];
+                        }
+                        tmp[x * k + y] -= acc;
+                    }
+                }
+            }
+            for x in 0..k {
+                for y in 0..=x {
+                    let mut v = tmp[x * k + y];
+                    for z in 0..y {
+                        v -= tmp[x * k + z] * tmp[y * k + z];
+                    }
+                    if x == y {
+                        if !(v > 0.0 && v.is_finite()) {
+                            return Err(Error::invalid(format!(
+                                "temporal prior: the banded system is not positive definite at frame {s} (pivot {v:e})"
+                            )));
+                        }
+                        tmp[x * k + x] = v.sqrt();
+                    } else {
+                        tmp[x * k + y] = v / tmp[y * k + y];
+                    }
+                }
+                for y in x + 1..k {
+                    tmp[x * k + y] = 0.0;
+                }
+            }
+            l[d..d + kk].copy_from_slice(&tmp);
+        }
+        Ok(BandedSystem { k, t, p, l })
+    }
+
+    /// Solves `H x = rhs` in place (`rhs` flat, frame after frame).
+    pub fn solve(&self, rhs: &mut [f64]) {
+        let (k, p, kk) = (self.k, self.p, self.k * self.k);
+        let idx = |s: usize, j: usize| (s * (p + 1) + j) * kk;
+        // L y = b
+        for s in 0..self.t {
+            for r in s.saturating_sub(p)..s {
+                let a = idx(s, s - r);
+                for x in 0..k {
+                    let mut acc = 0.0;
+                    for z in 0..k {
+                        acc += self.l[a + x * k + z] * rhs[r * k + z];
+                    }
+                    rhs[s * k + x] -= acc;
+                }
+            }
+            let d = idx(s, 0);
+            for x in 0..k {
+                let mut v = rhs[s * k + x];
+                for z in 0..x {
+                    v -= self.l[d + x * k + z] * rhs[s * k + z];
+                }
+                rhs[s * k + x] = v / self.l[d + x * k + x];
+            }
+        }
+        // Lᵀ x = y
+        for s in (0..self.t).rev() {
+            for m in s + 1..(s + p + 1).min(self.t) {
+                let a = idx(m, m - s);
+                for x in 0..k {
+                    let mut acc = 0.0;
+                    for z in 0..k {
+                        acc += self.l[a + z * k + x] * rhs[m * k + z];
+                    }
+                    rhs[s * k + x] -= acc;
+                }
+            }
+            let d = idx(s, 0);
+            for x in (0..k).rev() {
+                let mut v = rhs[s * k + x];
+                for z in x + 1..k {
+                    v -= self.l[d + z * k + x] * rhs[s * k + z];
+                }
+                rhs[s * k + x] = v / self.l[d + x * k + x];
+            }
+        }
+    }
+}
+
+/// `H w` for one segment (`w` flat, frame after frame).
+fn hessian_times(g: &DMatrix<f64>, lambda: f64, bands: &[Vec<f64>], w: &[f64]) -> Vec<f64> {
+    let k = g.nrows();
+    let t = bands[0].len();
+    let p = bands.len() - 1;
+    let mut out = vec![0.0; t * k];
+    for s in 0..t {
+        for x in 0..k {
+            let mut acc = 0.0;
+            for z in 0..k {
+                acc += g[(x, z)] * w[s * k + z];
+            }
+            out[s * k + x] = acc;
+        }
+        for j in 0..=p {
+            if j <= s {
+                let c = lambda * bands[j][s];
+                if c != 0.0 {
+                    for x in 0..k {
+                        out[s * k + x] += c * w[(s - j) * k + x];
+                        if j > 0 {
+                            out[(s - j) * k + x] += c * w[s * k + x];
+                        }
+                    }
+                }
+            }
+        }
+    }
+    out
+}
+
+/// The KKT residual of the offline objective (halved: `½wᵀHw − bᵀw`) at `w` for one
+/// segment, relative: the largest violation — |gradient| of a variable inside its bounds,
+/// the wrong-signed gradient of one at a bound, or the distance outside the bounds — over
+/// `max|b| + max(diag H)·max|w|` (1 when both are 0).
+pub fn kkt_residual(
+    g: &DMatrix<f64>,
+    lambda: f64,
+    order: usize,
+    b: &[f64],
+    w: &[f64],
+    solver: Solver,
+) -> f64 {
+    let k = g.nrows();
+    let t = b.len() / k.max(1);
+    let bands = difference_bands(order, t);
+    let hw = hessian_times(g, lambda, &bands, w);
+    let upper = if solver == Solver::Bounded {
+        1.0
+    } else {
+        f64::INFINITY
+    };
+    let wmax = w.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let hmax = (0..k).map(|i| g[(i, i)]).fold(0.0f64, f64::max)
+        + lambda * if order == 1 { 4.0 } else { 16.0 };
+    let bmax = b.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let scale = bmax + hmax * wmax;
+    let scale = if scale > 0.0 { scale } else { 1.0 };
+    let tight = 1e-12 * wmax.max(1.0);
+    let mut worst = 0.0f64;
+    for i in 0..w.len() {
+        let gi = hw[i] - b[i];
+        let v = match solver {
+            Solver::Ls => gi.abs(),
+            _ => {
+                if w[i] < 0.0 || w[i] > upper {
+                    (-w[i]).max(w[i] - upper) * hmax
+                } else if w[i] <= tight {
+                    (-gi).max(0.0)
+                } else if upper.is_finite() && w[i] >= upper - tight {
+                    gi.max(0.0)
+                } else {
+                    gi.abs()
+                }
+            }
+        };
+        worst = worst.max(v);
+    }
+    worst / scale
+}
+
+/// Solves with the temporal prior. `segments` split the frames (columns of `q`); λ = 0 is
+/// the plain per-frame solve exactly.
+pub fn solve_smooth(
+    s: &DMatrix<f64>,
+    q: &DMatrix<f64>,
+    solver: Solver,
+    smoothing: &Smoothing,
+    segments: &[Range<usize>],
+) -> Result<Smoothed> {
+    smoothing.check()?;
+    let frames = q.ncols();
+    let covered: usize = segments.iter().map(|r| r.len()).sum();
+    if covered != frames || segments.iter().any(|r| r.end > frames) {
+        return Err(Error::invalid(format!(
+            "segments cover {covered} of {frames} frames"
+        )));
+    }
+    let plain = solve_batch(s, q, &SolveOptions::new(solver))?;
+    if smoothing.lambda == 0.0 {
+        return Ok(Smoothed {
+            weights: plain.weights,
+            iterations: plain.iterations,
+            kkt: 0.0,
+            unconverged: plain.unconverged,
+            segments: segments.to_vec(),
+        });
+    }
+    let g = s.tr_mul(s);
+    let b = s.tr_mul(q);
+    match smoothing.mode {
+        SmoothMode::Offline => offline(&g, &b, &plain.weights, solver, smoothing, segments),
+        SmoothMode::Causal => causal(&g, &b, solver, smoothing, segments),
+    }
+}
+
+fn offline(
+    g: &DMatrix<f64>,
+    b: &DMatrix<f64>,
+    start: &DMatrix<f64>,
+    solver: Solver,
+    sm: &Smoothing,
+    segments: &[Range<usize>],
+) -> Result<Smoothed> {
+    let k = g.nrows();
+    let parts: Vec<Result<SegmentResult>> = segments
+        .par_iter()
+        .map(|r| {
+            let bs: Vec<f64> = b.columns(r.start, r.len()).iter().copied().collect();
+            let w0: Vec<f64> = start.columns(r.start, r.len()).iter().copied().collect();
+            segment(g, &bs, &w0, solver, sm)
+        })
+        .collect();
+    let mut weights = DMatrix::zeros(k, b.ncols());
+    let (mut iterations, mut kkt, mut unconverged) = (0u64, 0.0f64, 0usize);
+    for (r, part) in segments.iter().zip(parts) {
+        let (w, it, res, ok) = part?;
+        weights.columns_mut(r.start, r.len()).copy_from_slice(&w);
+        iterations += it;
+        kkt = kkt.max(res);
+        unconverged += usize::from(!ok);
+    }
+    Ok(Smoothed {
+        weights,
+        iterations,
+        kkt,
+        unconverged,
+        segments: segments.to_vec(),
+    })
+}
+
+/// One segment's (weights, iterations, KKT residual, converged).
+type SegmentResult = (Vec<f64>, u64, f64, bool);
+
+/// One segment offline.
+fn segment(
+    g: &DMatrix<f64>,
+    b: &[f64],
+    w0: &[f64],
+    solver: Solver,
+    sm: &Smoothing,
+) -> Result<SegmentResult> {
+    let k = g.nrows();
+    let t = b.len() / k;
+    let bands = difference_bands(sm.order, t);
+    let gmax = (0..k).map(|i| g[(i, i)]).fold(0.0f64, f64::max);
+    // A ridge far below every scale that matters keeps rank-deficient S factorisable (the
+    // prior leaves S's null directions constant in time undetermined).
+    let ridge = 1e-12 * (gmax + sm.lambda * if sm.order == 1 { 4.0 } else { 16.0 });
+    let upper = if solver == Solver::Bounded {
+        1.0
+    } else {
+        f64::INFINITY
+    };
+    let solve_with = |fixed: &[bool], values: &[f64]| -> Result<Vec<f64>> {
+        let sys = BandedSystem::factor(g, sm.lambda, &bands, fixed, ridge)?;
+        // rhs = b − H·v (v: fixed values, 0 elsewhere); fixed rows take their values.
+        let hv = hessian_times(g, sm.lambda, &bands, values);
+        let mut rhs: Vec<f64> = b.iter().zip(&hv).map(|(x, y)| x - y).collect();
+        for i in 0..rhs.len() {
+            if fixed[i] {
+                rhs[i] = 0.0;
+            }
+        }
+        sys.solve(&mut rhs);
+        Ok(rhs
+            .iter()
+            .zip(values)
+            .zip(fixed)
+            .map(|((x, v), f)| if *f { *v } else { *x })
+            .collect())
+    };
+    if solver == Solver::Ls {
+        let w = solve_with(&vec![false; b.len()], &vec![0.0; b.len()])?;
+        let res = kkt_residual(g, sm.lambda, sm.order, b, &w, solver);
+        return Ok((w, 1, res, true));
+    }
+    // Primal–dual active set from the per-frame solution; if it cycles (it can when the
+    // Hessian is not an M-matrix), ADMM on the same banded factorisation finds a point near
+    // the optimum and the active set polishes from there.
+    let pdas = |start: &[f64], cap: usize| -> Result<Option<(Vec<f64>, u64)>> {
+        let c = gmax.max(f64::MIN_POSITIVE);
+        let mut w = start.to_vec();
+        let mut prev: Option<(Vec<bool>, Vec<bool>)> = None;
+        for it in 1..=cap {
+            let hw = hessian_times(g, sm.lambda, &bands, &w);
+            let grad: Vec<f64> = hw.iter().zip(b).map(|(x, y)| x - y).collect();
+            let at_lower: Vec<bool> = (0..w.len()).map(|i| grad[i] - c * w[i] > 0.0).collect();
+            let at_upper: Vec<bool> = (0..w.len())
+                .map(|i| upper.is_finite() && !at_lower[i] && -grad[i] - c * (upper - w[i]) > 0.0)
+                .collect();
+            if prev
+                .as_ref()
+                .is_some_and(|(l, u)| *l == at_lower && *u == at_upper)
+            {
+                return Ok(Some((w, it as u64 - 1)));
+            }
+            let fixed: Vec<bool> = at_lower
+                .iter()
+                .zip(&at_upper)
+                .map(|(l, u)| *l || *u)
+                .collect();
+            let values: Vec<f64> = at_upper
+                .iter()
+                .map(|&u| if u { upper } else { 0.0 })
+                .collect();
+            w = solve_with(&fixed, &values)?;
+            prev = Some((at_lower, at_upper));
+        }
+        Ok(None)
+    };
+    let tol = 1e-10;
+    if let Some((w, it)) = pdas(w0, PDAS_ITERATIONS)? {
+        let res = kkt_residual(g, sm.lambda, sm.order, b, &w, solver);
+        if res < tol {
+            return Ok((w, it, res, true));
+        }
+    }
+    let (z, admm_it) = admm(g, sm, &bands, b, w0, upper, ridge)?;
+    let mut iterations = PDAS_ITERATIONS as u64 + admm_it;
+    if let Some((w, it)) = pdas(&z, PDAS_ITERATIONS)? {
+        iterations += it;
+        let res = kkt_residual(g, sm.lambda, sm.order, b, &w, solver);
+        if res < tol {
+            return Ok((w, iterations, res, true));
+        }
+    }
+    let res = kkt_residual(g, sm.lambda, sm.order, b, &z, solver);
+    Ok((z, iterations, res, res < tol))
+}
+
+/// Active-set iterations before (and after) the ADMM fallback.
+const PDAS_ITERATIONS: usize = 40;
+
+/// ADMM on `½wᵀHw − bᵀw` over the box `[0, upper]`: the w-step is one banded solve with
+/// `H + ρI` (factorised once), the z-step a projection. Returns the feasible z and the
+/// iterations taken.
+fn admm(
+    g: &DMatrix<f64>,
+    sm: &Smoothing,
+    bands: &[Vec<f64>],
+    b: &[f64],
+    w0: &[f64],
+    upper: f64,
+    ridge: f64,
+) -> Result<(Vec<f64>, u64)> {
+    let k = g.nrows();
+    let rho = (0..k).map(|i| g[(i, i)]).sum::<f64>() / k.max(1) as f64 + 2.0 * sm.lambda;
+    let sys = BandedSystem::factor(g, sm.lambda, bands, &vec![false; b.len()], ridge + rho)?;
+    let mut z: Vec<f64> = w0.iter().map(|v| v.clamp(0.0, upper)).collect();
+    let mut u = vec![0.0; b.len()];
+    let bmax = b
+        .iter()
+        .fold(0.0f64, |m, v| m.max(v.abs()))
+        .max(f64::MIN_POSITIVE);
+    for it in 1..=ADMM_ITERATIONS {
+        let mut w: Vec<f64> = (0..b.len()).map(|i| b[i] + rho * (z[i] - u[i])).collect();
+        sys.solve(&mut w);
+        let (mut primal, mut dual) = (0.0f64, 0.0f64);
+        for i in 0..w.len() {
+            let zn = (w[i] + u[i]).clamp(0.0, upper);
+            dual = dual.max(rho * (zn - z[i]).abs());
+            primal = primal.max((w[i] - zn).abs());
+            u[i] += w[i] - zn;
+            z[i] = zn;
+        }
+        if dual < 1e-12 * bmax && primal * rho < 1e-12 * bmax {
+            return Ok((z, it as u64));
+        }
+    }
+    Ok((z, ADMM_ITERATIONS as u64))
+}
+
+/// ADMM iterations at most.
+const ADMM_ITERATIONS: usize = 20_000;
+
+fn causal(
+    g: &DMatrix<f64>,
+    b: &DMatrix<f64>,
+    solver: Solver,
+    sm: &Smoothing,
+    segments: &[Range<usize>],
+) -> Result<Smoothed> {
+    let k = g.nrows();
+    let upper = match solver {
+        Solver::Bounded => 1.0,
+        _ => f64::INFINITY,
+    };
+    let mut gl = g.clone();
+    for i in 0..k {
+        gl[(i, i)] += sm.lambda;
+    }
+    let gram_l = Gram::from_matrix(&gl, upper);
+    let gram_0 = Gram::from_matrix(g, upper);
+    let pinv_0 = super::lstsq::gram_pseudo_inverse(g, None);
+    let chol_l = gl
+        .clone()
+        .cholesky()
+        .ok_or_else(|| Error::invalid("temporal prior: SᵀS + λI is not positive definite"))?;
+    let parts: Vec<(Vec<f64>, u64, usize)> = segments
+        .par_iter()
+        .map(|r| {
+            let mut out = vec![0.0; r.len() * k];
+            // One workspace per Gram form: a workspace caches the factor of its free set.
+            let (mut ws0, mut wsl) = (Workspace::new(k), Workspace::new(k));
+            let (mut iters, mut bad) = (0u64, 0usize);
+            for (i, col) in r.clone().enumerate() {
+                let bt = b.column(col);
+                // The prediction from the past; the segment's first frame has none.
+                let pred: Option<Vec<f64>> = match (i, sm.order) {
+                    (0, _) => None,
+                    (1, _) | (_, 1) => Some(out[(i - 1) * k..i * k].to_vec()),
+                    _ => Some(
+                        (0..k)
+                            .map(|x| 2.0 * out[(i - 1) * k + x] - out[(i - 2) * k + x])
+                            .collect(),
+                    ),
+                };
+                let rhs: Vec<f64> = match &pred {
+                    None => bt.iter().copied().collect(),
+                    Some(p) => (0..k).map(|x| bt[x] + sm.lambda * p[x]).collect(),
+                };
+                let w: Vec<f64> = match (solver, pred.is_some()) {
+                    (Solver::Ls, true) => chol_l
+                        .solve(&nalgebra::DVector::from_vec(rhs))
+                        .iter()
+                        .copied()
+                        .collect(),
+                    (Solver::Ls, false) => (&pinv_0 * nalgebra::DVector::from_vec(rhs))
+                        .iter()
+                        .copied()
+                        .collect(),
+                    (_, with_prior) => {
+                        let (gram, ws) = if with_prior {
+                            (&gram_l, &mut wsl)
+                        } else {
+                            (&gram_0, &mut ws0)
+                        };
+                        let mut w = vec![0.0; k];
+                        let mut state = vec![Bound::Lower; k];
+                        let rep = solve_frame(gram, &rhs, &mut w, &mut state, ws);
+                        iters += u64::from(rep.iterations);
+                        bad += usize::from(!rep.converged);
+                        w
+                    }
+                };
+                out[i * k..(i + 1) * k].copy_from_slice(&w);
+            }
+            (out, iters, bad)
+        })
+        .collect();
+    let mut weights = DMatrix::zeros(k, b.ncols());
+    let (mut iterations, mut unconverged) = (0u64, 0usize);
+    for (r, (w, it, bad)) in segments.iter().zip(parts) {
+        weights.columns_mut(r.start, r.len()).copy_from_slice(&w);
+        iterations += it;
+        unconverged += bad;
+    }
+    if weights.iter().any(|v| !v.is_finite()) {
+        return Err(Error::invalid(
+            "temporal prior: non-finite weights (a frame holds NaN or infinity)",
+        ));
+    }
+    // Causal weights satisfy per-frame KKT conditions; report the worst of them.
+    let mut kkt = 0.0f64;
+    for r in segments {
+        for (i, col) in r.clone().enumerate() {
+            let pred: Vec<f64> = if i == 0 {
+                Vec::new()
+            } else if i == 1 || sm.order == 1 {
+                weights.column(col - 1).iter().copied().collect()
+            } else {
+                (0..k)
+                    .map(|x| 2.0 * weights[(x, col - 1)] - weights[(x, col - 2)])
+                    .collect()
+            };
+            let (gm, rhs): (&DMatrix<f64>, Vec<f64>) = if pred.is_empty() {
+                (g, b.column(col).iter().copied().collect())
+            } else {
+                (
+                    &gl,
+                    (0..k).map(|x| b[(x, col)] + sm.lambda * pred[x]).collect(),
+                )
+            };
+            let w: Vec<f64> = weights.column(col).iter().copied().collect();
+            kkt = kkt.max(kkt_residual(gm, 0.0, 1, &rhs, &w, solver));
+        }
+    }
+    Ok(Smoothed {
+        weights,
+        iterations,
+        kkt,
+        unconverged,
+        segments: segments.to_vec(),
+    })
+}

@@ -1,0 +1,321 @@
+//! The temporal prior (issue 15): λ = 0 is the plain solve, the offline solution meets the
+//! KKT conditions of its objective (checked here from the objective's gradient written out,
+//! not through the library), LS matches a dense solve of the whole system, segments do not
+//! couple, causal frames meet their own KKT conditions, and jitter falls with λ on a real
+//! track.
+
+use keyshape_lab::solve::temporal::{segments, solve_smooth, SmoothMode, Smoothing};
+use keyshape_lab::solve::{solve_batch, SolveOptions, Solver};
+use nalgebra::{DMatrix, DVector};
+use proptest::prelude::*;
+
+fn sm(lambda: f64, order: usize, mode: SmoothMode) -> Smoothing {
+    Smoothing {
+        lambda,
+        order,
+        mode,
+    }
+}
+
+/// The gradient of `E(W) = Σ‖S w_t − q_t‖² + λ Σ‖(D W)_t‖²` written out frame by frame.
+fn gradient(
+    s: &DMatrix<f64>,
+    q: &DMatrix<f64>,
+    w: &DMatrix<f64>,
+    lambda: f64,
+    order: usize,
+) -> DMatrix<f64> {
+    let t = q.ncols();
+    let mut g = (s.transpose() * (s * w - q)) * 2.0;
+    if order == 1 {
+        for f in 1..t {
+            let d = (w.column(f) - w.column(f - 1)) * (2.0 * lambda);
+            let mut a = g.column_mut(f);
+            a += &d;
+            let mut b = g.column_mut(f - 1);
+            b -= &d;
+        }
+    } else {
+        for f in 1..t.saturating_sub(1) {
+            let d = (w.column(f + 1) - w.column(f) * 2.0 + w.column(f - 1)) * (2.0 * lambda);
+            let mut a = g.column_mut(f + 1);
+            a += &d;
+            let mut b = g.column_mut(f);
+            b -= &d * 2.0;
+            let mut c = g.column_mut(f - 1);
+            c += &d;
+        }
+    }
+    g
+}
+
+/// Largest KKT violation relative to the gradient's scale: |g| inside the bounds, the
+/// wrong sign at a bound, infeasibility.
+fn kkt(g: &DMatrix<f64>, w: &DMatrix<f64>, solver: Solver, scale: f64) -> f64 {
+    let upper = if solver == Solver::Bounded {
+        1.0
+    } else {
+        f64::INFINITY
+    };
+    let mut worst = 0.0f64;
+    for (gi, wi) in g.iter().zip(w.iter()) {
+        let v = match solver {
+            Solver::Ls => gi.abs(),
+            _ if *wi < -1e-12 || *wi > upper + 1e-12 => f64::INFINITY,
+            _ if *wi <= 1e-12 => (-gi).max(0.0),
+            _ if *wi >= upper - 1e-12 => gi.max(0.0),
+            _ => gi.abs(),
+        };
+        worst = worst.max(v);
+    }
+    worst / scale
+}
+
+fn problem(n: usize, k: usize, t: usize, seed: &[f64], dup: bool) -> (DMatrix<f64>, DMatrix<f64>) {
+    let at = |i: usize| seed[i % seed.len()];
+    let mut s = DMatrix::from_fn(n, k, |i, j| {
+        at(i * 7 + j * 3) + if i == j { 1.5 } else { 0.0 }
+    });
+    if dup && k > 2 {
+        let c = s.column(0).clone_owned();
+        s.set_column(k - 1, &c); // rank deficient: a duplicate key shape
+    }
+    let q = DMatrix::from_fn(n, t, |i, f| {
+        at(i * 5 + f * 11) * 2.0 + (f as f64 * 0.3).sin()
+    });
+    (s, q)
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(48))]
+    #[test]
+    fn offline_solutions_meet_the_kkt_conditions(
+        seed in prop::collection::vec(-1.0f64..1.0, 40),
+        k in 2usize..6,
+        t in 2usize..40,
+        lambda in prop::sample::select(vec![0.01, 0.3, 3.0, 100.0]),
+        order in 1usize..3,
+        solver in prop::sample::select(vec![Solver::Ls, Solver::Nnls, Solver::Bounded]),
+        dup in any::<bool>(),
+    ) {
+        let (s, q) = problem(8, k, t, &seed, dup);
+        let r = solve_smooth(&s, &q, solver, &sm(lambda, order, SmoothMode::Offline), &[0..t]).unwrap();
+        prop_assert_eq!(r.unconverged, 0);
+        let g = gradient(&s, &q, &r.weights, lambda, order);
+        let scale = 2.0 * ((s.transpose() * &q).amax() + (s.transpose() * &s).amax().max(16.0 * lambda) * r.weights.amax());
+        let v = kkt(&g, &r.weights, solver, scale.max(1.0));
+        prop_assert!(v < 1e-8, "KKT {v:e} (library says {:e})", r.kkt);
+        prop_assert!(r.kkt < 1e-8);
+    }
+
+    #[test]
+    fn causal_frames_meet_their_own_kkt_conditions(
+        seed in prop::collection::vec(-1.0f64..1.0, 40),
+        k in 2usize..6,
+        lambda in prop::sample::select(vec![0.1, 5.0]),
+        order in 1usize..3,
+        solver in prop::sample::select(vec![Solver::Ls, Solver::Nnls, Solver::Bounded]),
+    ) {
+        let t = 12;
+        let (s, q) = problem(8, k, t, &seed, false);
+        let r = solve_smooth(&s, &q, solver, &sm(lambda, order, SmoothMode::Causal), &[0..t]).unwrap();
+        let w = &r.weights;
+        for f in 0..t {
+            // Frame f minimises ‖S w − q_f‖² + λ‖w − p_f‖², p_f from the frames before it.
+            let p: Option<DVector<f64>> = match f {
+                0 => None,
+                1 => Some(w.column(0).clone_owned()),
+                _ if order == 1 => Some(w.column(f - 1).clone_owned()),
+                _ => Some(w.column(f - 1) * 2.0 - w.column(f - 2)),
+            };
+            let wf = w.column(f).clone_owned();
+            let mut g = s.transpose() * (&s * &wf - q.column(f)) * 2.0;
+            if let Some(p) = &p {
+                g += (&wf - p) * (2.0 * lambda);
+            }
+            let gm = DMatrix::from_column_slice(k, 1, g.as_slice());
+            let wm = DMatrix::from_column_slice(k, 1, wf.as_slice());
+            let scale = 2.0 * ((s.transpose() * q.column(f)).amax() + ((s.transpose() * &s).amax() + lambda) * wf.amax().max(1.0)) + 2.0 * lambda * p.as_ref().map_or(0.0, |p| p.amax());
+            let v = kkt(&gm, &wm, solver, scale);
+            prop_assert!(v < 1e-9, "frame {f}: KKT {v:e}");
+        }
+    }
+}
+
+#[test]
+fn lambda_zero_is_the_plain_solve_and_bad_settings_are_refused() {
+    let seed: Vec<f64> = (0..40)
+        .map(|i| ((i * 37) % 17) as f64 / 8.0 - 1.0)
+        .collect();
+    let (s, q) = problem(8, 4, 30, &seed, false);
+    for solver in Solver::ALL {
+        let plain = solve_batch(&s, &q, &SolveOptions::new(solver)).unwrap();
+        for mode in [SmoothMode::Offline, SmoothMode::Causal] {
+            let r = solve_smooth(&s, &q, solver, &sm(0.0, 1, mode), &[0..30]).unwrap();
+            assert_eq!(r.weights, plain.weights, "{solver} {mode:?}");
+        }
+    }
+    for bad in [-1.0, f64::NAN, f64::INFINITY] {
+        let e = solve_smooth(
+            &s,
+            &q,
+            Solver::Nnls,
+            &sm(bad, 1, SmoothMode::Offline),
+            &[0..30],
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("λ must be a finite number ≥ 0"), "{e}");
+    }
+    assert!(solve_smooth(
+        &s,
+        &q,
+        Solver::Nnls,
+        &sm(1.0, 3, SmoothMode::Offline),
+        &[0..30]
+    )
+    .is_err());
+    assert!(solve_smooth(
+        &s,
+        &q,
+        Solver::Nnls,
+        &sm(1.0, 1, SmoothMode::Offline),
+        &[0..29]
+    )
+    .is_err());
+}
+
+/// LS offline is the linear system `(I ⊗ SᵀS + λ DᵀD ⊗ I) w = Sᵀq`: solved densely here.
+#[test]
+fn ls_offline_matches_a_dense_solve_of_the_whole_system() {
+    let seed: Vec<f64> = (0..40)
+        .map(|i| ((i * 29) % 13) as f64 / 6.0 - 1.0)
+        .collect();
+    for order in [1, 2] {
+        let (k, t, lambda) = (3, 9, 2.5);
+        let (s, q) = problem(6, k, t, &seed, false);
+        let r = solve_smooth(
+            &s,
+            &q,
+            Solver::Ls,
+            &sm(lambda, order, SmoothMode::Offline),
+            &[0..t],
+        )
+        .unwrap();
+        let rows = t - order;
+        let d = DMatrix::from_fn(rows, t, |r, c| match (order, c as i64 - r as i64) {
+            (1, 0) => -1.0,
+            (1, 1) => 1.0,
+            (2, 0) | (2, 2) => 1.0,
+            (2, 1) => -2.0,
+            _ => 0.0,
+        });
+        let dtd = d.transpose() * d;
+        let g = s.transpose() * &s;
+        let h = DMatrix::from_fn(k * t, k * t, |a, b| {
+            let (fa, ia, fb, ib) = (a / k, a % k, b / k, b % k);
+            (if fa == fb { g[(ia, ib)] } else { 0.0 })
+                + if ia == ib {
+                    lambda * dtd[(fa, fb)]
+                } else {
+                    0.0
+                }
+        });
+        let rhs = DVector::from_column_slice((s.transpose() * &q).as_slice());
+        let want = h.lu().solve(&rhs).unwrap();
+        let got = DVector::from_column_slice(r.weights.as_slice());
+        assert!((got - &want).amax() < 1e-8 * want.amax(), "order {order}");
+    }
+}
+
+#[test]
+fn segments_split_at_clip_changes_and_gaps_and_do_not_couple() {
+    let lab = |v: &[&str]| v.iter().map(|s| s.to_string()).collect::<Vec<_>>();
+    assert_eq!(segments(&[0, 1, 2, 5, 6], None), vec![0..3, 3..5]);
+    assert_eq!(segments(&[0, 2, 4, 6, 8], None), vec![0..5]);
+    assert_eq!(
+        segments(&[0, 2, 4, 0, 2], Some(&lab(&["a", "a", "a", "b", "b"]))),
+        vec![0..3, 3..5]
+    );
+    let seed: Vec<f64> = (0..40)
+        .map(|i| ((i * 31) % 19) as f64 / 9.0 - 1.0)
+        .collect();
+    let (s, q) = problem(8, 4, 20, &seed, false);
+    for solver in Solver::ALL {
+        let both = solve_smooth(
+            &s,
+            &q,
+            solver,
+            &sm(4.0, 2, SmoothMode::Offline),
+            &[0..8, 8..20],
+        )
+        .unwrap();
+        let a = solve_smooth(
+            &s,
+            &q.columns(0, 8).clone_owned(),
+            solver,
+            &sm(4.0, 2, SmoothMode::Offline),
+            &[0..8],
+        )
+        .unwrap();
+        let b = solve_smooth(
+            &s,
+            &q.columns(8, 12).clone_owned(),
+            solver,
+            &sm(4.0, 2, SmoothMode::Offline),
+            &[0..12],
+        )
+        .unwrap();
+        assert!((both.weights.columns(0, 8) - &a.weights).amax() < 1e-12);
+        assert!((both.weights.columns(8, 12) - &b.weights).amax() < 1e-12);
+    }
+}
+
+/// On a real lips track the weights' jitter (mean squared second difference) falls as λ
+/// grows, and the fit error rises, for both orders.
+#[test]
+fn jitter_falls_and_error_rises_with_lambda_on_a_real_track() {
+    let seq = keyshape_lab::io::read_sequence(
+        &crate::common::shared("mediapipe_face_tracks/liveportrait_d6.csv"),
+        &Default::default(),
+    )
+    .unwrap();
+    let prep = keyshape_lab::decompose::prepare(
+        &seq,
+        &keyshape_lab::decompose::PrepareOptions {
+            points: Some("lips".into()),
+            align: true,
+        },
+    )
+    .unwrap();
+    let q = prep.seq.coords.columns(0, 300).clone_owned();
+    let keys = [0usize, 40, 80, 120, 160, 200, 240, 280];
+    let s = q.select_columns(&keys);
+    let jitter = |w: &DMatrix<f64>| {
+        let mut acc = 0.0;
+        for f in 1..w.ncols() - 1 {
+            acc += (w.column(f + 1) - w.column(f) * 2.0 + w.column(f - 1)).norm_squared();
+        }
+        acc / (w.ncols() - 2) as f64
+    };
+    for order in [1, 2] {
+        let mut last = (f64::INFINITY, 0.0);
+        for lambda in [0.0, 10.0, 100.0, 1000.0] {
+            let r = solve_smooth(
+                &s,
+                &q,
+                Solver::Nnls,
+                &sm(lambda, order, SmoothMode::Offline),
+                &[0..300],
+            )
+            .unwrap();
+            assert!(r.kkt < 1e-8, "λ {lambda}: KKT {}", r.kkt);
+            let (j, e) = (jitter(&r.weights), (&s * &r.weights - &q).norm_squared());
+            assert!(
+                j < last.0 && e >= last.1 - 1e-9,
+                "order {order} λ {lambda}: jitter {j} error {e}"
+            );
+            last = (j, e);
+        }
+    }
+}
