@@ -4,6 +4,9 @@
 //! couple, causal frames meet their own KKT conditions, and jitter falls with λ on a real
 //! track.
 
+// One segment is written `&[0..t]`: a slice holding one range, as the API takes.
+#![allow(clippy::single_range_in_vec_init)]
+
 use keyshape_lab::solve::temporal::{segments, solve_smooth, SmoothMode, Smoothing};
 use keyshape_lab::solve::{solve_batch, SolveOptions, Solver};
 use nalgebra::{DMatrix, DVector};
