@@ -5,6 +5,7 @@
 use crate::align::{procrustes, Similarity};
 use crate::error::{Error, Result};
 use crate::sequence::{Layout, Sequence};
+use crate::solve::temporal::{smooth_from, Smoothed, Smoothing};
 use crate::solve::{residuals, solve_batch, SolveOptions, Solver};
 use nalgebra::DMatrix;
 
@@ -158,6 +159,20 @@ pub fn decompose(
     neutral: Option<usize>,
     opts: &SolveOptions,
 ) -> Result<Decomposition> {
+    decompose_smoothed(coords, points, key_columns, neutral, opts, None).map(|(d, _)| d)
+}
+
+/// [`decompose`] with a temporal prior over `segments` (frame column ranges) in the
+/// coordinates the solve uses (deltas from the neutral in delta mode); also returns what
+/// the smoothed solve reported.
+pub fn decompose_smoothed(
+    coords: &DMatrix<f64>,
+    points: usize,
+    key_columns: &[usize],
+    neutral: Option<usize>,
+    opts: &SolveOptions,
+    smoothing: Option<(&Smoothing, &[std::ops::Range<usize>])>,
+) -> Result<(Decomposition, Option<Smoothed>)> {
     let n = coords.ncols();
     if key_columns.is_empty() {
         return Err(Error::invalid("no key shapes given"));
@@ -191,27 +206,43 @@ pub fn decompose(
         }
     }
     let mut s = coords.select_columns(key_columns);
-    let solution = match neutral {
-        None => {
-            let sol = solve_batch(&s, coords, opts)?;
-            let err = residuals(&s, &sol.weights, coords);
-            (sol, err)
-        }
+    let deltas;
+    let q = match neutral {
+        None => coords,
         Some(nc) => {
             let base = coords.column(nc).clone_owned();
             for mut c in s.column_iter_mut() {
                 c -= &base;
             }
-            let mut q = coords.clone();
-            for mut c in q.column_iter_mut() {
+            let mut d = coords.clone();
+            for mut c in d.column_iter_mut() {
                 c -= &base;
             }
-            let sol = solve_batch(&s, &q, opts)?;
-            let err = residuals(&s, &sol.weights, &q);
-            (sol, err)
+            deltas = d;
+            &deltas
         }
     };
-    let (sol, sq_error) = solution;
+    let mut sol = solve_batch(&s, q, opts)?;
+    let smoothed = match smoothing {
+        Some((sm, segs)) if sm.lambda > 0.0 => {
+            let (rank, condition) = (sol.rank, sol.condition);
+            let r = smooth_from(&s, q, sol, opts.solver, sm, segs)?;
+            sol = crate::solve::Solution {
+                weights: r.weights.clone(),
+                rank,
+                condition,
+                unconverged: r.unconverged,
+                iterations: r.iterations,
+            };
+            Some(r)
+        }
+        Some((sm, _)) => {
+            sm.check()?;
+            None
+        }
+        None => None,
+    };
+    let sq_error = residuals(&s, &sol.weights, q);
     if let Some(t) = (0..n)
         .find(|&t| !sq_error[t].is_finite() || sol.weights.column(t).iter().any(|w| !w.is_finite()))
     {
@@ -219,15 +250,18 @@ pub fn decompose(
             "the solve gave non-finite weights or error at frame column {t} (coordinates too large or degenerate key shapes); nothing written"
         )));
     }
-    Ok(Decomposition {
-        key_columns: key_columns.to_vec(),
-        neutral,
-        solver: opts.solver,
-        weights: sol.weights,
-        sq_error,
-        points,
-        rank: sol.rank,
-        condition: sol.condition,
-        unconverged: sol.unconverged,
-    })
+    Ok((
+        Decomposition {
+            key_columns: key_columns.to_vec(),
+            neutral,
+            solver: opts.solver,
+            weights: sol.weights,
+            sq_error,
+            points,
+            rank: sol.rank,
+            condition: sol.condition,
+            unconverged: sol.unconverged,
+        },
+        smoothed,
+    ))
 }

@@ -3,9 +3,10 @@
 use super::input::InputArgs;
 use anyhow::{Context, Result};
 use clap::Args;
-use keyshape_lab::decompose::{decompose, Decomposition};
+use keyshape_lab::decompose::{decompose_smoothed, Decomposition};
 use keyshape_lab::io::{fmt_num, write_atomic};
 use keyshape_lab::sequence::Sequence;
+use keyshape_lab::solve::temporal::{segments, SmoothMode, Smoothing};
 use keyshape_lab::solve::{SolveOptions, Solver};
 use serde_json::json;
 use std::io::Write;
@@ -40,6 +41,29 @@ pub struct SolveArgs {
     /// Print a JSON summary (mean RMS, share of negative weights, max |w|, …).
     #[arg(long)]
     json: bool,
+    /// Temporal prior λ (≥ 0; 0 = today's per-frame weights): minimise
+    /// Σ‖S w_t − q_t‖² + λ Σ‖w_t − w_{t−1}‖² (order 1) in the coordinates the solve uses
+    /// (aligned; the file's with --no-align; deltas with --neutral), under the solver's
+    /// constraints. λ is in squared coordinate units (px²) per unit of weight change; clips
+    /// and gaps left by failed frames are not smoothed across.
+    #[arg(long, value_name = "LAMBDA", allow_negative_numbers = true)]
+    smooth: Option<f64>,
+    /// `offline` (the whole sequence at once, default) or `causal` (each frame from the past
+    /// only, for live use). Needs --smooth.
+    #[arg(long, requires = "smooth", value_parser = parse_mode)]
+    smooth_mode: Option<SmoothMode>,
+    /// 1 (first difference, penalises motion; default) or 2 (second difference, penalises
+    /// acceleration: lags less). Needs --smooth.
+    #[arg(long, requires = "smooth")]
+    smooth_order: Option<usize>,
+}
+
+fn parse_mode(s: &str) -> Result<SmoothMode, String> {
+    match s {
+        "offline" => Ok(SmoothMode::Offline),
+        "causal" => Ok(SmoothMode::Causal),
+        _ => Err(format!("'{s}': choose offline or causal")),
+    }
 }
 
 pub fn parse_solver(s: &str) -> Result<Solver, String> {
@@ -47,6 +71,17 @@ pub fn parse_solver(s: &str) -> Result<Solver, String> {
 }
 
 pub fn run(a: &SolveArgs) -> Result<()> {
+    let smoothing = a
+        .smooth
+        .map(|lambda| {
+            let s = Smoothing {
+                lambda,
+                order: a.smooth_order.unwrap_or(1),
+                mode: a.smooth_mode.unwrap_or(SmoothMode::Offline),
+            };
+            s.check().map(|_| s)
+        })
+        .transpose()?;
     super::check_outputs(&[a.out.as_ref()], &[], &[a.input.file.as_deref()])?;
     super::check_json_stdout(a.json, a.out.as_ref())?;
     let progress = super::progress::Progress::new("solve");
@@ -62,8 +97,26 @@ pub fn run(a: &SolveArgs) -> Result<()> {
     };
     let mut opts = SolveOptions::new(a.solver);
     opts.rcond = a.rcond;
-    let d = decompose(&seq.coords, seq.points, &cols, neutral, &opts)?;
+    let segs = segments(&seq.frames, seq.segments.as_deref());
+    let (d, smoothed) = decompose_smoothed(
+        &seq.coords,
+        seq.points,
+        &cols,
+        neutral,
+        &opts,
+        smoothing.as_ref().map(|s| (s, segs.as_slice())),
+    )?;
     progress.finish();
+    if let Some(r) = &smoothed {
+        if r.unconverged > 0 {
+            eprintln!(
+                "warning: the smoothed solve did not settle on {} of {} segments (KKT residual {:.1e})",
+                r.unconverged,
+                r.segments.len(),
+                r.kkt
+            );
+        }
+    }
     warn(&d);
     match &a.out {
         Some(path) => write_atomic(path, |w| write_csv(w, seq, &a.keys, &d))?,
@@ -93,16 +146,34 @@ pub fn run(a: &SolveArgs) -> Result<()> {
             "rank": d.rank,
             "condition": d.condition,
             "unconverged_frames": d.unconverged,
+            "jitter": weight_jitter(&d.weights, &segs),
+            "smoothing": smoothing.map(|s| json!({
+                "objective": s.objective(),
+                "lambda": s.lambda,
+                "order": s.order,
+                "mode": s.mode.name(),
+                "segments": segs.len(),
+                "iterations": smoothed.as_ref().map_or(0, |r| r.iterations),
+                "kkt_residual": smoothed.as_ref().map_or(0.0, |r| r.kkt),
+                "unconverged_segments": smoothed.as_ref().map_or(0, |r| r.unconverged),
+            })),
             "out": a.out,
         });
         outln!("{}", serde_json::to_string_pretty(&v)?);
     } else if let Some(p) = &a.out {
         sayln!(
             super::is_stdout(a.out.as_ref()),
-            "{} frames, {} keys, {}: mean RMS {:.4}, negative weights {:.1}%, max |w| {:.3} → {}",
+            "{} frames, {} keys, {}{}: mean RMS {:.4}, negative weights {:.1}%, max |w| {:.3} → {}",
             seq.n_frames(),
             d.key_columns.len(),
             d.solver,
+            smoothing.map_or(String::new(), |s| format!(
+                " with the {} order-{} temporal prior λ = {} (weight jitter {:.2e})",
+                s.mode.name(),
+                s.order,
+                s.lambda,
+                weight_jitter(&d.weights, &segs)
+            )),
             d.mean_rms(),
             100.0 * d.negative_share(),
             d.max_abs_weight(),
@@ -110,6 +181,22 @@ pub fn run(a: &SolveArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// Mean squared second difference of the weights within segments (per weight).
+pub fn weight_jitter(w: &nalgebra::DMatrix<f64>, segs: &[std::ops::Range<usize>]) -> f64 {
+    let (mut acc, mut n) = (0.0, 0usize);
+    for r in segs {
+        for t in r.start + 1..r.end.saturating_sub(1) {
+            acc += (w.column(t + 1) - w.column(t) * 2.0 + w.column(t - 1)).norm_squared();
+            n += w.nrows();
+        }
+    }
+    if n == 0 {
+        0.0
+    } else {
+        acc / n as f64
+    }
 }
 
 fn warn(d: &Decomposition) {

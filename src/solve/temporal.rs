@@ -423,6 +423,27 @@ pub fn solve_smooth(
         )));
     }
     let plain = solve_batch(s, q, &SolveOptions::new(solver))?;
+    smooth_from(s, q, plain, solver, smoothing, segments)
+}
+
+/// [`solve_smooth`] from the plain per-frame solution already at hand (the starting point
+/// of the constrained solves; returned as is for λ = 0).
+pub fn smooth_from(
+    s: &DMatrix<f64>,
+    q: &DMatrix<f64>,
+    plain: super::Solution,
+    solver: Solver,
+    smoothing: &Smoothing,
+    segments: &[Range<usize>],
+) -> Result<Smoothed> {
+    smoothing.check()?;
+    let frames = q.ncols();
+    let covered: usize = segments.iter().map(|r| r.len()).sum();
+    if covered != frames || segments.iter().any(|r| r.end > frames) {
+        return Err(Error::invalid(format!(
+            "segments cover {covered} of {frames} frames"
+        )));
+    }
     if smoothing.lambda == 0.0 {
         return Ok(Smoothed {
             weights: plain.weights,
