@@ -231,7 +231,9 @@ pub fn decompose_smoothed(
                 weights: r.weights.clone(),
                 rank,
                 condition,
-                unconverged: r.unconverged,
+                // Per-frame caps do not apply to a whole-segment solve: its own count
+                // (segments that did not settle) is in the returned `Smoothed`.
+                unconverged: 0,
                 iterations: r.iterations,
             };
             Some(r)

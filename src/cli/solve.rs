@@ -109,11 +109,13 @@ pub fn run(a: &SolveArgs) -> Result<()> {
     progress.finish();
     if let Some(r) = &smoothed {
         if r.unconverged > 0 {
+            let (what, of) = match smoothing.map(|s| s.mode) {
+                Some(SmoothMode::Causal) => ("frames", seq.frames.len()),
+                _ => ("segments", r.segments.len()),
+            };
             eprintln!(
-                "warning: the smoothed solve did not settle on {} of {} segments (KKT residual {:.1e})",
-                r.unconverged,
-                r.segments.len(),
-                r.kkt
+                "warning: the smoothed solve did not settle on {} of {of} {what} (KKT residual {:.1e})",
+                r.unconverged, r.kkt
             );
         }
     }

@@ -100,7 +100,8 @@ pub struct Smoothed {
     pub iterations: u64,
     /// The KKT residual of the objective, relative (see [`kkt_residual`]).
     pub kkt: f64,
-    /// Segments that stopped at the iteration cap (their KKT residual says how far off).
+    /// Offline: segments that did not reach [`KKT_TOLERANCE`]; causal: frames that hit the
+    /// active-set iteration cap (the KKT residual says how far off either is).
     pub unconverged: usize,
     /// The segments solved (frame column ranges).
     pub segments: Vec<Range<usize>>,
@@ -542,9 +543,10 @@ fn segment(
         let res = kkt_residual(g, sm.lambda, sm.order, b, &w, solver);
         return Ok((w, 1, res, true));
     }
-    // Primal–dual active set from the per-frame solution; if it cycles (it can when the
-    // Hessian is not an M-matrix), ADMM on the same banded factorisation finds a point near
-    // the optimum and the active set polishes from there.
+    // Primal–dual active set from the per-frame solution: a few banded solves when it
+    // works (order 1 nearly always). It can cycle when the Hessian is not an M-matrix (the
+    // second-difference prior at large λ); then projected Newton, which decreases the
+    // objective at every step and so cannot cycle, takes over from the same start.
     let pdas = |start: &[f64], cap: usize| -> Result<Option<(Vec<f64>, u64)>> {
         let c = gmax.max(f64::MIN_POSITIVE);
         let mut w = start.to_vec();
@@ -576,33 +578,55 @@ fn segment(
         }
         Ok(None)
     };
-    let tol = 1e-10;
+    let mut iterations = 0u64;
     if let Some((w, it)) = pdas(w0, PDAS_ITERATIONS)? {
-        let res = kkt_residual(g, sm.lambda, sm.order, b, &w, solver);
-        if res < tol {
-            return Ok((w, it, res, true));
-        }
-    }
-    let (z, admm_it) = admm(g, sm, &bands, b, w0, upper, ridge)?;
-    let mut iterations = PDAS_ITERATIONS as u64 + admm_it;
-    if let Some((w, it)) = pdas(&z, PDAS_ITERATIONS)? {
         iterations += it;
         let res = kkt_residual(g, sm.lambda, sm.order, b, &w, solver);
-        if res < tol {
+        if res < KKT_TOLERANCE {
             return Ok((w, iterations, res, true));
         }
+    } else {
+        iterations += PDAS_ITERATIONS as u64;
     }
-    let res = kkt_residual(g, sm.lambda, sm.order, b, &z, solver);
-    Ok((z, iterations, res, res < tol))
+    let (w, it) = projected_newton(g, sm, &bands, b, w0, upper, ridge, solver)?;
+    iterations += it;
+    let res = kkt_residual(g, sm.lambda, sm.order, b, &w, solver);
+    if res < KKT_TOLERANCE {
+        return Ok((w, iterations, res, true));
+    }
+    // Near the optimum the active set from projected Newton is (nearly) the optimal one, and
+    // one or two primal–dual steps from it finish exactly.
+    if let Some((wp, it)) = pdas(&w, PDAS_ITERATIONS)? {
+        iterations += it;
+        let rp = kkt_residual(g, sm.lambda, sm.order, b, &wp, solver);
+        if rp < res {
+            return Ok((wp, iterations, rp, rp < KKT_TOLERANCE));
+        }
+    }
+    Ok((w, iterations, res, res < KKT_TOLERANCE))
 }
 
-/// Active-set iterations before (and after) the ADMM fallback.
+/// The relative KKT residual ([`kkt_residual`]) at which a constrained offline solve stops.
+pub const KKT_TOLERANCE: f64 = 1e-10;
+
+/// Active-set iterations before projected Newton takes over.
 const PDAS_ITERATIONS: usize = 40;
 
-/// ADMM on `½wᵀHw − bᵀw` over the box `[0, upper]`: the w-step is one banded solve with
-/// `H + ρI` (factorised once), the z-step a projection. Returns the feasible z and the
-/// iterations taken.
-fn admm(
+/// Projected-Newton iterations at most.
+const NEWTON_ITERATIONS: usize = 500;
+
+/// Projected Newton (Bertsekas 1982, *SIAM J. Control Optim.* 20(2)) on `½wᵀHw − bᵀw`
+/// over the box `[0, upper]`, from `w0` clamped into the box. Each iteration takes the
+/// variables that sit within ε of a bound with the gradient pushing outwards as *binding*,
+/// solves the Newton system on the others with the banded factorisation (so the step is
+/// exact on the current face), moves the binding ones by a diagonally scaled gradient step,
+/// and projects back with an Armijo backtracking search along the projection arc. The
+/// objective falls at every step, so unlike the primal–dual active set it cannot cycle; once
+/// the binding set is the optimal one a full step lands on the optimum. Stops when the KKT
+/// residual is below [`KKT_TOLERANCE`] or a step no longer changes `w`. Returns the point
+/// and the iterations taken.
+#[allow(clippy::too_many_arguments)]
+fn projected_newton(
     g: &DMatrix<f64>,
     sm: &Smoothing,
     bands: &[Vec<f64>],
@@ -610,36 +634,83 @@ fn admm(
     w0: &[f64],
     upper: f64,
     ridge: f64,
+    solver: Solver,
 ) -> Result<(Vec<f64>, u64)> {
     let k = g.nrows();
-    let rho = (0..k).map(|i| g[(i, i)]).sum::<f64>() / k.max(1) as f64 + 2.0 * sm.lambda;
-    let sys = BandedSystem::factor(g, sm.lambda, bands, &vec![false; b.len()], ridge + rho)?;
-    let mut z: Vec<f64> = w0.iter().map(|v| v.clamp(0.0, upper)).collect();
-    let mut u = vec![0.0; b.len()];
-    let bmax = b
-        .iter()
-        .fold(0.0f64, |m, v| m.max(v.abs()))
-        .max(f64::MIN_POSITIVE);
-    for it in 1..=ADMM_ITERATIONS {
-        let mut w: Vec<f64> = (0..b.len()).map(|i| b[i] + rho * (z[i] - u[i])).collect();
-        sys.solve(&mut w);
-        let (mut primal, mut dual) = (0.0f64, 0.0f64);
-        for i in 0..w.len() {
-            let zn = (w[i] + u[i]).clamp(0.0, upper);
-            dual = dual.max(rho * (zn - z[i]).abs());
-            primal = primal.max((w[i] - zn).abs());
-            u[i] += w[i] - zn;
-            z[i] = zn;
+    let n = b.len();
+    // diag H, for the scaled step of the binding variables.
+    let hdiag: Vec<f64> = (0..n)
+        .map(|i| g[(i % k, i % k)] + sm.lambda * bands[0][i / k] + ridge)
+        .map(|d| d.max(f64::MIN_POSITIVE))
+        .collect();
+    let hmax = hdiag.iter().fold(0.0f64, |m, v| m.max(*v));
+    let project = |v: f64| v.clamp(0.0, upper);
+    let mut w: Vec<f64> = w0.iter().map(|v| project(*v)).collect();
+    let mut hw = hessian_times(g, sm.lambda, bands, &w);
+    for it in 1..=NEWTON_ITERATIONS {
+        if kkt_residual(g, sm.lambda, sm.order, b, &w, solver) < KKT_TOLERANCE {
+            return Ok((w, it as u64 - 1));
         }
-        if dual < 1e-12 * bmax && primal * rho < 1e-12 * bmax {
-            return Ok((z, it as u64));
+        let grad: Vec<f64> = hw.iter().zip(b).map(|(x, y)| x - y).collect();
+        // ε: the size of a projected gradient step, capped (Bertsekas' ε_k).
+        let step = (0..n)
+            .map(|i| (w[i] - project(w[i] - grad[i] / hmax)).abs())
+            .fold(0.0f64, f64::max);
+        let eps = step.min(1e-3);
+        let binding: Vec<bool> = (0..n)
+            .map(|i| (w[i] <= eps && grad[i] > 0.0) || (w[i] >= upper - eps && grad[i] < 0.0))
+            .collect();
+        let sys = BandedSystem::factor(g, sm.lambda, bands, &binding, ridge)?;
+        let mut d: Vec<f64> = (0..n)
+            .map(|i| if binding[i] { 0.0 } else { -grad[i] })
+            .collect();
+        sys.solve(&mut d);
+        for i in 0..n {
+            if binding[i] {
+                d[i] = -grad[i] / hdiag[i];
+            }
+        }
+        // Armijo along the projection arc (σ = 1e-4, halving).
+        let mut alpha = 1.0;
+        let mut accepted = None;
+        for _ in 0..60 {
+            let trial: Vec<f64> = (0..n).map(|i| project(w[i] + alpha * d[i])).collect();
+            // The decrease from the step Δ itself, −gᵀΔ − ½ΔᵀHΔ: no cancellation between
+            // two nearly equal objective values near the optimum.
+            let delta: Vec<f64> = trial.iter().zip(&w).map(|(a, c)| a - c).collect();
+            let hdelta = hessian_times(g, sm.lambda, bands, &delta);
+            let decrease = -(0..n)
+                .map(|i| grad[i] * delta[i] + 0.5 * delta[i] * hdelta[i])
+                .sum::<f64>();
+            let predicted: f64 = (0..n)
+                .map(|i| {
+                    if binding[i] {
+                        -grad[i] * delta[i]
+                    } else {
+                        -alpha * grad[i] * d[i]
+                    }
+                })
+                .sum();
+            if decrease >= 1e-4 * predicted {
+                let htrial: Vec<f64> = hw.iter().zip(&hdelta).map(|(a, c)| a + c).collect();
+                accepted = Some((trial, htrial));
+                break;
+            }
+            alpha *= 0.5;
+        }
+        let Some((trial, htrial)) = accepted else {
+            // No decrease left at working precision.
+            return Ok((w, it as u64));
+        };
+        let moved = trial.iter().zip(&w).any(|(a, c)| a != c);
+        w = trial;
+        hw = htrial;
+        if !moved {
+            return Ok((w, it as u64));
         }
     }
-    Ok((z, ADMM_ITERATIONS as u64))
+    Ok((w, NEWTON_ITERATIONS as u64))
 }
-
-/// ADMM iterations at most.
-const ADMM_ITERATIONS: usize = 20_000;
 
 fn causal(
     g: &DMatrix<f64>,
