@@ -123,3 +123,75 @@ pub fn curves_plot(rows: &[CurveRow], solver: &str, title: &str, units: &str) ->
         y_at_least: None,
     }
 }
+
+/// Colour and style of each smoothing approach.
+pub fn approach_style(approach: &str) -> ([u8; 3], Style) {
+    match approach {
+        "none" => ([20, 20, 20], Style::Marker),
+        "prior offline order 1" => ([31, 90, 200], Style::Line),
+        "prior offline order 2" => ([20, 150, 200], Style::Line),
+        "prior causal order 1" => ([110, 20, 120], Style::Line),
+        "moving-average" => ([30, 150, 60], Style::Dashed),
+        "ema" => ([230, 140, 20], Style::Dashed),
+        a if a.starts_with("one-euro") => {
+            // One colour per beta band.
+            let beta: f64 = a
+                .rsplit(' ')
+                .next()
+                .and_then(|b| b.parse().ok())
+                .unwrap_or(0.0);
+            let colour = if beta < 0.1 {
+                [220, 30, 30]
+            } else if beta < 1.0 {
+                [150, 60, 30]
+            } else {
+                [230, 60, 160]
+            };
+            (colour, Style::Dashed)
+        }
+        _ => ([150, 150, 150], Style::Dashed),
+    }
+}
+
+/// The jitter-against-error trade-off of the smoothing study: one series per approach,
+/// x the target jitter, y the target error against the clean reference.
+pub fn smoothing_plot(rows: &[crate::experiment::smoothing::SmoothRow], title: &str) -> PlotSpec {
+    let mut names: Vec<&str> = Vec::new();
+    for r in rows {
+        if !names.contains(&r.approach.as_str()) {
+            names.push(&r.approach);
+        }
+    }
+    let series = names
+        .iter()
+        .map(|n| {
+            let (color, style) = approach_style(n);
+            // Every curve starts at no smoothing, then its settings in their order (weakest
+            // first), not sorted by jitter: a filter whose jitter does not fall with
+            // strength shows it.
+            let start = rows
+                .iter()
+                .find(|r| r.approach == "none")
+                .filter(|_| *n != "none");
+            let points: Vec<(f64, f64)> = start
+                .into_iter()
+                .chain(rows.iter().filter(|r| r.approach == *n))
+                .map(|r| (r.jitter_target, r.target_rms_clean))
+                .collect();
+            Series {
+                name: n.to_string(),
+                points,
+                style,
+                color,
+            }
+        })
+        .collect();
+    PlotSpec {
+        title: title.to_string(),
+        x_label: "jitter of the retargeted points: RMS second difference (px/frame²)".into(),
+        y_label: "target RMS error vs the clean reference (px)".into(),
+        series,
+        y_from_zero: true,
+        y_at_least: None,
+    }
+}

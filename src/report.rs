@@ -76,6 +76,66 @@ pub fn write_aligned_vs_raw_png(
     save_png(&out, path)
 }
 
+/// Writes the smoothing study: `smoothing.csv`, `smoothing_at_equal_jitter.csv` and (with
+/// `png`) `smoothing.png`; returns (files, figure names).
+pub fn write_smoothing(
+    rows: &[crate::experiment::smoothing::SmoothRow],
+    title: &str,
+    dir: &Path,
+    png: bool,
+) -> Result<(Vec<PathBuf>, Vec<String>)> {
+    let mut files = Vec::new();
+    let mut figures = Vec::new();
+    let csv = dir.join("smoothing.csv");
+    write_atomic(&csv, |w| {
+        writeln!(w, "approach,setting,source_rms,target_rms_tracked,target_rms_clean,jitter_target,jitter_weights,lag_frames,kkt")?;
+        for r in rows {
+            writeln!(
+                w,
+                "{},{},{},{},{},{},{},{},{}",
+                r.approach,
+                r.setting,
+                fmt_num(r.source_rms),
+                fmt_num(r.target_rms_tracked),
+                fmt_num(r.target_rms_clean),
+                fmt_num(r.jitter_target),
+                fmt_num(r.jitter_weights),
+                r.lag_frames,
+                r.kkt.map_or(String::new(), fmt_num)
+            )?;
+        }
+        Ok(())
+    })?;
+    files.push(csv);
+    let eq = dir.join("smoothing_at_equal_jitter.csv");
+    let opt = |v: Option<f64>| v.map_or(String::new(), fmt_num);
+    write_atomic(&eq, |w| {
+        writeln!(
+            w,
+            "jitter_target,approach,target_rms_tracked,target_rms_clean,lag_frames"
+        )?;
+        for r in crate::experiment::smoothing::at_equal_jitter(rows, &[0.75, 0.5, 0.35]) {
+            writeln!(
+                w,
+                "{},{},{},{},{}",
+                fmt_num(r.jitter_target),
+                r.approach,
+                opt(r.target_rms_tracked),
+                opt(r.target_rms_clean),
+                r.lag_frames.map_or(String::new(), |l| l.to_string())
+            )?;
+        }
+        Ok(())
+    })?;
+    files.push(eq);
+    if png {
+        let spec = crate::plot::smoothing_plot(rows, title);
+        save_png(&render_plot(&spec, 1000, 650)?, &dir.join("smoothing.png"))?;
+        figures.push("smoothing.png".to_string());
+    }
+    Ok((files, figures))
+}
+
 /// Writes everything into `dir` (created if missing); returns the files written.
 pub fn write_outcome(o: &Outcome, dir: &Path) -> Result<Vec<PathBuf>> {
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
@@ -262,6 +322,11 @@ pub fn write_outcome(o: &Outcome, dir: &Path) -> Result<Vec<PathBuf>> {
             })?;
             files.push(glb);
         }
+    }
+    if !o.smoothing.is_empty() {
+        let (f, fig) = write_smoothing(&o.smoothing, &o.spec.title, dir, o.spec.png)?;
+        files.extend(f);
+        figures.extend(fig);
     }
     if o.spec.png && !o.rows.is_empty() {
         for s in &o.spec.solvers {

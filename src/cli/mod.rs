@@ -56,6 +56,7 @@ mod modes;
 mod progress;
 mod retarget;
 mod run;
+mod smooth;
 mod solve;
 mod template;
 mod transfer;
@@ -125,6 +126,8 @@ enum Command {
     Map(map::MapArgs),
     /// Soft-KNN action intensities against ground-truth scores (Cosker et al. §4.1, Eq. 10).
     Intensity(intensity::IntensityArgs),
+    /// Jitter against error: the temporal prior in the solver against filters afterwards.
+    Smooth(smooth::SmoothArgs),
     /// Run a scripted experiment (experiments/*.toml): CSV, JSON and PNG reports.
     Run(run::RunArgs),
     /// Measure solver and sweep speed (the figures in BENCHMARKS.md).
@@ -146,6 +149,7 @@ pub fn main() -> ExitCode {
         Command::Transfer(a) => transfer::run(&a),
         Command::Modes(a) => modes::run(&a),
         Command::Intensity(a) => intensity::run(&a),
+        Command::Smooth(a) => smooth::run(&a),
         Command::Map(a) => map::run(&a),
         Command::Run(a) => run::run(&a),
         Command::Bench(a) => bench::run(&a),

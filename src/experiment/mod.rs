@@ -16,6 +16,7 @@
 //! png = true                 # optional: write curves_<solver>.png
 //! ```
 
+pub mod smoothing;
 pub mod spec;
 pub mod studies;
 
@@ -66,6 +67,8 @@ pub struct Outcome {
     /// Paper 002 mapping.
     #[serde(skip)]
     pub map: Option<MapOutcome>,
+    /// The smoothing study.
+    pub smoothing: Vec<smoothing::SmoothRow>,
 }
 
 /// Runs a spec whose relative paths are relative to `base`.
@@ -188,6 +191,12 @@ pub fn run(spec: &Spec, base: &Path, tick: &(dyn Fn(usize, usize) + Sync)) -> Re
         None => None,
     };
     timings.push(("paper002".to_string(), t.elapsed().as_secs_f64()));
+    let t = Instant::now();
+    let smoothing = match &spec.smooth {
+        Some(st) => smoothing::smoothing_study(&seq, &prep, st, &opts)?,
+        None => Vec::new(),
+    };
+    timings.push(("smooth".to_string(), t.elapsed().as_secs_f64()));
     Ok(Outcome {
         spec: spec.clone(),
         input,
@@ -203,5 +212,6 @@ pub fn run(spec: &Spec, base: &Path, tick: &(dyn Fn(usize, usize) + Sync)) -> Re
         orthogonality,
         intensity,
         map,
+        smoothing,
     })
 }

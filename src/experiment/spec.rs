@@ -55,6 +55,9 @@ pub struct Spec {
     /// Paper 002 trajectory mapping onto a second person and the ICT morph targets, optional.
     #[serde(default)]
     pub map: Option<MapSpec>,
+    /// The jitter-against-error study of the temporal prior and post-filters, optional.
+    #[serde(default)]
+    pub smooth: Option<super::smoothing::SmoothStudySettings>,
     /// Seed for kmeans and random.
     #[serde(default = "seven")]
     pub seed: u64,
@@ -146,11 +149,14 @@ fn nnls_only() -> Vec<Solver> {
     vec![Solver::Nnls]
 }
 
-fn method<'de, D: Deserializer<'de>>(d: D) -> std::result::Result<Method, D::Error> {
+pub(crate) fn method<'de, D: Deserializer<'de>>(d: D) -> std::result::Result<Method, D::Error> {
     Method::parse(&String::deserialize(d)?).map_err(serde::de::Error::custom)
 }
 
-fn method_name<S: serde::Serializer>(m: &Method, s: S) -> std::result::Result<S::Ok, S::Error> {
+pub(crate) fn method_name<S: serde::Serializer>(
+    m: &Method,
+    s: S,
+) -> std::result::Result<S::Ok, S::Error> {
     s.serialize_str(&m.name())
 }
 
@@ -245,9 +251,10 @@ impl Spec {
         let studies = spec.retarget.is_some()
             || spec.modes.is_some()
             || spec.intensity.is_some()
-            || spec.map.is_some();
+            || spec.map.is_some()
+            || spec.smooth.is_some();
         if spec.methods.is_empty() && !studies {
-            return Err(at("methods", "name at least one method (or add a [retarget], [modes], [intensity] or [map] table)".into()));
+            return Err(at("methods", "name at least one method (or add a [retarget], [modes], [intensity], [map] or [smooth] table)".into()));
         }
         if spec.compare_raw && (!spec.align || spec.methods.is_empty()) {
             return Err(at(
@@ -289,6 +296,9 @@ impl Spec {
                 };
                 at(key, e.to_string())
             })?;
+        }
+        if let Some(sm) = &spec.smooth {
+            sm.check(30.0).map_err(|e| at("smooth", e.to_string()))?;
         }
         if spec.dims != 2 && spec.dims != 3 {
             return Err(at("dims", format!("must be 2 or 3, got {}", spec.dims)));

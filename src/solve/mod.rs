@@ -11,6 +11,7 @@
 
 pub mod active_set;
 mod chol;
+pub mod filters;
 pub mod jacobi;
 pub mod lstsq;
 pub mod temporal;

@@ -1,0 +1,95 @@
+//! `kslab smooth`: the jitter-against-error study of the temporal prior and post-filters.
+
+use super::input::InputArgs;
+use anyhow::Result;
+use clap::Args;
+use keyshape_lab::experiment::smoothing::{smoothing_study, SmoothStudySettings};
+use keyshape_lab::keyshapes::Method;
+use keyshape_lab::solve::Solver;
+use std::path::PathBuf;
+
+/// Arguments of `kslab smooth`.
+#[derive(Debug, Args)]
+pub struct SmoothArgs {
+    #[command(flatten)]
+    input: InputArgs,
+    /// Heuristic choosing the key frames (a kmeansN-mean's cluster means work too).
+    #[arg(long, default_value = "spread", value_parser = super::keys::parse_method)]
+    method: Method,
+    /// Number of key shapes.
+    #[arg(long, default_value_t = 12)]
+    k: usize,
+    /// ls, nnls or bounded.
+    #[arg(long, default_value = "nnls", value_parser = super::solve::parse_solver)]
+    solver: Solver,
+    /// λ values of the temporal prior (offline order 1 and 2, causal order 1), px².
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "10,100,1000,10000,100000"
+    )]
+    lambdas: Vec<f64>,
+    /// Centred moving-average windows (odd, frames).
+    #[arg(long, value_delimiter = ',', default_value = "3,5,9,15,25")]
+    windows: Vec<usize>,
+    /// Exponential moving-average factors α in (0, 1].
+    #[arg(long, value_delimiter = ',', default_value = "0.7,0.5,0.3,0.15,0.08")]
+    alphas: Vec<f64>,
+    /// One Euro filter minimum cutoffs (Hz).
+    #[arg(long, value_delimiter = ',', default_value = "8,4,2,1,0.5")]
+    one_euro_cutoffs: Vec<f64>,
+    /// One Euro filter betas, one curve each (cutoff increase in Hz per unit of weight
+    /// speed per second; 0 makes it an exponential moving average).
+    #[arg(long, value_delimiter = ',', default_value = "0.05,0.5")]
+    one_euro_betas: Vec<f64>,
+    /// σ (frames) of the zero-phase Gaussian low-pass that makes the clean reference.
+    #[arg(long, default_value_t = 2.0)]
+    clean_sigma: f64,
+    /// Folder for smoothing.csv, smoothing_at_equal_jitter.csv and smoothing.png.
+    #[arg(long)]
+    out: PathBuf,
+}
+
+pub fn run(a: &SmoothArgs) -> Result<()> {
+    super::check_outputs(&[], &[Some(&a.out)], &[a.input.file.as_deref()])?;
+    let st = SmoothStudySettings {
+        method: a.method,
+        k: a.k,
+        solver: a.solver,
+        lambdas: a.lambdas.clone(),
+        windows: a.windows.clone(),
+        alphas: a.alphas.clone(),
+        one_euro_cutoffs: a.one_euro_cutoffs.clone(),
+        one_euro_betas: a.one_euro_betas.clone(),
+        clean_sigma: a.clean_sigma,
+    };
+    st.check(30.0)?;
+    let progress = super::progress::Progress::new("smooth");
+    let (seq, prep) = a.input.prepare()?;
+    let rows = smoothing_study(&seq, &prep, &st, &Default::default())?;
+    std::fs::create_dir_all(&a.out)?;
+    let title = format!("{} {} k={} {}", seq.source, a.method, a.k, a.solver);
+    let (files, figures) = keyshape_lab::report::write_smoothing(&rows, &title, &a.out, true)?;
+    progress.finish();
+    let none = rows.iter().find(|r| r.approach == "none");
+    if let Some(n) = none {
+        outln!(
+            "unsmoothed: source RMS {:.3}, target RMS {:.3} (tracked) / {:.3} (clean), jitter {:.3} px/frame²; {} settings compared",
+            n.source_rms,
+            n.target_rms_tracked,
+            n.target_rms_clean,
+            n.jitter_target,
+            rows.len() - 1
+        );
+    }
+    for f in files.iter().chain(
+        figures
+            .iter()
+            .map(|f| a.out.join(f))
+            .collect::<Vec<_>>()
+            .iter(),
+    ) {
+        eprintln!("wrote {}", f.display());
+    }
+    Ok(())
+}

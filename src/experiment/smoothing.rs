@@ -1,0 +1,409 @@
+//! The jitter-against-error study (issue 15): does a temporal prior inside the solver beat
+//! a filter applied to the weights afterwards?
+//!
+//! One key set (a heuristic's frames), one solver. For every approach and setting — no
+//! smoothing, the offline prior (order 1 and 2) and the causal prior at each λ, and the
+//! post-filters (centred moving average, exponential moving average, One Euro) at a range
+//! of strengths — the weights drive the built-in cartoon target (each key shape warped by
+//! its multiquadric RBF `G`), and the study measures:
+//!
+//! * the source error (Eq. 5 as RMS per point);
+//! * the target error against two references: `G(q_t)`, the warp of the tracked points
+//!   (which carries the tracker's own frame-to-frame noise, so it rewards reproducing
+//!   noise), and `G(q̃_t)`, the warp of a clean reference `q̃`: the tracked points through a
+//!   zero-phase Gaussian low-pass of `clean_sigma` frames within each segment. The input
+//!   solved is the tracked `q` itself, i.e. `q̃` plus exactly the noise the low-pass removed;
+//! * the jitter: RMS of the second temporal difference of the retargeted target points
+//!   (px/frame²) and of the weights;
+//! * the lag: the shift (frames) that best aligns the smoothed weights with the unsmoothed
+//!   ones by cross-correlation (positive: the smoothed weights come later).
+
+use crate::decompose::Prepared;
+use crate::error::{Error, Result};
+use crate::keyshapes::{Analysis, KeyOptions, Method};
+use crate::solve::filters::PostFilter;
+use crate::solve::temporal::{segments, smooth_from, SmoothMode, Smoothing};
+use crate::solve::{solve_batch, SolveOptions, Solver};
+use nalgebra::DMatrix;
+use serde::{Deserialize, Serialize};
+use std::ops::Range;
+
+/// Settings of the study.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SmoothStudySettings {
+    /// Heuristic choosing the key frames.
+    #[serde(
+        deserialize_with = "super::spec::method",
+        serialize_with = "super::spec::method_name"
+    )]
+    pub method: Method,
+    /// Key shapes.
+    pub k: usize,
+    /// Solver.
+    #[serde(default = "nnls")]
+    pub solver: Solver,
+    /// λ values of the prior.
+    #[serde(default = "default_lambdas")]
+    pub lambdas: Vec<f64>,
+    /// Moving-average windows (odd).
+    #[serde(default = "default_windows")]
+    pub windows: Vec<usize>,
+    /// Exponential moving-average factors.
+    #[serde(default = "default_alphas")]
+    pub alphas: Vec<f64>,
+    /// One Euro minimum cutoffs, Hz (each with every beta of `one_euro_betas`, speed
+    /// cutoff 1 Hz).
+    #[serde(default = "default_cutoffs")]
+    pub one_euro_cutoffs: Vec<f64>,
+    /// One Euro betas (cutoff increase per unit of weight speed, Hz per 1/s): one curve
+    /// each.
+    #[serde(default = "default_betas")]
+    pub one_euro_betas: Vec<f64>,
+    /// Standard deviation (frames) of the zero-phase Gaussian low-pass that makes the clean
+    /// reference.
+    #[serde(default = "default_sigma")]
+    pub clean_sigma: f64,
+}
+
+fn nnls() -> Solver {
+    Solver::Nnls
+}
+fn default_lambdas() -> Vec<f64> {
+    vec![1.0, 10.0, 100.0, 1000.0, 10000.0]
+}
+fn default_windows() -> Vec<usize> {
+    vec![3, 5, 9, 15, 25]
+}
+fn default_alphas() -> Vec<f64> {
+    vec![0.7, 0.5, 0.3, 0.15, 0.08]
+}
+fn default_cutoffs() -> Vec<f64> {
+    vec![8.0, 4.0, 2.0, 1.0, 0.5]
+}
+fn default_betas() -> Vec<f64> {
+    vec![0.05, 0.5]
+}
+fn default_sigma() -> f64 {
+    2.0
+}
+
+impl SmoothStudySettings {
+    /// Defaults for a method, k and solver.
+    pub fn new(method: Method, k: usize, solver: Solver) -> Self {
+        SmoothStudySettings {
+            method,
+            k,
+            solver,
+            lambdas: default_lambdas(),
+            windows: default_windows(),
+            alphas: default_alphas(),
+            one_euro_cutoffs: default_cutoffs(),
+            one_euro_betas: default_betas(),
+            clean_sigma: default_sigma(),
+        }
+    }
+
+    /// Checks every setting.
+    pub fn check(&self, fps: f64) -> Result<()> {
+        if self.k == 0 {
+            return Err(Error::invalid("the smoothing study needs k ≥ 1"));
+        }
+        for &l in &self.lambdas {
+            Smoothing {
+                lambda: l,
+                order: 1,
+                mode: SmoothMode::Offline,
+            }
+            .check()?;
+        }
+        for f in self.filters(fps) {
+            f.check()?;
+        }
+        if !(self.clean_sigma.is_finite() && self.clean_sigma > 0.0) {
+            return Err(Error::invalid(format!(
+                "clean_sigma must be > 0 frames, got {}",
+                self.clean_sigma
+            )));
+        }
+        Ok(())
+    }
+
+    fn filters(&self, fps: f64) -> Vec<PostFilter> {
+        let mut f: Vec<PostFilter> = self
+            .windows
+            .iter()
+            .map(|&window| PostFilter::MovingAverage { window })
+            .collect();
+        f.extend(
+            self.alphas
+                .iter()
+                .map(|&alpha| PostFilter::Exponential { alpha }),
+        );
+        for &beta in &self.one_euro_betas {
+            f.extend(
+                self.one_euro_cutoffs
+                    .iter()
+                    .map(|&min_cutoff| PostFilter::OneEuro {
+                        min_cutoff,
+                        beta,
+                        d_cutoff: 1.0,
+                        rate: fps,
+                    }),
+            );
+        }
+        f
+    }
+}
+
+/// One approach at one setting.
+#[derive(Debug, Clone, Serialize)]
+pub struct SmoothRow {
+    /// `none`, `prior offline order 1`, `prior offline order 2`, `prior causal order 1`,
+    /// `moving-average`, `ema`, `one-euro β B`.
+    pub approach: String,
+    /// The setting in words (`λ 100`, `window 5` …).
+    pub setting: String,
+    /// Eq. 5 as RMS per point (input units).
+    pub source_rms: f64,
+    /// Target RMS per point against the warp of the tracked points.
+    pub target_rms_tracked: f64,
+    /// Target RMS per point against the warp of the clean reference.
+    pub target_rms_clean: f64,
+    /// RMS second difference of the target points (units/frame²).
+    pub jitter_target: f64,
+    /// RMS second difference of the weights (per frame²).
+    pub jitter_weights: f64,
+    /// Frames by which the weights trail the unsmoothed ones (cross-correlation peak).
+    pub lag_frames: i64,
+    /// Offline prior: KKT residual of its solve.
+    pub kkt: Option<f64>,
+}
+
+/// Zero-phase Gaussian low-pass of every row within segments (σ in frames, truncated at
+/// 3σ, renormalised at the ends).
+pub fn gaussian_lowpass(x: &DMatrix<f64>, segs: &[Range<usize>], sigma: f64) -> DMatrix<f64> {
+    let h = (3.0 * sigma).ceil() as i64;
+    let kern: Vec<f64> = (-h..=h)
+        .map(|d| (-(d * d) as f64 / (2.0 * sigma * sigma)).exp())
+        .collect();
+    let mut out = x.clone();
+    for r in segs {
+        for t in r.clone() {
+            let (mut acc, mut wsum) = (vec![0.0; x.nrows()], 0.0);
+            for d in -h..=h {
+                let u = t as i64 + d;
+                if u < r.start as i64 || u >= r.end as i64 {
+                    continue;
+                }
+                let w = kern[(d + h) as usize];
+                wsum += w;
+                for (i, a) in acc.iter_mut().enumerate() {
+                    *a += w * x[(i, u as usize)];
+                }
+            }
+            for (i, a) in acc.into_iter().enumerate() {
+                out[(i, t)] = a / wsum;
+            }
+        }
+    }
+    out
+}
+
+/// RMS of the second temporal difference within segments, per value.
+pub fn jitter(x: &DMatrix<f64>, segs: &[Range<usize>], per: usize) -> f64 {
+    let (mut acc, mut n) = (0.0, 0usize);
+    for r in segs {
+        for t in r.start + 1..r.end.saturating_sub(1) {
+            acc += (x.column(t + 1) - x.column(t) * 2.0 + x.column(t - 1)).norm_squared();
+            n += per;
+        }
+    }
+    if n == 0 {
+        0.0
+    } else {
+        (acc / n as f64).sqrt()
+    }
+}
+
+/// The shift in −`max`..=`max` frames maximising the cross-correlation of `a` with `b`
+/// (rows mean-removed, summed over rows, within segments): positive when `a` trails `b`.
+pub fn lag(a: &DMatrix<f64>, b: &DMatrix<f64>, segs: &[Range<usize>], max: i64) -> i64 {
+    let centre = |m: &DMatrix<f64>| {
+        let mut c = m.clone();
+        for r in segs {
+            for i in 0..m.nrows() {
+                let mean = (r.start..r.end).map(|t| m[(i, t)]).sum::<f64>() / r.len().max(1) as f64;
+                for t in r.clone() {
+                    c[(i, t)] -= mean;
+                }
+            }
+        }
+        c
+    };
+    let (a, b) = (centre(a), centre(b));
+    let mut best = (f64::NEG_INFINITY, 0i64);
+    for d in -max..=max {
+        let mut acc = 0.0;
+        for r in segs {
+            for t in r.clone() {
+                let u = t as i64 - d;
+                if u < r.start as i64 || u >= r.end as i64 {
+                    continue;
+                }
+                for i in 0..a.nrows() {
+                    acc += a[(i, t)] * b[(i, u as usize)];
+                }
+            }
+        }
+        // Ties go to the smaller shift.
+        if acc > best.0 + 1e-12 * acc.abs() || (acc >= best.0 && d.abs() < best.1.abs()) {
+            best = (acc, d);
+        }
+    }
+    best.1
+}
+
+/// Runs the study on a prepared 2-D sequence with a known layout (the built-in target needs
+/// one). `seq` is the sequence `prep` came from.
+pub fn smoothing_study(
+    seq: &crate::sequence::Sequence,
+    prep: &Prepared,
+    st: &SmoothStudySettings,
+    opts: &KeyOptions,
+) -> Result<Vec<SmoothRow>> {
+    let fps = seq.fps().unwrap_or(30.0);
+    st.check(fps)?;
+    let q = &prep.seq.coords;
+    let points = prep.seq.points;
+    let segs = segments(&prep.seq.frames, prep.seq.segments.as_deref());
+    let an = Analysis::with_axes(
+        q.clone(),
+        points,
+        crate::keyshapes::axes_needed(&[st.method], st.k),
+    )?;
+    let sel = st.method.heuristic(opts).select(&an, st.k)?;
+    let s = sel.key_shapes(&an);
+    let (g, _) = crate::retarget::setup::builtin_target(seq, prep)?;
+    let b = g.apply_all(&s);
+    let truth = g.apply_all(q);
+    let clean = gaussian_lowpass(q, &segs, st.clean_sigma);
+    let truth_clean = g.apply_all(&clean);
+    let plain = solve_batch(&s, q, &SolveOptions::new(st.solver))?;
+    let w0 = plain.weights.clone();
+    let rms = |a: &DMatrix<f64>, b: &DMatrix<f64>| {
+        ((a - b).norm_squared() / (a.ncols() * points).max(1) as f64).sqrt()
+    };
+    let row = |approach: &str, setting: String, w: &DMatrix<f64>, kkt: Option<f64>| {
+        let out = &b * w;
+        SmoothRow {
+            approach: approach.to_string(),
+            setting,
+            source_rms: rms(&(&s * w), q),
+            target_rms_tracked: rms(&out, &truth),
+            target_rms_clean: rms(&out, &truth_clean),
+            jitter_target: jitter(&out, &segs, points),
+            jitter_weights: jitter(w, &segs, w.nrows()),
+            lag_frames: lag(w, &w0, &segs, 15),
+            kkt,
+        }
+    };
+    let mut rows = vec![row("none", "λ 0".into(), &w0, None)];
+    for (mode, order, name) in [
+        (SmoothMode::Offline, 1, "prior offline order 1"),
+        (SmoothMode::Offline, 2, "prior offline order 2"),
+        (SmoothMode::Causal, 1, "prior causal order 1"),
+    ] {
+        for &lambda in &st.lambdas {
+            let sm = Smoothing {
+                lambda,
+                order,
+                mode,
+            };
+            let r = smooth_from(&s, q, plain.clone(), st.solver, &sm, &segs)?;
+            if r.unconverged > 0 {
+                return Err(Error::invalid(format!(
+                    "{name} λ {lambda}: the smoothed solve did not settle (KKT residual {:e})",
+                    r.kkt
+                )));
+            }
+            rows.push(row(name, format!("λ {lambda}"), &r.weights, Some(r.kkt)));
+        }
+    }
+    for f in st.filters(fps) {
+        let w = f.apply(&w0, &segs, st.solver)?;
+        rows.push(row(&f.series(), f.setting(), &w, None));
+    }
+    Ok(rows)
+}
+
+/// Each approach's target errors interpolated at a common jitter level (linear between the
+/// two neighbouring settings on its curve that bracket it; `None` when its settings do not reach that level).
+#[derive(Debug, Clone, Serialize)]
+pub struct AtJitter {
+    /// Approach.
+    pub approach: String,
+    /// The jitter level (px/frame²).
+    pub jitter_target: f64,
+    /// Target error against the tracked reference there.
+    pub target_rms_tracked: Option<f64>,
+    /// Target error against the clean reference there.
+    pub target_rms_clean: Option<f64>,
+    /// Lag of the nearest setting (frames).
+    pub lag_frames: Option<i64>,
+}
+
+/// Interpolates every approach at `fractions` of the unsmoothed jitter.
+pub fn at_equal_jitter(rows: &[SmoothRow], fractions: &[f64]) -> Vec<AtJitter> {
+    let Some(none) = rows.iter().find(|r| r.approach == "none") else {
+        return Vec::new();
+    };
+    let mut names: Vec<&str> = Vec::new();
+    for r in rows.iter().filter(|r| r.approach != "none") {
+        if !names.contains(&r.approach.as_str()) {
+            names.push(&r.approach);
+        }
+    }
+    let mut out = Vec::new();
+    for &f in fractions {
+        let level = f * none.jitter_target;
+        for n in &names {
+            // Along the approach's own curve, from no smoothing through its settings in the
+            // order given (weakest first): the first stretch that reaches the level. A filter
+            // whose jitter does not fall with strength is not interpolated between settings
+            // that are not neighbours.
+            let mut pts: Vec<&SmoothRow> = vec![none];
+            pts.extend(rows.iter().filter(|r| r.approach == *n));
+            let bracket = pts.windows(2).find(|w| {
+                let (a, c) = (w[0].jitter_target, w[1].jitter_target);
+                a.min(c) <= level && level <= a.max(c)
+            });
+            let (tr, cl, lag) = match bracket {
+                Some(w) => {
+                    let span = w[1].jitter_target - w[0].jitter_target;
+                    let u = if span != 0.0 {
+                        (level - w[0].jitter_target) / span
+                    } else {
+                        0.0
+                    };
+                    let mix = |a: f64, b: f64| a + u * (b - a);
+                    let near = if u < 0.5 { w[0] } else { w[1] };
+                    (
+                        Some(mix(w[0].target_rms_tracked, w[1].target_rms_tracked)),
+                        Some(mix(w[0].target_rms_clean, w[1].target_rms_clean)),
+                        Some(near.lag_frames),
+                    )
+                }
+                None => (None, None, None),
+            };
+            out.push(AtJitter {
+                approach: n.to_string(),
+                jitter_target: level,
+                target_rms_tracked: tr,
+                target_rms_clean: cl,
+                lag_frames: lag,
+            });
+        }
+    }
+    out
+}
