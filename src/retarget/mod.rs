@@ -224,6 +224,26 @@ pub fn retarget_with_truth(
     solver: Solver,
     truth: Option<&DMatrix<f64>>,
 ) -> Result<Retargeted> {
+    retarget_smoothed(q, dims, plan, target, neutral, solver, truth, None)
+}
+
+/// As [`retarget_with_truth`], with the weights solved under a temporal prior
+/// ([`crate::solve::temporal`]) over the given segments (frame column ranges) when
+/// `smoothing` is given; λ = 0 is the plain solve.
+#[allow(clippy::too_many_arguments)]
+pub fn retarget_smoothed(
+    q: &DMatrix<f64>,
+    dims: usize,
+    plan: &KeyPlan,
+    target: &Target,
+    neutral: Option<usize>,
+    solver: Solver,
+    truth: Option<&DMatrix<f64>>,
+    smoothing: Option<(
+        &crate::solve::temporal::Smoothing,
+        &[std::ops::Range<usize>],
+    )>,
+) -> Result<Retargeted> {
     let (n, frames) = q.shape();
     let points = n / dims;
     let (regions, key_sets): (Option<&RegionPlan>, Vec<Vec<usize>>) = match plan {
@@ -329,13 +349,19 @@ pub fn retarget_with_truth(
         let s_d = delta(&s_full, &src_base);
         let q_d = delta(q, &src_base);
         let b_d = delta(&b_full, &tgt_base);
-        let sol = solve_batch(
-            &s_d.select_rows(&rows),
-            &q_d.select_rows(&rows),
-            &SolveOptions::new(solver),
-        )?;
-        unconverged += sol.unconverged;
-        let w = sol.weights;
+        let (s_r, q_r) = (s_d.select_rows(&rows), q_d.select_rows(&rows));
+        let sol = solve_batch(&s_r, &q_r, &SolveOptions::new(solver))?;
+        let w = match smoothing {
+            Some((sm, segs)) if sm.lambda > 0.0 => {
+                let r = crate::solve::temporal::smooth_from(&s_r, &q_r, sol, solver, sm, segs)?;
+                unconverged += r.unconverged;
+                r.weights
+            }
+            _ => {
+                unconverged += sol.unconverged;
+                sol.weights
+            }
+        };
         let mut rec_s = &s_d * &w;
         let mut rec_t = &b_d * &w;
         if let (Some(sb), Some(tb)) = (&src_base, &tgt_base) {

@@ -11,8 +11,9 @@ use crate::keyshapes::{axes_needed, Analysis, KeyOptions, Method};
 use crate::retarget::rbf::Rbf;
 use crate::retarget::setup::{builtin_target, polylines_for};
 use crate::retarget::target::TargetSet;
-use crate::retarget::{retarget_with_truth, KeyPlan, Target};
+use crate::retarget::{retarget_smoothed, KeyPlan, Target};
 use crate::sequence::Sequence;
+use crate::solve::temporal::{segments, SmoothMode, Smoothing};
 use crate::solve::Solver;
 use nalgebra::DMatrix;
 use std::collections::HashMap;
@@ -41,6 +42,9 @@ pub struct SolverView {
     pub target_rms: f64,
     /// Weight jitter.
     pub jitter: f64,
+    /// Jitter of the retargeted target points: RMS second difference per point
+    /// (units/frame²), within segments.
+    pub target_jitter: f64,
 }
 
 /// A finished request.
@@ -222,9 +226,15 @@ impl Engine {
         }
         let coords = &c.prep.seq.coords;
         let dims = c.prep.seq.dims;
+        let segs = segments(&c.prep.seq.frames, c.prep.seq.segments.as_deref());
+        let smoothing = Smoothing {
+            lambda: settings.smooth,
+            order: 1,
+            mode: SmoothMode::Offline,
+        };
         let mut views = Vec::new();
         for s in solvers {
-            let r = retarget_with_truth(
+            let r = retarget_smoothed(
                 coords,
                 dims,
                 &match &shapes {
@@ -235,8 +245,19 @@ impl Engine {
                 None,
                 s,
                 Some(&c.truth),
+                Some((&smoothing, segs.as_slice())),
             )?;
+            if r.unconverged > 0 {
+                return Err(Error::invalid(format!(
+                    "the {s} solve did not settle (λ {}): lower λ (L)",
+                    settings.smooth
+                )));
+            }
+            let points = r.target.nrows() / dims.max(1);
+            let target_jitter =
+                crate::experiment::smoothing::jitter(&r.target, &segs, points.max(1));
             views.push(SolverView {
+                target_jitter,
                 solver: s,
                 frame_rms: r
                     .source_sq

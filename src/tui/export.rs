@@ -96,12 +96,17 @@ pub fn export(s: &State, seq_path: &str, dir: &Path) -> Result<Vec<String>> {
         target_bounds: tb,
     };
     let caption = format!(
-        "frame {}   {} {} k={}   {}",
+        "frame {}   {} {} k={}   {}{}",
         c.frames[t],
         c.settings.points,
         c.settings.method,
         c.keys.len(),
-        c.settings.solver
+        c.settings.solver,
+        if c.settings.smooth > 0.0 {
+            format!(" λ={}", c.settings.smooth)
+        } else {
+            String::new()
+        }
     );
     let png = dir.join("view.png");
     save_png(&render_frame(&shapes, &caption, 360)?, &png)?;
@@ -128,8 +133,14 @@ pub fn export(s: &State, seq_path: &str, dir: &Path) -> Result<Vec<String>> {
     } else {
         format!("[retarget]\nmethod = \"{}\"\nk = {k}\nsolvers = [\"ls\", \"nnls\"]\ntrace_noise = [0.0, 0.01]\nstrip = 4\n", st.method)
     };
+    // The temporal prior: the smoothing study at this λ has the exported weights' row.
+    let smooth = if st.smooth > 0.0 {
+        format!("\n# The weights were solved with the offline first-difference temporal prior at λ = {l}:\n# the [smooth] study's `prior offline order 1, λ {l}` row is that solve.\n[smooth]\nmethod = \"{}\"\nk = {k}\nsolver = \"{}\"\nlambdas = [{l:?}]\n", st.method, st.solver, l = st.smooth)
+    } else {
+        String::new()
+    };
     let text = format!(
-        "# Exported from the kslab lab: reproduces the current settings. Run: kslab run {}\ntitle = \"{} {} k={} {}\"\ninput = \"{input}\"\n{points}\nalign = true\nmethods = [{}]\nk = \"2..24\"\nsolvers = [\"{}\"]\n\n{retarget}",
+        "# Exported from the kslab lab: reproduces the current settings. Run: kslab run {}\ntitle = \"{} {} k={} {}\"\ninput = \"{input}\"\n{points}\nalign = true\nmethods = [{}]\nk = \"2..24\"\nsolvers = [\"{}\"]\n\n{retarget}{smooth}",
         toml.display(),
         st.points,
         st.method,

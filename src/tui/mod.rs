@@ -52,6 +52,8 @@ pub fn command(c: char) -> Option<Action> {
         '-' | '_' => Action::K(-1),
         'g' => Action::Group,
         's' => Action::Solver,
+        'l' => Action::Smooth(true),
+        'L' => Action::Smooth(false),
         'v' => Action::Split,
         '?' | 'h' => Action::Help,
         'e' => Action::Export,

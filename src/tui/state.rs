@@ -18,6 +18,8 @@ pub struct Settings {
     pub k: usize,
     /// Solver driving the target.
     pub solver: Solver,
+    /// λ of the offline first-difference temporal prior (0 = off, the per-frame solve).
+    pub smooth: f64,
 }
 
 impl Default for Settings {
@@ -27,9 +29,13 @@ impl Default for Settings {
             method: Method::Spread,
             k: 12,
             solver: Solver::Nnls,
+            smooth: 0.0,
         }
     }
 }
+
+/// The λ steps of the `l` / `L` keys: off, then decades (px² per unit of weight change).
+pub const SMOOTH_STEPS: [f64; 8] = [0.0, 1.0, 10.0, 100.0, 1e3, 1e4, 1e5, 1e6];
 
 /// Point groups the `g` key cycles through.
 pub const GROUPS: [&str; 5] = ["lips", "all", "eyes", "brows", "eyes,brows"];
@@ -57,6 +63,8 @@ pub enum Action {
     Group,
     /// s: next solver.
     Solver,
+    /// l / L: stronger / weaker temporal prior (λ in decades, off at the bottom).
+    Smooth(bool),
     /// v: LS against NNLS side by side.
     Split,
     /// ?: help.
@@ -273,6 +281,27 @@ pub fn update(s: &mut State, action: Action) -> Vec<Effect> {
                 Solver::Ls => Solver::Bounded,
                 Solver::Bounded => Solver::Nnls,
             };
+            return s.recompute();
+        }
+        Action::Smooth(up) => {
+            let i = SMOOTH_STEPS
+                .iter()
+                .position(|l| *l >= s.settings.smooth)
+                .unwrap_or(0);
+            let j = if up {
+                (i + 1).min(SMOOTH_STEPS.len() - 1)
+            } else {
+                i.saturating_sub(1)
+            };
+            if SMOOTH_STEPS[j] == s.settings.smooth {
+                s.status = if up {
+                    format!("λ is at its largest step ({})", SMOOTH_STEPS[j])
+                } else {
+                    "the temporal prior is already off (l turns it on)".into()
+                };
+                return vec![];
+            }
+            s.settings.smooth = SMOOTH_STEPS[j];
             return s.recompute();
         }
         Action::Pick(m, k) => {

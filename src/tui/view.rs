@@ -93,25 +93,77 @@ fn header(f: &mut Frame, s: &State, area: Rect) {
         String::new()
     };
     let short = s.source.rsplit('/').next().unwrap_or(&s.source);
+    let keys = if s.target_keys {
+        "keys from --target".to_string()
+    } else {
+        format!("{} {k}", st.method)
+    };
+    let solver = if st.smooth > 0.0 {
+        format!("{} λ={}", st.solver, lambda_label(st.smooth))
+    } else {
+        st.solver.to_string()
+    };
+    // The whole sequence's target error and the jitter of the retargeted points.
+    let quality = s
+        .computed
+        .as_ref()
+        .and_then(|c| c.views.first())
+        .map(|v| format!("err {:.2} jit {:.2}", v.target_rms, v.target_jitter));
+    // Parts in display order with a priority: the lowest go first when 80 columns are not
+    // enough (never the frame, method, k, solver or error).
+    let mut parts: Vec<(String, u8)> = vec![
+        (
+            if short.chars().count() > 16 {
+                let tail: String = short.chars().rev().take(15).collect();
+                format!("…{}", tail.chars().rev().collect::<String>())
+            } else {
+                short.to_string()
+            },
+            2,
+        ),
+        (format!("{} frames", s.frames), 0),
+        (st.points.clone(), 3),
+        (keys, 9),
+        (solver, 9),
+        (format!("frame {frame_no} {play}"), 9),
+        (format!("{}×", s.speed), 1),
+    ];
+    if let Some(q) = quality {
+        parts.push((q, 9));
+    }
+    let room = (area.width as usize).saturating_sub(8 + busy.chars().count());
+    let width = |p: &[(String, u8)]| {
+        p.iter().map(|(t, _)| t.chars().count()).sum::<usize>() + 3 * p.len().saturating_sub(1)
+    };
+    while width(&parts) > room {
+        let Some((i, _)) = parts
+            .iter()
+            .enumerate()
+            .filter(|(_, (_, pr))| *pr < 9)
+            .min_by_key(|(_, (_, pr))| *pr)
+        else {
+            break;
+        };
+        parts.remove(i);
+    }
+    let body: Vec<&str> = parts.iter().map(|(t, _)| t.as_str()).collect();
     let line = Line::from(vec![
         Span::styled(
             " kslab ",
             Style::default().add_modifier(Modifier::BOLD | Modifier::REVERSED),
         ),
-        Span::raw(format!(
-            " {short} · {} frames · {} · {} · {} · frame {frame_no} {play} {}×{busy}",
-            s.frames,
-            st.points,
-            if s.target_keys {
-                "keys from --target".to_string()
-            } else {
-                format!("{} {k}", st.method)
-            },
-            st.solver,
-            s.speed
-        )),
+        Span::raw(format!(" {}{busy}", body.join(" · "))),
     ]);
     f.render_widget(Paragraph::new(line), area);
+}
+
+/// λ for the header: `100`, then powers of ten as `1e5`.
+pub fn lambda_label(l: f64) -> String {
+    if l >= 1000.0 {
+        format!("{l:e}")
+    } else {
+        format!("{l}")
+    }
 }
 
 fn bounds(ms: &[&DMatrix<f64>], dims: usize) -> ([f64; 2], [f64; 2]) {
@@ -457,7 +509,7 @@ fn weight_bars(f: &mut Frame, s: &State, c: &Computed, area: Rect) {
 
 fn footer(f: &mut Frame, s: &State, area: Rect) {
     let text = if s.status.is_empty() {
-        "space play ←→ step m method +- k g group s solver v split e export ?help q quit"
+        "space play ←→ step m method +- k g group s solver l λ v split e export ? q quit"
             .to_string()
     } else {
         format!(" {}", s.status)
@@ -471,7 +523,7 @@ fn footer(f: &mut Frame, s: &State, area: Rect) {
 }
 
 /// Every key, for the help overlay and the README.
-pub const KEYS: [(&str, &str); 19] = [
+pub const KEYS: [(&str, &str); 20] = [
     ("space", "play / pause"),
     ("← / →", "step one frame"),
     ("Home / End", "first / last frame"),
@@ -484,6 +536,10 @@ pub const KEYS: [(&str, &str); 19] = [
     ("+ / -", "more / fewer key shapes"),
     ("g", "next point group (lips, all, eyes, brows, eyes+brows)"),
     ("s", "next solver (nnls, ls, bounded)"),
+    (
+        "l / L",
+        "temporal prior λ up / down a decade (off, 1 … 1e6)",
+    ),
     ("v", "LS and NNLS side by side"),
     ("e", "export weights CSV, view PNG, experiment TOML"),
     ("o", "open another sequence"),

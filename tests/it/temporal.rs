@@ -96,7 +96,7 @@ proptest! {
         seed in prop::collection::vec(-1.0f64..1.0, 40),
         k in 2usize..6,
         t in 2usize..40,
-        lambda in prop::sample::select(vec![0.01, 0.3, 3.0, 100.0]),
+        lambda in prop::sample::select(vec![0.01, 0.3, 3.0, 100.0, 1e4, 1e6]),
         order in 1usize..3,
         solver in prop::sample::select(vec![Solver::Ls, Solver::Nnls, Solver::Bounded]),
         dup in any::<bool>(),
@@ -357,4 +357,50 @@ fn solve_smooth_on_the_command_line_respects_clips() {
     let read = |f: &str| std::fs::read(dir.path().join(f)).unwrap();
     assert_eq!(read("plain.csv"), read("zero.csv"));
     assert_ne!(read("plain.csv"), read("s.csv"));
+}
+
+/// The case the primal–dual active set cannot finish alone: the second-difference prior at
+/// large λ on a real lips track (it cycles; projected Newton takes over). Checked against
+/// the gradient written out above, at the library's own stopping tolerance scale.
+#[test]
+fn second_difference_prior_at_large_lambda_settles_on_a_real_track() {
+    let seq = keyshape_lab::io::read_sequence(
+        &crate::common::shared("mediapipe_face_tracks/liveportrait_d6.csv"),
+        &Default::default(),
+    )
+    .unwrap();
+    let prep = keyshape_lab::decompose::prepare(
+        &seq,
+        &keyshape_lab::decompose::PrepareOptions {
+            points: Some("lips".into()),
+            align: true,
+        },
+    )
+    .unwrap();
+    let q = &prep.seq.coords;
+    let t = q.ncols();
+    // The spread heuristic's 12 key frames on this track (`kslab keys --method spread --k 12`).
+    let keys = [58usize, 7, 777, 219, 450, 942, 769, 720, 889, 595, 993, 866];
+    let s = q.select_columns(&keys);
+    for (solver, lambda) in [
+        (Solver::Nnls, 1e5),
+        (Solver::Nnls, 1e6),
+        (Solver::Bounded, 1e7),
+    ] {
+        let r = solve_smooth(&s, q, solver, &sm(lambda, 2, SmoothMode::Offline), &[0..t]).unwrap();
+        assert_eq!(r.unconverged, 0, "{solver:?} λ {lambda}: KKT {:e}", r.kkt);
+        let g = gradient(&s, q, &r.weights, lambda, 2);
+        let scale = 2.0
+            * ((s.transpose() * q).amax()
+                + (s.transpose() * &s).amax().max(16.0 * lambda) * r.weights.amax());
+        let v = kkt(&g, &r.weights, solver, scale);
+        assert!(
+            v < 1e-9,
+            "{solver:?} λ {lambda}: KKT {v:e} (library {:e})",
+            r.kkt
+        );
+        // The per-frame start is far from it: smoothing did something.
+        let plain = solve_batch(&s, q, &SolveOptions::new(solver)).unwrap();
+        assert!((&plain.weights - &r.weights).amax() > 0.1);
+    }
 }

@@ -387,3 +387,126 @@ fn export_applies_head_motion_or_not_and_names_mean_keys() {
         "{toml}"
     );
 }
+
+/// `l` / `L`: λ in decades from off; each step recomputes, the weights are the library's
+/// smoothed solve of the same keys, jitter falls, the header shows λ and jitter at 80
+/// columns, and the export's `[smooth]` table reproduces the exported weights' errors.
+#[test]
+// One segment is written `&[0..t]`: a slice holding one range, as the API takes.
+#[allow(clippy::single_range_in_vec_init)]
+fn the_lambda_knob_smooths_the_weights_and_the_export_reproduces_them() {
+    use keyshape_lab::tui::state::SMOOTH_STEPS;
+    let mut s = state();
+    s.start();
+    assert!(
+        update(&mut s, Action::Smooth(false)).is_empty(),
+        "off is the bottom"
+    );
+    assert!(s.status.contains("already off"), "{}", s.status);
+    let fx = update(&mut s, Action::Smooth(true));
+    assert_eq!(
+        fx,
+        vec![Effect::Compute(
+            2,
+            Settings {
+                smooth: 1.0,
+                ..Settings::default()
+            }
+        )]
+    );
+    for _ in 0..20 {
+        update(&mut s, Action::Smooth(true));
+    }
+    assert_eq!(s.settings.smooth, *SMOOTH_STEPS.last().unwrap());
+    assert!(s.status.contains("largest"), "{}", s.status);
+    update(&mut s, Action::Smooth(false));
+    assert_eq!(s.settings.smooth, 1e5);
+
+    let mut engine = Engine::new(builtin_sequence().unwrap());
+    let plain = engine.compute(1, &Settings::default()).unwrap();
+    let set = Settings {
+        smooth: 1e4,
+        ..Settings::default()
+    };
+    let smooth = engine.compute(2, &set).unwrap();
+    let (p, q) = (&plain.views[0], &smooth.views[0]);
+    assert!(
+        q.target_jitter < 0.6 * p.target_jitter,
+        "{} {}",
+        q.target_jitter,
+        p.target_jitter
+    );
+    assert!(q.source_rms > p.source_rms);
+    // The same keys through the library's smoothed solve.
+    let prep = keyshape_lab::decompose::prepare(
+        &builtin_sequence().unwrap(),
+        &keyshape_lab::decompose::PrepareOptions {
+            points: Some("lips".into()),
+            align: true,
+        },
+    )
+    .unwrap();
+    let sk = prep.seq.coords.select_columns(&smooth.keys);
+    let r = keyshape_lab::solve::temporal::solve_smooth(
+        &sk,
+        &prep.seq.coords,
+        keyshape_lab::solve::Solver::Nnls,
+        &keyshape_lab::solve::temporal::Smoothing {
+            lambda: 1e4,
+            order: 1,
+            mode: keyshape_lab::solve::temporal::SmoothMode::Offline,
+        },
+        &[0..prep.seq.coords.ncols()],
+    )
+    .unwrap();
+    assert!((&r.weights - &q.weights).amax() < 1e-12);
+
+    let mut t = state();
+    t.settings = set.clone();
+    t.request = 2;
+    update(&mut t, Action::Computed(Box::new(smooth.clone())));
+    let head = screen(&t, 80, 24).lines().next().unwrap().to_string();
+    for part in [
+        "nnls λ=1e4",
+        "frame 0",
+        "spread k=12",
+        &format!("err {:.2} jit {:.2}", q.target_rms, q.target_jitter),
+    ] {
+        assert!(head.contains(part), "{part} not in {head:?}");
+    }
+    let dir = tempfile::tempdir().unwrap();
+    keyshape_lab::tui::export::export(&t, "builtin", dir.path()).unwrap();
+    let out = dir.path().join("run");
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_kslab"))
+        .args(["run", dir.path().join("experiment.toml").to_str().unwrap()])
+        .args(["--out", out.to_str().unwrap(), "-q"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let csv = std::fs::read_to_string(out.join("smoothing.csv")).unwrap();
+    let row: Vec<f64> = csv
+        .lines()
+        .find(|l| l.starts_with("prior offline order 1,λ 10000,"))
+        .unwrap()
+        .split(',')
+        .skip(2)
+        .take(4)
+        .map(|v| v.parse().unwrap())
+        .collect();
+    // source RMS, target RMS against G(q), …, target-point jitter.
+    assert!(
+        (row[0] - q.source_rms).abs() < 1e-9,
+        "{row:?} {}",
+        q.source_rms
+    );
+    assert!(
+        (row[1] - q.target_rms).abs() < 1e-9,
+        "{row:?} {}",
+        q.target_rms
+    );
+    assert!(
+        (row[3] - q.target_jitter).abs() < 1e-9,
+        "{row:?} {}",
+        q.target_jitter
+    );
+}
