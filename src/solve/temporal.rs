@@ -154,15 +154,37 @@ pub fn difference_bands(order: usize, t: usize) -> Vec<Vec<f64>> {
 }
 
 /// A symmetric positive definite block-banded matrix `H = I ⊗ G + λ·DᵀD ⊗ I (+ δI)` over
-/// one segment, with some variables fixed at given values (eliminated: their rows and
-/// columns replaced by the identity), factorised by block Cholesky in O(frames · order² ·
-/// k³).
+/// one segment, with some variables fixed (eliminated), factorised by block Cholesky over
+/// the free variables only. Frame `s`'s block has as many rows as it has free variables, so
+/// with NNLS's typical sparse weights the cost falls with the cube of the free count: about
+/// `frames · (order + 1) · n³` for `n` free weights per frame, linear in frames.
 pub struct BandedSystem {
-    k: usize,
     t: usize,
     p: usize,
-    /// Cholesky factor blocks: `l[((s * (p + 1)) + j) * k * k ..]` is `L_{s, s−j}` (row-major).
+    /// Free variable indices (within a frame) of every frame, concatenated.
+    free: Vec<usize>,
+    /// `free[fstart[s]..fstart[s + 1]]` are frame `s`'s.
+    fstart: Vec<usize>,
+    /// Start of block `L_{s, s−j}` (row-major, `n_s × n_{s−j}`) in `l`: `off[s * (p + 1) + j]`.
+    off: Vec<usize>,
     l: Vec<f64>,
+}
+
+/// `a · b` over the shorter length, in four independent sums so the compiler can vectorise
+/// it (a single running sum is a dependency chain it must keep in order).
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    let n = a.len().min(b.len());
+    let (a, b) = (&a[..n], &b[..n]);
+    let mut acc = [0.0f64; 4];
+    let (ca, cb) = (a.chunks_exact(4), b.chunks_exact(4));
+    let (ra, rb) = (ca.remainder(), cb.remainder());
+    for (x, y) in ca.zip(cb) {
+        for i in 0..4 {
+            acc[i] += x[i] * y[i];
+        }
+    }
+    let tail: f64 = ra.iter().zip(rb).map(|(x, y)| x * y).sum();
+    (acc[0] + acc[1]) + (acc[2] + acc[3]) + tail
 }
 
 impl BandedSystem {
@@ -178,149 +200,439 @@ impl BandedSystem {
         let k = g.nrows();
         let t = bands[0].len();
         let p = bands.len() - 1;
-        let kk = k * k;
-        let mut l = vec![0.0; t * (p + 1) * kk];
-        let idx = |s: usize, j: usize| (s * (p + 1) + j) * kk;
-        // Assemble A blocks into l.
+        let mut free = Vec::with_capacity(fixed.len());
+        let mut fstart = Vec::with_capacity(t + 1);
+        for s in 0..t {
+            fstart.push(free.len());
+            free.extend((0..k).filter(|&i| !fixed[s * k + i]));
+        }
+        fstart.push(free.len());
+        let n = |s: usize| fstart[s + 1] - fstart[s];
+        let mut off = vec![0usize; t * (p + 1)];
+        let mut total = 0;
         for s in 0..t {
             for j in 0..=p.min(s) {
-                let base = idx(s, j);
-                for r in 0..k {
-                    for c in 0..k {
-                        let mut v = if j == 0 { g[(r, c)] } else { 0.0 };
-                        if r == c {
-                            v += lambda * bands[j][s];
-                        }
-                        let (fr, fc) = (fixed[s * k + r], fixed[(s - j) * k + c]);
-                        if fr || fc {
-                            v = if j == 0 && r == c { 1.0 } else { 0.0 };
-                        } else if j == 0 && r == c {
-                            v += ridge;
-                        }
-                        l[base + r * k + c] = v;
-                    }
-                }
+                off[s * (p + 1) + j] = total;
+                total += n(s) * n(s - j);
             }
         }
-        // In-place block Cholesky.
-        let mut tmp = vec![0.0; kk];
+        let mut l = vec![0.0; total];
+        let mut tmp = vec![0.0; k * k];
         for s in 0..t {
+            let fs = &free[fstart[s]..fstart[s + 1]];
+            let ns = fs.len();
             for j in (1..=p.min(s)).rev() {
-                let c = s - j; // column block
-                               // M = A_{s,c} − Σ_{r = s−p}^{c−1} L_{s,r} L_{c,r}ᵀ
-                tmp.copy_from_slice(&l[idx(s, j)..idx(s, j) + kk]);
-                let lo = s.saturating_sub(p);
-                for r in lo..c {
-                    let (a, b) = (idx(s, s - r), idx(c, c - r));
-                    for x in 0..k {
-                        for y in 0..k {
-                            let mut acc = 0.0;
-                            for z in 0..k {
-                                acc += l[a + x * k + z] * l[b + y * k + z];
+                let c = s - j;
+                let fc = &free[fstart[c]..fstart[c + 1]];
+                let nc = fc.len();
+                let m = &mut tmp[..ns * nc];
+                // A_{s,c} = λ·band_j(s)·I restricted to the free rows of s and columns of c.
+                m.fill(0.0);
+                let v = lambda * bands[j][s];
+                if v != 0.0 {
+                    let (mut x, mut y) = (0, 0);
+                    while x < ns && y < nc {
+                        match fs[x].cmp(&fc[y]) {
+                            std::cmp::Ordering::Equal => {
+                                m[x * nc + y] = v;
+                                x += 1;
+                                y += 1;
                             }
-                            tmp[x * k + y] -= acc;
+                            std::cmp::Ordering::Less => x += 1,
+                            std::cmp::Ordering::Greater => y += 1,
                         }
                     }
                 }
-                // L_{s,c} = M L_{c,c}^{-T}: row x solves L_{c,c} yᵀ = M[x, :]ᵀ.
-                let d = idx(c, 0);
-                for x in 0..k {
-                    for y in 0..k {
-                        let mut v = tmp[x * k + y];
-                        for z in 0..y {
-                            v -= tmp[x * k + z] * l[d + y * k + z];
+                // − Σ_{r = s−p}^{c−1} L_{s,r} L_{c,r}ᵀ
+                for r in s.saturating_sub(p)..c {
+                    let nr = n(r);
+                    let ls = &l[off[s * (p + 1) + (s - r)]..][..ns * nr];
+                    let lc = &l[off[c * (p + 1) + (c - r)]..][..nc * nr];
+                    for x in 0..ns {
+                        let row = &ls[x * nr..(x + 1) * nr];
+                        for y in 0..nc {
+                            m[x * nc + y] -= dot(row, &lc[y * nr..(y + 1) * nr]);
                         }
-                        tmp[x * k + y] = v / l[d + y * k + y];
                     }
                 }
-                l[idx(s, j)..idx(s, j) + kk].copy_from_slice(&tmp);
+                // L_{s,c} = M L_{c,c}^{-T}: row x solves L_{c,c} zᵀ = M[x, :]ᵀ. A row's
+                // leading zeros stay zero (forward substitution), and for order 1 M is
+                // λ times a selection, so most of each row is skipped.
+                let d = &l[off[c * (p + 1)]..][..nc * nc];
+                for x in 0..ns {
+                    let row = &mut m[x * nc..(x + 1) * nc];
+                    let Some(y0) = row.iter().position(|v| *v != 0.0) else {
+                        continue;
+                    };
+                    for y in y0..nc {
+                        let v = row[y] - dot(&row[y0..y], &d[y * nc + y0..y * nc + y]);
+                        row[y] = v / d[y * nc + y];
+                    }
+                }
+                let o = off[s * (p + 1) + j];
+                l[o..o + ns * nc].copy_from_slice(m);
             }
-            // Diagonal: D = A_{s,s} − Σ_{r = s−p}^{s−1} L_{s,r} L_{s,r}ᵀ, then Cholesky.
-            let d = idx(s, 0);
-            tmp.copy_from_slice(&l[d..d + kk]);
-            for r in s.saturating_sub(p)..s {
-                let a = idx(s, s - r);
-                for x in 0..k {
-                    for y in 0..=x {
-                        let mut acc = 0.0;
-                        for z in 0..k {
-                            acc += l[a + x * k + z] * l[a + y * k + z];
-                        }
-                        tmp[x * k + y] -= acc;
-                    }
-                }
-            }
-            for x in 0..k {
+            // Diagonal: A_{s,s} − Σ_{r = s−p}^{s−1} L_{s,r} L_{s,r}ᵀ, then Cholesky.
+            let m = &mut tmp[..ns * ns];
+            let diag = lambda * bands[0][s] + ridge;
+            for x in 0..ns {
                 for y in 0..=x {
-                    let mut v = tmp[x * k + y];
-                    for z in 0..y {
-                        v -= tmp[x * k + z] * tmp[y * k + z];
+                    m[x * ns + y] = g[(fs[x], fs[y])] + if x == y { diag } else { 0.0 };
+                }
+            }
+            for r in s.saturating_sub(p)..s {
+                let nr = n(r);
+                let ls = &l[off[s * (p + 1) + (s - r)]..][..ns * nr];
+                // Leading zeros of each row (from the selection structure above).
+                let lead: Vec<usize> = (0..ns)
+                    .map(|x| {
+                        ls[x * nr..(x + 1) * nr]
+                            .iter()
+                            .position(|v| *v != 0.0)
+                            .unwrap_or(nr)
+                    })
+                    .collect();
+                for x in 0..ns {
+                    let rx = &ls[x * nr..(x + 1) * nr];
+                    for y in 0..=x {
+                        let z = lead[x].max(lead[y]);
+                        if z < nr {
+                            m[x * ns + y] -= dot(&rx[z..], &ls[y * nr + z..(y + 1) * nr]);
+                        }
                     }
+                }
+            }
+            for x in 0..ns {
+                for y in 0..=x {
+                    let v = m[x * ns + y] - dot(&m[x * ns..x * ns + y], &m[y * ns..y * ns + y]);
                     if x == y {
                         if !(v > 0.0 && v.is_finite()) {
                             return Err(Error::invalid(format!(
                                 "temporal prior: the banded system is not positive definite at frame {s} (pivot {v:e})"
                             )));
                         }
-                        tmp[x * k + x] = v.sqrt();
+                        m[x * ns + x] = v.sqrt();
                     } else {
-                        tmp[x * k + y] = v / tmp[y * k + y];
+                        m[x * ns + y] = v / m[y * ns + y];
                     }
                 }
-                for y in x + 1..k {
-                    tmp[x * k + y] = 0.0;
+                for y in x + 1..ns {
+                    m[x * ns + y] = 0.0;
                 }
             }
-            l[d..d + kk].copy_from_slice(&tmp);
+            let o = off[s * (p + 1)];
+            l[o..o + ns * ns].copy_from_slice(m);
         }
-        Ok(BandedSystem { k, t, p, l })
+        Ok(BandedSystem {
+            t,
+            p,
+            free,
+            fstart,
+            off,
+            l,
+        })
     }
 
-    /// Solves `H x = rhs` in place (`rhs` flat, frame after frame).
+    /// Solves `H x = rhs` in place (`rhs` flat, frame after frame); the entries of fixed
+    /// variables are left as they are (their rows are the identity).
     pub fn solve(&self, rhs: &mut [f64]) {
-        let (k, p, kk) = (self.k, self.p, self.k * self.k);
-        let idx = |s: usize, j: usize| (s * (p + 1) + j) * kk;
-        // L y = b
+        let k = rhs.len() / self.t.max(1);
+        let mut y = self.gather(rhs, k);
+        self.forward(&mut y, 0);
+        self.backward(&mut y);
+        self.scatter(&y, rhs, k);
+    }
+
+    /// The free entries of a flat vector (`k` values per frame), in compact order.
+    fn gather(&self, rhs: &[f64], k: usize) -> Vec<f64> {
+        let mut y = Vec::with_capacity(self.free.len());
         for s in 0..self.t {
-            for r in s.saturating_sub(p)..s {
-                let a = idx(s, s - r);
-                for x in 0..k {
-                    let mut acc = 0.0;
-                    for z in 0..k {
-                        acc += self.l[a + x * k + z] * rhs[r * k + z];
-                    }
-                    rhs[s * k + x] -= acc;
-                }
-            }
-            let d = idx(s, 0);
-            for x in 0..k {
-                let mut v = rhs[s * k + x];
-                for z in 0..x {
-                    v -= self.l[d + x * k + z] * rhs[s * k + z];
-                }
-                rhs[s * k + x] = v / self.l[d + x * k + x];
+            for &i in &self.free[self.fstart[s]..self.fstart[s + 1]] {
+                y.push(rhs[s * k + i]);
             }
         }
-        // Lᵀ x = y
-        for s in (0..self.t).rev() {
-            for m in s + 1..(s + p + 1).min(self.t) {
-                let a = idx(m, m - s);
-                for x in 0..k {
-                    let mut acc = 0.0;
-                    for z in 0..k {
-                        acc += self.l[a + z * k + x] * rhs[m * k + z];
+        y
+    }
+
+    /// Writes compact values back into the free entries of a flat vector.
+    fn scatter(&self, y: &[f64], rhs: &mut [f64], k: usize) {
+        for s in 0..self.t {
+            for (c, &i) in (self.fstart[s]..self.fstart[s + 1]).zip(&self.free[self.fstart[s]..]) {
+                rhs[s * k + i] = y[c];
+            }
+        }
+    }
+
+    /// `y ← L⁻¹ y` on compact vectors, from frame `s0` on: `y` holds frames `s0..` only
+    /// (compact index minus `fstart[s0]`) and is zero before them, as is the result.
+    fn forward(&self, y: &mut [f64], s0: usize) {
+        let (t, p, fs) = (self.t, self.p, &self.fstart);
+        let base = fs[s0];
+        let n = |s: usize| fs[s + 1] - fs[s];
+        for s in s0..t {
+            let ns = n(s);
+            for r in s.saturating_sub(p).max(s0)..s {
+                let nr = n(r);
+                let a = &self.l[self.off[s * (p + 1) + (s - r)]..][..ns * nr];
+                let (head, tail) = y.split_at_mut(fs[s] - base);
+                let yr = &head[fs[r] - base..fs[r] - base + nr];
+                for x in 0..ns {
+                    tail[x] -= dot(&a[x * nr..(x + 1) * nr], yr);
+                }
+            }
+            let d = &self.l[self.off[s * (p + 1)]..][..ns * ns];
+            let ys = &mut y[fs[s] - base..fs[s] - base + ns];
+            for x in 0..ns {
+                let v = ys[x] - dot(&d[x * ns..x * ns + x], &ys[..x]);
+                ys[x] = v / d[x * ns + x];
+            }
+        }
+    }
+
+    /// `y ← L⁻ᵀ y` on compact vectors (all frames).
+    fn backward(&self, y: &mut [f64]) {
+        let (t, p, fs) = (self.t, self.p, &self.fstart);
+        let n = |s: usize| fs[s + 1] - fs[s];
+        for s in (0..t).rev() {
+            let ns = n(s);
+            for m in s + 1..(s + p + 1).min(t) {
+                let nm = n(m);
+                let a = &self.l[self.off[m * (p + 1) + (m - s)]..][..nm * ns];
+                let (head, tail) = y.split_at_mut(fs[m]);
+                let ym = &tail[..nm];
+                let ys = &mut head[fs[s]..fs[s] + ns];
+                for z in 0..nm {
+                    let c = ym[z];
+                    if c != 0.0 {
+                        for (v, lv) in ys.iter_mut().zip(&a[z * ns..(z + 1) * ns]) {
+                            *v -= lv * c;
+                        }
                     }
-                    rhs[s * k + x] -= acc;
                 }
             }
-            let d = idx(s, 0);
-            for x in (0..k).rev() {
-                let mut v = rhs[s * k + x];
-                for z in x + 1..k {
-                    v -= self.l[d + z * k + x] * rhs[s * k + z];
+            let d = &self.l[self.off[s * (p + 1)]..][..ns * ns];
+            let ys = &mut y[fs[s]..fs[s] + ns];
+            for x in (0..ns).rev() {
+                let mut v = ys[x];
+                for z in x + 1..ns {
+                    v -= d[z * ns + x] * ys[z];
                 }
-                rhs[s * k + x] = v / self.l[d + x * k + x];
+                ys[x] = v / d[x * ns + x];
             }
+        }
+    }
+}
+
+/// Segments at least this long are factorised from both ends at once (see
+/// [`SegmentSystem`]); shorter ones in one sweep. Fixed, so results do not depend on the
+/// thread count.
+pub const SPLIT_FRAMES: usize = 4096;
+
+/// One segment's `H` factorised for repeated solves: in one forward sweep, or — for long
+/// segments — from both ends at once, the two halves in parallel, meeting at a separator of
+/// `order` frames whose Schur complement is factorised densely ("burn at both ends").
+/// Exact either way: the two differ only by rounding.
+pub enum SegmentSystem {
+    /// One forward sweep.
+    One(BandedSystem),
+    /// Two halves and a separator.
+    Split(Box<Split>),
+}
+
+/// The two-ended factorisation: frames `0..m` forward (`a`), frames `m + p..t` backward
+/// (`b`, built on the time-reversed frames), separator frames `m..m + p`.
+pub struct Split {
+    k: usize,
+    t: usize,
+    p: usize,
+    m: usize,
+    a: BandedSystem,
+    b: BandedSystem,
+    /// Flat indices (`s * k + i`) of the separator's free variables.
+    sep: Vec<usize>,
+    /// `L_a⁻¹ H_{a,sep}` on `a`'s last `p` frames (compact rows × separator columns).
+    xa: DMatrix<f64>,
+    /// The same for `b`'s last (the original's first after the separator) `p` frames.
+    xb: DMatrix<f64>,
+    /// Cholesky factor of the separator's Schur complement.
+    c: Option<nalgebra::Cholesky<f64, nalgebra::Dyn>>,
+}
+
+impl SegmentSystem {
+    /// Factorises as [`BandedSystem::factor`], from both ends when `split` and the segment
+    /// is long enough to hold two halves and a separator.
+    pub fn factor(
+        g: &DMatrix<f64>,
+        lambda: f64,
+        bands: &[Vec<f64>],
+        fixed: &[bool],
+        ridge: f64,
+        split: bool,
+    ) -> Result<SegmentSystem> {
+        let k = g.nrows();
+        let t = bands[0].len();
+        let p = bands.len() - 1;
+        if !split || t < 4 * p + 4 || p == 0 {
+            return Ok(SegmentSystem::One(BandedSystem::factor(
+                g, lambda, bands, fixed, ridge,
+            )?));
+        }
+        let m = (t - p) / 2;
+        let nb = t - m - p;
+        // The halves' bands: a is the leading block as it stands; b is the trailing block
+        // with time reversed (DᵀD is symmetric, so entry (i, i − j) of the reversed block is
+        // the original's entry (t − 1 − i + j, t − 1 − i)).
+        let bands_a: Vec<Vec<f64>> = bands.iter().map(|b| b[..m].to_vec()).collect();
+        let bands_b: Vec<Vec<f64>> = (0..=p)
+            .map(|j| {
+                (0..nb)
+                    .map(|i| if i >= j { bands[j][t - 1 - i + j] } else { 0.0 })
+                    .collect()
+            })
+            .collect();
+        let fixed_a = &fixed[..m * k];
+        let fixed_b: Vec<bool> = (0..nb)
+            .flat_map(|i| fixed[(t - 1 - i) * k..(t - i) * k].iter().copied())
+            .collect();
+        let (ra, rb) = rayon::join(
+            || BandedSystem::factor(g, lambda, &bands_a, fixed_a, ridge),
+            || BandedSystem::factor(g, lambda, &bands_b, &fixed_b, ridge),
+        );
+        let (a, b) = (ra?, rb?);
+        let sep: Vec<usize> = (m * k..(m + p) * k).filter(|&v| !fixed[v]).collect();
+        let ns = sep.len();
+        // H's entry between frames r < c (c − r ≤ p) on one variable: λ·band[c − r][c].
+        let coupling = |r: usize, c: usize| lambda * bands[c - r][c];
+        // X_a = L_a⁻¹ H_{a,sep}: columns live on a's last p frames.
+        let a0 = m - p;
+        let a_len = a.fstart[m] - a.fstart[a0];
+        let mut xa = DMatrix::zeros(a_len, ns);
+        let b0 = nb - p;
+        let b_len = b.fstart[nb] - b.fstart[b0];
+        let mut xb = DMatrix::zeros(b_len, ns);
+        for (j, &v) in sep.iter().enumerate() {
+            let (s, i) = (v / k, v % k);
+            let mut col = vec![0.0; a_len];
+            for r in a0..m {
+                if s - r <= p {
+                    if let Some(x) = a.free[a.fstart[r]..a.fstart[r + 1]]
+                        .iter()
+                        .position(|&f| f == i)
+                    {
+                        col[a.fstart[r] - a.fstart[a0] + x] = coupling(r, s);
+                    }
+                }
+            }
+            a.forward(&mut col, a0);
+            xa.column_mut(j).copy_from_slice(&col);
+            let mut col = vec![0.0; b_len];
+            for ib in b0..nb {
+                let orig = t - 1 - ib;
+                if orig - s <= p {
+                    if let Some(x) = b.free[b.fstart[ib]..b.fstart[ib + 1]]
+                        .iter()
+                        .position(|&f| f == i)
+                    {
+                        col[b.fstart[ib] - b.fstart[b0] + x] = coupling(s, orig);
+                    }
+                }
+            }
+            b.forward(&mut col, b0);
+            xb.column_mut(j).copy_from_slice(&col);
+        }
+        let c = if ns == 0 {
+            None
+        } else {
+            let mut h = DMatrix::zeros(ns, ns);
+            for (x, &u) in sep.iter().enumerate() {
+                for (y, &v) in sep.iter().enumerate() {
+                    let (su, iu, sv, iv) = (u / k, u % k, v / k, v % k);
+                    let mut e = if su == sv { g[(iu, iv)] } else { 0.0 };
+                    if iu == iv && su.abs_diff(sv) <= p {
+                        let (lo, hi) = (su.min(sv), su.max(sv));
+                        e += lambda * bands[hi - lo][hi];
+                        if lo == hi {
+                            e += ridge;
+                        }
+                    }
+                    h[(x, y)] = e;
+                }
+            }
+            h -= xa.tr_mul(&xa) + xb.tr_mul(&xb);
+            Some(h.cholesky().ok_or_else(|| {
+                Error::invalid(
+                    "temporal prior: the separator's Schur complement is not positive definite",
+                )
+            })?)
+        };
+        Ok(SegmentSystem::Split(Box::new(Split {
+            k,
+            t,
+            p,
+            m,
+            a,
+            b,
+            sep,
+            xa,
+            xb,
+            c,
+        })))
+    }
+
+    /// Solves `H x = rhs` in place, as [`BandedSystem::solve`].
+    pub fn solve(&self, rhs: &mut [f64]) {
+        match self {
+            SegmentSystem::One(b) => b.solve(rhs),
+            SegmentSystem::Split(sp) => sp.solve(rhs),
+        }
+    }
+}
+
+impl Split {
+    fn solve(&self, rhs: &mut [f64]) {
+        let (k, t, p, m) = (self.k, self.t, self.p, self.m);
+        let nb = t - m - p;
+        let rhs_b: Vec<f64> = (0..nb)
+            .flat_map(|i| rhs[(t - 1 - i) * k..(t - i) * k].iter().copied())
+            .collect();
+        let mut ya = self.a.gather(&rhs[..m * k], k);
+        let mut yb = self.b.gather(&rhs_b, k);
+        rayon::join(|| self.a.forward(&mut ya, 0), || self.b.forward(&mut yb, 0));
+        let (a0, b0) = (self.a.fstart[m - p], self.b.fstart[nb - p]);
+        let xs = match &self.c {
+            None => nalgebra::DVector::zeros(0),
+            Some(c) => {
+                let r = nalgebra::DVector::from_iterator(
+                    self.sep.len(),
+                    self.sep.iter().map(|&v| rhs[v]),
+                ) - self
+                    .xa
+                    .tr_mul(&nalgebra::DVector::from_column_slice(&ya[a0..]))
+                    - self
+                        .xb
+                        .tr_mul(&nalgebra::DVector::from_column_slice(&yb[b0..]));
+                c.solve(&r)
+            }
+        };
+        if !xs.is_empty() {
+            let da = &self.xa * &xs;
+            let db = &self.xb * &xs;
+            for (v, d) in ya[a0..].iter_mut().zip(da.iter()) {
+                *v -= d;
+            }
+            for (v, d) in yb[b0..].iter_mut().zip(db.iter()) {
+                *v -= d;
+            }
+        }
+        rayon::join(|| self.a.backward(&mut ya), || self.b.backward(&mut yb));
+        self.a.scatter(&ya, &mut rhs[..m * k], k);
+        let mut back_b = rhs_b;
+        self.b.scatter(&yb, &mut back_b, k);
+        for i in 0..nb {
+            rhs[(t - 1 - i) * k..(t - i) * k].copy_from_slice(&back_b[i * k..(i + 1) * k]);
+        }
+        for (&v, x) in self.sep.iter().zip(xs.iter()) {
+            rhs[v] = *x;
         }
     }
 }
@@ -521,10 +833,15 @@ fn segment(
         f64::INFINITY
     };
     let solve_with = |fixed: &[bool], values: &[f64]| -> Result<Vec<f64>> {
-        let sys = BandedSystem::factor(g, sm.lambda, &bands, fixed, ridge)?;
+        let sys = SegmentSystem::factor(g, sm.lambda, &bands, fixed, ridge, t >= SPLIT_FRAMES)?;
         // rhs = b − H·v (v: fixed values, 0 elsewhere); fixed rows take their values.
-        let hv = hessian_times(g, sm.lambda, &bands, values);
-        let mut rhs: Vec<f64> = b.iter().zip(&hv).map(|(x, y)| x - y).collect();
+        // (NNLS fixes at 0 only: then H·v = 0 and the product is skipped.)
+        let mut rhs: Vec<f64> = if values.iter().all(|v| *v == 0.0) {
+            b.to_vec()
+        } else {
+            let hv = hessian_times(g, sm.lambda, &bands, values);
+            b.iter().zip(&hv).map(|(x, y)| x - y).collect()
+        };
         for i in 0..rhs.len() {
             if fixed[i] {
                 rhs[i] = 0.0;
@@ -660,7 +977,14 @@ fn projected_newton(
         let binding: Vec<bool> = (0..n)
             .map(|i| (w[i] <= eps && grad[i] > 0.0) || (w[i] >= upper - eps && grad[i] < 0.0))
             .collect();
-        let sys = BandedSystem::factor(g, sm.lambda, bands, &binding, ridge)?;
+        let sys = SegmentSystem::factor(
+            g,
+            sm.lambda,
+            bands,
+            &binding,
+            ridge,
+            n / k.max(1) >= SPLIT_FRAMES,
+        )?;
         let mut d: Vec<f64> = (0..n)
             .map(|i| if binding[i] { 0.0 } else { -grad[i] })
             .collect();

@@ -404,3 +404,38 @@ fn second_difference_prior_at_large_lambda_settles_on_a_real_track() {
         assert!((&plain.weights - &r.weights).amax() > 0.1);
     }
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+    /// The two-ended factorisation (long segments) solves the same system as the one-sweep
+    /// one, with any variables fixed, for both orders and separators anywhere.
+    #[test]
+    fn two_ended_factorisation_matches_the_one_sweep_solve(
+        seed in prop::collection::vec(-1.0f64..1.0, 40),
+        k in 1usize..5,
+        t in 8usize..40,
+        lambda in prop::sample::select(vec![0.05, 2.0, 300.0]),
+        order in 1usize..3,
+        fixed_bits in prop::collection::vec(any::<bool>(), 160),
+    ) {
+        use keyshape_lab::solve::temporal::{difference_bands, SegmentSystem};
+        let (s, _) = problem(8, k, 2, &seed, false);
+        let g = s.transpose() * &s;
+        let bands = difference_bands(order, t);
+        let fixed: Vec<bool> = (0..t * k).map(|i| fixed_bits[i % fixed_bits.len()] && i % 3 == 0).collect();
+        let rhs: Vec<f64> = (0..t * k).map(|i| seed[(i * 7) % seed.len()] * 3.0).collect();
+        let one = SegmentSystem::factor(&g, lambda, &bands, &fixed, 1e-12, false).unwrap();
+        let two = SegmentSystem::factor(&g, lambda, &bands, &fixed, 1e-12, true).unwrap();
+        prop_assert!(matches!(two, SegmentSystem::Split(_)) || t < 4 * order + 4);
+        let (mut x1, mut x2) = (rhs.clone(), rhs.clone());
+        one.solve(&mut x1);
+        two.solve(&mut x2);
+        let scale = x1.iter().fold(1.0f64, |m, v| m.max(v.abs()));
+        for i in 0..x1.len() {
+            prop_assert!((x1[i] - x2[i]).abs() <= 1e-9 * scale, "at {}: {} vs {}", i, x1[i], x2[i]);
+            if fixed[i] {
+                prop_assert_eq!(x2[i], rhs[i]);
+            }
+        }
+    }
+}

@@ -3,6 +3,7 @@
 
 mod curves;
 mod nnls;
+mod smooth;
 mod transfer;
 mod tui;
 
@@ -24,6 +25,8 @@ enum What {
     Curves(curves::CurvesBenchArgs),
     /// Paper 004 mesh deformation throughput on the ICT face.
     Transfer(transfer::TransferBenchArgs),
+    /// The offline temporal prior against the unsmoothed batch NNLS, and its memory.
+    Smooth(smooth::SmoothBenchArgs),
     /// Input-to-redraw latency of the lab when k or the method changes.
     Tui(tui::TuiBenchArgs),
 }
@@ -34,5 +37,6 @@ pub fn run(a: &BenchArgs) -> Result<()> {
         What::Curves(c) => curves::run(c),
         What::Tui(t) => tui::run(t),
         What::Transfer(t) => transfer::run(t),
+        What::Smooth(s) => smooth::run(s),
     }
 }
