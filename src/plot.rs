@@ -154,8 +154,13 @@ pub fn approach_style(approach: &str) -> ([u8; 3], Style) {
 }
 
 /// The jitter-against-error trade-off of the smoothing study: one series per approach,
-/// x the target jitter, y the target error against the clean reference.
-pub fn smoothing_plot(rows: &[crate::experiment::smoothing::SmoothRow], title: &str) -> PlotSpec {
+/// x the target jitter, y the target error against the clean reference (`clean`) or
+/// against the warp of the tracked points.
+pub fn smoothing_plot(
+    rows: &[crate::experiment::smoothing::SmoothRow],
+    title: &str,
+    clean: bool,
+) -> PlotSpec {
     let mut names: Vec<&str> = Vec::new();
     for r in rows {
         if !names.contains(&r.approach.as_str()) {
@@ -176,7 +181,14 @@ pub fn smoothing_plot(rows: &[crate::experiment::smoothing::SmoothRow], title: &
             let points: Vec<(f64, f64)> = start
                 .into_iter()
                 .chain(rows.iter().filter(|r| r.approach == *n))
-                .map(|r| (r.jitter_target, r.target_rms_clean))
+                .map(|r| {
+                    let y = if clean {
+                        r.target_rms_clean
+                    } else {
+                        r.target_rms_tracked
+                    };
+                    (r.jitter_target, y)
+                })
                 .collect();
             Series {
                 name: n.to_string(),
@@ -189,7 +201,11 @@ pub fn smoothing_plot(rows: &[crate::experiment::smoothing::SmoothRow], title: &
     PlotSpec {
         title: title.to_string(),
         x_label: "jitter of the retargeted points: RMS second difference (px/frame²)".into(),
-        y_label: "target RMS error vs the clean reference (px)".into(),
+        y_label: if clean {
+            "target RMS error vs the clean reference G(low-passed q) (px)".into()
+        } else {
+            "target RMS error vs the tracked reference G(q) (px)".into()
+        },
         series,
         y_from_zero: true,
         y_at_least: None,

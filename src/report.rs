@@ -129,8 +129,29 @@ pub fn write_smoothing(
     })?;
     files.push(eq);
     if png {
-        let spec = crate::plot::smoothing_plot(rows, title);
-        save_png(&render_plot(&spec, 1000, 650)?, &dir.join("smoothing.png"))?;
+        // Both scorings side by side on one y scale: against G(q), which carries the
+        // tracker's jitter, and against the clean reference.
+        let mut a = crate::plot::smoothing_plot(rows, &format!("{title}: vs tracked"), false);
+        let mut c = crate::plot::smoothing_plot(rows, &format!("{title}: vs clean"), true);
+        let top = |p: &crate::plot::PlotSpec| p.bounds().map_or(0.0, |b| b.1 .1);
+        let y = top(&a).max(top(&c));
+        a.y_at_least = Some(y);
+        c.y_at_least = Some(y);
+        let (pa, pc) = (render_plot(&a, 900, 620)?, render_plot(&c, 900, 620)?);
+        let mut out = tiny_skia::Pixmap::new(1800, 620)
+            .ok_or_else(|| Error::invalid("cannot allocate the smoothing picture"))?;
+        let paint = tiny_skia::PixmapPaint::default();
+        for (x, p) in [(0, &pa), (900, &pc)] {
+            out.draw_pixmap(
+                x,
+                0,
+                p.as_ref(),
+                &paint,
+                tiny_skia::Transform::identity(),
+                None,
+            );
+        }
+        save_png(&out, &dir.join("smoothing.png"))?;
         figures.push("smoothing.png".to_string());
     }
     Ok((files, figures))

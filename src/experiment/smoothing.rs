@@ -160,7 +160,7 @@ impl SmoothStudySettings {
 #[derive(Debug, Clone, Serialize)]
 pub struct SmoothRow {
     /// `none`, `prior offline order 1`, `prior offline order 2`, `prior causal order 1`,
-    /// `moving-average`, `ema`, `one-euro β B`.
+    /// `moving-average`, `ema`, `one-euro beta B`.
     pub approach: String,
     /// The setting in words (`λ 100`, `window 5` …).
     pub setting: String,

@@ -47,10 +47,10 @@ impl PostFilter {
     }
 
     /// The curve a setting belongs to in a study: the family, and for One Euro its beta
-    /// (`one-euro β 0.5`), since beta changes the filter's character, not its strength.
+    /// (`one-euro beta 0.5`), since beta changes the filter's character, not its strength.
     pub fn series(&self) -> String {
         match self {
-            PostFilter::OneEuro { beta, .. } => format!("one-euro β {beta}"),
+            PostFilter::OneEuro { beta, .. } => format!("one-euro beta {beta}"),
             _ => self.family().to_string(),
         }
     }

@@ -49,6 +49,27 @@ fn invalid_specs_name_the_key_and_line() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("title"), "{e}");
+    // The [smooth] study: its settings are checked when the spec is read, with the line.
+    let smooth = "title = \"t\"\ninput = \"builtin\"\n[smooth]\nmethod = \"spread\"\nk = 6\n";
+    assert!(Spec::from_str(p, smooth).is_ok());
+    for (extra, says) in [
+        (
+            "lambdas = [-1.0]\n",
+            "λ must be a finite number ≥ 0, got -1",
+        ),
+        ("windows = [4]\n", "window 4"),
+        ("alphas = [0.0]\n", "alpha 0"),
+        ("clean_sigma = 0.0\n", "clean_sigma must be > 0"),
+        ("lambda = [1.0]\n", "lambda"),
+    ] {
+        let e = Spec::from_str(p, &format!("{smooth}{extra}"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("bad.toml:") && e.contains(says),
+            "{extra}: {e}"
+        );
+    }
 }
 
 #[test]

@@ -264,8 +264,8 @@ fn smooth_command_end_to_end_and_refusals() {
         "prior causal order 1,λ 1000,",
         "moving-average,window 9,",
         "ema,alpha 0.5,",
-        "one-euro β 0,min_cutoff 4 Hz beta 0,",
-        "one-euro β 0.5,min_cutoff 1 Hz beta 0.5,",
+        "one-euro beta 0,min_cutoff 4 Hz beta 0,",
+        "one-euro beta 0.5,min_cutoff 1 Hz beta 0.5,",
     ] {
         assert!(
             lines.iter().any(|l| l.starts_with(name)),
