@@ -16,32 +16,40 @@ pub struct SmoothArgs {
     /// Heuristic choosing the key frames (a kmeansN-mean's cluster means work too).
     #[arg(long, default_value = "spread", value_parser = super::keys::parse_method)]
     method: Method,
-    /// Number of key shapes.
-    #[arg(long, default_value_t = 12)]
-    k: usize,
+    /// Number of key shapes [default: 12; not with --method hull, which gives its own].
+    #[arg(long)]
+    k: Option<usize>,
     /// ls, nnls or bounded.
     #[arg(long, default_value = "nnls", value_parser = super::solve::parse_solver)]
     solver: Solver,
-    /// λ values of the temporal prior (offline order 1 and 2, causal order 1), px².
+    /// λ values of the temporal prior (offline order 1 and 2, causal order 1), in squared
+    /// coordinate units (px²) per unit of weight change.
     #[arg(
         long,
         value_delimiter = ',',
         default_value = "10,100,1000,10000,100000"
     )]
     lambdas: Vec<f64>,
-    /// Centred moving-average windows (odd, frames).
-    #[arg(long, value_delimiter = ',', default_value = "3,5,9,15,25")]
-    windows: Vec<usize>,
-    /// Exponential moving-average factors α in (0, 1].
-    #[arg(long, value_delimiter = ',', default_value = "0.7,0.5,0.3,0.15,0.08")]
-    alphas: Vec<f64>,
-    /// One Euro filter minimum cutoffs (Hz).
-    #[arg(long, value_delimiter = ',', default_value = "8,4,2,1,0.5")]
-    one_euro_cutoffs: Vec<f64>,
+    /// Post-filter families compared with the prior: moving-average, ema, one-euro.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "moving-average,ema,one-euro"
+    )]
+    filters: Vec<String>,
+    /// Centred moving-average windows, frames (odd) [default: 3,5,9,15,25].
+    #[arg(long, value_delimiter = ',')]
+    windows: Option<Vec<usize>>,
+    /// Exponential moving-average factors α in (0, 1] [default: 0.7,0.5,0.3,0.15,0.08].
+    #[arg(long, value_delimiter = ',')]
+    alphas: Option<Vec<f64>>,
+    /// One Euro filter minimum cutoffs, Hz [default: 8,4,2,1,0.5].
+    #[arg(long, value_delimiter = ',')]
+    one_euro_cutoffs: Option<Vec<f64>>,
     /// One Euro filter betas, one curve each (cutoff increase in Hz per unit of weight
-    /// speed per second; 0 makes it an exponential moving average).
-    #[arg(long, value_delimiter = ',', default_value = "0.05,0.5")]
-    one_euro_betas: Vec<f64>,
+    /// speed per second; 0 makes it an exponential moving average) [default: 0.05,0.5].
+    #[arg(long, value_delimiter = ',')]
+    one_euro_betas: Option<Vec<f64>>,
     /// σ (frames) of the zero-phase Gaussian low-pass that makes the clean reference.
     #[arg(long, default_value_t = 2.0)]
     clean_sigma: f64,
@@ -57,6 +65,7 @@ pub fn run(a: &SmoothArgs) -> Result<()> {
         k: a.k,
         solver: a.solver,
         lambdas: a.lambdas.clone(),
+        filters: a.filters.clone(),
         windows: a.windows.clone(),
         alphas: a.alphas.clone(),
         one_euro_cutoffs: a.one_euro_cutoffs.clone(),
@@ -68,7 +77,13 @@ pub fn run(a: &SmoothArgs) -> Result<()> {
     let (seq, prep) = a.input.prepare()?;
     let rows = smoothing_study(&seq, &prep, &st, &Default::default())?;
     std::fs::create_dir_all(&a.out)?;
-    let title = format!("{} {} k={} {}", seq.source, a.method, a.k, a.solver);
+    let title = format!(
+        "{} {} k={} {}",
+        seq.source,
+        a.method,
+        st.key_count(),
+        a.solver
+    );
     let (files, figures) = keyshape_lab::report::write_smoothing(&rows, &title, &a.out, true)?;
     progress.finish();
     let none = rows.iter().find(|r| r.approach == "none");

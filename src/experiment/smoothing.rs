@@ -28,7 +28,9 @@ use nalgebra::DMatrix;
 use serde::{Deserialize, Serialize};
 use std::ops::Range;
 
-/// Settings of the study.
+/// Settings of the study. A filter family's setting list left out (`None`) takes its
+/// defaults; a family left out of `filters` is not run, and naming its settings then is an
+/// error (an option that cannot take effect).
 #[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SmoothStudySettings {
@@ -38,75 +40,88 @@ pub struct SmoothStudySettings {
         serialize_with = "super::spec::method_name"
     )]
     pub method: Method,
-    /// Key shapes.
-    pub k: usize,
+    /// Key shapes (default 12; refused with `hull`, which gives its own k).
+    #[serde(default)]
+    pub k: Option<usize>,
     /// Solver.
     #[serde(default = "nnls")]
     pub solver: Solver,
     /// λ values of the prior.
     #[serde(default = "default_lambdas")]
     pub lambdas: Vec<f64>,
-    /// Moving-average windows (odd).
-    #[serde(default = "default_windows")]
-    pub windows: Vec<usize>,
-    /// Exponential moving-average factors.
-    #[serde(default = "default_alphas")]
-    pub alphas: Vec<f64>,
+    /// Post-filter families to compare: `moving-average`, `ema`, `one-euro` (default all).
+    #[serde(default = "all_families")]
+    pub filters: Vec<String>,
+    /// Moving-average windows (odd; default 3, 5, 9, 15, 25).
+    #[serde(default)]
+    pub windows: Option<Vec<usize>>,
+    /// Exponential moving-average factors (default 0.7, 0.5, 0.3, 0.15, 0.08).
+    #[serde(default)]
+    pub alphas: Option<Vec<f64>>,
     /// One Euro minimum cutoffs, Hz (each with every beta of `one_euro_betas`, speed
-    /// cutoff 1 Hz).
-    #[serde(default = "default_cutoffs")]
-    pub one_euro_cutoffs: Vec<f64>,
+    /// cutoff 1 Hz; default 8, 4, 2, 1, 0.5).
+    #[serde(default)]
+    pub one_euro_cutoffs: Option<Vec<f64>>,
     /// One Euro betas (cutoff increase per unit of weight speed, Hz per 1/s): one curve
-    /// each.
-    #[serde(default = "default_betas")]
-    pub one_euro_betas: Vec<f64>,
+    /// each (default 0.05, 0.5).
+    #[serde(default)]
+    pub one_euro_betas: Option<Vec<f64>>,
     /// Standard deviation (frames) of the zero-phase Gaussian low-pass that makes the clean
     /// reference.
     #[serde(default = "default_sigma")]
     pub clean_sigma: f64,
 }
 
+/// The post-filter families, in the order the study runs them.
+pub const FAMILIES: [&str; 3] = ["moving-average", "ema", "one-euro"];
+
+fn all_families() -> Vec<String> {
+    FAMILIES.iter().map(|f| f.to_string()).collect()
+}
 fn nnls() -> Solver {
     Solver::Nnls
 }
 fn default_lambdas() -> Vec<f64> {
     vec![1.0, 10.0, 100.0, 1000.0, 10000.0]
 }
-fn default_windows() -> Vec<usize> {
-    vec![3, 5, 9, 15, 25]
-}
-fn default_alphas() -> Vec<f64> {
-    vec![0.7, 0.5, 0.3, 0.15, 0.08]
-}
-fn default_cutoffs() -> Vec<f64> {
-    vec![8.0, 4.0, 2.0, 1.0, 0.5]
-}
-fn default_betas() -> Vec<f64> {
-    vec![0.05, 0.5]
-}
 fn default_sigma() -> f64 {
     2.0
 }
 
 impl SmoothStudySettings {
-    /// Defaults for a method, k and solver.
-    pub fn new(method: Method, k: usize, solver: Solver) -> Self {
+    /// Defaults for a method, k (None: 12, or the hull's own) and solver.
+    pub fn new(method: Method, k: Option<usize>, solver: Solver) -> Self {
         SmoothStudySettings {
             method,
             k,
             solver,
             lambdas: default_lambdas(),
-            windows: default_windows(),
-            alphas: default_alphas(),
-            one_euro_cutoffs: default_cutoffs(),
-            one_euro_betas: default_betas(),
+            filters: all_families(),
+            windows: None,
+            alphas: None,
+            one_euro_cutoffs: None,
+            one_euro_betas: None,
             clean_sigma: default_sigma(),
         }
     }
 
+    /// The k the key-shape method is asked for (the hull ignores it).
+    pub fn key_count(&self) -> usize {
+        self.k.unwrap_or(12)
+    }
+
+    fn runs(&self, family: &str) -> bool {
+        self.filters.iter().any(|f| f == family)
+    }
+
     /// Checks every setting.
     pub fn check(&self, fps: f64) -> Result<()> {
-        if self.k == 0 {
+        if self.method == Method::Hull && self.k.is_some() {
+            return Err(Error::invalid(
+                "k does not apply to the hull method: the hull gives its own number of key shapes",
+            ));
+        }
+        if self.k == Some(0) {
             return Err(Error::invalid("the smoothing study needs k ≥ 1"));
         }
         for &l in &self.lambdas {
@@ -116,6 +131,31 @@ impl SmoothStudySettings {
                 mode: SmoothMode::Offline,
             }
             .check()?;
+        }
+        for f in &self.filters {
+            if !FAMILIES.contains(&f.as_str()) {
+                return Err(Error::invalid(format!(
+                    "unknown filter '{f}' (filters: {})",
+                    FAMILIES.join(", ")
+                )));
+            }
+        }
+        for (family, given, name) in [
+            ("moving-average", self.windows.is_some(), "windows"),
+            ("ema", self.alphas.is_some(), "alphas"),
+            (
+                "one-euro",
+                self.one_euro_cutoffs.is_some(),
+                "one-euro cutoffs",
+            ),
+            ("one-euro", self.one_euro_betas.is_some(), "one-euro betas"),
+        ] {
+            if given && !self.runs(family) {
+                return Err(Error::invalid(format!(
+                    "{name} set, but the {family} filter is not among the filters compared ({})",
+                    self.filters.join(", ")
+                )));
+            }
         }
         for f in self.filters(fps) {
             f.check()?;
@@ -130,27 +170,41 @@ impl SmoothStudySettings {
     }
 
     fn filters(&self, fps: f64) -> Vec<PostFilter> {
-        let mut f: Vec<PostFilter> = self
-            .windows
-            .iter()
-            .map(|&window| PostFilter::MovingAverage { window })
-            .collect();
-        f.extend(
-            self.alphas
-                .iter()
-                .map(|&alpha| PostFilter::Exponential { alpha }),
-        );
-        for &beta in &self.one_euro_betas {
+        let mut f: Vec<PostFilter> = Vec::new();
+        if self.runs("moving-average") {
+            let w = self
+                .windows
+                .clone()
+                .unwrap_or_else(|| vec![3, 5, 9, 15, 25]);
             f.extend(
-                self.one_euro_cutoffs
-                    .iter()
-                    .map(|&min_cutoff| PostFilter::OneEuro {
-                        min_cutoff,
-                        beta,
-                        d_cutoff: 1.0,
-                        rate: fps,
-                    }),
+                w.into_iter()
+                    .map(|window| PostFilter::MovingAverage { window }),
             );
+        }
+        if self.runs("ema") {
+            let a = self
+                .alphas
+                .clone()
+                .unwrap_or_else(|| vec![0.7, 0.5, 0.3, 0.15, 0.08]);
+            f.extend(a.into_iter().map(|alpha| PostFilter::Exponential { alpha }));
+        }
+        if self.runs("one-euro") {
+            let cutoffs = self
+                .one_euro_cutoffs
+                .clone()
+                .unwrap_or_else(|| vec![8.0, 4.0, 2.0, 1.0, 0.5]);
+            for beta in self
+                .one_euro_betas
+                .clone()
+                .unwrap_or_else(|| vec![0.05, 0.5])
+            {
+                f.extend(cutoffs.iter().map(|&min_cutoff| PostFilter::OneEuro {
+                    min_cutoff,
+                    beta,
+                    d_cutoff: 1.0,
+                    rate: fps,
+                }));
+            }
         }
         f
     }
@@ -280,9 +334,9 @@ pub fn smoothing_study(
     let an = Analysis::with_axes(
         q.clone(),
         points,
-        crate::keyshapes::axes_needed(&[st.method], st.k),
+        crate::keyshapes::axes_needed(&[st.method], st.key_count()),
     )?;
-    let sel = st.method.heuristic(opts).select(&an, st.k)?;
+    let sel = st.method.heuristic(opts).select(&an, st.key_count())?;
     let s = sel.key_shapes(&an);
     let (g, _) = crate::retarget::setup::builtin_target(seq, prep)?;
     let b = g.apply_all(&s);

@@ -135,7 +135,12 @@ pub fn export(s: &State, seq_path: &str, dir: &Path) -> Result<Vec<String>> {
     };
     // The temporal prior: the smoothing study at this λ has the exported weights' row.
     let smooth = if st.smooth > 0.0 {
-        format!("\n# The weights were solved with the offline first-difference temporal prior at λ = {l}:\n# the [smooth] study's `prior offline order 1, λ {l}` row is that solve.\n[smooth]\nmethod = \"{}\"\nk = {k}\nsolver = \"{}\"\nlambdas = [{l:?}]\n", st.method, st.solver, l = st.smooth)
+        let k_line = if st.method == Method::Hull {
+            String::new()
+        } else {
+            format!("k = {k}\n")
+        };
+        format!("\n# The weights were solved with the offline first-difference temporal prior at λ = {l}:\n# the [smooth] study's `prior offline order 1, λ {l}` row is that solve.\n[smooth]\nmethod = \"{}\"\n{k_line}solver = \"{}\"\nlambdas = [{l:?}]\n", st.method, st.solver, l = st.smooth)
     } else {
         String::new()
     };

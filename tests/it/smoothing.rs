@@ -297,6 +297,19 @@ fn smooth_command_end_to_end_and_refusals() {
         (vec!["--one-euro-betas=-0.5"], "beta -0.5"),
         (vec!["--clean-sigma", "0"], "clean_sigma must be > 0"),
         (vec!["--k", "0"], "k ≥ 1"),
+        (
+            vec!["--method", "hull", "--k", "5"],
+            "k does not apply to the hull",
+        ),
+        (vec!["--filters", "kalman"], "unknown filter 'kalman'"),
+        (
+            vec!["--filters", "ema", "--windows", "3"],
+            "windows set, but the moving-average filter is not among the filters compared (ema)",
+        ),
+        (
+            vec!["--filters", "moving-average", "--one-euro-betas", "0"],
+            "one-euro betas set, but the one-euro filter",
+        ),
     ] {
         let bad = dir.path().join("bad");
         let mut a = vec!["smooth", "--points", "lips", "--out", bad.to_str().unwrap()];
@@ -309,4 +322,51 @@ fn smooth_command_end_to_end_and_refusals() {
     }
     let after: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
     assert_eq!(before.len(), after.len());
+}
+
+/// `--filters` picks the families compared: the others' rows are not there; `--method hull`
+/// runs with its own k.
+#[test]
+fn smooth_filters_choose_the_families_and_hull_takes_its_own_k() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("s");
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_kslab"))
+        .args([
+            "smooth",
+            "--points",
+            "lips",
+            "--method",
+            "hull",
+            "--lambdas",
+            "100",
+        ])
+        .args([
+            "--filters",
+            "ema",
+            "--alphas",
+            "0.5,0.2",
+            "--out",
+            out.to_str().unwrap(),
+            "-q",
+        ])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let csv = std::fs::read_to_string(out.join("smoothing.csv")).unwrap();
+    let approaches: Vec<&str> = csv
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').next().unwrap())
+        .collect();
+    assert_eq!(
+        approaches,
+        [
+            "none",
+            "prior offline order 1",
+            "prior offline order 2",
+            "prior causal order 1",
+            "ema",
+            "ema"
+        ]
+    );
 }
