@@ -453,58 +453,151 @@ fn weight_bars(f: &mut Frame, s: &State, c: &Computed, area: Rect) {
     let Some(v) = c.views.first() else { return };
     let t = s.frame.min(v.weights.ncols().saturating_sub(1));
     let inner_w = area.width.saturating_sub(2) as usize;
-    let rows = area.height.saturating_sub(2) as usize;
+    let rows = (area.height.saturating_sub(2) as usize).max(1);
     let wmax = v.weights.iter().fold(1e-9f64, |m, x| m.max(x.abs()));
-    let shades = [' ', '░', '▒', '▓', '█'];
     let mean_keys = matches!(c.settings.method, Method::KMeans { mean: true, .. });
-    let mut lines = Vec::new();
-    for (i, &k) in c.keys.iter().enumerate().take(rows) {
-        let w = v.weights[(i, t)];
-        let bar_w = 10usize;
-        let filled = ((w.abs() / wmax) * bar_w as f64).round() as usize;
-        let bar: String = std::iter::repeat_n('█', filled.min(bar_w))
-            .chain(std::iter::repeat_n(' ', bar_w - filled.min(bar_w)))
-            .collect();
-        let strip_w = inner_w.saturating_sub(6 + bar_w + 8);
-        let n = v.weights.ncols().max(1);
-        let strip: String = (0..strip_w)
-            .map(|x| {
-                let tt = x * n / strip_w.max(1);
-                let a = (v.weights[(i, tt.min(n - 1))].abs() / wmax * 4.0).round() as usize;
-                shades[a.min(4)]
-            })
-            .collect();
-        let style = if w < 0.0 {
-            Style::default().fg(Color::Red)
-        } else {
-            Style::default().fg(Color::Green)
-        };
-        // kmeansN-mean keys are cluster means: labelled m0, m1, … (not frames).
-        let label = if mean_keys {
-            format!("m{i}")
-        } else {
-            c.frames[k].to_string()
-        };
-        lines.push(Line::from(vec![
-            Span::raw(format!("{label:>5} ")),
-            Span::styled(bar, style),
-            Span::raw(format!("{w:>7.3} ")),
-            Span::styled(strip, Style::default().fg(Color::Blue)),
-        ]));
-    }
-    let title = format!(
-        "{}: weight now | over time · jitter {:.1e}",
+    // kmeansN-mean keys are cluster means: labelled m0, m1, … (not frames).
+    let labels: Vec<String> = c
+        .keys
+        .iter()
+        .enumerate()
+        .map(|(i, &k)| {
+            if mean_keys {
+                format!("m{i}")
+            } else {
+                c.frames[k].to_string()
+            }
+        })
+        .collect();
+    let lines = weight_lines(&v.weights, t, wmax, &labels, rows, inner_w);
+    let layout = if labels.len() > rows {
+        "weight now"
+    } else {
+        "weight now | over time"
+    };
+    let mut title = format!(
+        "{}: {layout}",
         if mean_keys {
             "cluster means"
         } else {
             "key frames"
-        },
-        v.jitter
+        }
     );
+    // The weights' jitter when the title has room (the header shows the target's).
+    let jitter = format!(" · jitter {:.1e}", v.jitter);
+    if title.chars().count() + jitter.chars().count() <= inner_w {
+        title.push_str(&jitter);
+    }
     f.render_widget(
         Paragraph::new(lines).block(Block::bordered().title(title)),
         area,
     );
+}
+
+/// The weights panel's lines. Every key is shown: one per row with its bar, value and a
+/// heat strip over time when they fit; otherwise in columns (label, a shorter bar and the
+/// value), as many as the keys need.
+pub fn weight_lines(
+    w: &DMatrix<f64>,
+    t: usize,
+    wmax: f64,
+    labels: &[String],
+    rows: usize,
+    width: usize,
+) -> Vec<Line<'static>> {
+    let shades = [' ', '░', '▒', '▓', '█'];
+    let colour = |x: f64| {
+        if x < 0.0 {
+            Style::default().fg(Color::Red)
+        } else {
+            Style::default().fg(Color::Green)
+        }
+    };
+    let bar = |x: f64, width: usize| -> String {
+        let filled = ((x.abs() / wmax) * width as f64).round() as usize;
+        std::iter::repeat_n('█', filled.min(width))
+            .chain(std::iter::repeat_n(' ', width - filled.min(width)))
+            .collect()
+    };
+    let n = labels.len();
+    if n <= rows {
+        let bar_w = 10usize;
+        let strip_w = width.saturating_sub(6 + bar_w + 8);
+        let frames = w.ncols().max(1);
+        return (0..n)
+            .map(|i| {
+                let x = w[(i, t)];
+                let strip: String = (0..strip_w)
+                    .map(|c| {
+                        let tt = c * frames / strip_w.max(1);
+                        let a = (w[(i, tt.min(frames - 1))].abs() / wmax * 4.0).round() as usize;
+                        shades[a.min(4)]
+                    })
+                    .collect();
+                Line::from(vec![
+                    Span::raw(format!("{:>5} ", labels[i])),
+                    Span::styled(bar(x, bar_w), colour(x)),
+                    Span::raw(format!("{x:>7.3} ")),
+                    Span::styled(strip, Style::default().fg(Color::Blue)),
+                ])
+            })
+            .collect();
+    }
+    // Columns: as few as hold every key. Each cell is `label bar value` when the column is
+    // wide enough, `label value` when narrower, and at the least `label shade`.
+    let cols = n.div_ceil(rows);
+    let per_col = n.div_ceil(cols);
+    let col_w = width / cols;
+    let label_w = labels.iter().map(|l| l.chars().count()).max().unwrap_or(1);
+    let bar_w = col_w.saturating_sub(label_w + 1 + 1 + 4 + 1).min(10);
+    // label, a space, the 4-character value and at least one space after it.
+    let with_value = col_w > label_w + 1 + 4;
+    (0..per_col)
+        .map(|r| {
+            let mut spans = Vec::new();
+            for c in 0..cols {
+                let i = c * per_col + r;
+                if i >= n {
+                    break;
+                }
+                let x = w[(i, t)];
+                spans.push(Span::raw(format!("{:>label_w$} ", labels[i])));
+                let mut used = label_w + 1;
+                if bar_w >= 3 {
+                    spans.push(Span::styled(format!("{} ", bar(x, bar_w)), colour(x)));
+                    used += bar_w + 1;
+                }
+                if with_value {
+                    spans.push(Span::styled(format!("{:>4}", short_value(x)), colour(x)));
+                    used += 4;
+                } else {
+                    let a = (x.abs() / wmax * 4.0).round() as usize;
+                    spans.push(Span::styled(shades[a.min(4)].to_string(), colour(x)));
+                    used += 1;
+                }
+                spans.push(Span::raw(" ".repeat(col_w.saturating_sub(used).max(1))));
+            }
+            Line::from(spans)
+        })
+        .collect()
+}
+
+/// A weight in at most four characters: `.93`, `-.12`, `1.0`, `-2.3`, `12`, `>999`.
+pub fn short_value(x: f64) -> String {
+    let a = x.abs();
+    let s = if a < 0.995 {
+        let t = format!("{x:.2}");
+        t.replacen("0.", ".", 1)
+    } else if a < 9.95 {
+        format!("{x:.1}")
+    } else if a < 999.5 {
+        format!("{x:.0}")
+    } else if x > 0.0 {
+        ">999".into()
+    } else {
+        "<-99".into()
+    };
+    s
 }
 
 fn footer(f: &mut Frame, s: &State, area: Rect) {

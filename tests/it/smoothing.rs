@@ -116,7 +116,16 @@ fn filters_clamp_to_the_solver_and_keep_segments_apart() {
         },
     ] {
         let e = bad.apply(&w, &segs, Solver::Nnls).unwrap_err().to_string();
-        assert!(e.contains(bad.family()), "{e}");
+        let family = match bad {
+            PostFilter::MovingAverage { .. } => "moving-average",
+            PostFilter::Exponential { .. } => "ema",
+            PostFilter::OneEuro { .. } => "one-euro",
+        };
+        assert_eq!(bad.family(), family);
+        assert!(
+            e.starts_with(&format!("bad {family} filter setting: ")),
+            "{e}"
+        );
     }
 }
 
@@ -187,7 +196,8 @@ fn row(approach: &str, jitter: f64, err: f64) -> SmoothRow {
         target_rms_clean: err + 1.0,
         jitter_target: jitter,
         jitter_weights: 0.0,
-        lag_frames: 0,
+        // A lag that names the row, to see which setting the table took it from.
+        lag_frames: (jitter * 10.0) as i64,
         kkt: None,
     }
 }
@@ -218,6 +228,18 @@ fn equal_jitter_interpolates_along_each_curve() {
     assert!((get("b", 5.0).target_rms_tracked.unwrap() - 13.4).abs() < 1e-12);
     // b at 3: same stretch, 9 + (4/5)·11.
     assert!((get("b", 3.0).target_rms_tracked.unwrap() - 17.8).abs() < 1e-12);
+    // The lag is the nearer setting's: a at 5 is 3/4 of the way to (4, 4); b at 5 is 2/5
+    // of the way from (7, 9), b at 3 is 4/5 of the way.
+    assert_eq!(get("a", 5.0).lag_frames, Some(40));
+    assert_eq!(get("b", 5.0).lag_frames, Some(70));
+    assert_eq!(get("b", 3.0).lag_frames, Some(20));
+    // Exactly half way goes to the stronger setting.
+    let half = at_equal_jitter(&[row("none", 10.0, 1.0), row("c", 6.0, 3.0)], &[0.8]);
+    assert_eq!(half[0].lag_frames, Some(60));
+    assert!((half[0].target_rms_tracked.unwrap() - 2.0).abs() < 1e-12);
+    assert!((half[0].jitter_target - 8.0).abs() < 1e-12);
+    // Without a `none` row there is nothing to scale by.
+    assert!(at_equal_jitter(&[row("c", 6.0, 3.0)], &[0.5]).is_empty());
 }
 
 /// `kslab smooth` on the built-in sequence: every approach and setting in the CSV, the

@@ -248,6 +248,48 @@ fn the_binary_runs_in_tmux() {
     wait_for("frame 3 ");
     tmux(&["send-keys", "-t", &name, "+"]);
     wait_for("k=13");
+    // k = 24: every key's frame number is in the weights panel (columns when the rows run
+    // out), each once. The keys are the engine's for the same settings.
+    for _ in 0..11 {
+        tmux(&["send-keys", "-t", &name, "+"]);
+    }
+    wait_for("k=24");
+    let want: std::collections::BTreeSet<String> = {
+        let settings = Settings {
+            k: 24,
+            ..Settings::default()
+        };
+        let c = Engine::new(builtin_sequence().unwrap())
+            .compute(1, &settings)
+            .unwrap();
+        c.keys.iter().map(|&k| c.frames[k].to_string()).collect()
+    };
+    let mut got = std::collections::BTreeSet::new();
+    for _ in 0..100 {
+        let screen = capture();
+        let panel: Vec<String> = screen
+            .lines()
+            .skip_while(|l| !l.contains("key frames:"))
+            .skip(1)
+            .take_while(|l| !l.contains('└'))
+            .filter_map(|l| {
+                l.rsplit_once("││")
+                    .map(|(_, r)| r.trim_end_matches('│').to_string())
+            })
+            .collect();
+        // Frame numbers are the integer tokens; weights are printed with a point.
+        got = panel
+            .iter()
+            .flat_map(|l| l.split(|c: char| !(c.is_ascii_digit() || c == '.' || c == '-')))
+            .filter(|t| !t.is_empty() && t.chars().all(|c| c.is_ascii_digit()))
+            .map(str::to_string)
+            .collect();
+        if got == want {
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    assert_eq!(got, want, "the weights panel at k = 24:\n{}", capture());
     tmux(&["send-keys", "-t", &name, "s"]);
     let screen = wait_for("· ls ·");
     assert!(screen.contains("E(k) ls:"));
