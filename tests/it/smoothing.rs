@@ -114,6 +114,25 @@ fn filters_clamp_to_the_solver_and_keep_segments_apart() {
             d_cutoff: 1.0,
             rate: 30.0,
         },
+        // The bounds themselves: a zero cutoff or rate freezes the filter.
+        PostFilter::OneEuro {
+            min_cutoff: 0.0,
+            beta: 0.0,
+            d_cutoff: 1.0,
+            rate: 30.0,
+        },
+        PostFilter::OneEuro {
+            min_cutoff: 1.0,
+            beta: 0.0,
+            d_cutoff: 0.0,
+            rate: 30.0,
+        },
+        PostFilter::OneEuro {
+            min_cutoff: 1.0,
+            beta: 0.0,
+            d_cutoff: 1.0,
+            rate: 0.0,
+        },
     ] {
         let e = bad.apply(&w, &segs, Solver::Nnls).unwrap_err().to_string();
         let family = match bad {
@@ -127,6 +146,22 @@ fn filters_clamp_to_the_solver_and_keep_segments_apart() {
             "{e}"
         );
     }
+    // The bounds that are allowed: window 1 and alpha 1 leave the weights as they are.
+    for ok in [
+        PostFilter::MovingAverage { window: 1 },
+        PostFilter::Exponential { alpha: 1.0 },
+    ] {
+        assert_eq!(ok.apply(&w, &segs, Solver::Ls).unwrap(), w, "{ok:?}");
+    }
+    // beta 0 is allowed (One Euro is then an EMA).
+    assert!(PostFilter::OneEuro {
+        min_cutoff: 1.0,
+        beta: 0.0,
+        d_cutoff: 1.0,
+        rate: 30.0,
+    }
+    .check()
+    .is_ok());
 }
 
 #[test]
