@@ -250,6 +250,12 @@ pub fn update(s: &mut State, action: Action) -> Vec<Effect> {
             s.frame = (s.frame + steps as usize) % s.frames;
         }
         Action::Tick(_) => {}
+        Action::Method(_) | Action::K(_) | Action::Pick(..) if s.target_keys => {
+            s.status = "the key frames come from --target: method and k do not apply".into();
+        }
+        Action::K(_) if s.settings.method == Method::Hull => {
+            s.status = "the hull picks its own number of key shapes: + and - do not apply (m changes the method)".into();
+        }
         Action::Method(fwd) => {
             let i = METHODS
                 .iter()

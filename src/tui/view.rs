@@ -75,8 +75,14 @@ const SPINNER: [&str; 4] = ["⠋", "⠙", "⠹", "⠸"];
 
 fn header(f: &mut Frame, s: &State, area: Rect) {
     let st = &s.settings;
+    // The hull picks its own k: show how many it picked.
     let k = if st.method == Method::Hull {
-        "k=hull".to_string()
+        match s.computed.as_ref() {
+            Some(c) if c.settings.method == Method::Hull => {
+                format!("k={} (hull's own)", c.keys.len())
+            }
+            _ => "k=hull's own".to_string(),
+        }
     } else {
         format!("k={}", st.k)
     };
@@ -684,9 +690,22 @@ fn prompt(f: &mut Frame, p: &Prompt, area: Rect) {
     let r = centred(area, 60, 3);
     f.render_widget(Clear, r);
     f.render_widget(
-        Paragraph::new(format!("{text}▏")).block(Block::bordered().title(title)),
+        Paragraph::new(prompt_line(text, r.width.saturating_sub(2) as usize))
+            .block(Block::bordered().title(title)),
         r,
     );
+}
+
+/// The prompt's text with the cursor, scrolled so the end (where typing happens) is in
+/// view: a path longer than the box shows `…` and its last characters.
+pub fn prompt_line(text: &str, width: usize) -> String {
+    let n = text.chars().count();
+    if n < width {
+        return format!("{text}▏");
+    }
+    let keep = width.saturating_sub(2);
+    let tail: String = text.chars().skip(n - keep).collect();
+    format!("…{tail}▏")
 }
 
 /// The error chart's region of the screen (inside its border) for a terminal `area`.

@@ -552,3 +552,39 @@ fn the_lambda_knob_smooths_the_weights_and_the_export_reproduces_them() {
         q.target_jitter
     );
 }
+
+/// Keys that cannot apply say why instead of recomputing; the hull's k is the one it
+/// picked; a long path in the prompt shows its end.
+#[test]
+fn keys_that_do_not_apply_say_why_and_the_hull_shows_its_k() {
+    let mut s = state();
+    s.start();
+    s.target_keys = true;
+    for a in [
+        Action::Method(true),
+        Action::K(1),
+        Action::Pick(keyshape_lab::keyshapes::Method::Random, 5),
+    ] {
+        s.status.clear();
+        assert!(update(&mut s, a).is_empty());
+        assert!(s.status.contains("come from --target"), "{}", s.status);
+    }
+    assert_eq!(s.settings, Settings::default());
+    let hull = Settings {
+        method: keyshape_lab::keyshapes::Method::Hull,
+        ..Settings::default()
+    };
+    let mut h = computed_state(hull.clone());
+    assert!(update(&mut h, Action::K(1)).is_empty());
+    assert!(h.status.contains("hull picks its own"), "{}", h.status);
+    let n = h.computed.as_ref().unwrap().keys.len();
+    let head = screen(&h, 80, 24).lines().next().unwrap().to_string();
+    assert!(head.contains(&format!("hull k={n} (hull's own)")), "{head}");
+    assert_ne!(n, 12, "the hull's k is its own, not the setting's");
+    // The prompt.
+    assert_eq!(view::prompt_line("ab", 10), "ab▏");
+    let long = "/a/very/long/path/to/some/track.csv";
+    let line = view::prompt_line(long, 12);
+    assert_eq!(line, "…/track.csv▏");
+    assert_eq!(line.chars().count(), 12);
+}
