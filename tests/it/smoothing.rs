@@ -58,6 +58,23 @@ fn one_euro_is_an_ema_at_beta_zero_and_opens_up_with_speed() {
         &PostFilter::Exponential { alpha }.apply_signal(&x),
         1e-14,
     );
+    // By hand, with rate 2π so that α(f_c) = f_c / (f_c + 1): d_cutoff 1 gives α_d = 1/2;
+    // min_cutoff 1, beta 1, x = [0, 1, 3].
+    let pi = std::f64::consts::PI;
+    let y = PostFilter::OneEuro {
+        min_cutoff: 1.0,
+        beta: 1.0,
+        d_cutoff: 1.0,
+        rate: 2.0 * pi,
+    }
+    .apply_signal(&[0.0, 1.0, 3.0]);
+    // t = 1: speed 2π, smoothed ½·2π = π, cutoff 1 + π.
+    let a1 = (1.0 + pi) / (2.0 + pi);
+    let y1 = a1;
+    // t = 2: speed (3 − 1)·2π = 4π, smoothed ½·4π + ½·π = 2.5π, cutoff 1 + 2.5π.
+    let a2 = (1.0 + 2.5 * pi) / (2.0 + 2.5 * pi);
+    let y2 = a2 * 3.0 + (1.0 - a2) * y1;
+    close(&y, &[0.0, y1, y2], 1e-14);
     // With beta > 0 a fast ramp is followed more closely than with beta 0.
     let ramp: Vec<f64> = (0..40).map(|t| t as f64 * 0.5).collect();
     let lagged = |beta: f64| {
