@@ -457,3 +457,13 @@ fn the_objective_is_named_for_each_mode_and_order() {
     assert_eq!(SmoothMode::Offline.name(), "offline");
     assert_eq!(SmoothMode::Causal.name(), "causal");
 }
+
+/// The usual step is the smallest positive difference between frame numbers, wherever they
+/// start: every 2nd frame from 10, with a gap after 14.
+#[test]
+fn segments_find_the_step_of_a_track_that_does_not_start_at_zero() {
+    assert_eq!(segments(&[10, 12, 14, 20, 22], None), vec![0..3, 3..5]);
+    assert_eq!(segments(&[5, 6, 7], None), vec![0..3]);
+    assert_eq!(segments(&[7], None), vec![0..1]);
+    assert!(segments(&[], None).is_empty());
+}
