@@ -2,7 +2,8 @@
 //! an older one (queued requests are skipped, and the error curves of a superseded request
 //! are abandoned between methods).
 
-use super::state::{Action, Settings};
+pub use super::request::{Computed, Settings, SolverView};
+use super::state::Action;
 use crate::decompose::{prepare, PrepareOptions, Prepared};
 use crate::error::{Error, Result};
 use crate::io::{builtin_sequence, read_sequence, ReadOptions};
@@ -20,66 +21,6 @@ use std::collections::HashMap;
 use std::path::PathBuf;
 use std::sync::mpsc::{channel, Receiver, Sender, TryRecvError};
 use std::time::Instant;
-
-/// One solver's view of the sequence.
-#[derive(Debug, Clone)]
-pub struct SolverView {
-    /// The solver.
-    pub solver: Solver,
-    /// k × frames.
-    pub weights: DMatrix<f64>,
-    /// Source reconstruction (aligned).
-    pub recon: DMatrix<f64>,
-    /// Retargeted target (aligned).
-    pub target: DMatrix<f64>,
-    /// Per-frame source RMS.
-    pub frame_rms: Vec<f64>,
-    /// Per-frame target-domain RMS.
-    pub frame_target_rms: Vec<f64>,
-    /// Whole-sequence source RMS.
-    pub source_rms: f64,
-    /// Whole-sequence target RMS.
-    pub target_rms: f64,
-    /// Weight jitter.
-    pub jitter: f64,
-    /// Jitter of the retargeted target points: RMS second difference per point
-    /// (units/frame²), within segments.
-    pub target_jitter: f64,
-}
-
-/// A finished request.
-#[derive(Debug, Clone)]
-pub struct Computed {
-    /// Request id.
-    pub id: u64,
-    /// The settings it answers.
-    pub settings: Settings,
-    /// Frame numbers.
-    pub frames: Vec<i64>,
-    /// Key columns.
-    pub keys: Vec<usize>,
-    /// Values per point.
-    pub dims: usize,
-    /// Drawing contours.
-    pub polylines: Vec<Vec<usize>>,
-    /// Tracked shapes (aligned).
-    pub tracked: DMatrix<f64>,
-    /// Ground truth G(q).
-    pub truth: DMatrix<f64>,
-    /// The chosen solver first, then LS and NNLS (for the split view) when different.
-    pub views: Vec<SolverView>,
-    /// Seconds the request took.
-    pub seconds: f64,
-    /// The head motion alignment removed, per frame (None when nothing was removed).
-    pub head: Option<Vec<crate::align::Similarity>>,
-}
-
-impl Computed {
-    /// The view of a solver, if computed.
-    pub fn view(&self, s: Solver) -> Option<&SolverView> {
-        self.views.iter().find(|v| v.solver == s)
-    }
-}
 
 struct Cached {
     prep: Prepared,

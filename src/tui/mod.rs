@@ -6,6 +6,7 @@
 pub mod compute;
 pub mod export;
 pub mod mesh;
+pub mod request;
 pub mod state;
 pub mod view;
 

@@ -1,41 +1,11 @@
 //! The lab's state and its pure update function: actions in, state changes and effects
 //! out. Nothing here draws or computes; tests drive it without a terminal.
 
-use super::compute::Computed;
+pub use super::request::{Computed, Settings, SolverView, SMOOTH_STEPS};
 use crate::keyshapes::curves::CurveRow;
 use crate::keyshapes::Method;
 use crate::solve::Solver;
 use std::time::Duration;
-
-/// What the user chose.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Settings {
-    /// Point groups (`all`, `lips`, …).
-    pub points: String,
-    /// Key-shape heuristic.
-    pub method: Method,
-    /// Number of key shapes (ignored by hull).
-    pub k: usize,
-    /// Solver driving the target.
-    pub solver: Solver,
-    /// λ of the offline first-difference temporal prior (0 = off, the per-frame solve).
-    pub smooth: f64,
-}
-
-impl Default for Settings {
-    fn default() -> Self {
-        Settings {
-            points: "lips".into(),
-            method: Method::Spread,
-            k: 12,
-            solver: Solver::Nnls,
-            smooth: 0.0,
-        }
-    }
-}
-
-/// The λ steps of the `l` / `L` keys: off, then decades (px² per unit of weight change).
-pub const SMOOTH_STEPS: [f64; 8] = [0.0, 1.0, 10.0, 100.0, 1e3, 1e4, 1e5, 1e6];
 
 /// Point groups the `g` key cycles through.
 pub const GROUPS: [&str; 5] = ["lips", "all", "eyes", "brows", "eyes,brows"];

@@ -1,6 +1,6 @@
 //! Drawing the state. Views take `&State` and never change it.
 
-use super::compute::Computed;
+use super::request::Computed;
 use super::state::{Prompt, State};
 use crate::keyshapes::Method;
 use crate::plot::method_style;
