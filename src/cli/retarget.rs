@@ -51,6 +51,10 @@ pub struct RetargetArgs {
     /// Write one PNG per frame here.
     #[arg(long)]
     png_dir: Option<PathBuf>,
+    /// Draw the weights over time as a PNG here: a row per key shape (per region with
+    /// --regions), a column per frame, negative weights red and positive blue.
+    #[arg(long, value_name = "FILE")]
+    png: Option<PathBuf>,
     /// Write an animated PNG at the sequence's frame rate.
     #[arg(long)]
     apng: Option<PathBuf>,
@@ -118,7 +122,7 @@ fn target_for(
 
 pub fn run(a: &RetargetArgs) -> Result<()> {
     super::check_outputs(
-        &[a.out.as_ref(), a.apng.as_ref()],
+        &[a.out.as_ref(), a.apng.as_ref(), a.png.as_ref()],
         &[a.png_dir.as_ref()],
         &[a.input.file.as_deref(), a.target.as_deref()],
     )?;
@@ -319,6 +323,25 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
             "head motion: {}",
             summary["head_motion"].as_str().unwrap_or("")
         );
+    }
+    if let Some(png) = &a.png {
+        // Every region's weights, one under the other, named as the CSV names them.
+        let frames = r.weights.first().map_or(0, |w| w.ncols());
+        let rows: usize = r.weights.iter().map(|w| w.nrows()).sum();
+        let mut all = nalgebra::DMatrix::zeros(rows, frames);
+        let mut at = 0;
+        for w in &r.weights {
+            all.rows_mut(at, w.nrows()).copy_from(w);
+            at += w.nrows();
+        }
+        let title = format!(
+            "{}: weights over time, {} keys, {}",
+            seq.source.rsplit('/').next().unwrap_or(&seq.source),
+            rows,
+            a.solver
+        );
+        let pm = keyshape_lab::render::weights::weights_picture(&all, &columns, &s.frames, &title)?;
+        save_png(&pm, png)?;
     }
     if a.png_dir.is_some() || a.apng.is_some() {
         progress.step("retarget: pictures");

@@ -41,6 +41,10 @@ pub struct SolveArgs {
     /// Print a JSON summary (mean RMS, share of negative weights, max |w|, …).
     #[arg(long)]
     json: bool,
+    /// Draw the weights over time as a PNG here: a row per key frame, a column per frame,
+    /// negative weights red and positive blue.
+    #[arg(long, value_name = "FILE")]
+    png: Option<PathBuf>,
     /// Temporal prior λ (≥ 0; 0 = today's per-frame weights): minimise
     /// Σ‖S w_t − q_t‖² + λ Σ‖w_t − w_{t−1}‖² (order 1) in the coordinates the solve uses
     /// (aligned; the file's with --no-align; deltas with --neutral), under the solver's
@@ -82,7 +86,11 @@ pub fn run(a: &SolveArgs) -> Result<()> {
             s.check().map(|_| s)
         })
         .transpose()?;
-    super::check_outputs(&[a.out.as_ref()], &[], &[a.input.file.as_deref()])?;
+    super::check_outputs(
+        &[a.out.as_ref(), a.png.as_ref()],
+        &[],
+        &[a.input.file.as_deref()],
+    )?;
     super::check_json_stdout(a.json, a.out.as_ref())?;
     let progress = super::progress::Progress::new("solve");
     let (_, prep) = a.input.prepare()?;
@@ -120,6 +128,28 @@ pub fn run(a: &SolveArgs) -> Result<()> {
         }
     }
     warn(&d);
+    if let Some(png) = &a.png {
+        let labels: Vec<String> = a.keys.iter().map(|k| format!("w_{k}")).collect();
+        let title = format!(
+            "{}: weights over time, {} keys, {}{}",
+            seq.source.rsplit('/').next().unwrap_or(&seq.source),
+            a.keys.len(),
+            a.solver,
+            smoothing.map_or(String::new(), |s| format!(
+                " (λ {} {} order {})",
+                s.lambda,
+                s.mode.name(),
+                s.order
+            ))
+        );
+        let pm = keyshape_lab::render::weights::weights_picture(
+            &d.weights,
+            &labels,
+            &seq.frames,
+            &title,
+        )?;
+        keyshape_lab::render::save_png(&pm, png)?;
+    }
     match &a.out {
         Some(path) => write_atomic(path, |w| write_csv(w, seq, &a.keys, &d))?,
         None if a.json => {}

@@ -7,6 +7,7 @@ pub mod face;
 pub mod heat;
 pub mod mesh;
 pub mod text;
+pub mod weights;
 
 pub use chart::render_plot;
 

@@ -23,3 +23,4 @@ mod svg_transforms;
 mod temporal;
 mod transfer;
 mod tui;
+mod weights_png;

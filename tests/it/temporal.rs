@@ -447,7 +447,11 @@ fn the_objective_is_named_for_each_mode_and_order() {
         (SmoothMode::Offline, 1, "λ Σ_t ‖w_t − w_{t−1}‖²"),
         (SmoothMode::Offline, 2, "λ Σ_t ‖w_{t+1} − 2w_t + w_{t−1}‖²"),
         (SmoothMode::Causal, 1, "λ ‖w_t − w_{t−1}‖² per frame"),
-        (SmoothMode::Causal, 2, "λ ‖w_t − (2w_{t−1} − w_{t−2})‖² per frame"),
+        (
+            SmoothMode::Causal,
+            2,
+            "λ ‖w_t − (2w_{t−1} − w_{t−2})‖² per frame",
+        ),
     ] {
         assert_eq!(
             sm(1.0, order, mode).objective(),

@@ -1,0 +1,97 @@
+//! The weights-over-time picture (`solve --png`, `retarget --png`): each cell's colour is
+//! the diverging scale at that weight, a one-frame spike survives when frames outnumber
+//! pixels, and the commands write it (and refuse to write it over their input).
+
+use keyshape_lab::render::weights::{diverging, weights_picture};
+use nalgebra::DMatrix;
+
+fn pixel(pm: &tiny_skia::Pixmap, x: u32, y: u32) -> [u8; 3] {
+    let p = pm.pixel(x, y).unwrap();
+    [p.red(), p.green(), p.blue()]
+}
+
+#[test]
+fn cells_carry_the_diverging_colour_of_their_weight() {
+    assert_eq!(diverging(0.0, 1.0), [255, 255, 255]);
+    assert_eq!(diverging(1.0, 1.0), [20, 70, 190]);
+    assert_eq!(diverging(-1.0, 1.0), [200, 20, 20]);
+    assert_eq!(diverging(-5.0, 1.0), [200, 20, 20], "clamped");
+    // Two keys, 2,200 frames (two frames a pixel column): key 0 is 0.5 everywhere but one
+    // frame at −1; key 1 is 0 but a spike of 1 at frame 2,000.
+    let n = 2200;
+    let mut w = DMatrix::from_fn(2, n, |i, _| if i == 0 { 0.5 } else { 0.0 });
+    w[(0, 1000)] = -1.0;
+    w[(1, 2000)] = 1.0;
+    let labels = vec!["w_3".to_string(), "w_40".to_string()];
+    let frames: Vec<i64> = (0..n as i64).collect();
+    let pm = weights_picture(&w, &labels, &frames, "test").unwrap();
+    // Layout: plot from x = 110, 1,100 px wide; rows from y = 46, 28 px each (2 keys).
+    let (left, top, row) = (110u32, 46u32, 28u32);
+    let col = |t: usize| left + (t * 1100 / n) as u32;
+    assert_eq!(pixel(&pm, col(10), top + row / 2), diverging(0.5, 1.0));
+    assert_eq!(pixel(&pm, col(1000), top + row / 2), diverging(-1.0, 1.0));
+    assert_eq!(pixel(&pm, col(10), top + row + row / 2), [255, 255, 255]);
+    assert_eq!(
+        pixel(&pm, col(2000), top + row + row / 2),
+        diverging(1.0, 1.0)
+    );
+    assert!(weights_picture(&w, &labels[..1], &frames, "t").is_err());
+}
+
+#[test]
+fn solve_and_retarget_write_the_picture_and_never_over_their_input() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = |args: &[&str]| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_kslab"))
+            .args(args)
+            .output()
+            .unwrap()
+    };
+    let png = dir.path().join("w.png");
+    let o = run(&[
+        "solve",
+        "--keys",
+        "0,50,100",
+        "--png",
+        png.to_str().unwrap(),
+        "--json",
+        "-q",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let bytes = std::fs::read(&png).unwrap();
+    assert_eq!(&bytes[1..4], b"PNG");
+    let png2 = dir.path().join("r.png");
+    let o = run(&[
+        "retarget",
+        "--points",
+        "lips",
+        "--method",
+        "spread",
+        "--k",
+        "6",
+        "--png",
+        png2.to_str().unwrap(),
+        "-q",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(png2.is_file());
+    // Onto the input: refused before any work, the input untouched.
+    let input = dir.path().join("t.csv");
+    std::fs::copy(
+        crate::common::shared("pyfeat_samples/news_sample_compact.csv"),
+        &input,
+    )
+    .unwrap();
+    let before = std::fs::read(&input).unwrap();
+    let o = run(&[
+        "solve",
+        input.to_str().unwrap(),
+        "--keys",
+        "0,40",
+        "--png",
+        input.to_str().unwrap(),
+        "--json",
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    assert_eq!(std::fs::read(&input).unwrap(), before);
+}
