@@ -118,15 +118,7 @@ fn header(f: &mut Frame, s: &State, area: Rect) {
     // Parts in display order with a priority: the lowest go first when 80 columns are not
     // enough (never the frame, method, k, solver or error).
     let mut parts: Vec<(String, u8)> = vec![
-        (
-            if short.chars().count() > 16 {
-                let tail: String = short.chars().rev().take(15).collect();
-                format!("…{}", tail.chars().rev().collect::<String>())
-            } else {
-                short.to_string()
-            },
-            2,
-        ),
+        (short.to_string(), 2),
         (format!("{} frames", s.frames), 0),
         (st.points.clone(), 3),
         (keys, 9),
@@ -141,16 +133,27 @@ fn header(f: &mut Frame, s: &State, area: Rect) {
     let width = |p: &[(String, u8)]| {
         p.iter().map(|(t, _)| t.chars().count()).sum::<usize>() + 3 * p.len().saturating_sub(1)
     };
+    // Dropped first: the frame count, then the speed; then a long name is shortened to its
+    // end; then the point group, then the name.
+    let mut shortened = false;
     while width(&parts) > room {
-        let Some((i, _)) = parts
+        let lowest = parts
             .iter()
             .enumerate()
             .filter(|(_, (_, pr))| *pr < 9)
             .min_by_key(|(_, (_, pr))| *pr)
-        else {
-            break;
-        };
-        parts.remove(i);
+            .map(|(i, (_, pr))| (i, *pr));
+        match lowest {
+            Some((i, pr)) if pr < 2 || shortened || short.chars().count() <= 16 => {
+                parts.remove(i);
+            }
+            Some(_) => {
+                let tail: String = short.chars().rev().take(15).collect();
+                parts[0].0 = format!("…{}", tail.chars().rev().collect::<String>());
+                shortened = true;
+            }
+            None => break,
+        }
     }
     let body: Vec<&str> = parts.iter().map(|(t, _)| t.as_str()).collect();
     let line = Line::from(vec![
