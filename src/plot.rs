@@ -64,6 +64,21 @@ impl PlotSpec {
             (x, (if self.y_from_zero { y0.min(0.0) } else { y0 }, y1))
         })
     }
+
+    /// The y axis is logarithmic when the data (all positive) span two decades or more, as
+    /// LS error curves do: on a linear axis everything past the first few k sits on the
+    /// floor. Then the axis runs over the data, not from zero.
+    pub fn log_y(&self) -> bool {
+        let ys = self
+            .series
+            .iter()
+            .flat_map(|s| s.points.iter())
+            .map(|p| p.1)
+            .filter(|y| y.is_finite());
+        let (lo, hi) = ys.fold((f64::INFINITY, 0.0f64), |(a, b), y| (a.min(y), b.max(y)));
+        let hi = self.y_at_least.map_or(hi, |m| hi.max(m));
+        lo > 0.0 && lo.is_finite() && hi / lo >= 100.0
+    }
 }
 
 /// Colour and style of each key-shape method, after paper 000 Fig. 6 (spread solid blue,

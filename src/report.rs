@@ -27,6 +27,19 @@ pub fn write_curves_csv(w: &mut dyn Write, rows: &[CurveRow]) -> std::io::Result
     Ok(())
 }
 
+/// An experiment's curves title: its own title, then what was measured (solver, aligned
+/// or raw).
+pub fn curves_title(title: &str, solver: &str, aligned: bool) -> String {
+    format!(
+        "{title} — {solver}, {}",
+        if aligned {
+            "head motion removed"
+        } else {
+            "raw coordinates"
+        }
+    )
+}
+
 /// Renders one solver's curves to a 900 × 600 PNG at `path`.
 pub fn write_curves_png(rows: &[CurveRow], solver: &str, title: &str, path: &Path) -> Result<()> {
     let spec = curves_plot(rows, solver, title, "px");
@@ -352,7 +365,8 @@ pub fn write_outcome(o: &Outcome, dir: &Path) -> Result<Vec<PathBuf>> {
     if o.spec.png && !o.rows.is_empty() {
         for s in &o.spec.solvers {
             let name = format!("curves_{}.png", s.name());
-            write_curves_png(&o.rows, s.name(), &o.spec.title, &dir.join(&name))?;
+            let title = curves_title(&o.spec.title, s.name(), o.spec.align);
+            write_curves_png(&o.rows, s.name(), &title, &dir.join(&name))?;
             figures.push(name);
         }
     }

@@ -30,7 +30,8 @@ pub struct CurvesArgs {
     /// Write the curves as CSV (method,solver,k,total_sq_error,rms).
     #[arg(long)]
     out: Option<PathBuf>,
-    /// Write the plot as PNG (one file per solver when several: `NAME_<solver>.png`).
+    /// Write the plot as PNG, one file per solver named `NAME_<solver>.png` (`--png c.png
+    /// --solver nnls` writes `c_nnls.png`), whatever other options are given.
     #[arg(long)]
     png: Option<PathBuf>,
 }
@@ -57,6 +58,19 @@ pub fn run(a: &CurvesArgs) -> Result<()> {
         &[],
         &[a.input.file.as_deref()],
     )?;
+    // The files actually written: one per solver.
+    let pngs: Vec<PathBuf> = a
+        .png
+        .iter()
+        .flat_map(|p| a.solvers.iter().map(move |s| suffixed(p, s.name())))
+        .collect();
+    super::check_outputs(
+        &std::iter::once(a.out.as_ref())
+            .chain(pngs.iter().map(Some))
+            .collect::<Vec<_>>(),
+        &[],
+        &[a.input.file.as_deref()],
+    )?;
     // --shortlist counts if any solver of the sweep uses it.
     let constrained = a.solvers.iter().copied().find(|s| *s != Solver::Ls);
     a.heuristic
@@ -76,17 +90,21 @@ pub fn run(a: &CurvesArgs) -> Result<()> {
         None => write_curves_csv(&mut std::io::stdout().lock(), &rows)?,
     }
     if let Some(png) = &a.png {
-        let title = format!(
-            "{} — {}",
-            short(&prep.seq.source),
-            a.input.points.as_deref().unwrap_or("whole face")
-        );
         for s in &a.solvers {
-            let path = if a.solvers.len() == 1 {
-                png.clone()
-            } else {
-                suffixed(png, s.name())
-            };
+            // What was measured: track, points, solver, aligned or raw.
+            let title = format!(
+                "{} — {}, {}, {}",
+                short(&prep.seq.source),
+                a.input.points.as_deref().unwrap_or("whole face"),
+                s.name(),
+                if a.input.no_align {
+                    "raw coordinates"
+                } else {
+                    "head motion removed"
+                }
+            );
+            // One name per solver whatever else is asked: NAME_<solver>.png.
+            let path = suffixed(png, s.name());
             keyshape_lab::report::write_curves_png(&rows, s.name(), &title, &path)?;
             eprintln!("wrote {}", path.display());
         }

@@ -86,7 +86,18 @@ pub fn render_plot(spec: &PlotSpec, width: u32, height: u32) -> Result<Pixmap> {
     } else {
         (x0 - 1.0, x1 + 1.0)
     };
-    let (y0, y1) = if y1 > y0 {
+    let log = spec.log_y();
+    let (y0, y1) = if log {
+        // The data's own range, a little wider, in decades.
+        let lo = spec
+            .series
+            .iter()
+            .flat_map(|s| s.points.iter())
+            .map(|p| p.1)
+            .filter(|y| y.is_finite() && *y > 0.0)
+            .fold(f64::INFINITY, f64::min);
+        (lo / 1.25, y1 * 1.25)
+    } else if y1 > y0 {
         (y0, y1 + 0.05 * (y1 - y0))
     } else {
         (y0 - 1.0, y1 + 1.0)
@@ -99,7 +110,14 @@ pub fn render_plot(spec: &PlotSpec, width: u32, height: u32) -> Result<Pixmap> {
         height as f32 - fs * 3.6,
     );
     let sx = |x: f64| left + ((x - x0) / (x1 - x0)) as f32 * (right - left);
-    let sy = |y: f64| bottom - ((y - y0) / (y1 - y0)) as f32 * (bottom - top);
+    let sy = |y: f64| {
+        let f = if log {
+            (y.max(y0).ln() - y0.ln()) / (y1.ln() - y0.ln())
+        } else {
+            (y - y0) / (y1 - y0)
+        };
+        bottom - f as f32 * (bottom - top)
+    };
     // Grid, ticks and numbers.
     let xt = ticks(x0, x1, 10);
     let xstep = if xt.len() > 1 { xt[1] - xt[0] } else { 1.0 };
@@ -122,9 +140,17 @@ pub fn render_plot(spec: &PlotSpec, width: u32, height: u32) -> Result<Pixmap> {
             INK,
         );
     }
-    let yt = ticks(y0, y1, 8);
-    let ystep = if yt.len() > 1 { yt[1] - yt[0] } else { 1.0 };
+    let (yt, ystep) = if log {
+        let t = log_ticks(y0, y1);
+        let step = t.first().copied().unwrap_or(1.0);
+        (t, step)
+    } else {
+        let t = ticks(y0, y1, 8);
+        let step = if t.len() > 1 { t[1] - t[0] } else { 1.0 };
+        (t, step)
+    };
     for &t in &yt {
+        let ystep = if log { t } else { ystep };
         line(&mut pm, &[(left, sy(t)), (right, sy(t))], GRID, 1.0, false);
         line(
             &mut pm,
@@ -169,14 +195,12 @@ pub fn render_plot(spec: &PlotSpec, width: u32, height: u32) -> Result<Pixmap> {
         Anchor::Centre,
         INK,
     );
-    text::draw_vertical(
-        &mut pm,
-        &spec.y_label,
-        fs * 1.0,
-        (top + bottom) / 2.0,
-        fs,
-        INK,
-    );
+    let y_label = if log {
+        format!("{} (log scale)", spec.y_label)
+    } else {
+        spec.y_label.clone()
+    };
+    text::draw_vertical(&mut pm, &y_label, fs * 1.0, (top + bottom) / 2.0, fs, INK);
     // Series.
     for s in &spec.series {
         let pts: Vec<(f32, f32)> = s.points.iter().map(|&(x, y)| (sx(x), sy(y))).collect();
@@ -191,11 +215,74 @@ pub fn render_plot(spec: &PlotSpec, width: u32, height: u32) -> Result<Pixmap> {
             }
         }
     }
-    legend(&mut pm, spec, right, top, fs);
+    // The legend goes in the corner its box covers the least of the curves in.
+    let drawn: Vec<Vec<(f32, f32)>> = spec
+        .series
+        .iter()
+        .map(|s| s.points.iter().map(|&(x, y)| (sx(x), sy(y))).collect())
+        .collect();
+    legend(&mut pm, spec, (left, right, top, bottom), fs, &drawn);
     Ok(pm)
 }
 
-fn legend(pm: &mut Pixmap, spec: &PlotSpec, right: f32, top: f32, fs: f32) {
+/// Tick values for a log axis over [lo, hi]: 1, 2, 5 × 10^e, thinned to 1 × 10^e when
+/// they would crowd (more than three decades).
+pub fn log_ticks(lo: f64, hi: f64) -> Vec<f64> {
+    if !(lo > 0.0 && hi > lo) {
+        return vec![lo];
+    }
+    let decades = (hi / lo).log10();
+    let mults: &[f64] = if decades > 3.0 {
+        &[1.0]
+    } else {
+        &[1.0, 2.0, 5.0]
+    };
+    let mut out = Vec::new();
+    let mut e = lo.log10().floor() as i32;
+    while 10f64.powi(e) <= hi {
+        for m in mults {
+            let v = m * 10f64.powi(e);
+            if v >= lo && v <= hi {
+                out.push(v);
+            }
+        }
+        e += 1;
+    }
+    out
+}
+
+/// How much of the drawn curves a box covers: points and samples along each segment
+/// inside it.
+fn covered(drawn: &[Vec<(f32, f32)>], r: (f32, f32, f32, f32)) -> usize {
+    let inside = |(x, y): (f32, f32)| x >= r.0 && x <= r.0 + r.2 && y >= r.1 && y <= r.1 + r.3;
+    drawn
+        .iter()
+        .map(|pts| {
+            pts.windows(2)
+                .map(|w| {
+                    (0..=16)
+                        .filter(|i| {
+                            let f = *i as f32 / 16.0;
+                            inside((
+                                w[0].0 + f * (w[1].0 - w[0].0),
+                                w[0].1 + f * (w[1].1 - w[0].1),
+                            ))
+                        })
+                        .count()
+                })
+                .sum::<usize>()
+                + pts.iter().filter(|p| inside(**p)).count()
+        })
+        .sum()
+}
+
+fn legend(
+    pm: &mut Pixmap,
+    spec: &PlotSpec,
+    (left, right, top, bottom): (f32, f32, f32, f32),
+    fs: f32,
+    drawn: &[Vec<(f32, f32)>],
+) {
     let wmax = spec
         .series
         .iter()
@@ -203,7 +290,19 @@ fn legend(pm: &mut Pixmap, spec: &PlotSpec, right: f32, top: f32, fs: f32) {
         .fold(0.0, f32::max);
     let (w, row) = (wmax + fs * 3.6, fs * 1.4);
     let h = row * spec.series.len() as f32 + fs * 0.6;
-    let (x, y) = (right - w - fs * 0.5, top + fs * 0.5);
+    let pad = fs * 0.5;
+    // Top right first (ties keep it), then top left, bottom right, bottom left.
+    let corners = [
+        (right - w - pad, top + pad),
+        (left + pad * 2.0, top + pad),
+        (right - w - pad, bottom - h - pad),
+        (left + pad * 2.0, bottom - h - pad),
+    ];
+    let (x, y) = corners
+        .iter()
+        .copied()
+        .min_by_key(|&(x, y)| covered(drawn, (x, y, w, h)))
+        .unwrap_or(corners[0]);
     if let Some(r) = Rect::from_xywh(x, y, w, h) {
         pm.fill_rect(r, &paint([255, 255, 255]), Transform::identity(), None);
         let mut pb = PathBuilder::new();

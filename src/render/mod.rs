@@ -9,7 +9,7 @@ pub mod mesh;
 pub mod text;
 pub mod weights;
 
-pub use chart::render_plot;
+pub use chart::{log_ticks, render_plot};
 
 use crate::error::{Error, Result};
 use crate::io::write_atomic;

@@ -177,8 +177,14 @@ fn smoke_experiment_matches_its_reviewed_snapshots() {
     // method in order with its paper-000 style, and every (k, RMS) of the CSV — so a
     // dropped title, swapped curves or a missing last point fail here as well as in pixels.
     use keyshape_lab::plot::{curves_plot, Style};
-    let plot = curves_plot(&outcome.rows, "nnls", &spec.title, "px");
-    assert_eq!(plot.title, "Built-in d18, lips, k = 2..8");
+    let title = keyshape_lab::report::curves_title(&spec.title, "nnls", spec.align);
+    let plot = curves_plot(&outcome.rows, "nnls", &title, "px");
+    assert_eq!(
+        plot.title,
+        "Built-in d18, lips, k = 2..8 — nnls, head motion removed"
+    );
+    // NNLS errors span less than two decades: a linear axis.
+    assert!(!plot.log_y());
     assert_eq!(plot.x_label, "number of key shapes k");
     assert_eq!(plot.y_label, "RMS error per point (px), nnls");
     let names: Vec<&str> = plot.series.iter().map(|s| s.name.as_str()).collect();
@@ -261,4 +267,61 @@ fn image_size(p: &Path) -> (u32, u32) {
     let d = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(p).unwrap()));
     let r = d.read_info().unwrap();
     (r.info().width, r.info().height)
+}
+
+/// The y axis turns logarithmic when the data span two decades (LS error curves), with
+/// 1-2-5 ticks; `kslab curves --png` names its files by solver whatever the solver count.
+#[test]
+fn log_axis_for_curves_spanning_decades_and_stable_png_names() {
+    use keyshape_lab::plot::{PlotSpec, Series, Style};
+    let spec = |ys: &[f64]| PlotSpec {
+        title: String::new(),
+        x_label: String::new(),
+        y_label: String::new(),
+        series: vec![Series {
+            name: "a".into(),
+            points: ys.iter().enumerate().map(|(i, y)| (i as f64, *y)).collect(),
+            style: Style::Line,
+            color: [0, 0, 0],
+        }],
+        y_from_zero: true,
+        y_at_least: None,
+    };
+    assert!(spec(&[20.0, 2.0, 0.2]).log_y());
+    assert!(!spec(&[20.0, 2.0, 0.5]).log_y(), "40× is not two decades");
+    assert!(
+        !spec(&[20.0, 0.0]).log_y(),
+        "a zero cannot go on a log axis"
+    );
+    assert_eq!(
+        keyshape_lab::render::log_ticks(0.04, 7.0),
+        vec![0.05, 0.1, 0.2, 0.5, 1.0, 2.0, 5.0]
+    );
+    assert_eq!(
+        keyshape_lab::render::log_ticks(0.001, 50.0),
+        vec![0.001, 0.01, 0.1, 1.0, 10.0]
+    );
+    assert!(keyshape_lab::render::render_plot(&spec(&[20.0, 2.0, 0.2]), 400, 300).is_ok());
+
+    let dir = tempfile::tempdir().unwrap();
+    let png = dir.path().join("c.png");
+    for solvers in ["nnls", "ls,nnls"] {
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_kslab"))
+            .args([
+                "curves",
+                "--points",
+                "lips",
+                "--methods",
+                "spread",
+                "--k",
+                "2..4",
+            ])
+            .args(["--solver", solvers, "--png", png.to_str().unwrap(), "-q"])
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        assert!(dir.path().join("c_nnls.png").is_file(), "{solvers}");
+        assert!(!png.exists(), "{solvers}: never the bare name");
+    }
+    assert!(dir.path().join("c_ls.png").is_file());
 }
