@@ -479,8 +479,16 @@ fn pictures(
             source_bounds: sb,
             target_bounds: tb,
         };
+        // Frame, solver, and both errors of this frame (the target's against its ground
+        // truth, when there is one).
+        let target_err = r.target_sq.as_ref().map_or(String::new(), |e| {
+            format!(
+                "   target RMS {:.2}",
+                (e[t] / r.target_points.max(1) as f64).sqrt()
+            )
+        });
         let caption = format!(
-            "frame {}   {}   source RMS {:.2}",
+            "frame {}   {}   source RMS {:.2}{target_err}",
             s.frames[t],
             a.solver,
             (r.source_sq[t] / r.points as f64).sqrt()
