@@ -19,11 +19,14 @@ pub const MIN_SIZE: (u16, u16) = (80, 24);
 
 /// The screen regions, so mouse clicks can be mapped back.
 pub fn regions(area: Rect) -> [Rect; 5] {
+    // The chart and the weights get a third of a tall screen (9 rows at 24), so at 40 rows
+    // twelve keys have a row each with their heat strip.
+    let bottom_h = (area.height / 3 + 1).max(9);
     let [head, faces, timeline, bottom, foot] = Layout::vertical([
         Constraint::Length(1),
         Constraint::Min(8),
         Constraint::Length(2),
-        Constraint::Length(9),
+        Constraint::Length(bottom_h),
         Constraint::Length(1),
     ])
     .areas(area);

@@ -144,11 +144,13 @@ fn computed_state(settings: Settings) -> State {
 fn main_screens_match_their_reviewed_snapshots() {
     let mut s = computed_state(Settings::default());
     assert_screen(&screen(&s, 80, 24), "tui_main_80x24.txt");
+    assert_screen(&screen(&s, 120, 40), "tui_main_120x40.txt");
     s.split = true;
     assert_screen(&screen(&s, 100, 30), "tui_split_100x30.txt");
     s.split = false;
     s.help = true;
     assert_screen(&screen(&s, 80, 24), "tui_help_80x24.txt");
+    assert_screen(&screen(&s, 120, 40), "tui_help_120x40.txt");
     s.help = false;
     update(
         &mut s,
