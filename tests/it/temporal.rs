@@ -469,5 +469,8 @@ fn segments_find_the_step_of_a_track_that_does_not_start_at_zero() {
     assert_eq!(segments(&[10, 12, 14, 20, 22], None), vec![0..3, 3..5]);
     assert_eq!(segments(&[5, 6, 7], None), vec![0..3]);
     assert_eq!(segments(&[7], None), vec![0..1]);
+    // A repeated frame number (the readers refuse them; the library need not) breaks the
+    // chain there and does not make the step 0.
+    assert_eq!(segments(&[0, 1, 1, 2], None), vec![0..2, 2..4]);
     assert!(segments(&[], None).is_empty());
 }
