@@ -278,19 +278,7 @@ fn segments_split_at_clip_changes_and_gaps_and_do_not_couple() {
 /// grows, and the fit error rises, for both orders.
 #[test]
 fn jitter_falls_and_error_rises_with_lambda_on_a_real_track() {
-    let seq = keyshape_lab::io::read_sequence(
-        &crate::common::shared("mediapipe_face_tracks/liveportrait_d6.csv"),
-        &Default::default(),
-    )
-    .unwrap();
-    let prep = keyshape_lab::decompose::prepare(
-        &seq,
-        &keyshape_lab::decompose::PrepareOptions {
-            points: Some("lips".into()),
-            align: true,
-        },
-    )
-    .unwrap();
+    let prep = d6_lips();
     let q = prep.seq.coords.columns(0, 300).clone_owned();
     let keys = [0usize, 40, 80, 120, 160, 200, 240, 280];
     let s = q.select_columns(&keys);
@@ -364,19 +352,7 @@ fn solve_smooth_on_the_command_line_respects_clips() {
 /// the gradient written out above, at the library's own stopping tolerance scale.
 #[test]
 fn second_difference_prior_at_large_lambda_settles_on_a_real_track() {
-    let seq = keyshape_lab::io::read_sequence(
-        &crate::common::shared("mediapipe_face_tracks/liveportrait_d6.csv"),
-        &Default::default(),
-    )
-    .unwrap();
-    let prep = keyshape_lab::decompose::prepare(
-        &seq,
-        &keyshape_lab::decompose::PrepareOptions {
-            points: Some("lips".into()),
-            align: true,
-        },
-    )
-    .unwrap();
+    let prep = d6_lips();
     let q = &prep.seq.coords;
     let t = q.ncols();
     // The spread heuristic's 12 key frames on this track (`kslab keys --method spread --k 12`).
@@ -473,4 +449,21 @@ fn segments_find_the_step_of_a_track_that_does_not_start_at_zero() {
     // chain there and does not make the step 0.
     assert_eq!(segments(&[0, 1, 1, 2], None), vec![0..2, 2..4]);
     assert!(segments(&[], None).is_empty());
+}
+
+/// liveportrait_d6's lips, aligned.
+fn d6_lips() -> keyshape_lab::decompose::Prepared {
+    let seq = keyshape_lab::io::read_sequence(
+        &crate::common::shared("mediapipe_face_tracks/liveportrait_d6.csv"),
+        &Default::default(),
+    )
+    .unwrap();
+    keyshape_lab::decompose::prepare(
+        &seq,
+        &keyshape_lab::decompose::PrepareOptions {
+            points: Some("lips".into()),
+            align: true,
+        },
+    )
+    .unwrap()
 }

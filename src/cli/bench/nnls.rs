@@ -54,7 +54,7 @@ fn inputs(a: &NnlsArgs) -> Result<Vec<Sequence>> {
 }
 
 /// Tiles columns forwards, backwards, forwards … (keeps consecutive frames similar).
-fn tile(q: &DMatrix<f64>, n: usize) -> DMatrix<f64> {
+pub fn tile(q: &DMatrix<f64>, n: usize) -> DMatrix<f64> {
     let t = q.ncols();
     let idx: Vec<usize> = (0..n)
         .map(|i| {

@@ -1,14 +1,13 @@
 //! `kslab bench smooth`: the offline temporal prior against the unsmoothed batch NNLS on the
 //! same frames (issue 15's goal: under 10×), and its memory at growing lengths.
 
-use super::nnls::time;
+use super::nnls::{tile, time};
 use anyhow::{Context, Result};
 use clap::Args;
 use keyshape_lab::decompose::{prepare, PrepareOptions};
 use keyshape_lab::io::{read_sequence, ReadOptions};
 use keyshape_lab::solve::temporal::{smooth_from, SmoothMode, Smoothing};
 use keyshape_lab::solve::{solve_batch, SolveOptions, Solver};
-use nalgebra::DMatrix;
 use std::path::PathBuf;
 
 /// Arguments of `kslab bench smooth`.
@@ -33,22 +32,6 @@ fn peak_mb() -> Option<f64> {
     let line = s.lines().find(|l| l.starts_with("VmHWM:"))?;
     let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
     Some(kb / 1024.0)
-}
-
-/// Tiles columns forwards, backwards, forwards … (consecutive frames stay similar).
-fn tile(q: &DMatrix<f64>, n: usize) -> DMatrix<f64> {
-    let t = q.ncols();
-    let idx: Vec<usize> = (0..n)
-        .map(|i| {
-            let r = i % (2 * t);
-            if r < t {
-                r
-            } else {
-                2 * t - 1 - r
-            }
-        })
-        .collect();
-    q.select_columns(&idx)
 }
 
 pub fn run(a: &SmoothBenchArgs) -> Result<()> {
