@@ -27,7 +27,8 @@ pub struct SmoothArgs {
     #[arg(
         long,
         value_delimiter = ',',
-        default_value = "10,100,1000,10000,100000"
+        default_value = "10,100,1000,10000,100000",
+        allow_negative_numbers = true
     )]
     lambdas: Vec<f64>,
     /// Post-filter families compared with the prior: moving-average, ema, one-euro.
@@ -41,17 +42,17 @@ pub struct SmoothArgs {
     #[arg(long, value_delimiter = ',')]
     windows: Option<Vec<usize>>,
     /// Exponential moving-average factors α in (0, 1] [default: 0.7,0.5,0.3,0.15,0.08].
-    #[arg(long, value_delimiter = ',')]
+    #[arg(long, value_delimiter = ',', allow_negative_numbers = true)]
     alphas: Option<Vec<f64>>,
     /// One Euro filter minimum cutoffs, Hz [default: 8,4,2,1,0.5].
-    #[arg(long, value_delimiter = ',')]
+    #[arg(long, value_delimiter = ',', allow_negative_numbers = true)]
     one_euro_cutoffs: Option<Vec<f64>>,
     /// One Euro filter betas, one curve each (cutoff increase in Hz per unit of weight
     /// speed per second; 0 makes it an exponential moving average) [default: 0.05,0.5].
-    #[arg(long, value_delimiter = ',')]
+    #[arg(long, value_delimiter = ',', allow_negative_numbers = true)]
     one_euro_betas: Option<Vec<f64>>,
     /// σ (frames) of the zero-phase Gaussian low-pass that makes the clean reference.
-    #[arg(long, default_value_t = 2.0)]
+    #[arg(long, default_value_t = 2.0, allow_negative_numbers = true)]
     clean_sigma: f64,
     /// Folder for smoothing.csv, smoothing_at_equal_jitter.csv and smoothing.png.
     #[arg(long)]

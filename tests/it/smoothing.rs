@@ -362,14 +362,18 @@ fn smooth_command_end_to_end_and_refusals() {
     let before: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
     for (args, says) in [
         (
-            vec!["--lambdas=-1"],
+            vec!["--lambdas", "-1"],
             "λ must be a finite number ≥ 0, got -1",
         ),
         (vec!["--lambdas", "NaN"], "got NaN"),
         (vec!["--windows", "4"], "window 4"),
         (vec!["--alphas", "0"], "alpha 0"),
-        (vec!["--one-euro-betas=-0.5"], "beta -0.5"),
+        (vec!["--one-euro-betas", "-0.5"], "beta -0.5"),
         (vec!["--clean-sigma", "0"], "clean_sigma must be > 0"),
+        (
+            vec!["--clean-sigma", "-2"],
+            "clean_sigma must be > 0 frames, got -2",
+        ),
         (vec!["--k", "0"], "k ≥ 1"),
         (
             vec!["--method", "hull", "--k", "5"],
