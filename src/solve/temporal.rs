@@ -168,6 +168,11 @@ pub struct BandedSystem {
     /// Start of block `L_{s, s−j}` (row-major, `n_s × n_{s−j}`) in `l`: `off[s * (p + 1) + j]`.
     off: Vec<usize>,
     l: Vec<f64>,
+    /// `1 / L_{s,s}[x, x]` of every free variable (compact order): substitution multiplies
+    /// by it, keeping a division's latency off the recurrences' critical path.
+    inv: Vec<f64>,
+    /// The mask it was factorised with (`fixed[s * k + i]`), for [`Self::factor_reusing`].
+    fixed: Vec<bool>,
 }
 
 /// `a · b` over the shorter length, in four independent sums so the compiler can vectorise
@@ -197,6 +202,27 @@ impl BandedSystem {
         fixed: &[bool],
         ridge: f64,
     ) -> Result<BandedSystem> {
+        Self::factor_reusing(g, lambda, bands, fixed, ridge, None, None)
+    }
+
+    /// [`Self::factor`], copying from `prev` — a factorisation of the same `H` (same `g`, λ,
+    /// bands and ridge) under another mask — every block row whose inputs are bit for bit
+    /// the same: frame `s`'s row of `L` depends only on the masks of frames `s − p..=s` and
+    /// on the rows of frames `s − p..s`. A row that is recomputed is compared with the old
+    /// one, so where a change of mask has died out (the recurrence contracts) copying
+    /// resumes. The result is identical to [`Self::factor`]'s, not an approximation; the
+    /// active-set iterations, whose masks change in fewer frames each time, get cheaper.
+    /// `recycle`, a factorisation no longer needed, gives its storage (a fresh allocation
+    /// of the factor's size costs a page fault every 4 KB).
+    pub fn factor_reusing(
+        g: &DMatrix<f64>,
+        lambda: f64,
+        bands: &[Vec<f64>],
+        fixed: &[bool],
+        ridge: f64,
+        prev: Option<&BandedSystem>,
+        recycle: Option<BandedSystem>,
+    ) -> Result<BandedSystem> {
         let k = g.nrows();
         let t = bands[0].len();
         let p = bands.len() - 1;
@@ -216,11 +242,45 @@ impl BandedSystem {
                 total += n(s) * n(s - j);
             }
         }
-        let mut l = vec![0.0; total];
+        let (mut l, mut inv) = recycle.map(|r| (r.l, r.inv)).unwrap_or_default();
+        l.clear();
+        l.resize(total, 0.0);
+        inv.clear();
+        inv.resize(free.len(), 0.0);
         let mut tmp = vec![0.0; k * k];
+        let mut lead = vec![0usize; k];
+        let prev = prev.filter(|o| o.t == t && o.p == p && o.fixed.len() == fixed.len());
+        // same_mask[s]: frame s's mask is the old one; same_row[s]: so is its row of L.
+        let same_mask: Vec<bool> = match prev {
+            Some(o) => (0..t)
+                .map(|s| o.fixed[s * k..(s + 1) * k] == fixed[s * k..(s + 1) * k])
+                .collect(),
+            None => vec![false; t],
+        };
+        let mut same_row = vec![false; t];
+        // The row of frame s (blocks j = 0..=min(p, s)) occupies one contiguous range.
+        let row_range = |off: &[usize], s: usize, len: usize| {
+            let a = off[s * (p + 1)];
+            let b = if s + 1 < t {
+                off[(s + 1) * (p + 1)]
+            } else {
+                len
+            };
+            a..b
+        };
         for s in 0..t {
             let fs = &free[fstart[s]..fstart[s + 1]];
             let ns = fs.len();
+            let inputs_same = same_mask[s.saturating_sub(p)..=s].iter().all(|v| *v)
+                && same_row[s.saturating_sub(p)..s].iter().all(|v| *v);
+            if let (Some(o), true) = (prev, inputs_same) {
+                let src = row_range(&o.off, s, o.l.len());
+                let dst = row_range(&off, s, total);
+                l[dst].copy_from_slice(&o.l[src]);
+                inv[fstart[s]..fstart[s + 1]].copy_from_slice(&o.inv[o.fstart[s]..o.fstart[s + 1]]);
+                same_row[s] = true;
+                continue;
+            }
             for j in (1..=p.min(s)).rev() {
                 let c = s - j;
                 let fc = &free[fstart[c]..fstart[c + 1]];
@@ -259,6 +319,7 @@ impl BandedSystem {
                 // leading zeros stay zero (forward substitution), and for order 1 M is
                 // λ times a selection, so most of each row is skipped.
                 let d = &l[off[c * (p + 1)]..][..nc * nc];
+                let ic = &inv[fstart[c]..fstart[c + 1]];
                 for x in 0..ns {
                     let row = &mut m[x * nc..(x + 1) * nc];
                     let Some(y0) = row.iter().position(|v| *v != 0.0) else {
@@ -266,7 +327,7 @@ impl BandedSystem {
                     };
                     for y in y0..nc {
                         let v = row[y] - dot(&row[y0..y], &d[y * nc + y0..y * nc + y]);
-                        row[y] = v / d[y * nc + y];
+                        row[y] = v * ic[y];
                     }
                 }
                 let o = off[s * (p + 1) + j];
@@ -284,14 +345,12 @@ impl BandedSystem {
                 let nr = n(r);
                 let ls = &l[off[s * (p + 1) + (s - r)]..][..ns * nr];
                 // Leading zeros of each row (from the selection structure above).
-                let lead: Vec<usize> = (0..ns)
-                    .map(|x| {
-                        ls[x * nr..(x + 1) * nr]
-                            .iter()
-                            .position(|v| *v != 0.0)
-                            .unwrap_or(nr)
-                    })
-                    .collect();
+                for (x, z) in lead[..ns].iter_mut().enumerate() {
+                    *z = ls[x * nr..(x + 1) * nr]
+                        .iter()
+                        .position(|v| *v != 0.0)
+                        .unwrap_or(nr);
+                }
                 for x in 0..ns {
                     let rx = &ls[x * nr..(x + 1) * nr];
                     for y in 0..=x {
@@ -302,6 +361,7 @@ impl BandedSystem {
                     }
                 }
             }
+            let is = &mut inv[fstart[s]..fstart[s + 1]];
             for x in 0..ns {
                 for y in 0..=x {
                     let v = m[x * ns + y] - dot(&m[x * ns..x * ns + y], &m[y * ns..y * ns + y]);
@@ -312,8 +372,9 @@ impl BandedSystem {
                             )));
                         }
                         m[x * ns + x] = v.sqrt();
+                        is[x] = 1.0 / m[x * ns + x];
                     } else {
-                        m[x * ns + y] = v / m[y * ns + y];
+                        m[x * ns + y] = v * is[y];
                     }
                 }
                 for y in x + 1..ns {
@@ -322,6 +383,12 @@ impl BandedSystem {
             }
             let o = off[s * (p + 1)];
             l[o..o + ns * ns].copy_from_slice(m);
+            if let (Some(o), true) = (prev, same_mask[s.saturating_sub(p)..=s].iter().all(|v| *v)) {
+                let old = &o.l[row_range(&o.off, s, o.l.len())];
+                let new = &l[row_range(&off, s, total)];
+                same_row[s] = old.len() == new.len()
+                    && old.iter().zip(new).all(|(a, b)| a.to_bits() == b.to_bits());
+            }
         }
         Ok(BandedSystem {
             t,
@@ -330,6 +397,8 @@ impl BandedSystem {
             fstart,
             off,
             l,
+            inv,
+            fixed: fixed.to_vec(),
         })
     }
 
@@ -381,10 +450,11 @@ impl BandedSystem {
                 }
             }
             let d = &self.l[self.off[s * (p + 1)]..][..ns * ns];
+            let is = &self.inv[fs[s]..fs[s] + ns];
             let ys = &mut y[fs[s] - base..fs[s] - base + ns];
             for x in 0..ns {
                 let v = ys[x] - dot(&d[x * ns..x * ns + x], &ys[..x]);
-                ys[x] = v / d[x * ns + x];
+                ys[x] = v * is[x];
             }
         }
     }
@@ -411,13 +481,14 @@ impl BandedSystem {
                 }
             }
             let d = &self.l[self.off[s * (p + 1)]..][..ns * ns];
+            let is = &self.inv[fs[s]..fs[s] + ns];
             let ys = &mut y[fs[s]..fs[s] + ns];
             for x in (0..ns).rev() {
                 let mut v = ys[x];
                 for z in x + 1..ns {
                     v -= d[z * ns + x] * ys[z];
                 }
-                ys[x] = v / d[x * ns + x];
+                ys[x] = v * is[x];
             }
         }
     }
@@ -469,12 +540,37 @@ impl SegmentSystem {
         ridge: f64,
         split: bool,
     ) -> Result<SegmentSystem> {
+        Self::factor_reusing(g, lambda, bands, fixed, ridge, split, None, None)
+    }
+
+    /// [`Self::factor`], reusing the rows of `prev` (the same `H` under another mask) that
+    /// come out bit for bit the same, and the storage of `recycle`, as
+    /// [`BandedSystem::factor_reusing`] does.
+    #[allow(clippy::too_many_arguments)]
+    pub fn factor_reusing(
+        g: &DMatrix<f64>,
+        lambda: f64,
+        bands: &[Vec<f64>],
+        fixed: &[bool],
+        ridge: f64,
+        split: bool,
+        prev: Option<&SegmentSystem>,
+        recycle: Option<SegmentSystem>,
+    ) -> Result<SegmentSystem> {
         let k = g.nrows();
         let t = bands[0].len();
         let p = bands.len() - 1;
         if !split || t < 4 * p + 4 || p == 0 {
-            return Ok(SegmentSystem::One(BandedSystem::factor(
-                g, lambda, bands, fixed, ridge,
+            let old = match prev {
+                Some(SegmentSystem::One(o)) => Some(o),
+                _ => None,
+            };
+            let spare = match recycle {
+                Some(SegmentSystem::One(o)) => Some(o),
+                _ => None,
+            };
+            return Ok(SegmentSystem::One(BandedSystem::factor_reusing(
+                g, lambda, bands, fixed, ridge, old, spare,
             )?));
         }
         let m = (t - p) / 2;
@@ -494,9 +590,20 @@ impl SegmentSystem {
         let fixed_b: Vec<bool> = (0..nb)
             .flat_map(|i| fixed[(t - 1 - i) * k..(t - i) * k].iter().copied())
             .collect();
+        let (old_a, old_b) = match prev {
+            Some(SegmentSystem::Split(o)) if o.m == m && o.t == t => (Some(&o.a), Some(&o.b)),
+            _ => (None, None),
+        };
+        let (spare_a, spare_b) = match recycle {
+            Some(SegmentSystem::Split(o)) => {
+                let o = *o;
+                (Some(o.a), Some(o.b))
+            }
+            _ => (None, None),
+        };
         let (ra, rb) = rayon::join(
-            || BandedSystem::factor(g, lambda, &bands_a, fixed_a, ridge),
-            || BandedSystem::factor(g, lambda, &bands_b, &fixed_b, ridge),
+            || BandedSystem::factor_reusing(g, lambda, &bands_a, fixed_a, ridge, old_a, spare_a),
+            || BandedSystem::factor_reusing(g, lambda, &bands_b, &fixed_b, ridge, old_b, spare_b),
         );
         let (a, b) = (ra?, rb?);
         let sep: Vec<usize> = (m * k..(m + p) * k).filter(|&v| !fixed[v]).collect();
@@ -642,15 +749,12 @@ fn hessian_times(g: &DMatrix<f64>, lambda: f64, bands: &[Vec<f64>], w: &[f64]) -
     let k = g.nrows();
     let t = bands[0].len();
     let p = bands.len() - 1;
-    let mut out = vec![0.0; t * k];
+    // G·W as one matrix product: `w` is W (k × t) column-major, frame after frame.
+    let mut out = (g * nalgebra::DMatrixView::from_slice(w, k, t))
+        .data
+        .as_vec()
+        .clone();
     for s in 0..t {
-        for x in 0..k {
-            let mut acc = 0.0;
-            for z in 0..k {
-                acc += g[(x, z)] * w[s * k + z];
-            }
-            out[s * k + x] = acc;
-        }
         for j in 0..=p {
             if j <= s {
                 let c = lambda * bands[j][s];
@@ -832,8 +936,21 @@ fn segment(
     } else {
         f64::INFINITY
     };
+    // The last factorisation, from which the next one copies the rows that do not change.
+    // (and the one before it, whose storage the next one takes).
+    let cache: std::cell::RefCell<Option<SegmentSystem>> = std::cell::RefCell::new(None);
+    let spare: std::cell::RefCell<Option<SegmentSystem>> = std::cell::RefCell::new(None);
     let solve_with = |fixed: &[bool], values: &[f64]| -> Result<Vec<f64>> {
-        let sys = SegmentSystem::factor(g, sm.lambda, &bands, fixed, ridge, t >= SPLIT_FRAMES)?;
+        let sys = SegmentSystem::factor_reusing(
+            g,
+            sm.lambda,
+            &bands,
+            fixed,
+            ridge,
+            t >= SPLIT_FRAMES,
+            cache.borrow().as_ref(),
+            spare.borrow_mut().take(),
+        )?;
         // rhs = b − H·v (v: fixed values, 0 elsewhere); fixed rows take their values.
         // (NNLS fixes at 0 only: then H·v = 0 and the product is skipped.)
         let mut rhs: Vec<f64> = if values.iter().all(|v| *v == 0.0) {
@@ -848,6 +965,7 @@ fn segment(
             }
         }
         sys.solve(&mut rhs);
+        *spare.borrow_mut() = cache.borrow_mut().replace(sys);
         Ok(rhs
             .iter()
             .zip(values)
