@@ -468,3 +468,142 @@ fn long_sequences_evaluate_errors_without_the_frames_gram_matrix() {
         );
     }
 }
+
+/// Run 1's open survivors (mutants/README.md), each pinned by a case that only the
+/// correct code passes.
+///
+/// `Rbf::fit` refuses each malformed input on its own (no points; source and target of
+/// different lengths; a length that is not a multiple of `dims`) and nearly coincident
+/// points by the condition number of H (distinct points 1e-9 apart: not singular, but the
+/// weights would be noise).
+#[test]
+fn rbf_refuses_each_malformed_input_and_nearly_coincident_points() {
+    let src = [0.0, 0.0, 1.0, 0.0, 0.0, 1.0];
+    let cases: [(&[f64], &[f64], &str); 3] = [
+        (&[], &[], "differ in count"),
+        (&src, &src[..4], "differ in count"),
+        (&src[..5], &src[..5], "differ in count"),
+    ];
+    for (s, d, want) in cases {
+        let e = Rbf::fit(s, d, 2).unwrap_err().to_string();
+        assert!(e.contains(want), "{} points: {e}", s.len());
+    }
+    let close = [0.0, 0.0, 1e-13, 0.0, 1.0, 1.0];
+    let e = Rbf::fit(&close, &close, 2).unwrap_err().to_string();
+    assert!(e.contains("too close together"), "{e}");
+    // Well separated points train, and 1e-3 apart still do (condition well below 1e12).
+    assert!(Rbf::fit(&src, &src, 2).is_ok());
+    let near = [0.0, 0.0, 1e-3, 0.0, 1.0, 1.0];
+    assert!(Rbf::fit(&near, &near, 2).is_ok());
+}
+
+/// The Gram form's column norms are those of S's columns (the diagonal of SᵀS), and the
+/// stopping tolerance is `1000 ε k max‖Sᵢ‖ max(‖q‖, max‖Sᵢ‖)` with ‖q‖ estimated as
+/// `maxᵢ |bᵢ| / ‖Sᵢ‖`: columns (3, 4) and (0, 1), norms 5 and 1.
+#[test]
+fn gram_norms_are_the_column_norms_and_the_tolerance_follows_them() {
+    use keyshape_lab::solve::active_set::Gram;
+    let s = DMatrix::from_column_slice(2, 2, &[3.0, 4.0, 0.0, 1.0]);
+    let g = Gram::new(&s, f64::INFINITY);
+    assert_eq!(g.norms, vec![5.0, 1.0]);
+    assert_eq!(g.max_norm, 5.0);
+    // b = Sᵀq for q = (0, 20): (80, 20); ‖q‖ estimated max(80 / 5, 20 / 1) = 20.
+    let tol = g.tolerance(&[80.0, 20.0]);
+    let want = 1e3 * f64::EPSILON * 2.0 * 5.0 * 20.0;
+    assert!((tol - want).abs() <= 1e-15 * want, "{tol} vs {want}");
+}
+
+/// Paper 002's polynomial smoothing caps the degree at `n − 1`: three samples with degree
+/// 5 are interpolated exactly by the quadratic through them.
+#[test]
+fn polyfit_caps_the_degree_at_the_clip_length() {
+    use keyshape_lab::cosker::intensity::polyfit_smooth;
+    let x = [1.0, 5.0, 2.0];
+    let y = polyfit_smooth(&x, 5);
+    for (a, b) in x.iter().zip(&y) {
+        assert!((a - b).abs() < 1e-12, "{y:?}");
+    }
+    // Degree 1 on the same three samples is the least-squares line: mean 8/3, slope 0.5.
+    let y = polyfit_smooth(&x, 1);
+    let want = [8.0 / 3.0 - 0.5, 8.0 / 3.0, 8.0 / 3.0 + 0.5];
+    for (a, b) in want.iter().zip(&y) {
+        assert!((a - b).abs() < 1e-12, "{y:?}");
+    }
+}
+
+/// The intensity study's settings: the threshold must lie strictly inside (0, 1), each
+/// bound refused on its own side; a train range must leave both training and test clips.
+#[test]
+fn intensity_study_refuses_thresholds_outside_the_open_unit_interval_and_empty_splits() {
+    use keyshape_lab::cosker::intensity::{study, Evaluation, StudySettings};
+    for bad in [0.0, -0.5, 1.0, 1.5, f64::NAN, f64::INFINITY] {
+        let st = StudySettings {
+            threshold: bad,
+            ..Default::default()
+        };
+        let e = st.check().unwrap_err().to_string();
+        assert!(e.contains("must lie in (0, 1)"), "{bad}: {e}");
+    }
+    for good in [1e-9, 0.5, 0.999] {
+        let st = StudySettings {
+            threshold: good,
+            ..Default::default()
+        };
+        assert!(st.check().is_ok(), "{good}");
+    }
+    let path = crate::common::shared("pyfeat_samples/news_sample_compact.csv");
+    for range in [(1, 20), (30, 40)] {
+        let st = StudySettings {
+            evaluation: Evaluation::Split,
+            train_clips: Some(range),
+            ..Default::default()
+        };
+        let e = study(&path, &st).unwrap_err().to_string();
+        assert!(e.contains("leave no training or no test frames"), "{range:?}: {e}");
+    }
+}
+
+/// The training labels counted per action are, by brute force from the CSV's own scores,
+/// the frames whose strongest study action (mean of its columns) exceeds the threshold;
+/// leave-one-clip-out trains on every frame 19 times (20 clips).
+#[test]
+fn intensity_study_counts_the_labelled_training_frames() {
+    use keyshape_lab::cosker::intensity::{study, Evaluation, StudySettings, STUDY_ACTIONS};
+    let path = crate::common::shared("pyfeat_samples/news_sample_compact.csv");
+    let st = StudySettings {
+        evaluation: Evaluation::LeaveOneClipOut,
+        ..Default::default()
+    };
+    let r = study(&path, &st).unwrap();
+    let mut rd = csv::Reader::from_path(&path).unwrap();
+    let header = rd.headers().unwrap().clone();
+    let col = |name: &str| header.iter().position(|h| h == name).unwrap();
+    let mut counts = [0usize; 3];
+    for rec in rd.records() {
+        let rec = rec.unwrap();
+        let score: Vec<f64> = STUDY_ACTIONS
+            .iter()
+            .map(|(_, cs)| {
+                cs.iter()
+                    .map(|c| rec[col(c)].parse::<f64>().unwrap())
+                    .sum::<f64>()
+                    / cs.len() as f64
+            })
+            .collect();
+        let (best, v) = (0..3).fold((0, f64::MIN), |m, k| {
+            if score[k] > m.1 {
+                (k, score[k])
+            } else {
+                m
+            }
+        });
+        if v > st.threshold {
+            counts[best] += 1;
+        }
+    }
+    assert!(counts.iter().all(|&c| c > 0), "{counts:?}");
+    for (k, (name, _)) in STUDY_ACTIONS.iter().enumerate() {
+        let row = r.actions.iter().find(|a| a.action == *name).unwrap();
+        assert_eq!(row.training_frames_labelled, 19 * counts[k], "{name}");
+    }
+}
