@@ -28,10 +28,12 @@ pub struct CurvesArgs {
     #[command(flatten)]
     heuristic: HeuristicArgs,
     /// Write the curves as CSV (method,solver,k,total_sq_error,rms).
+    /// [default: not written].
     #[arg(long)]
     out: Option<PathBuf>,
     /// Write the plot as PNG, one file per solver named `NAME_<solver>.png` (`--png c.png
     /// --solver nnls` writes `c_nnls.png`), whatever other options are given.
+    /// [default: not drawn].
     #[arg(long)]
     png: Option<PathBuf>,
 }

@@ -13,13 +13,15 @@ pub struct InputArgs {
     /// Tracked sequence: a CSV/JSON/.pts file or a directory of .pts files
     /// (omit for the built-in 216-frame MediaPipe sequence).
     pub file: Option<PathBuf>,
-    /// Force the input format instead of detecting it.
+    /// Force the input format instead of detecting it: mediapipe, openface, pyfeat, pts,
+    /// json or csv [default: detected from the file's name and first line].
     #[arg(long, value_parser = parse_format)]
     pub format: Option<Format>,
     /// 2 for (x, y), 3 for (x, y, z).
     #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u8).range(2..=3))]
     pub dims: u8,
-    /// Work on these point groups only, e.g. `lips` or `eyes,brows` (see `kslab info`).
+    /// Work on these point groups only, e.g. `lips` or `eyes,brows` (see `kslab info`)
+    /// [default: every point].
     #[arg(long, value_name = "GROUP[,GROUP]")]
     pub points: Option<String>,
     /// Keep raw coordinates: do not remove 2-D head motion (alignment is on by default).

@@ -27,6 +27,7 @@ pub struct IntensityArgs {
     #[arg(long, default_value = "clip-mean", value_parser = parse_centring)]
     centring: Centring,
     /// Frames of the neutral segment at the start of each clip (`--centring neutral`).
+    /// [default: none; needed by --centring neutral].
     #[arg(long)]
     neutral_frames: Option<usize>,
     /// K of the soft KNN.

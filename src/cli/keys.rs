@@ -19,6 +19,7 @@ pub struct HeuristicArgs {
     #[arg(long)]
     pub shortlist: Option<usize>,
     /// Principal components k-means clusters (overrides the N of kmeansN; 1–64).
+    /// [default: the N of kmeansN].
     #[arg(long, value_parser = clap::value_parser!(u64).range(1..=64))]
     pub pcs: Option<u64>,
 }
@@ -90,7 +91,7 @@ pub struct KeysArgs {
     /// greedy or random.
     #[arg(long, value_parser = parse_method)]
     method: Method,
-    /// Number of key shapes (required, except for hull: the hull gives its own k).
+    /// Number of key shapes [default: none: required, except with hull, which gives its own k].
     #[arg(long)]
     k: Option<usize>,
     /// Solver for the reported error and for greedy's choices.
@@ -98,7 +99,8 @@ pub struct KeysArgs {
     solver: Solver,
     #[command(flatten)]
     heuristic: HeuristicArgs,
-    /// Print JSON (frames, columns, error; k-means centres in PCA coordinates).
+    /// Print JSON: key frame numbers, their positions in the sequence (`columns`, from 0),
+    /// the error, and k-means centres in PCA coordinates.
     #[arg(long)]
     json: bool,
 }
@@ -182,7 +184,7 @@ pub fn run(a: &KeysArgs) -> Result<()> {
 /// `retarget`).
 #[derive(Debug, Clone, Args)]
 pub struct KeyChoiceArgs {
-    /// Key frames by frame number (or choose them with --method and --k).
+    /// Key frames by frame number [default: chosen by --method and --k].
     #[arg(
         long,
         value_delimiter = ',',
@@ -190,7 +192,7 @@ pub struct KeyChoiceArgs {
         allow_negative_numbers = true
     )]
     pub keys: Vec<i64>,
-    /// Heuristic choosing the key frames (default spread).
+    /// Heuristic choosing the key frames [default: spread].
     #[arg(long, value_parser = parse_method)]
     pub method: Option<Method>,
     /// Number of key shapes for --method [default: 12; hull gives its own k].

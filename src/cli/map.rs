@@ -38,40 +38,50 @@ pub struct MapArgs {
     #[arg(long, default_value = "two-sided", value_parser = parse_normalisation)]
     normalisation: Normalisation,
     /// A second person's sequence, whose model the trajectories drive.
+    /// [default: none: only the source person's trajectories].
     #[arg(long)]
     target_sequence: Option<PathBuf>,
     /// The second person's actions.
+    /// [default: none; needed with --target-sequence].
     #[arg(long, requires = "target_sequence")]
     target_actions: Option<PathBuf>,
     /// Mode alignment (default: pair the modes of identically named actions).
     #[arg(long, requires = "target_sequence")]
     alignment: Option<PathBuf>,
     /// Write the alignment used, to edit and pass back with --alignment.
+    /// [default: not written].
     #[arg(long, requires = "target_sequence")]
     write_alignment: Option<PathBuf>,
     /// Write the normalised action trajectories as CSV.
+    /// [default: not written].
     #[arg(long)]
     out: Option<PathBuf>,
     /// Side-by-side PNGs (source beside the second person) here.
+    /// [default: not written].
     #[arg(long, requires = "target_sequence")]
     png_dir: Option<PathBuf>,
     /// The same as an animated PNG.
+    /// [default: not written].
     #[arg(long, requires = "target_sequence")]
     apng: Option<PathBuf>,
     /// Folder of the ICT face (neutral_face.obj, expressions.csv, expression_deltas.csv) to
     /// drive with morph targets (Eq. 8).
+    /// [default: none: no morph targets].
     #[arg(long)]
     morph: Option<PathBuf>,
     /// Action → morph-target mapping (JSON, or `builtin`).
     #[arg(long, default_value = "builtin", requires = "morph")]
     mapping: String,
     /// Write one OBJ per frame of the morphed face here.
+    /// [default: not written].
     #[arg(long, requires = "morph")]
     morph_obj_dir: Option<PathBuf>,
     /// Write one PNG per frame of the morphed face (wireframe) here.
+    /// [default: not written].
     #[arg(long, requires = "morph")]
     morph_png_dir: Option<PathBuf>,
     /// Write the morphed face as glTF with morph-target animation.
+    /// [default: not written].
     #[arg(long, requires = "morph")]
     morph_gltf: Option<PathBuf>,
     /// Only every N-th frame for the per-frame outputs.

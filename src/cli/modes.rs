@@ -78,6 +78,7 @@ pub struct ModesArgs {
     #[arg(long)]
     json: bool,
     /// Write both tables as a heat map PNG.
+    /// [default: not drawn].
     #[arg(long)]
     png: Option<PathBuf>,
 }

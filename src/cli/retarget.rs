@@ -29,8 +29,8 @@ pub struct RetargetArgs {
     /// ls, nnls or bounded.
     #[arg(long, default_value = "nnls", value_parser = super::solve::parse_solver)]
     solver: Solver,
-    /// Target key shapes: a JSON target set or an SVG from `kslab template` (default: the
-    /// built-in cartoon face, a smooth warp of the source, which also gives a ground truth).
+    /// Target key shapes: a JSON target set or an SVG from `kslab template` [default: the
+    /// built-in cartoon face, a smooth warp of the source, which also gives a ground truth].
     #[arg(long)]
     target: Option<PathBuf>,
     /// Built-in target only: hand-tracing noise on each target key shape, as a fraction of
@@ -38,24 +38,30 @@ pub struct RetargetArgs {
     #[arg(long, default_value_t = 0.0)]
     trace_noise: f64,
     /// Delta mode from this neutral frame: B = N_B + Σ wᵢ (Bᵢ − N_B).
+    /// [default: none: absolute key shapes].
     #[arg(long, value_name = "FRAME")]
     neutral: Option<i64>,
     /// Face regions, each with its own key shapes (`builtin`, or a regions JSON file).
+    /// [default: none: the whole face as one region].
     #[arg(long)]
     regions: Option<String>,
     #[command(flatten)]
     heuristic: HeuristicArgs,
     /// Write per-frame weights and errors as CSV.
+    /// [default: not written].
     #[arg(long, short)]
     out: Option<PathBuf>,
     /// Write one PNG per frame here.
+    /// [default: not written].
     #[arg(long)]
     png_dir: Option<PathBuf>,
     /// Draw the weights over time as a PNG here: a row per key shape (per region with
     /// --regions), a column per frame, negative weights red and positive blue.
+    /// [default: not drawn].
     #[arg(long, value_name = "FILE")]
     png: Option<PathBuf>,
     /// Write an animated PNG at the sequence's frame rate.
+    /// [default: not written].
     #[arg(long)]
     apng: Option<PathBuf>,
     /// Head motion (removed by alignment) in the outputs: `apply` re-applies it to the

@@ -30,12 +30,14 @@ pub struct SolveArgs {
     #[arg(long, default_value = "nnls", value_parser = parse_solver)]
     solver: Solver,
     /// Solve deltas from this neutral frame: q − N = Σ wᵢ (Sᵢ − N).
+    /// [default: none: absolute shapes].
     #[arg(long, value_name = "FRAME")]
     neutral: Option<i64>,
-    /// LS singular-value cutoff relative to the largest (default max(n,k)·ε).
+    /// LS singular-value cutoff, relative to the largest singular value [default:
+    /// max(n, k)·ε].
     #[arg(long)]
     rcond: Option<f64>,
-    /// Write the weights CSV here (written atomically); without it the CSV goes to stdout.
+    /// Write the weights CSV here (written atomically) [default: stdout].
     #[arg(long, short)]
     out: Option<PathBuf>,
     /// Print a JSON summary (mean RMS, share of negative weights, max |w|, …).
@@ -43,6 +45,7 @@ pub struct SolveArgs {
     json: bool,
     /// Draw the weights over time as a PNG here: a row per key frame, a column per frame,
     /// negative weights red and positive blue.
+    /// [default: not drawn].
     #[arg(long, value_name = "FILE")]
     png: Option<PathBuf>,
     /// Temporal prior λ (≥ 0; 0 = today's per-frame weights): minimise
@@ -50,14 +53,15 @@ pub struct SolveArgs {
     /// (aligned; the file's with --no-align; deltas with --neutral), under the solver's
     /// constraints. λ is in squared coordinate units (px²) per unit of weight change; clips
     /// and gaps left by failed frames are not smoothed across.
+    /// [default: off, the same as 0].
     #[arg(long, value_name = "LAMBDA", allow_negative_numbers = true)]
     smooth: Option<f64>,
-    /// `offline` (the whole sequence at once, default) or `causal` (each frame from the past
-    /// only, for live use). Needs --smooth.
+    /// `offline` (the whole sequence at once) or `causal` (each frame from the past only,
+    /// for live use). Needs --smooth [default: offline].
     #[arg(long, requires = "smooth", value_parser = parse_mode)]
     smooth_mode: Option<SmoothMode>,
-    /// 1 (first difference, penalises motion; default) or 2 (second difference, penalises
-    /// acceleration: lags less). Needs --smooth.
+    /// 1 (first difference, penalises motion) or 2 (second difference, penalises
+    /// acceleration: lags less). Needs --smooth [default: 1].
     #[arg(long, requires = "smooth")]
     smooth_order: Option<usize>,
 }

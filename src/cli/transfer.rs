@@ -30,21 +30,26 @@ pub struct TransferArgs {
     #[arg(long, default_value = "builtin")]
     features: String,
     /// Partial retargeting: only these feature groups move (e.g. `mouth,jaw`).
+    /// [default: every group moves].
     #[arg(long, value_delimiter = ',')]
     groups: Option<Vec<String>>,
-    /// Source neutral frame the RBF is trained on (default: the first tracked frame).
+    /// Source neutral frame the RBF is trained on [default: the first tracked frame].
     #[arg(long, value_name = "FRAME")]
     neutral: Option<i64>,
     /// Painted skin weights overriding the automatic ones (JSON `{"weights": [{"vertex", "feature", "weight"}]}`).
+    /// [default: automatic ellipsoid weights].
     #[arg(long)]
     weights: Option<PathBuf>,
     /// Write one OBJ per frame here.
+    /// [default: not written].
     #[arg(long)]
     obj_dir: Option<PathBuf>,
     /// Write a glTF 2.0 binary: the mesh skinned to one joint per feature point, animated.
+    /// [default: not written].
     #[arg(long)]
     gltf: Option<PathBuf>,
     /// Write one PNG per frame here (source points beside the mesh wireframe).
+    /// [default: not written].
     #[arg(long)]
     png_dir: Option<PathBuf>,
     /// Only every N-th frame for --obj-dir / --png-dir.

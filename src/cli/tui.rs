@@ -12,9 +12,11 @@ pub struct TuiArgs {
     /// Tracked sequence (omit for the built-in one).
     file: Option<PathBuf>,
     /// Target key shapes (JSON target set or SVG template): its frames become the key frames.
+    /// [default: none: key frames chosen from the sequence].
     #[arg(long)]
     target: Option<PathBuf>,
     /// A target mesh (OBJ) to drive by RBF transfer + skinning (paper 004); `x` shows it.
+    /// [default: none].
     #[arg(long)]
     mesh: Option<PathBuf>,
     /// Feature correspondences for --mesh (`builtin`, a built-in name, or a JSON file).

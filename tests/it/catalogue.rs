@@ -639,3 +639,51 @@ fn head_motion_is_one_choice_for_every_output() {
         );
     }
 }
+
+/// Issue 14 item 12: every subcommand's usage shows the input as optional `[FILE]` (the
+/// built-in sequence), and every option that takes a value either is required (it is in the
+/// usage line) or says its default.
+#[test]
+fn every_option_states_its_default_and_file_is_optional() {
+    let commands = [
+        "tui",
+        "info",
+        "solve",
+        "keys",
+        "curves",
+        "template",
+        "retarget",
+        "transfer",
+        "modes",
+        "map",
+        "intensity",
+        "smooth",
+    ];
+    let mut missing = Vec::new();
+    for c in commands {
+        let (code, help, _) = run(&[c, "--help"]);
+        assert_eq!(code, 0, "{c}");
+        let usage = help.lines().find(|l| l.starts_with("Usage:")).unwrap();
+        assert!(usage.ends_with("[FILE]"), "{c}: {usage}");
+        // Option blocks: from a line starting with `-x, --name` or `--name` to the next.
+        let mut blocks: Vec<String> = Vec::new();
+        for line in help.lines() {
+            let t = line.trim_start();
+            if t.starts_with("--") || (t.starts_with('-') && t.get(2..4) == Some(", ")) {
+                blocks.push(t.to_string());
+            } else if let Some(b) = blocks.last_mut() {
+                b.push(' ');
+                b.push_str(t);
+            }
+        }
+        for b in blocks {
+            let head = b.split_whitespace().find(|w| w.starts_with("--")).unwrap();
+            let takes_value = b.contains(" <");
+            let required = usage.contains(&format!("{head} <"));
+            if takes_value && !required && !b.to_lowercase().contains("default") {
+                missing.push(format!("{c} {head}"));
+            }
+        }
+    }
+    assert!(missing.is_empty(), "no default stated: {missing:?}");
+}

@@ -559,7 +559,10 @@ fn intensity_study_refuses_thresholds_outside_the_open_unit_interval_and_empty_s
             ..Default::default()
         };
         let e = study(&path, &st).unwrap_err().to_string();
-        assert!(e.contains("leave no training or no test frames"), "{range:?}: {e}");
+        assert!(
+            e.contains("leave no training or no test frames"),
+            "{range:?}: {e}"
+        );
     }
 }
 

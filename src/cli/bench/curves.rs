@@ -20,6 +20,7 @@ pub struct CurvesBenchArgs {
     /// frames × 468 points, or the built-in sequence when that is missing).
     file: Option<PathBuf>,
     /// Point groups, as for `kslab curves`.
+    /// [default: every point].
     #[arg(long)]
     points: Option<String>,
     /// Highest k of the sweep.
