@@ -5,7 +5,7 @@ use super::keys::{HeuristicArgs, KeyChoiceArgs};
 use anyhow::Result;
 use clap::Args;
 use keyshape_lab::io::{svg::write_template, write_atomic};
-use keyshape_lab::retarget::setup::polylines_for;
+use keyshape_lab::retarget::setup::named_polylines_for;
 use keyshape_lab::solve::Solver;
 use std::path::PathBuf;
 
@@ -41,7 +41,7 @@ pub fn run(a: &TemplateArgs) -> Result<()> {
     let lines = prep
         .layout
         .as_ref()
-        .map(|l| polylines_for(l, &prep.point_indices))
+        .map(|l| named_polylines_for(l, &prep.point_indices))
         .unwrap_or_default();
     progress.finish();
     write_atomic(&a.out, |w| write_template(w, &keys, s.points, &lines))?;

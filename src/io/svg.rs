@@ -6,12 +6,16 @@
 //! key shapes").
 //!
 //! [`write_template`] writes one `<g id="key-<frame>">` per key frame, laid out in a grid
-//! by the group's `transform`, with one `<polyline id="key-<frame>-c<i>">` per contour and
-//! `key-<frame>-rest` for points on no contour. A `<desc id="kslab-template">` holds the
-//! contours' point indices as JSON. An artist moves points (Inkscape may turn polylines
-//! into paths and add transforms — fine), keeping the ids and the number of points per
-//! contour. [`read_template`] reads it back through usvg, which resolves transforms and
-//! shapes, and returns a target set in each key group's own coordinates.
+//! by the group's `transform` and captioned "key N · frame F". Inside it each layout group
+//! (brows, eyes, nose, lips, oval …) is a labelled sub-group `key-<frame>-<group>` of
+//! polylines `key-<frame>-c<i>` ("lips outer", "lips inner", …), and points on no contour
+//! are dots `key-<frame>-p<point>` in `key-<frame>-loose` (templates before the dots drew
+//! them as one polyline, `key-<frame>-rest`, still read). A `<desc id="kslab-template">`
+//! holds the contours' point indices, where each key sits and the shapes as written, as
+//! JSON. An artist moves points (Inkscape may turn polylines into paths and add transforms
+//! — fine), keeping the ids and the number of points per contour. [`read_template`] reads
+//! it back through usvg, which resolves transforms and shapes, and returns a target set in
+//! each key group's own coordinates; dots the artist left alone follow the redrawn contours.
 
 use crate::error::{Error, Result};
 use crate::retarget::target::{TargetKey, TargetSet};
@@ -32,6 +36,14 @@ struct Meta {
     /// before this field fall back to undoing the group's translation.
     #[serde(default)]
     origins: BTreeMap<i64, [f64; 2]>,
+    /// The points on no contour are dots `key-<frame>-p<point>` (templates before this
+    /// field drew them as one polyline `key-<frame>-rest`).
+    #[serde(default)]
+    loose_dots: bool,
+    /// Each key shape as written, so that dots left where they were can follow the
+    /// redrawn contours (frame → flat 2-D shape).
+    #[serde(default)]
+    shapes: BTreeMap<i64, Vec<f64>>,
 }
 
 /// Contours for a template: the given polylines plus one run of every point on none.
@@ -50,15 +62,87 @@ pub fn contours_with_rest(points: usize, polylines: &[Vec<usize>]) -> Vec<Vec<us
     all
 }
 
-/// Writes a template of `keys` (frame number, flat 2-D shape) with drawing `polylines`.
+/// Labels for a group's contours as a person reads them: the group's name alone, or — for
+/// a group drawn as two contours — `outer`/`inner` when one's bounding box holds the
+/// other's (lips), else `upper`/`lower` by height (brows; y points down), else numbered.
+fn contour_labels(polylines: &[(String, Vec<usize>)], shape: &[f64]) -> Vec<String> {
+    let bbox = |l: &[usize]| {
+        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        for &p in l {
+            for d in 0..2 {
+                lo[d] = lo[d].min(shape[2 * p + d]);
+                hi[d] = hi[d].max(shape[2 * p + d]);
+            }
+        }
+        (lo, hi)
+    };
+    let mut out = Vec::with_capacity(polylines.len());
+    for (i, (name, line)) in polylines.iter().enumerate() {
+        let same: Vec<usize> = (0..polylines.len())
+            .filter(|&j| polylines[j].0 == *name)
+            .collect();
+        let pretty = name.replace('_', " ");
+        let label = match same.len() {
+            1 => pretty,
+            2 => {
+                let other = &polylines[same[usize::from(same[0] == i)]].1;
+                let ((a0, a1), (b0, b1)) = (bbox(line), bbox(other));
+                let holds = |(l0, l1): ([f64; 2], [f64; 2]), (m0, m1): ([f64; 2], [f64; 2])| {
+                    (0..2).all(|d| l0[d] <= m0[d] && l1[d] >= m1[d])
+                };
+                let mean_y =
+                    |l: &[usize]| l.iter().map(|&p| shape[2 * p + 1]).sum::<f64>() / l.len() as f64;
+                if holds((a0, a1), (b0, b1)) {
+                    format!("{pretty} outer")
+                } else if holds((b0, b1), (a0, a1)) {
+                    format!("{pretty} inner")
+                } else if mean_y(line) <= mean_y(other) {
+                    format!("{pretty} upper")
+                } else {
+                    format!("{pretty} lower")
+                }
+            }
+            _ => format!(
+                "{pretty} {}",
+                same.iter().position(|&j| j == i).unwrap_or(0) + 1
+            ),
+        };
+        out.push(label);
+    }
+    out
+}
+
+/// Escapes text for XML content and attributes.
+fn xml_escape(s: &str) -> String {
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+        .replace('"', "&quot;")
+}
+
+/// Writes a template of `keys` (frame number, flat 2-D shape) with drawing `polylines`, each
+/// named by the layout group it belongs to.
+///
+/// Each key is a panel `<g id="key-<frame>">` captioned with its number and source frame;
+/// inside it, one sub-group per layout group (`key-<frame>-<group>`, labelled for
+/// Inkscape's Objects panel) holds that group's contours as polylines `key-<frame>-c<i>`.
+/// Points on no contour (MediaPipe's mesh interior) are small dots `key-<frame>-p<point>` in
+/// a `key-<frame>-loose` sub-group: the artist may move them, and those left where they were
+/// follow the redrawn contours when the template is read ([`parse_template`]).
 pub fn write_template(
     w: &mut dyn Write,
     keys: &[(i64, Vec<f64>)],
     points: usize,
-    polylines: &[Vec<usize>],
+    polylines: &[(String, Vec<usize>)],
 ) -> std::io::Result<()> {
-    let contours = contours_with_rest(points, polylines);
-    let rest = contours.len() > polylines.iter().filter(|l| l.len() > 1).count();
+    let lines: Vec<(String, Vec<usize>)> = polylines
+        .iter()
+        .filter(|(_, l)| l.len() > 1)
+        .cloned()
+        .collect();
+    let plain: Vec<Vec<usize>> = lines.iter().map(|(_, l)| l.clone()).collect();
+    let contours = contours_with_rest(points, &plain);
+    let rest = contours.len() > lines.len();
     let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
     for (_, s) in keys {
         for p in s.chunks(2) {
@@ -73,7 +157,7 @@ pub fn write_template(
     writeln!(w, r#"<?xml version="1.0" encoding="UTF-8"?>"#)?;
     writeln!(
         w,
-        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{wd:.3}" height="{ht:.3}" viewBox="0 0 {wd:.3} {ht:.3}">"#
+        r#"<svg xmlns="http://www.w3.org/2000/svg" xmlns:inkscape="http://www.inkscape.org/namespaces/inkscape" width="{wd:.3}" height="{ht:.3}" viewBox="0 0 {wd:.3} {ht:.3}">"#
     )?;
     let origins = keys
         .iter()
@@ -89,37 +173,84 @@ pub fn write_template(
         polylines: contours.clone(),
         rest,
         origins: origins.clone(),
+        loose_dots: rest,
+        shapes: if rest {
+            keys.iter().map(|(f, s)| (*f, s.clone())).collect()
+        } else {
+            BTreeMap::new()
+        },
     })
     .map_err(std::io::Error::other)?;
     writeln!(w, r#"<desc id="kslab-template">{meta}</desc>"#)?;
-    writeln!(w, "<!-- keyshape-lab key-shape template: redraw each key shape, keep the ids and the number of points of every contour. -->")?;
+    writeln!(w, "<!-- keyshape-lab key-shape template: redraw each key shape, keep the ids and the number of points of every contour. Dots are points on no contour: move them or leave them to follow the contours. -->")?;
     let stroke = cell / 300.0;
-    for (frame, s) in keys {
+    let font = cell / 28.0;
+    let labels = keys
+        .first()
+        .map(|(_, s)| contour_labels(&lines, s))
+        .unwrap_or_default();
+    for (n, (frame, s)) in keys.iter().enumerate() {
         let [ox, oy] = origins[frame];
         writeln!(
             w,
-            r#"<g id="key-{frame}" transform="translate({ox} {oy})"><title>key frame {frame}</title>"#
+            r#"<g id="key-{frame}" inkscape:label="key {} · frame {frame}" transform="translate({ox} {oy})"><title>key {} of {}: frame {frame}</title>"#,
+            n + 1,
+            n + 1,
+            keys.len()
         )?;
-        for (c, line) in contours.iter().enumerate() {
-            let id = if rest && c + 1 == contours.len() {
-                format!("key-{frame}-rest")
-            } else {
-                format!("key-{frame}-c{c}")
-            };
-            let pts: Vec<String> = line
-                .iter()
-                .map(|&p| format!("{},{}", s[2 * p], s[2 * p + 1]))
-                .collect();
-            let dash = if id.ends_with("rest") {
-                r#" stroke-dasharray="1,2""#
-            } else {
-                ""
-            };
+        writeln!(
+            w,
+            r##"  <text id="key-{frame}-caption" x="{}" y="{}" font-family="sans-serif" font-size="{font}" fill="#444">key {} · frame {frame}</text>"##,
+            lo[0] - 0.05 * cell,
+            lo[1] - 0.04 * cell,
+            n + 1
+        )?;
+        // Contours, grouped by layout group in first-appearance order.
+        let mut order: Vec<&str> = Vec::new();
+        for (name, _) in &lines {
+            if !order.contains(&name.as_str()) {
+                order.push(name);
+            }
+        }
+        for name in order {
             writeln!(
                 w,
-                r#"  <polyline id="{id}" fill="none" stroke="black" stroke-width="{stroke}"{dash} points="{}"/>"#,
-                pts.join(" ")
+                r#"  <g id="key-{frame}-{}" inkscape:label="{}">"#,
+                xml_escape(name),
+                xml_escape(&name.replace('_', " "))
             )?;
+            for (c, (cname, line)) in lines.iter().enumerate() {
+                if cname != name {
+                    continue;
+                }
+                let pts: Vec<String> = line
+                    .iter()
+                    .map(|&p| format!("{},{}", s[2 * p], s[2 * p + 1]))
+                    .collect();
+                writeln!(
+                    w,
+                    r#"    <polyline id="key-{frame}-c{c}" inkscape:label="{}" fill="none" stroke="black" stroke-width="{stroke}" points="{}"/>"#,
+                    xml_escape(&labels[c]),
+                    pts.join(" ")
+                )?;
+            }
+            writeln!(w, "  </g>")?;
+        }
+        if rest {
+            writeln!(
+                w,
+                r##"  <g id="key-{frame}-loose" inkscape:label="points on no contour (left alone, they follow the contours)" fill="#888">"##
+            )?;
+            for &p in contours.last().into_iter().flatten() {
+                writeln!(
+                    w,
+                    r#"    <circle id="key-{frame}-p{p}" cx="{}" cy="{}" r="{}"/>"#,
+                    s[2 * p],
+                    s[2 * p + 1],
+                    2.0 * stroke
+                )?;
+            }
+            writeln!(w, "  </g>")?;
         }
         writeln!(w, "</g>")?;
     }
@@ -167,6 +298,58 @@ fn find_meta(path: &Path, text: &str) -> Result<Meta> {
         ));
     }
     Ok(meta)
+}
+
+/// Moves the loose points (`loose`) that were left where the template put them by the
+/// displacement field of the contour points: a multiquadric RBF (paper 004's) fitted on the
+/// contour points' original positions and their displacements, so that a point with no
+/// moved neighbour stays put and a redrawn mouth carries the mesh inside it. A point the
+/// artist moved keeps its position. If the contours did not move, nothing changes.
+fn follow_contours(coords: &mut [f64], orig: &[f64], loose: &[usize]) {
+    let n = coords.len() / 2;
+    let mut is_loose = vec![false; n];
+    loose.iter().for_each(|&p| is_loose[p] = true);
+    let extent = orig
+        .chunks(2)
+        .flat_map(|q| q.iter().copied())
+        .fold(0.0f64, |m, v| m.max(v.abs()))
+        .max(1.0);
+    // Coordinates pass through single precision (the module's note): 1e-5 of the extent.
+    let tol = 1e-5 * extent;
+    let moved: Vec<bool> = (0..n)
+        .map(|p| {
+            (coords[2 * p] - orig[2 * p]).abs() > tol
+                || (coords[2 * p + 1] - orig[2 * p + 1]).abs() > tol
+        })
+        .collect();
+    let anchors: Vec<usize> = (0..n).filter(|&p| !is_loose[p]).collect();
+    if anchors.is_empty() || !anchors.iter().any(|&p| moved[p]) {
+        return;
+    }
+    let src: Vec<f64> = anchors
+        .iter()
+        .flat_map(|&p| [orig[2 * p], orig[2 * p + 1]])
+        .collect();
+    let disp: Vec<f64> = anchors
+        .iter()
+        .flat_map(|&p| {
+            [
+                coords[2 * p] - orig[2 * p],
+                coords[2 * p + 1] - orig[2 * p + 1],
+            ]
+        })
+        .collect();
+    let Ok(rbf) = crate::retarget::rbf::Rbf::fit(&src, &disp, 2) else {
+        return;
+    };
+    let mut d = [0.0; 2];
+    for &p in loose {
+        if !moved[p] {
+            rbf.apply_point(&orig[2 * p..2 * p + 2], &mut d);
+            coords[2 * p] = orig[2 * p] + d[0];
+            coords[2 * p + 1] = orig[2 * p + 1] + d[1];
+        }
+    }
 }
 
 /// Vertices of a path (end points of every segment), in absolute coordinates.
@@ -220,7 +403,17 @@ pub fn parse_template(path: &Path, text: &str) -> Result<TargetSet> {
     let (mut groups, mut paths) = (Vec::new(), Vec::new());
     collect(tree.root(), &mut groups, &mut paths);
     let mut keys = Vec::new();
-    for g in groups.iter().filter(|g| g.id().starts_with("key-")) {
+    // Sub-groups of a panel (`key-<frame>-lips`, `key-<frame>-loose`) are not keys.
+    let is_sub_group = |id: &str| {
+        let r = &id["key-".len()..];
+        let digits = r.strip_prefix('-').unwrap_or(r);
+        let n = digits.chars().take_while(|c| c.is_ascii_digit()).count();
+        n > 0 && digits[n..].starts_with('-')
+    };
+    for g in groups
+        .iter()
+        .filter(|g| g.id().starts_with("key-") && !is_sub_group(g.id()))
+    {
         let frame: i64 = g.id()["key-".len()..].parse().map_err(|_| {
             Error::file(
                 path,
@@ -259,8 +452,39 @@ pub fn parse_template(path: &Path, text: &str) -> Result<TargetSet> {
             .filter(|p| p.id().starts_with(&format!("{}-", g.id())))
             .map(|p| (p.id().to_string(), *p))
             .collect();
+        let mut loose: Vec<usize> = Vec::new();
         for (c, line) in meta.polylines.iter().enumerate() {
-            let id = if meta.rest && c + 1 == meta.polylines.len() {
+            let is_rest = meta.rest && c + 1 == meta.polylines.len();
+            if is_rest && meta.loose_dots {
+                for &pi in line {
+                    let id = format!("{}-p{pi}", g.id());
+                    let p = mine.get(&id).ok_or_else(|| {
+                        Error::file(
+                            path,
+                            format!("dot '{id}' is missing (keep the template's ids; move dots, do not delete them)"),
+                        )
+                    })?;
+                    let v = vertices(p);
+                    let centre = |d: usize| {
+                        let lo = v.iter().map(|q| q[d]).fold(f64::INFINITY, f64::min);
+                        let hi = v.iter().map(|q| q[d]).fold(f64::NEG_INFINITY, f64::max);
+                        (lo + hi) / 2.0
+                    };
+                    let xy = [centre(0), centre(1)];
+                    if !(xy[0].is_finite() && xy[1].is_finite()) {
+                        return Err(Error::file(
+                            path,
+                            format!("dot '{id}': its position is not a finite number"),
+                        ));
+                    }
+                    sum[2 * pi] += xy[0] - origin[0];
+                    sum[2 * pi + 1] += xy[1] - origin[1];
+                    count[pi] += 1;
+                    loose.push(pi);
+                }
+                continue;
+            }
+            let id = if is_rest {
                 format!("{}-rest", g.id())
             } else {
                 format!("{}-c{c}", g.id())
@@ -300,11 +524,14 @@ pub fn parse_template(path: &Path, text: &str) -> Result<TargetSet> {
                 format!("key-{frame}: point {p} is on no contour"),
             ));
         }
-        let coords = sum
+        let mut coords: Vec<f64> = sum
             .iter()
             .enumerate()
             .map(|(i, v)| v / count[i / 2] as f64)
             .collect();
+        if let Some(orig) = meta.shapes.get(&frame).filter(|o| o.len() == coords.len()) {
+            follow_contours(&mut coords, orig, &loose);
+        }
         keys.push(TargetKey { frame, coords });
     }
     if keys.is_empty() {

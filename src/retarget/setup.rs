@@ -10,9 +10,17 @@ use crate::sequence::{Layout, Sequence};
 /// The layout's polylines restricted to the selected points, renumbered to selection
 /// indices (a polyline is cut where it leaves the selection).
 pub fn polylines_for(layout: &Layout, selected: &[usize]) -> Vec<Vec<usize>> {
+    named_polylines_for(layout, selected)
+        .into_iter()
+        .map(|(_, l)| l)
+        .collect()
+}
+
+/// [`polylines_for`] with the name of the layout group each polyline comes from.
+pub fn named_polylines_for(layout: &Layout, selected: &[usize]) -> Vec<(String, Vec<usize>)> {
     let pos = |p: usize| selected.binary_search(&p).ok();
     let mut out = Vec::new();
-    for g in layout.groups.values() {
+    for (name, g) in &layout.groups {
         for line in &g.polylines {
             let mut run = Vec::new();
             for &p in line {
@@ -20,14 +28,14 @@ pub fn polylines_for(layout: &Layout, selected: &[usize]) -> Vec<Vec<usize>> {
                     Some(i) => run.push(i),
                     None => {
                         if run.len() > 1 {
-                            out.push(std::mem::take(&mut run));
+                            out.push((name.clone(), std::mem::take(&mut run)));
                         }
                         run.clear();
                     }
                 }
             }
             if run.len() > 1 {
-                out.push(run);
+                out.push((name.clone(), run));
             }
         }
     }

@@ -278,7 +278,10 @@ fn template_of(
         .iter()
         .map(|&c| (s.frames[c], s.coords.column(c).iter().copied().collect()))
         .collect();
-    let lines = polylines_for(prep.layout.as_ref().unwrap(), &prep.point_indices);
+    let lines = keyshape_lab::retarget::setup::named_polylines_for(
+        prep.layout.as_ref().unwrap(),
+        &prep.point_indices,
+    );
     let mut buf = Vec::new();
     write_template(&mut buf, &keys, s.points, &lines).unwrap();
     (String::from_utf8(buf).unwrap(), keys)
@@ -430,4 +433,122 @@ fn nnls_removes_the_distortion_ls_shows_with_traced_targets_on_real_lips() {
     assert!(nnls.jitter() < 0.5 * ls.jitter());
     let (ls0, nnls0) = (run(Solver::Ls, 0.0), run(Solver::Nnls, 0.0));
     assert!(ls0.target_rms().unwrap() < nnls0.target_rms().unwrap());
+}
+
+/// Issue 14 item 1: the whole-face template is readable — every panel captioned with its key
+/// number and source frame, one labelled sub-group per layout group (lips outer and inner
+/// told apart), the mesh interior as dots instead of one polyline through ~400 points — and
+/// dots left alone follow a redrawn contour, while a dot the artist moved stays where it was
+/// put.
+#[test]
+fn the_face_template_is_grouped_captioned_and_its_dots_follow_the_contours() {
+    let seq = builtin_sequence().unwrap();
+    let prep = prepare(&seq, &PrepareOptions::default()).unwrap();
+    let layout = prep.layout.as_ref().unwrap();
+    let (svg, keys) = template_of(&prep, &[3, 77, 140]);
+    let frames: Vec<i64> = keys.iter().map(|k| k.0).collect();
+    for (n, f) in frames.iter().enumerate() {
+        assert!(
+            svg.contains(&format!(">key {} · frame {f}</text>", n + 1)),
+            "{f}"
+        );
+        for g in layout.groups.keys() {
+            let label = g.replace('_', " ");
+            assert!(
+                svg.contains(&format!(r#"<g id="key-{f}-{g}" inkscape:label="{label}">"#)),
+                "{f} {g}"
+            );
+        }
+    }
+    assert!(
+        svg.contains(r#"inkscape:label="lips outer""#)
+            && svg.contains(r#"inkscape:label="lips inner""#)
+    );
+    // No polyline is longer than the longest layout contour (the old scribble had ~400).
+    let longest = layout
+        .groups
+        .values()
+        .flat_map(|g| g.polylines.iter().map(|l| l.len()))
+        .max()
+        .unwrap();
+    for chunk in svg.split("<polyline").skip(1) {
+        let pts = chunk
+            .split("points=\"")
+            .nth(1)
+            .unwrap()
+            .split('"')
+            .next()
+            .unwrap();
+        assert!(pts.split_whitespace().count() <= longest);
+    }
+    let lines = polylines_for(layout, &prep.point_indices);
+    let on: std::collections::BTreeSet<usize> = lines.iter().flatten().copied().collect();
+    let dots: Vec<usize> = (0..prep.seq.points).filter(|p| !on.contains(p)).collect();
+    assert_eq!(svg.matches("<circle").count(), dots.len() * frames.len());
+
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("t.svg");
+    let read = |text: &str| {
+        std::fs::write(&p, text).unwrap();
+        read_template(&p).unwrap().for_frames(&frames).unwrap()
+    };
+    let plain = read(&svg);
+    // The artist drags the whole lips group of key 1 down 20 px and one dot (the first)
+    // 5 px right.
+    let f = frames[0];
+    let dot = dots[0];
+    let edited = svg
+        .replace(
+            &format!(r#"<g id="key-{f}-lips" inkscape:label="lips">"#),
+            &format!(r#"<g id="key-{f}-lips" inkscape:label="lips" transform="translate(0 20)">"#),
+        )
+        .replace(
+            &format!(r#"<circle id="key-{f}-p{dot}" "#),
+            &format!(r#"<circle transform="translate(5 0)" id="key-{f}-p{dot}" "#),
+        );
+    let m = read(&edited);
+    let lips: Vec<usize> = {
+        let sel = &prep.point_indices;
+        layout.groups["lips"]
+            .points
+            .iter()
+            .filter_map(|p| sel.binary_search(p).ok())
+            .collect()
+    };
+    for &i in &lips {
+        assert!((m[(2 * i + 1, 0)] - plain[(2 * i + 1, 0)] - 20.0).abs() < 1e-3);
+    }
+    // The moved dot is where the artist put it.
+    assert!((m[(2 * dot, 0)] - plain[(2 * dot, 0)] - 5.0).abs() < 1e-3);
+    assert!((m[(2 * dot + 1, 0)] - plain[(2 * dot + 1, 0)]).abs() < 1e-3);
+    // Dots left alone follow: the one nearest the mouth moves down by most of the 20 px,
+    // the one farthest from it by little; the other keys do not change at all.
+    let mouth: Vec<f64> = (0..2)
+        .map(|d| lips.iter().map(|&i| plain[(2 * i + d, 0)]).sum::<f64>() / lips.len() as f64)
+        .collect();
+    let dist = |p: usize| {
+        ((plain[(2 * p, 0)] - mouth[0]).powi(2) + (plain[(2 * p + 1, 0)] - mouth[1]).powi(2)).sqrt()
+    };
+    let rest: Vec<usize> = dots.iter().copied().filter(|&p| p != dot).collect();
+    let near = *rest
+        .iter()
+        .min_by(|a, b| dist(**a).total_cmp(&dist(**b)))
+        .unwrap();
+    let far = *rest
+        .iter()
+        .max_by(|a, b| dist(**a).total_cmp(&dist(**b)))
+        .unwrap();
+    let dy = |p: usize| m[(2 * p + 1, 0)] - plain[(2 * p + 1, 0)];
+    assert!(dy(near) > 10.0, "nearest dot moved {}", dy(near));
+    assert!(
+        dy(far).abs() < 0.5 * dy(near),
+        "farthest {} vs nearest {}",
+        dy(far),
+        dy(near)
+    );
+    for j in 1..frames.len() {
+        for r in 0..m.nrows() {
+            assert!((m[(r, j)] - plain[(r, j)]).abs() < 1e-9);
+        }
+    }
 }
