@@ -352,6 +352,43 @@ fn follow_contours(coords: &mut [f64], orig: &[f64], loose: &[usize]) {
     }
 }
 
+/// A dot's centre attributes must be numbers: usvg reads a malformed `cx` as 0, which would
+/// put the point at the panel's corner without a word.
+fn check_dots(path: &Path, text: &str) -> Result<()> {
+    let doc = roxmltree::Document::parse(text).map_err(|e| {
+        let p = e.pos();
+        Error::parse(
+            path,
+            u64::from(p.row),
+            u64::from(p.col),
+            format!("not valid SVG/XML: {e}"),
+        )
+    })?;
+    for n in doc.descendants().filter(|n| n.is_element()) {
+        let Some(id) = n
+            .attribute("id")
+            .filter(|id| id.starts_with("key-") && id.contains("-p"))
+        else {
+            continue;
+        };
+        for a in ["cx", "cy", "r"] {
+            if let Some(v) = n.attribute(a) {
+                let num = v.trim().trim_end_matches("px");
+                if !num.parse::<f64>().is_ok_and(f64::is_finite) {
+                    let pos = doc.text_pos_at(n.range().start);
+                    return Err(Error::parse(
+                        path,
+                        u64::from(pos.row),
+                        u64::from(pos.col),
+                        format!("dot '{id}': {a}=\"{v}\" is not a number"),
+                    ));
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
 /// Vertices of a path (end points of every segment), in absolute coordinates.
 fn vertices(p: &usvg::Path) -> Vec<[f64; 2]> {
     use usvg::tiny_skia_path::PathSegment;
@@ -398,6 +435,9 @@ pub fn read_template(path: &Path) -> Result<TargetSet> {
 pub fn parse_template(path: &Path, text: &str) -> Result<TargetSet> {
     let text = text.to_string();
     let meta = find_meta(path, &text)?;
+    if meta.loose_dots {
+        check_dots(path, &text)?;
+    }
     let tree = usvg::Tree::from_str(&text, &usvg::Options::default())
         .map_err(|e| Error::file(path, format!("SVG: {e}")))?;
     let (mut groups, mut paths) = (Vec::new(), Vec::new());

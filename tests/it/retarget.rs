@@ -551,4 +551,23 @@ fn the_face_template_is_grouped_captioned_and_its_dots_follow_the_contours() {
             assert!((m[(r, j)] - plain[(r, j)]).abs() < 1e-9);
         }
     }
+    // A deleted dot and a dot whose centre is not a number are errors naming it (usvg
+    // alone would read a malformed cx as 0: the point at the panel's corner, silently).
+    let tag = format!(r#"<circle id="key-{f}-p{dot}" cx=""#);
+    let start = svg.find(&tag).unwrap();
+    let end = start + svg[start..].find("/>").unwrap() + 2;
+    let deleted = format!("{}{}", &svg[..start], &svg[end..]);
+    std::fs::write(&p, &deleted).unwrap();
+    let e = read_template(&p).unwrap_err().to_string();
+    assert!(
+        e.contains(&format!("dot 'key-{f}-p{dot}' is missing")),
+        "{e}"
+    );
+    std::fs::write(&p, svg.replacen(&tag, &format!("{tag}x"), 1)).unwrap();
+    let e = read_template(&p).unwrap_err().to_string();
+    assert!(
+        e.contains(&format!("dot 'key-{f}-p{dot}': cx=\"x")) && e.contains("is not a number"),
+        "{e}"
+    );
+    assert!(e.contains("t.svg:"), "names the file, line and column: {e}");
 }
