@@ -257,8 +257,9 @@ pub fn write_template(
     writeln!(w, "</svg>")
 }
 
-fn find_meta(path: &Path, text: &str) -> Result<Meta> {
-    let doc = roxmltree::Document::parse(text).map_err(|e| {
+/// Parses the template as XML; a malformed file is an error at its line and column.
+fn parse_xml<'a>(path: &Path, text: &'a str) -> Result<roxmltree::Document<'a>> {
+    roxmltree::Document::parse(text).map_err(|e| {
         let p = e.pos();
         Error::parse(
             path,
@@ -266,7 +267,11 @@ fn find_meta(path: &Path, text: &str) -> Result<Meta> {
             u64::from(p.col),
             format!("not valid SVG/XML: {e}"),
         )
-    })?;
+    })
+}
+
+fn find_meta(path: &Path, text: &str) -> Result<Meta> {
+    let doc = parse_xml(path, text)?;
     let node = doc
         .descendants()
         .find(|n| n.attribute("id") == Some("kslab-template"))
@@ -355,15 +360,7 @@ fn follow_contours(coords: &mut [f64], orig: &[f64], loose: &[usize]) {
 /// A dot's centre attributes must be numbers: usvg reads a malformed `cx` as 0, which would
 /// put the point at the panel's corner without a word.
 fn check_dots(path: &Path, text: &str) -> Result<()> {
-    let doc = roxmltree::Document::parse(text).map_err(|e| {
-        let p = e.pos();
-        Error::parse(
-            path,
-            u64::from(p.row),
-            u64::from(p.col),
-            format!("not valid SVG/XML: {e}"),
-        )
-    })?;
+    let doc = parse_xml(path, text)?;
     for n in doc.descendants().filter(|n| n.is_element()) {
         let Some(id) = n
             .attribute("id")
