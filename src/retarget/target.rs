@@ -129,6 +129,12 @@ impl TargetSet {
 #[derive(Debug, Deserialize)]
 struct CartoonFile {
     iod_points: BTreeMap<String, [usize; 2]>,
+    /// A warp of the whole face about the centroid of all its points: it moves each group's
+    /// centre (a narrower face brings eyes and brows closer together); each group's own
+    /// scale is then about that moved centre, relative to the group's source size. (Scaling
+    /// each feature about a fixed centre let the widened brows cross the narrowed outline.)
+    #[serde(default)]
+    face: Option<GroupWarp>,
     groups: BTreeMap<String, GroupWarp>,
 }
 
@@ -142,6 +148,16 @@ struct GroupWarp {
     scale_y: Option<f64>,
     #[serde(default)]
     shift: [f64; 2],
+}
+
+impl GroupWarp {
+    /// (x, y) scale factors: `scale_x`/`scale_y` where given, else `scale`, else 1.
+    fn scales(&self) -> (f64, f64) {
+        (
+            self.scale_x.or(self.scale).unwrap_or(1.0),
+            self.scale_y.or(self.scale).unwrap_or(1.0),
+        )
+    }
 }
 
 const CARTOON: &str = include_str!("../../assets/targets/cartoon.json");
@@ -174,18 +190,36 @@ pub fn cartoon_warp(mean: &[f64], layout: &Layout) -> Result<Rbf> {
         ))
     })?;
     let iod = ((pt(a)[0] - pt(b)[0]).powi(2) + (pt(a)[1] - pt(b)[1]).powi(2)).sqrt();
+    let centre = |points: &mut dyn Iterator<Item = [f64; 2]>| {
+        let (mut c, mut n) = ([0.0, 0.0], 0.0);
+        for q in points {
+            c = [c[0] + q[0], c[1] + q[1]];
+            n += 1.0;
+        }
+        [c[0] / n, c[1] / n]
+    };
+    let face = file.face.as_ref();
+    let fc = centre(&mut (0..mean.len() / 2).map(pt));
+    let (fx, fy) = face.map_or((1.0, 1.0), GroupWarp::scales);
+    let fshift = face.map_or([0.0, 0.0], |w| w.shift);
+    let narrowed = |q: [f64; 2]| {
+        [
+            fc[0] + fx * (q[0] - fc[0]) + fshift[0] * iod,
+            fc[1] + fy * (q[1] - fc[1]) + fshift[1] * iod,
+        ]
+    };
     let (mut src, mut dst) = (Vec::new(), Vec::new());
     let mut used = std::collections::BTreeSet::new();
     for (name, warp) in &file.groups {
         let Some(group) = layout.groups.get(name) else {
             continue;
         };
-        let n = group.points.len() as f64;
-        let c = group.points.iter().fold([0.0, 0.0], |c, &p| {
-            [c[0] + pt(p)[0] / n, c[1] + pt(p)[1] / n]
-        });
-        let sx = warp.scale_x.or(warp.scale).unwrap_or(1.0);
-        let sy = warp.scale_y.or(warp.scale).unwrap_or(1.0);
+        // The face warp moves the group's centre; the group's own scale is relative to
+        // its size in the source (so "lips × 1.5" is 1.5 × the source's mouth).
+        let c = centre(&mut group.points.iter().map(|&p| pt(p)));
+        let nc = narrowed(c);
+        let moved = [nc[0] - c[0], nc[1] - c[1]];
+        let (sx, sy) = warp.scales();
         let step = group.points.len().div_ceil(CONTROLS_PER_GROUP).max(1);
         for &p in group.points.iter().step_by(step) {
             if !used.insert(p) {
@@ -193,8 +227,8 @@ pub fn cartoon_warp(mean: &[f64], layout: &Layout) -> Result<Rbf> {
             }
             let q = pt(p);
             src.extend_from_slice(&q);
-            dst.push(c[0] + sx * (q[0] - c[0]) + warp.shift[0] * iod);
-            dst.push(c[1] + sy * (q[1] - c[1]) + warp.shift[1] * iod);
+            dst.push(c[0] + moved[0] + sx * (q[0] - c[0]) + warp.shift[0] * iod);
+            dst.push(c[1] + moved[1] + sy * (q[1] - c[1]) + warp.shift[1] * iod);
         }
     }
     Rbf::fit(&src, &dst, 2)

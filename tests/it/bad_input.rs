@@ -277,13 +277,13 @@ fn retarget_writes_metrics_frames_and_a_reviewed_frame_picture() {
     ]);
     assert_eq!(r.code, 0, "{}", r.stderr);
     let v: serde_json::Value = serde_json::from_str(&r.stdout).unwrap();
-    // Measured: target RMS 0.64218 px, jitter 0.115294 (LS, 12 spread keys, built-in lips).
+    // Measured: target RMS 0.64386 px, jitter 0.115294 (LS, 12 spread keys, built-in lips).
     let (trms, jitter) = (
         v["target_rms"].as_f64().unwrap(),
         v["jitter"].as_f64().unwrap(),
     );
     assert!(
-        (trms - 0.6421786016752955).abs() < 1e-9,
+        (trms - 0.6438628595836706).abs() < 1e-9,
         "target RMS {trms}"
     );
     assert!(

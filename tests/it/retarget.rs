@@ -236,10 +236,11 @@ fn regions_blend_to_one_and_bad_regions_are_explained() {
     )
     .unwrap();
     assert_eq!(res.weights.len(), 2);
-    // Measured 4.0182 px (4 + 5 keys on the whole face); a change beyond 0.1 % is a change
-    // in the solver, the regions' blend or the warp, to be looked at.
+    // Measured 3.9994 px (4 + 5 keys on the whole face; 4.0182 before the cartoon kept its
+    // brows inside the outline); a change beyond 0.1 % is a change in the solver, the
+    // regions' blend or the warp, to be looked at.
     let rms = res.target_rms().unwrap();
-    assert!((rms - 4.0182379701623585).abs() < 4e-3, "target RMS {rms}");
+    assert!((rms - 3.999366686552182).abs() < 4e-3, "target RMS {rms}");
 }
 
 #[test]
@@ -570,4 +571,87 @@ fn the_face_template_is_grouped_captioned_and_its_dots_follow_the_contours() {
         "{e}"
     );
     assert!(e.contains("t.svg:"), "names the file, line and column: {e}");
+}
+
+/// The smallest signed distance (in inter-ocular distances) by which the built-in cartoon
+/// keeps every feature point inside the face's outline, over every frame of `seq` mapped
+/// through the warp G — negative when a point crosses it. MediaPipe: every point off the
+/// face oval is inside the oval polygon. iBUG 68 has no closed outline (the jaw stops at the
+/// ears): every brow and eye point lies between the jaw's ends (points 0 and 16) in x.
+fn cartoon_outline_margin(seq: &keyshape_lab::sequence::Sequence, align: bool, warp: bool) -> f64 {
+    let prep = prepare(
+        seq,
+        &PrepareOptions {
+            points: None,
+            align,
+        },
+    )
+    .unwrap();
+    let layout = prep.layout.clone().unwrap();
+    let (g, iod) = builtin_target(seq, &prep).unwrap();
+    let mapped = if warp { g.apply_all(&prep.seq.coords) } else { prep.seq.coords.clone() };
+    let mut worst = f64::INFINITY;
+    for f in 0..mapped.ncols() {
+        let c = mapped.column(f);
+        let pt = |i: usize| [c[2 * i], c[2 * i + 1]];
+        if let Some(oval) = layout.groups.get("face_oval") {
+            let ring: Vec<[f64; 2]> = oval.polylines[0].iter().map(|&i| pt(i)).collect();
+            let drawn = ["left_eyebrow", "right_eyebrow", "left_eye", "right_eye", "lips", "nose"];
+            for i in drawn.iter().flat_map(|g| layout.groups[*g].points.iter().copied()) {
+                let p = pt(i);
+                let (mut inside, mut dist) = (false, f64::INFINITY);
+                for w in ring.windows(2) {
+                    let (a, b) = (w[0], w[1]);
+                    if (a[1] > p[1]) != (b[1] > p[1])
+                        && p[0] < a[0] + (p[1] - a[1]) / (b[1] - a[1]) * (b[0] - a[0])
+                    {
+                        inside = !inside;
+                    }
+                    let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+                    let t = (((p[0] - a[0]) * dx + (p[1] - a[1]) * dy) / (dx * dx + dy * dy))
+                        .clamp(0.0, 1.0);
+                    dist = dist.min((p[0] - a[0] - t * dx).hypot(p[1] - a[1] - t * dy));
+                }
+                worst = worst.min(if inside { dist } else { -dist } / iod);
+            }
+        } else {
+            let (l, r) = (pt(0)[0].min(pt(16)[0]), pt(0)[0].max(pt(16)[0]));
+            for name in ["left_eyebrow", "right_eyebrow", "left_eye", "right_eye"] {
+                for &i in &layout.groups[name].points {
+                    let x = pt(i)[0];
+                    worst = worst.min((x - l).min(r - x) / iod);
+                }
+            }
+        }
+    }
+    worst
+}
+
+/// Issue 14 item 2: the built-in cartoon keeps its drawn features inside its own outline on
+/// every aligned frame of every real track, not only on the mean shape it is fitted to, and
+/// where the source has a feature close to it (within 0.02 IOD) the cartoon is no closer
+/// (yaw brings a brow end within 0.3 % of an IOD of the oval in two MediaPipe tracks).
+#[test]
+fn the_cartoon_target_stays_inside_its_outline_on_every_real_frame() {
+    use keyshape_lab::io::{read_sequence, ReadOptions};
+    let mut tracks = vec![("built-in".to_string(), builtin_sequence().unwrap())];
+    for rel in [
+        "mediapipe_face_tracks/liveportrait_d6.csv",
+        "mediapipe_face_tracks/liveportrait_d9.csv",
+        "mediapipe_face_tracks/liveportrait_d18.csv",
+        "mediapipe_face_tracks/pyfeat_wolfganglanger_pexels.csv",
+        "pyfeat_samples/news_sample_compact.csv",
+        "pyfeat_samples/openface_test.csv",
+    ] {
+        let seq = read_sequence(&shared(rel), &ReadOptions::default()).unwrap();
+        tracks.push((rel.to_string(), seq));
+    }
+    for (name, seq) in &tracks {
+        let cartoon = cartoon_outline_margin(seq, true, true);
+        let source = cartoon_outline_margin(seq, true, false);
+        assert!(
+            cartoon > 0.0 && cartoon > source.min(0.02) - 1e-3,
+            "{name}: a cartoon feature comes within {cartoon:.4} IOD of the outline (source: {source:.4})"
+        );
+    }
 }
