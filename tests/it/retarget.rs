@@ -589,15 +589,29 @@ fn cartoon_outline_margin(seq: &keyshape_lab::sequence::Sequence, align: bool, w
     .unwrap();
     let layout = prep.layout.clone().unwrap();
     let (g, iod) = builtin_target(seq, &prep).unwrap();
-    let mapped = if warp { g.apply_all(&prep.seq.coords) } else { prep.seq.coords.clone() };
+    let mapped = if warp {
+        g.apply_all(&prep.seq.coords)
+    } else {
+        prep.seq.coords.clone()
+    };
     let mut worst = f64::INFINITY;
     for f in 0..mapped.ncols() {
         let c = mapped.column(f);
         let pt = |i: usize| [c[2 * i], c[2 * i + 1]];
         if let Some(oval) = layout.groups.get("face_oval") {
             let ring: Vec<[f64; 2]> = oval.polylines[0].iter().map(|&i| pt(i)).collect();
-            let drawn = ["left_eyebrow", "right_eyebrow", "left_eye", "right_eye", "lips", "nose"];
-            for i in drawn.iter().flat_map(|g| layout.groups[*g].points.iter().copied()) {
+            let drawn = [
+                "left_eyebrow",
+                "right_eyebrow",
+                "left_eye",
+                "right_eye",
+                "lips",
+                "nose",
+            ];
+            for i in drawn
+                .iter()
+                .flat_map(|g| layout.groups[*g].points.iter().copied())
+            {
                 let p = pt(i);
                 let (mut inside, mut dist) = (false, f64::INFINITY);
                 for w in ring.windows(2) {
