@@ -44,6 +44,7 @@ pub mod plot;
 pub mod render;
 pub mod report;
 pub mod retarget;
+pub mod rig;
 pub mod sequence;
 pub mod solve;
 pub mod transfer;

@@ -55,6 +55,7 @@ mod map;
 mod modes;
 mod progress;
 mod retarget;
+mod rig;
 mod run;
 mod smooth;
 mod solve;
@@ -118,6 +119,8 @@ enum Command {
     Template(template::TemplateArgs),
     /// Retarget the performance onto target key shapes (paper 000 Eq. 2, §5).
     Retarget(retarget::RetargetArgs),
+    /// Solve a 68-point track onto a blendshape rig (ARKit-style, e.g. ICT FaceKit) with head pose; weights and Live Link Face CSV.
+    Rig(rig::RigArgs),
     /// Drive a 3-D mesh from the feature points: RBF transfer + skinning (paper 004).
     Transfer(transfer::TransferArgs),
     /// Action-specific modes and their orthogonality (Cosker et al., paper 002 Table 2).
@@ -146,6 +149,7 @@ pub fn main() -> ExitCode {
         Command::Curves(a) => curves::run(&a),
         Command::Template(a) => template::run(&a),
         Command::Retarget(a) => retarget::run(&a),
+        Command::Rig(a) => rig::run(&a),
         Command::Transfer(a) => transfer::run(&a),
         Command::Modes(a) => modes::run(&a),
         Command::Intensity(a) => intensity::run(&a),

@@ -57,7 +57,26 @@ impl MorphTargets {
                     )
                 })
             };
-            let (s, v) = (num(0)? as usize, num(1)? as usize);
+            let index = |c: usize| -> Result<usize> {
+                r.get(c).unwrap_or("").trim().parse::<usize>().map_err(|_| {
+                    Error::parse(
+                        deltas,
+                        line,
+                        c as u64 + 1,
+                        format!("not an index: '{}'", r.get(c).unwrap_or("")),
+                    )
+                })
+            };
+            let (s, v) = (index(0)?, index(1)?);
+            let o = [num(2)?, num(3)?, num(4)?];
+            if let Some(c) = o.iter().position(|x| !x.is_finite()) {
+                return Err(Error::parse(
+                    deltas,
+                    line,
+                    c as u64 + 3,
+                    format!("offset is not finite: '{}'", r.get(c + 2).unwrap_or("")),
+                ));
+            }
             if s >= names.len() || v >= vertices {
                 return Err(Error::parse(
                     deltas,
@@ -69,7 +88,7 @@ impl MorphTargets {
                     ),
                 ));
             }
-            out[s].push((v, [num(2)?, num(3)?, num(4)?]));
+            out[s].push((v, o));
         }
         Ok(MorphTargets { names, deltas: out })
     }

@@ -110,6 +110,14 @@ impl Workspace {
     }
 }
 
+impl Workspace {
+    /// Forgets the cached factorisation of the free set: call it before solving with a Gram
+    /// matrix other than the previous call's (the cache assumes one Gram for a whole batch).
+    pub fn forget_factor(&mut self) {
+        self.valid = 0;
+    }
+}
+
 /// What one frame's solve did.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct FrameReport {

@@ -10,7 +10,7 @@
 //! make a good guess. Chunks have a fixed size, so results do not depend on thread count.
 
 pub mod active_set;
-mod chol;
+pub(crate) mod chol;
 pub mod filters;
 pub mod jacobi;
 pub mod lstsq;

@@ -17,6 +17,7 @@ mod pca;
 mod readers;
 mod reference;
 mod retarget;
+mod rig;
 mod smoothing;
 mod solvers;
 mod svg_transforms;

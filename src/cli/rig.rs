@@ -1,0 +1,224 @@
+//! `kslab rig`: a 68-point track solved onto a blendshape rig (the ICT FaceKit face by
+//! default), with a per-frame head pose; weights, pose and Live Link Face CSV out.
+
+use super::check_outputs;
+use super::solve::parse_solver;
+use anyhow::{Context, Result};
+use clap::Args;
+use keyshape_lab::io::{fmt_num, read_sequence, shared_data, write_atomic, ReadOptions};
+use keyshape_lab::rig::{livelink, solve_rig, Identity, Neutral, Rig, RigOptions, RigSolve};
+use keyshape_lab::sequence::Sequence;
+use keyshape_lab::solve::Solver;
+use serde_json::json;
+use std::io::Write;
+use std::path::PathBuf;
+
+/// Arguments of `kslab rig`.
+#[derive(Debug, Args)]
+pub struct RigArgs {
+    /// A 68-point track in iBUG order (OpenFace, py-feat, .pts, plain CSV), 2-D.
+    file: PathBuf,
+    /// Force the input format: openface, pyfeat, pts, json or csv [default: detected].
+    #[arg(long, value_parser = parse_format)]
+    format: Option<keyshape_lab::sequence::Format>,
+    /// The rig: a folder in the ICT FaceKit layout (neutral_face.obj, expressions.csv,
+    /// expression_deltas.csv, landmarks_multipie68.csv)
+    /// [default: ict_facekit_face in the shared data folder, found through $KSLAB_SHARED or
+    /// beside this repository].
+    #[arg(long, value_name = "DIR")]
+    rig: Option<PathBuf>,
+    /// bounded (0 ≤ w ≤ 1, as rigs expect), nnls (w ≥ 0) or ls (unconstrained).
+    #[arg(long, default_value = "bounded", value_parser = parse_solver)]
+    solver: Solver,
+    /// The person's neutral face: `auto` (the frame whose first-pass weights sum lowest)
+    /// or a frame number of the file; refused with --identity none, which uses none.
+    /// [default: auto].
+    #[arg(long, value_name = "auto|FRAME")]
+    neutral: Option<String>,
+    /// How the person's face differs from the rig's: `offset` (the neutral frame's 2-D
+    /// residual, lifted into the rig at that frame's head pose, moves the rig's neutral
+    /// landmarks), `rbf` (the same neutral, and every shape's landmark offsets carried over
+    /// by paper 004's multiquadric RBF from the rig's neutral onto the person's) or `none`.
+    #[arg(long, default_value = "offset", value_parser = parse_identity)]
+    identity: Identity,
+    /// Shapes whose image motion is explained by other shapes beyond this share (their
+    /// determination, 0–1, at the neutral frame's head pose) are frozen at 0 instead of
+    /// soaking up noise; 0 freezes only shapes that do not move the landmarks.
+    #[arg(long, default_value_t = 0.02)]
+    min_determination: f64,
+    /// Write the weights here: `frame` and one column per rig shape, named as the rig names
+    /// them [default: stdout].
+    #[arg(long, short)]
+    out: Option<PathBuf>,
+    /// Write the head pose here: frame, yaw, pitch, roll (degrees), scale, tx, ty (image
+    /// units) and the RMS landmark error (image units)
+    /// [default: not written].
+    #[arg(long, value_name = "FILE")]
+    pose: Option<PathBuf>,
+    /// Write a Live Link Face CSV here (Timecode, BlendShapeCount = 61, the 52 ARKit shapes
+    /// in Live Link Face's order, HeadYaw/Pitch/Roll in radians, eye angles 0)
+    /// [default: not written].
+    #[arg(long, value_name = "FILE")]
+    livelink: Option<PathBuf>,
+    /// Print a JSON summary: per-shape identifiability, neutral frame, errors, steps.
+    #[arg(long)]
+    json: bool,
+}
+
+fn parse_format(s: &str) -> Result<keyshape_lab::sequence::Format, String> {
+    keyshape_lab::sequence::Format::parse(s).map_err(|e| e.to_string())
+}
+
+fn parse_identity(s: &str) -> Result<Identity, String> {
+    Identity::parse(s).map_err(|e| e.to_string())
+}
+
+/// Runs `kslab rig`.
+pub fn run(a: &RigArgs) -> Result<()> {
+    super::check_json_stdout(a.json, a.out.as_ref())?;
+    check_outputs(
+        &[a.out.as_ref(), a.pose.as_ref(), a.livelink.as_ref()],
+        &[],
+        &[Some(a.file.as_path())],
+    )?;
+    if a.identity == Identity::None && a.neutral.is_some() {
+        anyhow::bail!("--neutral does not apply with --identity none: no neutral frame is used");
+    }
+    let seq = read_sequence(
+        &a.file,
+        &ReadOptions {
+            format: a.format,
+            dims: 2,
+        },
+    )?;
+    if seq.points != keyshape_lab::rig::LANDMARKS {
+        anyhow::bail!(
+            "{}: kslab rig needs 68-point tracks in iBUG order; this one has {} points (a MediaPipe 468 → 68 correspondence is not built in yet)",
+            a.file.display(),
+            seq.points
+        );
+    }
+    let dir = match &a.rig {
+        Some(d) => d.clone(),
+        None => shared_data("ict_facekit_face")?,
+    };
+    let rig = Rig::read_ict(&dir).with_context(|| format!("reading the rig in {}", dir.display()))?;
+    let neutral = match a.neutral.as_deref().map(str::trim) {
+        None | Some("auto") => Neutral::Auto,
+        Some(f) => {
+            let frame: i64 = f
+                .parse()
+                .map_err(|_| anyhow::anyhow!("--neutral: '{f}' is neither auto nor a frame number"))?;
+            Neutral::Column(seq.column_of_frame(frame)?)
+        }
+    };
+    let opts = RigOptions {
+        solver: a.solver,
+        identity: a.identity,
+        neutral,
+        min_determination: a.min_determination,
+        ..Default::default()
+    };
+    let r = solve_rig(&rig, &seq.coords, &opts)?;
+    let taken = super::is_stdout(a.out.as_ref()) || (a.out.is_none() && !a.json);
+    match &a.out {
+        Some(p) => write_atomic(p, |w| write_weights(w, &seq, &rig, &r))?,
+        None if a.json => {}
+        None => {
+            let stdout = std::io::stdout();
+            match write_weights(&mut stdout.lock(), &seq, &rig, &r) {
+                Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => {}
+                res => res?,
+            }
+        }
+    }
+    if let Some(p) = &a.pose {
+        write_atomic(p, |w| write_pose(w, &seq, &r))?;
+    }
+    if let Some(p) = &a.livelink {
+        let fps = seq.fps().unwrap_or(30.0);
+        let times: Vec<f64> = match &seq.times {
+            Some(t) => t.clone(),
+            None => seq.frames.iter().map(|&f| f as f64 / fps).collect(),
+        };
+        let head: Vec<[f64; 3]> = r.cameras.iter().map(|c| c.yaw_pitch_roll()).collect();
+        write_atomic(p, |w| livelink::write(w, &rig, &times, fps, &r.weights, &head))?;
+    }
+    let frozen: Vec<&str> = r
+        .shapes
+        .iter()
+        .filter(|s| s.frozen)
+        .map(|s| s.name.as_str())
+        .collect();
+    let mean_rms = r.rms.iter().sum::<f64>() / r.rms.len() as f64;
+    let neutral_frame = r.neutral.map(|c| seq.frames[c]);
+    if a.json {
+        let v = json!({
+            "frames": seq.n_frames(),
+            "rig": dir.display().to_string(),
+            "shapes": rig.k(),
+            "solver": a.solver.name(),
+            "identity": a.identity.name(),
+            "neutral_frame": neutral_frame,
+            "mean_rms": mean_rms,
+            "unconverged": r.unconverged,
+            "mean_steps": r.alternations.iter().map(|&x| f64::from(x)).sum::<f64>() / r.alternations.len() as f64,
+            "min_determination": a.min_determination,
+            "identifiability": r.shapes.iter().map(|s| json!({
+                "shape": s.name,
+                "image_motion": s.image_motion,
+                "determination": s.determination,
+                "frozen": s.frozen,
+            })).collect::<Vec<_>>(),
+        });
+        outln!("{}", serde_json::to_string_pretty(&v)?);
+    } else {
+        sayln!(
+            taken,
+            "{} frames onto {} shapes ({}), identity {}{}: RMS landmark error {:.3}, {} frozen ({}), {} frames unconverged",
+            seq.n_frames(),
+            rig.k(),
+            a.solver.name(),
+            a.identity.name(),
+            neutral_frame.map_or(String::new(), |f| format!(" from frame {f}")),
+            mean_rms,
+            frozen.len(),
+            frozen.join(" "),
+            r.unconverged
+        );
+    }
+    Ok(())
+}
+
+fn write_weights(w: &mut dyn Write, seq: &Sequence, rig: &Rig, r: &RigSolve) -> std::io::Result<()> {
+    writeln!(w, "frame,{}", rig.names.join(","))?;
+    for (c, frame) in seq.frames.iter().enumerate() {
+        write!(w, "{frame}")?;
+        for v in r.weights.column(c).iter() {
+            write!(w, ",{}", fmt_num(*v))?;
+        }
+        writeln!(w)?;
+    }
+    Ok(())
+}
+
+fn write_pose(w: &mut dyn Write, seq: &Sequence, r: &RigSolve) -> std::io::Result<()> {
+    writeln!(w, "frame,yaw_deg,pitch_deg,roll_deg,scale,tx,ty,rms")?;
+    for (c, frame) in seq.frames.iter().enumerate() {
+        let cam = &r.cameras[c];
+        let [y, p, ro] = cam.yaw_pitch_roll();
+        // Back to image axes (y down).
+        writeln!(
+            w,
+            "{frame},{},{},{},{},{},{},{}",
+            fmt_num(y.to_degrees()),
+            fmt_num(p.to_degrees()),
+            fmt_num(ro.to_degrees()),
+            fmt_num(cam.s),
+            fmt_num(cam.t[0]),
+            fmt_num(-cam.t[1]),
+            fmt_num(r.rms[c])
+        )?;
+    }
+    Ok(())
+}
