@@ -41,6 +41,12 @@ pub struct RigArgs {
     /// by paper 004's multiquadric RBF from the rig's neutral onto the person's) or `none`.
     #[arg(long, default_value = "offset", value_parser = parse_identity)]
     identity: Identity,
+    /// `track`: one identity for the whole file; `clip`: each clip of the file (py-feat's
+    /// `clip` column) is a person of its own, with its clip's least active frame as neutral
+    /// (for files whose clips are different people; needs --neutral auto).
+    /// [default: track].
+    #[arg(long, value_name = "clip|track", value_parser = ["clip", "track"])]
+    identity_per: Option<String>,
     /// Shapes whose image motion is explained by other shapes beyond this share (their
     /// determination, 0–1, at the neutral frame's head pose) are frozen at 0 instead of
     /// soaking up noise; 0 freezes only shapes that do not move the landmarks.
@@ -102,13 +108,14 @@ pub fn run(a: &RigArgs) -> Result<()> {
         Some(d) => d.clone(),
         None => shared_data("ict_facekit_face")?,
     };
-    let rig = Rig::read_ict(&dir).with_context(|| format!("reading the rig in {}", dir.display()))?;
+    let rig =
+        Rig::read_ict(&dir).with_context(|| format!("reading the rig in {}", dir.display()))?;
     let neutral = match a.neutral.as_deref().map(str::trim) {
         None | Some("auto") => Neutral::Auto,
         Some(f) => {
-            let frame: i64 = f
-                .parse()
-                .map_err(|_| anyhow::anyhow!("--neutral: '{f}' is neither auto nor a frame number"))?;
+            let frame: i64 = f.parse().map_err(|_| {
+                anyhow::anyhow!("--neutral: '{f}' is neither auto nor a frame number")
+            })?;
             Neutral::Column(seq.column_of_frame(frame)?)
         }
     };
@@ -119,7 +126,33 @@ pub fn run(a: &RigArgs) -> Result<()> {
         min_determination: a.min_determination,
         ..Default::default()
     };
-    let r = solve_rig(&rig, &seq.coords, &opts)?;
+    let per_clip = match a.identity_per.as_deref() {
+        Some("clip") => {
+            if seq.segments.is_none() {
+                anyhow::bail!("--identity-per clip: {} labels no clips", a.file.display());
+            }
+            if !matches!(neutral, Neutral::Auto) {
+                anyhow::bail!("--identity-per clip needs --neutral auto: an explicit neutral frame is one identity for the whole track");
+            }
+            if a.identity == Identity::None {
+                anyhow::bail!("--identity-per does not apply with --identity none");
+            }
+            true
+        }
+        Some(_) => {
+            if a.identity == Identity::None {
+                anyhow::bail!("--identity-per does not apply with --identity none");
+            }
+            false
+        }
+        None => false,
+    };
+    let clips = if per_clip {
+        clip_ranges(seq.segments.as_deref().unwrap_or(&[]))
+    } else {
+        Vec::new()
+    };
+    let r = solve_rig(&rig, &seq.coords, &clips, &opts)?;
     let taken = super::is_stdout(a.out.as_ref()) || (a.out.is_none() && !a.json);
     match &a.out {
         Some(p) => write_atomic(p, |w| write_weights(w, &seq, &rig, &r))?,
@@ -142,7 +175,9 @@ pub fn run(a: &RigArgs) -> Result<()> {
             None => seq.frames.iter().map(|&f| f as f64 / fps).collect(),
         };
         let head: Vec<[f64; 3]> = r.cameras.iter().map(|c| c.yaw_pitch_roll()).collect();
-        write_atomic(p, |w| livelink::write(w, &rig, &times, fps, &r.weights, &head))?;
+        write_atomic(p, |w| {
+            livelink::write(w, &rig, &times, fps, &r.weights, &head)
+        })?;
     }
     let frozen: Vec<&str> = r
         .shapes
@@ -151,7 +186,7 @@ pub fn run(a: &RigArgs) -> Result<()> {
         .map(|s| s.name.as_str())
         .collect();
     let mean_rms = r.rms.iter().sum::<f64>() / r.rms.len() as f64;
-    let neutral_frame = r.neutral.map(|c| seq.frames[c]);
+    let neutral_frames: Vec<i64> = r.neutrals.iter().map(|&c| seq.frames[c]).collect();
     if a.json {
         let v = json!({
             "frames": seq.n_frames(),
@@ -159,7 +194,8 @@ pub fn run(a: &RigArgs) -> Result<()> {
             "shapes": rig.k(),
             "solver": a.solver.name(),
             "identity": a.identity.name(),
-            "neutral_frame": neutral_frame,
+            "identity_per": if per_clip { "clip" } else { "track" },
+            "neutral_frames": neutral_frames,
             "mean_rms": mean_rms,
             "unconverged": r.unconverged,
             "mean_steps": r.alternations.iter().map(|&x| f64::from(x)).sum::<f64>() / r.alternations.len() as f64,
@@ -180,7 +216,11 @@ pub fn run(a: &RigArgs) -> Result<()> {
             rig.k(),
             a.solver.name(),
             a.identity.name(),
-            neutral_frame.map_or(String::new(), |f| format!(" from frame {f}")),
+            match neutral_frames.len() {
+                0 => String::new(),
+                1 => format!(" from frame {}", neutral_frames[0]),
+                n => format!(" per clip ({n} neutral frames)"),
+            },
             mean_rms,
             frozen.len(),
             frozen.join(" "),
@@ -190,7 +230,25 @@ pub fn run(a: &RigArgs) -> Result<()> {
     Ok(())
 }
 
-fn write_weights(w: &mut dyn Write, seq: &Sequence, rig: &Rig, r: &RigSolve) -> std::io::Result<()> {
+/// Column ranges of consecutive equal clip labels.
+fn clip_ranges(labels: &[String]) -> Vec<std::ops::Range<usize>> {
+    let mut out = Vec::new();
+    let mut start = 0;
+    for i in 1..=labels.len() {
+        if i == labels.len() || labels[i] != labels[start] {
+            out.push(start..i);
+            start = i;
+        }
+    }
+    out
+}
+
+fn write_weights(
+    w: &mut dyn Write,
+    seq: &Sequence,
+    rig: &Rig,
+    r: &RigSolve,
+) -> std::io::Result<()> {
     writeln!(w, "frame,{}", rig.names.join(","))?;
     for (c, frame) in seq.frames.iter().enumerate() {
         write!(w, "{frame}")?;

@@ -81,7 +81,10 @@ pub fn fit_camera(x: &[[f64; 3]], u: &[[f64; 2]]) -> Result<Camera> {
             u.len()
         )));
     }
-    let mx = x.iter().fold(Vector3::zeros(), |a, p| a + Vector3::from(*p)) / n as f64;
+    let mx = x
+        .iter()
+        .fold(Vector3::zeros(), |a, p| a + Vector3::from(*p))
+        / n as f64;
     let (mut mu0, mut mu1) = (0.0, 0.0);
     for p in u {
         mu0 += p[0] / n as f64;
@@ -116,7 +119,7 @@ pub fn fit_camera(x: &[[f64; 3]], u: &[[f64; 2]]) -> Result<Camera> {
         num += a0 * (q[0] - mu0) + a1 * (q[1] - mu1);
         den += a0 * a0 + a1 * a1;
     }
-    if !(den > 0.0) || !num.is_finite() {
+    if den.is_nan() || den <= 0.0 || !num.is_finite() {
         return Err(Error::invalid("camera fit: degenerate points"));
     }
     let s = num / den;

@@ -80,7 +80,10 @@ pub fn arkit_name(rig_name: &str) -> String {
         _ => (rig_name, ""),
     };
     let mut c = stem.chars();
-    let head: String = c.next().map(|h| h.to_uppercase().collect()).unwrap_or_default();
+    let head: String = c
+        .next()
+        .map(|h| h.to_uppercase().collect())
+        .unwrap_or_default();
     format!("{head}{}{side}", c.as_str())
 }
 
@@ -98,9 +101,7 @@ pub fn column_sources(rig: &Rig) -> Vec<Vec<usize>> {
                 return exact;
             }
             (0..names.len())
-                .filter(|&i| {
-                    names[i] == format!("{col}Left") || names[i] == format!("{col}Right")
-                })
+                .filter(|&i| names[i] == format!("{col}Left") || names[i] == format!("{col}Right"))
                 .collect()
         })
         .collect()

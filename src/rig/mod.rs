@@ -21,6 +21,7 @@ use crate::solve::chol::solve_spd;
 use crate::solve::Solver;
 use camera::{fit_camera, Camera};
 use nalgebra::DMatrix;
+use std::ops::Range;
 use std::path::Path;
 
 /// Landmarks per rig (iBUG / Multi-PIE 68, in that order).
@@ -47,9 +48,8 @@ pub fn read_landmark_vertices(path: &Path, vertices: usize) -> Result<Vec<usize>
         let r = r.map_err(|e| Error::parse(path, line, 0, e.to_string()))?;
         let field = |c: usize| -> Result<usize> {
             let v = r.get(c).unwrap_or("").trim();
-            v.parse::<usize>().map_err(|_| {
-                Error::parse(path, line, c as u64 + 1, format!("not an index: '{v}'"))
-            })
+            v.parse::<usize>()
+                .map_err(|_| Error::parse(path, line, c as u64 + 1, format!("not an index: '{v}'")))
         };
         let (l, v) = (field(0)?, field(1)?);
         if l >= LANDMARKS {
@@ -113,7 +113,11 @@ impl Rig {
     }
 
     /// A rig from mesh positions, sparse morph targets and the landmark vertices.
-    pub fn from_parts(positions: &[[f64; 3]], morph: &MorphTargets, marks: &[usize]) -> Result<Rig> {
+    pub fn from_parts(
+        positions: &[[f64; 3]],
+        morph: &MorphTargets,
+        marks: &[usize],
+    ) -> Result<Rig> {
         let neutral: Vec<[f64; 3]> = marks.iter().map(|&v| positions[v]).collect();
         for (l, p) in neutral.iter().enumerate() {
             if p.iter().any(|c| !c.is_finite()) {
@@ -191,8 +195,9 @@ pub enum Identity {
     /// added to the rig's neutral landmarks; the shapes' offsets are the rig's.
     Offset,
     /// The same neutral, and the shapes' offsets carried over by paper 004's multiquadric
-    /// RBF from the rig's neutral landmarks onto the person's (`F(N + Dₖ) − F(N)`), so a
-    /// wider mouth gets a wider smile.
+    /// RBF from the rig's neutral landmarks onto the person's (`F(N + Dₖ) − F(N)`, with F the
+    /// identity plus an RBF of the neutral's displacement), so a wider mouth gets a wider
+    /// smile.
     Rbf,
 }
 
@@ -286,8 +291,9 @@ pub struct RigSolve {
     pub unconverged: usize,
     /// Per shape, identifiability.
     pub shapes: Vec<ShapeReport>,
-    /// The neutral column used (None with `Identity::None`).
-    pub neutral: Option<usize>,
+    /// The neutral column of each clip's identity (empty with `Identity::None`; one with
+    /// an explicit neutral).
+    pub neutrals: Vec<usize>,
 }
 
 /// The per-frame Gram blocks `Σᵢ D_{k,i,a} D_{l,i,b}` of a rig, reused by every frame.
@@ -346,12 +352,15 @@ impl Blocks {
         let m = |a: usize, b: usize| r[(0, a)] * r[(0, b)] + r[(1, a)] * r[(1, b)];
         let coef = [m(0, 0), m(1, 1), m(2, 2), m(0, 1), m(0, 2), m(1, 2)];
         let s2 = c.s * c.s;
-        out.iter_mut().for_each(|v| *v = 0.0);
-        for (g, &cf) in self.g.iter().zip(&coef) {
-            let f = s2 * cf;
-            for (o, v) in out.iter_mut().zip(g) {
-                *o += f * v;
-            }
+        let f = coef.map(|cf| s2 * cf);
+        let [g0, g1, g2, g3, g4, g5] = &self.g;
+        for (i, o) in out.iter_mut().enumerate() {
+            *o = f[0] * g0[i]
+                + f[1] * g1[i]
+                + f[2] * g2[i]
+                + f[3] * g3[i]
+                + f[4] * g4[i]
+                + f[5] * g5[i];
         }
     }
 
@@ -476,35 +485,48 @@ impl<'a> FrameSolver<'a> {
             for i in 0..n {
                 for row in 0..2 {
                     a[(2 * i + row) * m + j] = cam.s
-                        * (r[(row, 0)] * dj[3 * i] + r[(row, 1)] * dj[3 * i + 1] + r[(row, 2)] * dj[3 * i + 2]);
+                        * (r[(row, 0)] * dj[3 * i]
+                            + r[(row, 1)] * dj[3 * i + 1]
+                            + r[(row, 2)] * dj[3 * i + 2]);
                 }
             }
         }
         // Right side r = res + A w.
         let mut rhs = vec![0.0; 2 * n];
         for i in 0..2 * n {
-            let aw: f64 = (0..m).map(|j| a[i * m + j] * self.w[j]).sum();
+            let aw: f64 = a[i * m..(i + 1) * m]
+                .iter()
+                .zip(&self.w)
+                .map(|(x, y)| x * y)
+                .sum();
             rhs[i] = res[i / 2][i % 2] + aw;
         }
         let mut hcc = nalgebra::Matrix6::<f64>::zeros();
         let mut bc = nalgebra::Vector6::<f64>::zeros();
-        let mut hcw = DMatrix::<f64>::zeros(6, m);
+        // Hcw = Jᵀ A, row-major 6 × m; bw = Aᵀ r.
+        let mut hcw_flat = vec![0.0; 6 * m];
         let mut bw = vec![0.0; m];
         for i in 0..2 * n {
             let ji = &jc[i];
+            let ai = &a[i * m..(i + 1) * m];
+            let ri = rhs[i];
             for p in 0..6 {
-                bc[p] += ji[p] * rhs[i];
+                bc[p] += ji[p] * ri;
                 for q in 0..6 {
                     hcc[(p, q)] += ji[p] * ji[q];
                 }
-                for j in 0..m {
-                    hcw[(p, j)] += ji[p] * a[i * m + j];
+                let jp = ji[p];
+                if jp != 0.0 {
+                    for (h, &aij) in hcw_flat[p * m..(p + 1) * m].iter_mut().zip(ai) {
+                        *h += jp * aij;
+                    }
                 }
             }
-            for j in 0..m {
-                bw[j] += a[i * m + j] * rhs[i];
+            for (b, &aij) in bw.iter_mut().zip(ai) {
+                *b += aij * ri;
             }
         }
+        let hcw = DMatrix::from_row_slice(6, m, &hcw_flat);
         let mut g = vec![0.0; m * m];
         self.blocks.gram(cam, &mut g);
         let Some(hinv) = hcc.try_inverse() else {
@@ -548,7 +570,7 @@ impl<'a> FrameSolver<'a> {
                     } else {
                         f64::INFINITY
                     };
-                    let gram = Gram::from_matrix(&DMatrix::from_row_slice(m, m, &g), upper);
+                    let gram = Gram::from_row_major(m, g, upper);
                     self.ws.forget_factor();
                     active_set::solve_frame(&gram, &bw, &mut self.w, &mut self.state, &mut self.ws);
                 }
@@ -611,7 +633,7 @@ impl<'a> FrameSolver<'a> {
                 } else {
                     f64::INFINITY
                 };
-                let gram = Gram::from_matrix(&DMatrix::from_row_slice(m, m, &g), upper);
+                let gram = Gram::from_row_major(m, g, upper);
                 // Each call has its own Gram: the workspace's cached factor is stale.
                 self.ws.forget_factor();
                 active_set::solve_frame(&gram, &b, &mut self.w, &mut self.state, &mut self.ws);
@@ -687,7 +709,8 @@ pub fn identifiability(rig: &Rig, cam: &Camera, min_det: f64) -> Vec<ShapeReport
             .filter(|i| !taken.contains(i) && g[i * k + i] > 0.0)
             .map(|i| (i, resid[i] / g[i * k + i]))
             .filter(|&(_, share)| share >= min_det.max(1e-12))
-            .max_by(|a, b| resid[a.0].total_cmp(&resid[b.0]));
+            // Ties go to the rig's earlier shape.
+            .max_by(|a, b| resid[a.0].total_cmp(&resid[b.0]).then(b.0.cmp(&a.0)));
         let Some((p, _)) = pick else { break };
         let d = resid[p].sqrt();
         let col: Vec<f64> = (0..k)
@@ -707,7 +730,7 @@ pub fn identifiability(rig: &Rig, cam: &Camera, min_det: f64) -> Vec<ShapeReport
         .map(|i| {
             let others: Vec<usize> = taken.iter().copied().filter(|&j| j != i).collect();
             let gii = g[i * k + i];
-            if !(gii > 0.0) {
+            if gii.is_nan() || gii <= 0.0 {
                 return 0.0;
             }
             if others.is_empty() {
@@ -737,7 +760,15 @@ pub fn identifiability(rig: &Rig, cam: &Camera, min_det: f64) -> Vec<ShapeReport
 }
 
 /// Solves every frame of `track` (iBUG-68 2-D points, 136 × frames, image axes) onto `rig`.
-pub fn solve_rig(rig: &Rig, track: &DMatrix<f64>, opts: &RigOptions) -> Result<RigSolve> {
+/// `clips` (consecutive column ranges covering the track, or empty for one clip) may hold
+/// different people: with `Neutral::Auto` each clip takes its identity from its own least
+/// active frame; an explicit neutral column gives every clip that frame's identity.
+pub fn solve_rig(
+    rig: &Rig,
+    track: &DMatrix<f64>,
+    clips: &[Range<usize>],
+    opts: &RigOptions,
+) -> Result<RigSolve> {
     if track.nrows() != 2 * LANDMARKS {
         return Err(Error::invalid(format!(
             "a rig solve needs 68-point 2-D tracks (iBUG order); this one has {} points",
@@ -760,45 +791,75 @@ pub fn solve_rig(rig: &Rig, track: &DMatrix<f64>, opts: &RigOptions) -> Result<R
             opts.min_determination
         )));
     }
-    let all: Vec<usize> = (0..rig.k()).collect();
-    // Pass 1: the rig as it is, every shape free, to find the neutral frame and its camera.
-    let first = run(rig, track, all.clone(), opts)?;
-    let (person, neutral) = match opts.identity {
-        Identity::None => (rig.clone(), None),
-        _ => {
-            let n = match opts.neutral {
-                Neutral::Column(c) if c < track.ncols() => c,
-                Neutral::Column(c) => {
-                    return Err(Error::invalid(format!(
-                        "neutral frame column {c} is past the track's {} frames",
-                        track.ncols()
-                    )))
-                }
-                Neutral::Auto => (0..track.ncols())
-                    .min_by(|&a, &b| {
-                        let s = |f: usize| first.weights.column(f).sum();
-                        s(a).total_cmp(&s(b))
-                    })
-                    .unwrap_or(0),
-            };
-            (person_rig(rig, &first, track, n, opts.identity)?, Some(n))
+    let whole = std::iter::once(0..track.ncols()).collect::<Vec<_>>();
+    let clips: &[Range<usize>] = if clips.is_empty() { &whole[..] } else { clips };
+    if clips.iter().any(|c| c.end > track.ncols() || c.is_empty())
+        || clips.windows(2).any(|w| w[0].end != w[1].start)
+        || clips[0].start != 0
+        || clips[clips.len() - 1].end != track.ncols()
+    {
+        return Err(Error::invalid(
+            "rig solve: clips must cover the frames in order",
+        ));
+    }
+    if let Neutral::Column(c) = opts.neutral {
+        if c >= track.ncols() {
+            return Err(Error::invalid(format!(
+                "neutral frame column {c} is past the track's {} frames",
+                track.ncols()
+            )));
         }
+    }
+    let all: Vec<usize> = (0..rig.k()).collect();
+    // Pass 1: the rig as it is, every shape free, to find each clip's neutral frame.
+    let first = run(rig, track, &[(0..track.ncols(), rig.clone())], all, opts)?;
+    let least_active = |c: &Range<usize>| {
+        c.clone()
+            .min_by(|&a, &b| {
+                let s = |f: usize| first.weights.column(f).sum();
+                s(a).total_cmp(&s(b))
+            })
+            .unwrap_or(c.start)
     };
-    let cam_n = first.cameras[neutral.unwrap_or(0)];
-    let shapes = identifiability(&person, &cam_n, opts.min_determination);
+    let (people, neutrals): (Vec<(Range<usize>, Rig)>, Vec<usize>) =
+        match (opts.identity, opts.neutral) {
+            (Identity::None, _) => (vec![(0..track.ncols(), rig.clone())], Vec::new()),
+            (id, Neutral::Column(n)) => (
+                vec![(0..track.ncols(), person_rig(rig, track, n, id)?)],
+                vec![n],
+            ),
+            (id, Neutral::Auto) => {
+                let mut people = Vec::new();
+                let mut neutrals = Vec::new();
+                for c in clips {
+                    let n = least_active(c);
+                    people.push((c.clone(), person_rig(rig, track, n, id)?));
+                    neutrals.push(n);
+                }
+                (people, neutrals)
+            }
+        };
+    // Identifiability at the first clip's neutral view (the rig and the view decide it,
+    // not the person); the frozen shapes are the same in every clip.
+    let cam_n = match neutrals.first() {
+        Some(&n) => fit_camera(&people[0].1.neutral, &frame_points(track, n))?,
+        None => first.cameras[0],
+    };
+    let shapes = identifiability(&people[0].1, &cam_n, opts.min_determination);
     let free: Vec<usize> = (0..rig.k()).filter(|&s| !shapes[s].frozen).collect();
-    let mut out = run(&person, track, free, opts)?;
+    let mut out = run(rig, track, &people, free, opts)?;
     out.shapes = shapes;
-    out.neutral = neutral;
+    out.neutrals = neutrals;
     Ok(out)
 }
 
-/// The person's rig from the neutral frame `n` of a first pass.
-fn person_rig(rig: &Rig, first: &RigSolve, track: &DMatrix<f64>, n: usize, id: Identity) -> Result<Rig> {
-    let cam = first.cameras[n];
-    let w: Vec<f64> = first.weights.column(n).iter().copied().collect();
-    let posed = rig.posed(&w);
+/// The person's rig from the neutral frame `n`.
+fn person_rig(rig: &Rig, track: &DMatrix<f64>, n: usize, id: Identity) -> Result<Rig> {
+    // The neutral frame is the person with no expression: its weights are 0 by definition,
+    // and its head pose is the rig's neutral fitted to it.
     let u = frame_points(track, n);
+    let cam = fit_camera(&rig.neutral, &u)?;
+    let posed = &rig.neutral;
     // The residual, lifted into the rig's frame in the image plane of the neutral camera.
     let mut neutral = rig.neutral.clone();
     for (i, p) in neutral.iter_mut().enumerate() {
@@ -814,10 +875,18 @@ fn person_rig(rig: &Rig, first: &RigSolve, track: &DMatrix<f64>, n: usize, id: I
         deltas: rig.deltas.clone(),
     };
     if id == Identity::Rbf {
+        // The RBF interpolates the identity's displacement (person − rig at the landmarks),
+        // so the map is the identity plus a smooth correction: multiquadrics alone do not
+        // reproduce the identity map between their centres.
         let src: Vec<f64> = rig.neutral.iter().flatten().copied().collect();
-        let dst: Vec<f64> = person.neutral.iter().flatten().copied().collect();
-        let f = Rbf::fit(&src, &dst, 3)?;
-        let mut out = [0.0; 3];
+        let disp: Vec<f64> = person
+            .neutral
+            .iter()
+            .zip(&rig.neutral)
+            .flat_map(|(p, q)| [p[0] - q[0], p[1] - q[1], p[2] - q[2]])
+            .collect();
+        let f = Rbf::fit(&src, &disp, 3)?;
+        let mut at = [0.0; 3];
         for d in person.deltas.iter_mut() {
             for (i, o) in d.iter_mut().enumerate() {
                 if *o == [0.0; 3] {
@@ -828,11 +897,13 @@ fn person_rig(rig: &Rig, first: &RigSolve, track: &DMatrix<f64>, n: usize, id: I
                     rig.neutral[i][1] + o[1],
                     rig.neutral[i][2] + o[2],
                 ];
-                f.apply_point(&x, &mut out);
+                f.apply_point(&x, &mut at);
+                // F(N + D) − F(N) with F(x) = x + disp(x), and disp(N) the landmark's own.
+                let base = [disp[3 * i], disp[3 * i + 1], disp[3 * i + 2]];
                 *o = [
-                    out[0] - person.neutral[i][0],
-                    out[1] - person.neutral[i][1],
-                    out[2] - person.neutral[i][2],
+                    o[0] + at[0] - base[0],
+                    o[1] + at[1] - base[1],
+                    o[2] + at[2] - base[2],
                 ];
             }
         }
@@ -840,31 +911,45 @@ fn person_rig(rig: &Rig, first: &RigSolve, track: &DMatrix<f64>, n: usize, id: I
     Ok(person)
 }
 
-/// One pass over the frames with the shapes `free`.
-fn run(rig: &Rig, track: &DMatrix<f64>, free: Vec<usize>, opts: &RigOptions) -> Result<RigSolve> {
+/// One pass over the frames with the shapes `free`, each clip with its person's rig (warm
+/// starts do not cross clips).
+fn run(
+    rig: &Rig,
+    track: &DMatrix<f64>,
+    people: &[(Range<usize>, Rig)],
+    free: Vec<usize>,
+    opts: &RigOptions,
+) -> Result<RigSolve> {
     let frames = track.ncols();
-    let mut fs = FrameSolver::new(rig, free, opts.solver, opts.max_alternations.max(1));
     let mut weights = DMatrix::zeros(rig.k(), frames);
     let (mut cameras, mut rms, mut alternations) = (Vec::new(), Vec::new(), Vec::new());
     let mut unconverged = 0;
-    for f in 0..frames {
-        let u = frame_points(track, f);
-        let (it, ok, e) = fs.solve(&u)?;
-        unconverged += usize::from(!ok);
-        alternations.push(it);
-        rms.push((e / LANDMARKS as f64).sqrt());
-        let w = fs.full_weights();
-        if w.iter().any(|v| !v.is_finite()) {
-            return Err(Error::invalid(format!(
-                "frame column {f}: the rig solve produced non-finite weights"
-            )));
+    for (clip, person) in people {
+        let mut fs = FrameSolver::new(
+            person,
+            free.clone(),
+            opts.solver,
+            opts.max_alternations.max(1),
+        );
+        for f in clip.clone() {
+            let u = frame_points(track, f);
+            let (it, ok, e) = fs.solve(&u)?;
+            unconverged += usize::from(!ok);
+            alternations.push(it);
+            rms.push((e / LANDMARKS as f64).sqrt());
+            let w = fs.full_weights();
+            if w.iter().any(|v| !v.is_finite()) {
+                return Err(Error::invalid(format!(
+                    "frame column {f}: the rig solve produced non-finite weights"
+                )));
+            }
+            weights.column_mut(f).copy_from_slice(&w);
+            cameras.push(fs.cam.unwrap_or(Camera {
+                s: 1.0,
+                r: nalgebra::Matrix3::identity(),
+                t: [0.0, 0.0],
+            }));
         }
-        weights.column_mut(f).copy_from_slice(&w);
-        cameras.push(fs.cam.unwrap_or(Camera {
-            s: 1.0,
-            r: nalgebra::Matrix3::identity(),
-            t: [0.0, 0.0],
-        }));
     }
     Ok(RigSolve {
         weights,
@@ -873,6 +958,6 @@ fn run(rig: &Rig, track: &DMatrix<f64>, free: Vec<usize>, opts: &RigOptions) -> 
         alternations,
         unconverged,
         shapes: Vec::new(),
-        neutral: None,
+        neutrals: Vec::new(),
     })
 }

@@ -44,7 +44,13 @@ impl Gram {
     /// The Gram form from `G = SᵀS` itself (k × k, symmetric).
     pub fn from_matrix(gm: &nalgebra::DMatrix<f64>, upper: f64) -> Gram {
         let k = gm.ncols();
-        let g: Vec<f64> = (0..k * k).map(|i| gm[(i / k, i % k)]).collect();
+        // Symmetric: the column-major storage is the row-major matrix.
+        Gram::from_row_major(k, gm.as_slice().to_vec(), upper)
+    }
+
+    /// The Gram form from a symmetric `k × k` matrix stored row-major (or column-major: the
+    /// same for a symmetric matrix).
+    pub fn from_row_major(k: usize, g: Vec<f64>, upper: f64) -> Gram {
         let norms: Vec<f64> = (0..k).map(|i| g[i * k + i].sqrt()).collect();
         let max_norm = norms.iter().copied().fold(0.0, f64::max);
         Gram {

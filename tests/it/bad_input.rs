@@ -1,27 +1,8 @@
 //! Bad input through the real binary: a clear message naming file/line/column, a non-zero
 //! exit, no panic, and no half-written output.
 
-use crate::common::shared;
+use crate::common::{kslab, shared};
 use std::path::{Path, PathBuf};
-use std::process::Command;
-
-struct Run {
-    code: i32,
-    stdout: String,
-    stderr: String,
-}
-
-fn kslab(args: &[&str]) -> Run {
-    let out = Command::new(env!("CARGO_BIN_EXE_kslab"))
-        .args(args)
-        .output()
-        .unwrap();
-    Run {
-        code: out.status.code().unwrap_or(-1),
-        stdout: String::from_utf8_lossy(&out.stdout).into_owned(),
-        stderr: String::from_utf8_lossy(&out.stderr).into_owned(),
-    }
-}
 
 fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
     let p = dir.join(name);

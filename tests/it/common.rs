@@ -108,3 +108,23 @@ pub fn assert_valid_gltf(glb: &std::path::Path) {
     );
     assert!(report.contains("\"errors\":0"), "{report}");
 }
+
+/// What a run of the real binary gave.
+pub struct Run {
+    pub code: i32,
+    pub stdout: String,
+    pub stderr: String,
+}
+
+/// Runs the `kslab` binary with `args`.
+pub fn kslab(args: &[&str]) -> Run {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_kslab"))
+        .args(args)
+        .output()
+        .unwrap();
+    Run {
+        code: out.status.code().unwrap_or(-1),
+        stdout: String::from_utf8_lossy(&out.stdout).into_owned(),
+        stderr: String::from_utf8_lossy(&out.stderr).into_owned(),
+    }
+}

