@@ -66,6 +66,12 @@ pub struct RigArgs {
     /// [default: not written].
     #[arg(long, value_name = "FILE")]
     livelink: Option<PathBuf>,
+    /// Write the rig's mesh animated by the weights as glTF (GLB): the shapes used as morph
+    /// targets, named as the rig names them, and a weights animation at the track's frame
+    /// rate (30 when the file has none); head pose is not animated
+    /// [default: not written].
+    #[arg(long, value_name = "FILE")]
+    gltf: Option<PathBuf>,
     /// Print a JSON summary: per-shape identifiability, neutral frame, errors, steps.
     #[arg(long)]
     json: bool,
@@ -83,7 +89,12 @@ fn parse_identity(s: &str) -> Result<Identity, String> {
 pub fn run(a: &RigArgs) -> Result<()> {
     super::check_json_stdout(a.json, a.out.as_ref())?;
     check_outputs(
-        &[a.out.as_ref(), a.pose.as_ref(), a.livelink.as_ref()],
+        &[
+            a.out.as_ref(),
+            a.pose.as_ref(),
+            a.livelink.as_ref(),
+            a.gltf.as_ref(),
+        ],
         &[],
         &[Some(a.file.as_path())],
     )?;
@@ -108,8 +119,9 @@ pub fn run(a: &RigArgs) -> Result<()> {
         Some(d) => d.clone(),
         None => shared_data("ict_facekit_face")?,
     };
-    let rig =
-        Rig::read_ict(&dir).with_context(|| format!("reading the rig in {}", dir.display()))?;
+    let (mesh, morph, marks) = Rig::read_ict_parts(&dir)
+        .with_context(|| format!("reading the rig in {}", dir.display()))?;
+    let rig = Rig::from_parts(&mesh.positions, &morph, &marks)?;
     let neutral = match a.neutral.as_deref().map(str::trim) {
         None | Some("auto") => Neutral::Auto,
         Some(f) => {
@@ -177,6 +189,21 @@ pub fn run(a: &RigArgs) -> Result<()> {
         let head: Vec<[f64; 3]> = r.cameras.iter().map(|c| c.yaw_pitch_roll()).collect();
         write_atomic(p, |w| {
             livelink::write(w, &rig, &times, fps, &r.weights, &head)
+        })?;
+    }
+    if let Some(p) = &a.gltf {
+        // Only the shapes the performance uses, densified over the mesh.
+        let (dense, wu) = morph.used_dense(&r.weights, mesh.positions.len());
+        let fps = seq.fps().unwrap_or(30.0);
+        write_atomic(p, |f| {
+            keyshape_lab::io::gltf::write_morph_glb(
+                f,
+                &mesh.positions,
+                &mesh.faces,
+                &dense,
+                &wu,
+                fps,
+            )
         })?;
     }
     let frozen: Vec<&str> = r

@@ -95,6 +95,13 @@ impl Rig {
     /// `neutral_face.obj`, `expressions.csv`, `expression_deltas.csv` and
     /// `landmarks_multipie68.csv`.
     pub fn read_ict(dir: &Path) -> Result<Rig> {
+        let (mesh, morph, marks) = Rig::read_ict_parts(dir)?;
+        Rig::from_parts(&mesh.positions, &morph, &marks)
+    }
+
+    /// The ICT folder's mesh, morph targets and landmark vertices, as read by
+    /// [`Rig::read_ict`] (for exports that need the whole mesh).
+    pub fn read_ict_parts(dir: &Path) -> Result<(crate::io::obj::Mesh, MorphTargets, Vec<usize>)> {
         if !dir.is_dir() {
             return Err(Error::file(
                 dir,
@@ -109,7 +116,7 @@ impl Rig {
             &dir.join("expression_deltas.csv"),
             n,
         )?;
-        Rig::from_parts(&mesh.positions, &morph, &marks)
+        Ok((mesh, morph, marks))
     }
 
     /// A rig from mesh positions, sparse morph targets and the landmark vertices.

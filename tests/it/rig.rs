@@ -245,8 +245,9 @@ fn kslab_rig_writes_weights_pose_and_live_link_and_its_options_take_effect() {
         assert_eq!(r.code, 0, "{}", r.stderr);
         std::fs::read_to_string(w).unwrap()
     };
-    let (w, p, ll) = (out("w.csv"), out("p.csv"), out("ll.csv"));
-    let base = run(&["--pose", &p, "--livelink", &ll], &w);
+    let (w, p, ll, glb) = (out("w.csv"), out("p.csv"), out("ll.csv"), out("anim.glb"));
+    let base = run(&["--pose", &p, "--livelink", &ll, "--gltf", &glb], &w);
+    crate::common::assert_valid_gltf(std::path::Path::new(&glb));
     let rig = ict();
     let lines: Vec<&str> = base.lines().collect();
     assert_eq!(lines[0], format!("frame,{}", rig.names.join(",")));
