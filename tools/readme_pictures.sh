@@ -57,5 +57,9 @@ else
   echo "skipped docs/template_face.png: pip install cairosvg to render the SVG" >&2
 fi
 
+# kslab rig (issue 16): track and fitted rig on the news sample, frame 200.
+$K rig -q $S/pyfeat_samples/news_sample_compact.csv --out "$T/rig_w.csv" --png-dir "$T/rig" > /dev/null
+cp "$T/rig/rig_000200.png" docs/rig_news_200.png
+
 # The lab's screen in the README is text captured from tmux: see "The first five minutes".
 echo "regenerated: $(ls docs/*.png | wc -l) pictures in docs/ (git diff --stat docs/ shows which changed)"

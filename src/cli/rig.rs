@@ -72,6 +72,12 @@ pub struct RigArgs {
     /// [default: not written].
     #[arg(long, value_name = "FILE")]
     gltf: Option<PathBuf>,
+    /// Write one PNG per frame here (`rig_<frame>.png`): the tracked landmarks with the
+    /// posed rig's landmarks under the fitted head pose on the left, the posed rig's
+    /// landmarks seen from the front on the right
+    /// [default: not written].
+    #[arg(long, value_name = "DIR")]
+    png_dir: Option<PathBuf>,
     /// Print a JSON summary: per-shape identifiability, neutral frame, errors, steps.
     #[arg(long)]
     json: bool,
@@ -95,7 +101,7 @@ pub fn run(a: &RigArgs) -> Result<()> {
             a.livelink.as_ref(),
             a.gltf.as_ref(),
         ],
-        &[],
+        &[a.png_dir.as_ref()],
         &[Some(a.file.as_path())],
     )?;
     if a.identity == Identity::None && a.neutral.is_some() {
@@ -206,6 +212,9 @@ pub fn run(a: &RigArgs) -> Result<()> {
             )
         })?;
     }
+    if let Some(dir) = &a.png_dir {
+        write_pngs(dir, &seq, &rig, &r)?;
+    }
     let frozen: Vec<&str> = r
         .shapes
         .iter()
@@ -304,6 +313,81 @@ fn write_pose(w: &mut dyn Write, seq: &Sequence, r: &RigSolve) -> std::io::Resul
             fmt_num(-cam.t[1]),
             fmt_num(r.rms[c])
         )?;
+    }
+    Ok(())
+}
+
+/// The per-frame pictures of `--png-dir`.
+fn write_pngs(dir: &std::path::Path, seq: &Sequence, rig: &Rig, r: &RigSolve) -> Result<()> {
+    use keyshape_lab::render::face::{bounds_of, col, render_panels, Layer, Panel};
+    let layout = keyshape_lab::sequence::Layout::ibug68();
+    let all: Vec<usize> = (0..keyshape_lab::rig::LANDMARKS).collect();
+    let lines = keyshape_lab::retarget::setup::polylines_for(&layout, &all);
+    let n = seq.n_frames();
+    let (mut fitted, mut front) = (
+        nalgebra::DMatrix::zeros(2 * all.len(), n),
+        nalgebra::DMatrix::zeros(2 * all.len(), n),
+    );
+    for f in 0..n {
+        let w: Vec<f64> = r.weights.column(f).iter().copied().collect();
+        for (i, p) in rig.posed(&w).iter().enumerate() {
+            let u = r.cameras[f].project(p);
+            fitted[(2 * i, f)] = u[0];
+            fitted[(2 * i + 1, f)] = -u[1];
+            front[(2 * i, f)] = p[0];
+            front[(2 * i + 1, f)] = -p[1];
+        }
+    }
+    let tb = bounds_of(&[&seq.coords, &fitted], 2);
+    let fb = bounds_of(&[&front], 2);
+    std::fs::create_dir_all(dir).with_context(|| format!("{}", dir.display()))?;
+    for f in 0..n {
+        let [y, p, ro] = r.cameras[f].yaw_pitch_roll();
+        let panels = [
+            Panel {
+                title: format!("track and fitted rig · RMS {:.2}", r.rms[f]),
+                layers: vec![
+                    Layer {
+                        name: "tracked",
+                        shape: col(&seq.coords, f),
+                        dims: 2,
+                        polylines: &lines,
+                        color: [20, 20, 20],
+                        dashed: false,
+                    },
+                    Layer {
+                        name: "posed rig, fitted head pose",
+                        shape: col(&fitted, f),
+                        dims: 2,
+                        polylines: &lines,
+                        color: [30, 90, 200],
+                        dashed: true,
+                    },
+                ],
+                bounds: tb,
+            },
+            Panel {
+                title: "posed rig, front view".into(),
+                layers: vec![Layer {
+                    name: "rig landmarks",
+                    shape: col(&front, f),
+                    dims: 2,
+                    polylines: &lines,
+                    color: [200, 40, 40],
+                    dashed: false,
+                }],
+                bounds: fb,
+            },
+        ];
+        let caption = format!(
+            "frame {}   yaw {:.1}°  pitch {:.1}°  roll {:.1}°",
+            seq.frames[f],
+            y.to_degrees(),
+            p.to_degrees(),
+            ro.to_degrees()
+        );
+        let pm = render_panels(&panels, &caption, 360)?;
+        keyshape_lab::render::save_png(&pm, &dir.join(format!("rig_{:06}.png", seq.frames[f])))?;
     }
     Ok(())
 }

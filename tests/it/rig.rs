@@ -246,7 +246,13 @@ fn kslab_rig_writes_weights_pose_and_live_link_and_its_options_take_effect() {
         std::fs::read_to_string(w).unwrap()
     };
     let (w, p, ll, glb) = (out("w.csv"), out("p.csv"), out("ll.csv"), out("anim.glb"));
-    let base = run(&["--pose", &p, "--livelink", &ll, "--gltf", &glb], &w);
+    let pngs = d.path().join("frames");
+    let base = run(
+        &["--pose", &p, "--livelink", &ll, "--gltf", &glb, "--png-dir", &pngs.display().to_string()],
+        &w,
+    );
+    assert_eq!(std::fs::read_dir(&pngs).unwrap().count(), 477);
+    assert!(pngs.join("rig_000200.png").exists());
     crate::common::assert_valid_gltf(std::path::Path::new(&glb));
     let rig = ict();
     let lines: Vec<&str> = base.lines().collect();
@@ -283,6 +289,21 @@ fn kslab_rig_writes_weights_pose_and_live_link_and_its_options_take_effect() {
     }
     let pose = std::fs::read_to_string(&p).unwrap();
     assert!(pose.starts_with("frame,yaw_deg,pitch_deg,roll_deg,scale,tx,ty,rms\n"));
+    // The fitted head pose follows py-feat's own estimate (measured |r| = 0.974 yaw, 0.974
+    // pitch, 0.925 roll; py-feat's yaw has the opposite sign).
+    let ours = keyshape_lab::io::read_columns(
+        &d.path().join("p.csv"),
+        &["yaw_deg", "pitch_deg", "roll_deg"],
+    )
+    .unwrap();
+    let theirs = keyshape_lab::io::read_columns(&track, &["Yaw", "Pitch", "Roll"]).unwrap();
+    for (i, (lo, sign)) in [(0.97, -1.0), (0.97, 1.0), (0.92, 1.0)]
+        .into_iter()
+        .enumerate()
+    {
+        let r = keyshape_lab::cosker::intensity::correlation(&ours[i], &theirs[i]);
+        assert!(sign * r > lo, "angle {i}: r = {r}");
+    }
     // Each option changes the weights.
     let w2 = out("w2.csv");
     for extra in [
