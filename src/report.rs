@@ -362,6 +362,43 @@ pub fn write_outcome(o: &Outcome, dir: &Path) -> Result<Vec<PathBuf>> {
         files.extend(f);
         figures.extend(fig);
     }
+    if !o.rig_recovery.is_empty() {
+        let csv = dir.join("rig_recovery.csv");
+        write_atomic(&csv, |w| {
+            writeln!(w, "solver,noise_px,shape,r,rmse,frozen")?;
+            for r in &o.rig_recovery {
+                writeln!(
+                    w,
+                    "{},{},{},{},{},{}",
+                    r.solver,
+                    fmt_num(r.noise_px),
+                    r.shape,
+                    fmt_num(r.r),
+                    fmt_num(r.rmse),
+                    r.frozen
+                )?;
+            }
+            Ok(())
+        })?;
+        files.push(csv);
+    }
+    if !o.rig_peer.is_empty() {
+        let csv = dir.join("rig_vs_input_scores.csv");
+        write_atomic(&csv, |w| {
+            writeln!(w, "identity,shape,r_pooled")?;
+            for r in &o.rig_peer {
+                writeln!(
+                    w,
+                    "{},{},{}",
+                    r.identity,
+                    r.shape,
+                    r.r_pooled.map_or(String::new(), fmt_num)
+                )?;
+            }
+            Ok(())
+        })?;
+        files.push(csv);
+    }
     if o.spec.png && !o.rows.is_empty() {
         for s in &o.spec.solvers {
             let name = format!("curves_{}.png", s.name());
@@ -390,6 +427,8 @@ pub fn write_outcome(o: &Outcome, dir: &Path) -> Result<Vec<PathBuf>> {
             "plain_pca": crate::cosker::modes::OrthogonalityStudy::mean_upper(&st.plain),
         })),
         "alignment": o.map.as_ref().map(|m| m.alignment.clone()),
+        "rig_recovery": (!o.rig_recovery.is_empty()).then_some(&o.rig_recovery),
+        "rig_vs_input_scores": (!o.rig_peer.is_empty()).then_some(&o.rig_peer),
         "normalisation_extremes": o.map.as_ref().map(|m| m.extremes.clone()),
         "paper002_features": (o.orthogonality.is_some() || o.map.is_some())
             .then_some("shape only: landmark tracks, no texture (the paper's appearance models had both)"),

@@ -69,6 +69,10 @@ pub struct Outcome {
     pub map: Option<MapOutcome>,
     /// The smoothing study.
     pub smoothing: Vec<smoothing::SmoothRow>,
+    /// The rig study's recovery rows.
+    pub rig_recovery: Vec<crate::rig::study::RecoveryRow>,
+    /// The rig study's agreement with the input's own scores.
+    pub rig_peer: Vec<crate::rig::study::PeerRow>,
 }
 
 /// Runs a spec whose relative paths are relative to `base`.
@@ -197,6 +201,49 @@ pub fn run(spec: &Spec, base: &Path, tick: &(dyn Fn(usize, usize) + Sync)) -> Re
         None => Vec::new(),
     };
     timings.push(("smooth".to_string(), t.elapsed().as_secs_f64()));
+    let t = Instant::now();
+    let (rig_recovery, rig_peer) = match &spec.rig {
+        Some(st) => {
+            let rig = crate::rig::Rig::read_ict(&crate::io::shared_data("ict_facekit_face")?)?;
+            let rec = crate::rig::study::recovery(&rig, st)?;
+            let peer = if st.against_input_scores {
+                if seq.points != crate::rig::LANDMARKS || spec.input == "builtin" {
+                    return Err(Error::invalid(
+                        "[rig] against_input_scores needs a 68-point py-feat table as input",
+                    ));
+                }
+                let p = base.join(&spec.input);
+                let header = crate::io::read_text(&p)?;
+                let names: Vec<&str> = header
+                    .lines()
+                    .next()
+                    .unwrap_or("")
+                    .split(',')
+                    .map(str::trim)
+                    .filter(|n| {
+                        crate::rig::livelink::COLUMNS[..52]
+                            .iter()
+                            .any(|c| c.eq_ignore_ascii_case(n))
+                    })
+                    .collect();
+                if names.is_empty() {
+                    return Err(Error::file(
+                        &p,
+                        "[rig] against_input_scores: no ARKit-named score columns",
+                    ));
+                }
+                let cols = crate::io::read_columns(&p, &names)?;
+                let scores: Vec<(String, Vec<f64>)> =
+                    names.iter().map(|n| n.to_string()).zip(cols).collect();
+                crate::rig::study::against_peer(&rig, &seq.coords, &scores)?
+            } else {
+                Vec::new()
+            };
+            (rec, peer)
+        }
+        None => (Vec::new(), Vec::new()),
+    };
+    timings.push(("rig".to_string(), t.elapsed().as_secs_f64()));
     Ok(Outcome {
         spec: spec.clone(),
         input,
@@ -213,5 +260,7 @@ pub fn run(spec: &Spec, base: &Path, tick: &(dyn Fn(usize, usize) + Sync)) -> Re
         intensity,
         map,
         smoothing,
+        rig_recovery,
+        rig_peer,
     })
 }

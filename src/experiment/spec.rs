@@ -58,6 +58,10 @@ pub struct Spec {
     /// The jitter-against-error study of the temporal prior and post-filters, optional.
     #[serde(default)]
     pub smooth: Option<super::smoothing::SmoothStudySettings>,
+    /// The rig-solve study (issue 16): recovery of known weights on synthetic tracks of the
+    /// ICT rig, and (with a py-feat input) agreement with its ARKit-style scores, optional.
+    #[serde(default)]
+    pub rig: Option<crate::rig::study::RigStudySettings>,
     /// Seed for kmeans and random.
     #[serde(default = "seven")]
     pub seed: u64,
@@ -252,9 +256,10 @@ impl Spec {
             || spec.modes.is_some()
             || spec.intensity.is_some()
             || spec.map.is_some()
-            || spec.smooth.is_some();
+            || spec.smooth.is_some()
+            || spec.rig.is_some();
         if spec.methods.is_empty() && !studies {
-            return Err(at("methods", "name at least one method (or add a [retarget], [modes], [intensity], [map] or [smooth] table)".into()));
+            return Err(at("methods", "name at least one method (or add a [retarget], [modes], [intensity], [map], [smooth] or [rig] table)".into()));
         }
         if spec.compare_raw && (!spec.align || spec.methods.is_empty()) {
             return Err(at(

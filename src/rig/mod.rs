@@ -12,6 +12,7 @@
 
 pub mod camera;
 pub mod livelink;
+pub mod study;
 
 use crate::cosker::morph::MorphTargets;
 use crate::error::{Error, Result};
