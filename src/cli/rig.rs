@@ -52,6 +52,13 @@ pub struct RigArgs {
     /// soaking up noise; 0 freezes only shapes that do not move the landmarks.
     #[arg(long, default_value_t = 0.02)]
     min_determination: f64,
+    /// Causal temporal prior λ (≥ 0): each frame's weights are pulled towards the previous
+    /// frame's by adding λ‖w − w_prev‖² to its squared landmark error (λ in squared image
+    /// units per unit weight²; not across clips). Only the causal form exists for rigs;
+    /// `kslab solve --smooth` has the offline one.
+    /// [default: off, the same as 0].
+    #[arg(long, value_name = "LAMBDA", allow_negative_numbers = true)]
+    smooth: Option<f64>,
     /// Write the weights here: `frame` and one column per rig shape, named as the rig names
     /// them [default: stdout].
     #[arg(long, short)]
@@ -142,6 +149,7 @@ pub fn run(a: &RigArgs) -> Result<()> {
         identity: a.identity,
         neutral,
         min_determination: a.min_determination,
+        smooth: a.smooth.unwrap_or(0.0),
         ..Default::default()
     };
     let per_clip = match a.identity_per.as_deref() {

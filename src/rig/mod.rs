@@ -256,6 +256,10 @@ pub struct RigOptions {
     pub min_determination: f64,
     /// Gauss–Newton steps per frame at most.
     pub max_alternations: usize,
+    /// Causal temporal prior λ (≥ 0, squared image units per unit weight²): each frame
+    /// minimises its landmark error plus `λ‖w − w_prev‖²`, `w_prev` the previous frame's
+    /// weights (not across clips); 0 is off.
+    pub smooth: f64,
 }
 
 impl Default for RigOptions {
@@ -266,6 +270,7 @@ impl Default for RigOptions {
             neutral: Neutral::Auto,
             min_determination: 0.02,
             max_alternations: 50,
+            smooth: 0.0,
         }
     }
 }
@@ -408,6 +413,10 @@ struct FrameSolver<'a> {
     state: Vec<Bound>,
     ws: Workspace,
     cam: Option<Camera>,
+    /// The causal temporal prior: λ and the previous frame's weights (free shapes), which
+    /// each frame's weights are pulled towards (`λ‖w − w_prev‖²` added to the error).
+    lambda: f64,
+    prev: Option<Vec<f64>>,
 }
 
 impl<'a> FrameSolver<'a> {
@@ -424,6 +433,8 @@ impl<'a> FrameSolver<'a> {
             state: vec![Bound::Lower; m],
             ws: Workspace::new(m),
             cam: None,
+            lambda: 0.0,
+            prev: None,
         }
     }
 
@@ -435,6 +446,7 @@ impl<'a> FrameSolver<'a> {
         w
     }
 
+    /// The squared landmark error of the current weights under `cam`.
     fn sq_error(&self, cam: &Camera, u: &[[f64; 2]]) -> f64 {
         let posed = self.rig.posed(&self.full_weights());
         posed
@@ -445,6 +457,23 @@ impl<'a> FrameSolver<'a> {
                 (e[0] - q[0]).powi(2) + (e[1] - q[1]).powi(2)
             })
             .sum()
+    }
+
+    /// What the steps minimise: the squared landmark error plus the prior's term.
+    fn objective(&self, cam: &Camera, u: &[[f64; 2]]) -> f64 {
+        let prior = match &self.prev {
+            Some(p) if self.lambda > 0.0 => {
+                self.lambda
+                    * self
+                        .w
+                        .iter()
+                        .zip(p)
+                        .map(|(a, b)| (a - b).powi(2))
+                        .sum::<f64>()
+            }
+            _ => 0.0,
+        };
+        self.sq_error(cam, u) + prior
     }
 
     /// One Gauss–Newton step of camera and weights together, linearised at the current
@@ -558,31 +587,7 @@ impl<'a> FrameSolver<'a> {
             bw[p] -= v;
         }
         if m > 0 {
-            // A whisper of ridge keeps nearly dependent shapes solvable (1e-9 of the mean
-            // diagonal: far below any taken shape's curvature).
-            let ridge = 1e-9 * (0..m).map(|i| g[i * m + i]).sum::<f64>() / m as f64;
-            for i in 0..m {
-                g[i * m + i] += ridge;
-            }
-            match self.solver {
-                Solver::Ls => {
-                    let mut aa = g;
-                    let mut bb = bw;
-                    if solve_spd(&mut aa, m, &mut bb) {
-                        self.w.copy_from_slice(&bb);
-                    }
-                }
-                Solver::Nnls | Solver::Bounded => {
-                    let upper = if self.solver == Solver::Bounded {
-                        1.0
-                    } else {
-                        f64::INFINITY
-                    };
-                    let gram = Gram::from_row_major(m, g, upper);
-                    self.ws.forget_factor();
-                    active_set::solve_frame(&gram, &bw, &mut self.w, &mut self.state, &mut self.ws);
-                }
-            }
+            self.solve_weights(g, bw);
         }
         // Camera step: Hcc δ = bc − Hcw w.
         let hw = &hcw * nalgebra::DVector::from_column_slice(&self.w);
@@ -629,6 +634,12 @@ impl<'a> FrameSolver<'a> {
         for i in 0..m {
             g[i * m + i] += ridge;
         }
+        if let (Some(p), true) = (&self.prev, self.lambda > 0.0) {
+            for i in 0..m {
+                g[i * m + i] += self.lambda;
+                b[i] += self.lambda * p[i];
+            }
+        }
         match self.solver {
             Solver::Ls => {
                 if solve_spd(&mut g, m, &mut b) {
@@ -657,7 +668,7 @@ impl<'a> FrameSolver<'a> {
     fn solve(&mut self, u: &[[f64; 2]]) -> Result<(u32, bool, f64)> {
         let mut cam = fit_camera(&self.rig.posed(&self.full_weights()), u)?;
         self.weights_for(&cam, u);
-        let mut err = self.sq_error(&cam, u);
+        let mut err = self.objective(&cam, u);
         for it in 1..=self.max_alternations {
             let (w0, state0) = (self.w.clone(), self.state.clone());
             let full = self.step(&cam, u);
@@ -668,7 +679,7 @@ impl<'a> FrameSolver<'a> {
                 self.w.copy_from_slice(&w0);
                 self.state.copy_from_slice(&state0);
                 self.weights_for(&trial, u);
-                let e = self.sq_error(&trial, u);
+                let e = self.objective(&trial, u);
                 if e < err {
                     accepted = Some((trial, e));
                     break;
@@ -679,18 +690,18 @@ impl<'a> FrameSolver<'a> {
                 self.w = w0;
                 self.state = state0;
                 self.cam = Some(cam);
-                return Ok((it as u32, true, err));
+                return Ok((it as u32, true, self.sq_error(&cam, u)));
             };
             let small = err - e <= 1e-12 * err;
             cam = next;
             err = e;
             if small {
                 self.cam = Some(cam);
-                return Ok((it as u32, true, err));
+                return Ok((it as u32, true, self.sq_error(&cam, u)));
             }
         }
         self.cam = Some(cam);
-        Ok((self.max_alternations as u32, false, err))
+        Ok((self.max_alternations as u32, false, self.sq_error(&cam, u)))
     }
 }
 
@@ -797,6 +808,12 @@ pub fn solve_rig(
         return Err(Error::invalid(format!(
             "the minimum determination must be in [0, 1), not {}",
             opts.min_determination
+        )));
+    }
+    if !(opts.smooth.is_finite() && opts.smooth >= 0.0) {
+        return Err(Error::invalid(format!(
+            "the temporal prior λ must be a number ≥ 0, not {}",
+            opts.smooth
         )));
     }
     let whole = std::iter::once(0..track.ncols()).collect::<Vec<_>>();
@@ -939,6 +956,7 @@ fn run(
             opts.solver,
             opts.max_alternations.max(1),
         );
+        fs.lambda = opts.smooth;
         for f in clip.clone() {
             let u = frame_points(track, f);
             let (it, ok, e) = fs.solve(&u)?;
@@ -952,6 +970,7 @@ fn run(
                 )));
             }
             weights.column_mut(f).copy_from_slice(&w);
+            fs.prev = Some(fs.w.clone());
             cameras.push(fs.cam.unwrap_or(Camera {
                 s: 1.0,
                 r: nalgebra::Matrix3::identity(),

@@ -29,6 +29,9 @@ pub struct RigStudySettings {
     /// Solvers compared.
     #[serde(default = "default_solvers")]
     pub solvers: Vec<Solver>,
+    /// Causal temporal priors λ also tried with the bounded solver (none by default).
+    #[serde(default)]
+    pub smooth: Vec<f64>,
     /// Seed of the weights and the noise.
     #[serde(default = "default_seed")]
     pub seed: u64,
@@ -168,10 +171,17 @@ pub fn recovery(rig: &Rig, st: &RigStudySettings) -> Result<Vec<RecoveryRow>> {
             let (u1, u2): (f64, f64) = (rng.gen_range(f64::EPSILON..1.0), rng.gen());
             *v += noise * (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos();
         }
-        for &solver in &st.solvers {
+        let runs: Vec<(Solver, f64)> = st
+            .solvers
+            .iter()
+            .map(|&s| (s, 0.0))
+            .chain(st.smooth.iter().map(|&l| (Solver::Bounded, l)))
+            .collect();
+        for (solver, smooth) in runs {
             let opts = RigOptions {
                 solver,
                 identity: Identity::None,
+                smooth,
                 ..Default::default()
             };
             let r = solve_rig(rig, &track, &[], &opts)?;
@@ -185,7 +195,11 @@ pub fn recovery(rig: &Rig, st: &RigStudySettings) -> Result<Vec<RecoveryRow>> {
                     / st.frames as f64)
                     .sqrt();
                 rows.push(RecoveryRow {
-                    solver: solver.name().into(),
+                    solver: if smooth > 0.0 {
+                        format!("bounded+causal λ={smooth}")
+                    } else {
+                        solver.name().into()
+                    },
                     noise_px: noise,
                     shape: st.shapes[j].clone(),
                     r: correlation(&got, &series[j]),
