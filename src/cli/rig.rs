@@ -16,8 +16,10 @@ use std::path::PathBuf;
 /// Arguments of `kslab rig`.
 #[derive(Debug, Args)]
 pub struct RigArgs {
-    /// A 68-point track in iBUG order (OpenFace, py-feat, .pts, plain CSV), 2-D.
-    file: PathBuf,
+    /// A 68-point track in iBUG order (OpenFace, py-feat, .pts, plain CSV), or a MediaPipe
+    /// 468-point track (read through the built-in 468 → 68 correspondence), 2-D
+    /// [default: the built-in 216-frame MediaPipe sequence].
+    file: Option<PathBuf>,
     /// Force the input format: openface, pyfeat, pts, json or csv [default: detected].
     #[arg(long, value_parser = parse_format)]
     format: Option<keyshape_lab::sequence::Format>,
@@ -109,25 +111,34 @@ pub fn run(a: &RigArgs) -> Result<()> {
             a.gltf.as_ref(),
         ],
         &[a.png_dir.as_ref()],
-        &[Some(a.file.as_path())],
+        &[a.file.as_deref()],
     )?;
     if a.identity == Identity::None && a.neutral.is_some() {
         anyhow::bail!("--neutral does not apply with --identity none: no neutral frame is used");
     }
-    let seq = read_sequence(
-        &a.file,
-        &ReadOptions {
-            format: a.format,
-            dims: 2,
-        },
-    )?;
-    if seq.points != keyshape_lab::rig::LANDMARKS {
-        anyhow::bail!(
-            "{}: kslab rig needs 68-point tracks in iBUG order; this one has {} points (a MediaPipe 468 → 68 correspondence is not built in yet)",
-            a.file.display(),
-            seq.points
-        );
-    }
+    let name = a
+        .file
+        .as_ref()
+        .map_or(keyshape_lab::io::BUILTIN_NAME.to_string(), |p| {
+            p.display().to_string()
+        });
+    let seq = match &a.file {
+        Some(p) => read_sequence(
+            p,
+            &ReadOptions {
+                format: a.format,
+                dims: 2,
+            },
+        )?,
+        None => keyshape_lab::io::builtin_sequence()?,
+    };
+    let seq = match seq.points {
+        keyshape_lab::rig::LANDMARKS => seq,
+        468 => seq.select_points(&keyshape_lab::rig::mediapipe_to_ibug68()?)?,
+        n => anyhow::bail!(
+            "{name}: kslab rig needs 68-point tracks in iBUG order or MediaPipe 468-point tracks; this one has {n} points"
+        ),
+    };
     let dir = match &a.rig {
         Some(d) => d.clone(),
         None => shared_data("ict_facekit_face")?,
@@ -155,7 +166,7 @@ pub fn run(a: &RigArgs) -> Result<()> {
     let per_clip = match a.identity_per.as_deref() {
         Some("clip") => {
             if seq.segments.is_none() {
-                anyhow::bail!("--identity-per clip: {} labels no clips", a.file.display());
+                anyhow::bail!("--identity-per clip: {name} labels no clips");
             }
             if !matches!(neutral, Neutral::Auto) {
                 anyhow::bail!("--identity-per clip needs --neutral auto: an explicit neutral frame is one identity for the whole track");

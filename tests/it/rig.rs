@@ -387,13 +387,16 @@ fn bad_rigs_and_tracks_are_refused_with_the_file_and_nothing_is_written() {
         assert!(r.stderr.contains(needle), "{}", r.stderr);
         assert!(!w.exists());
     }
-    // A 468-point track: refused, naming the count.
-    let mp = shared("mediapipe_face_tracks/liveportrait_d6.csv")
-        .display()
-        .to_string();
-    let r = kslab(&["rig", &mp, "--out", &ws]);
+    // A track of neither 68 nor 468 points: refused, naming the count.
+    let odd = d.path().join("odd.csv");
+    std::fs::write(
+        &odd,
+        "frame,x_0,y_0,x_1,y_1,x_2,y_2\n0,1,2,3,4,5,7\n1,1,2,3,4,5,6\n",
+    )
+    .unwrap();
+    let r = kslab(&["rig", &odd.display().to_string(), "--out", &ws]);
     assert_eq!(r.code, 1);
-    assert!(r.stderr.contains("has 468 points"), "{}", r.stderr);
+    assert!(r.stderr.contains("this one has 3 points"), "{}", r.stderr);
     assert!(!w.exists());
     // Options that cannot apply, and values out of range.
     let r = kslab(&[
@@ -507,4 +510,65 @@ fn the_rig_experiment_measures_recovery_and_agreement_with_py_feat() {
         let m = (r[r.len() / 2] + r[(r.len() - 1) / 2]) / 2.0;
         assert!((m - want).abs() < 2e-3, "{identity}: median r {m}");
     }
+}
+
+/// The built-in MediaPipe 468 → iBUG 68 correspondence picks 68 distinct landmarks, and on
+/// MediaPipe's own (symmetric) canonical face every iBUG mirror pair lands on a mirror pair
+/// and every midline point on the midline — an oracle the derivation did not use.
+#[test]
+fn the_mediapipe_correspondence_is_distinct_and_mirror_symmetric() {
+    let m = keyshape_lab::rig::mediapipe_to_ibug68().unwrap();
+    let distinct: std::collections::BTreeSet<usize> = m.iter().copied().collect();
+    assert_eq!(distinct.len(), 68);
+    let canon = keyshape_lab::io::obj::read_obj(&shared(
+        "mediapipe_canonical_face/canonical_face_model.obj",
+    ))
+    .unwrap()
+    .positions;
+    let mut pairs: Vec<(usize, usize)> = (0..8).map(|i| (i, 16 - i)).collect();
+    pairs.extend([
+        (17, 26),
+        (18, 25),
+        (19, 24),
+        (20, 23),
+        (21, 22),
+        (31, 35),
+        (32, 34),
+        (36, 45),
+        (37, 44),
+        (38, 43),
+        (39, 42),
+        (40, 47),
+        (41, 46),
+        (48, 54),
+        (49, 53),
+        (50, 52),
+        (55, 59),
+        (56, 58),
+        (60, 64),
+        (61, 63),
+        (65, 67),
+    ]);
+    for (i, j) in pairs {
+        let (a, b) = (canon[m[i]], canon[m[j]]);
+        assert!(
+            (a[0] + b[0]).abs() < 1e-9 && (a[1] - b[1]).abs() < 1e-9 && a[0] != 0.0,
+            "iBUG {i}/{j} → MediaPipe {}/{}",
+            m[i],
+            m[j]
+        );
+    }
+    for i in [8, 27, 28, 29, 30, 33, 51, 57, 62, 66] {
+        assert!(
+            canon[m[i]][0].abs() < 1e-9,
+            "iBUG {i} → {} is off the midline",
+            m[i]
+        );
+    }
+    // The built-in sequence (MediaPipe 468) then solves onto the rig with no file given.
+    let d = tempfile::tempdir().unwrap();
+    let w = d.path().join("w.csv");
+    let r = kslab(&["rig", "--out", &w.display().to_string()]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    assert_eq!(std::fs::read_to_string(&w).unwrap().lines().count(), 217);
 }
