@@ -610,3 +610,43 @@ fn intensity_study_counts_the_labelled_training_frames() {
         assert_eq!(row.training_frames_labelled, 19 * counts[k], "{name}");
     }
 }
+
+/// The batch solve's iteration and unconverged counts are the per-frame reports summed: the
+/// same frames solved one by one with `solve_frame` (one chunk, warm-started in order, as
+/// the batch does within a chunk) give the same weights and the same totals.
+#[test]
+fn batch_iteration_counts_are_the_per_frame_reports_summed() {
+    use keyshape_lab::solve::active_set::{solve_frame, Bound, Gram, Workspace};
+    use keyshape_lab::solve::{solve_batch, SolveOptions, Solver};
+    let seq = keyshape_lab::io::builtin_sequence().unwrap();
+    let prep = keyshape_lab::decompose::prepare(
+        &seq,
+        &keyshape_lab::decompose::PrepareOptions {
+            points: Some("lips".into()),
+            align: true,
+        },
+    )
+    .unwrap();
+    let q = &prep.seq.coords;
+    let s = q.select_columns(&[0, 30, 60, 90, 120, 150, 180, 210]);
+    for (solver, upper) in [(Solver::Nnls, f64::INFINITY), (Solver::Bounded, 1.0)] {
+        let sol = solve_batch(&s, q, &SolveOptions::new(solver)).unwrap();
+        let gram = Gram::new(&s, upper);
+        let (mut ws, mut state, mut w) = (Workspace::new(8), vec![Bound::Lower; 8], vec![0.0; 8]);
+        let (mut iters, mut bad) = (0u64, 0usize);
+        // Sᵀq as the batch forms it (one product), so every tolerance test sees the same bits.
+        let b_all = &s.transpose() * q;
+        for f in 0..q.ncols() {
+            let b = b_all.column(f).into_owned();
+            let rep = solve_frame(&gram, b.as_slice(), &mut w, &mut state, &mut ws);
+            iters += u64::from(rep.iterations);
+            bad += usize::from(!rep.converged);
+            for k in 0..8 {
+                assert!((w[k] - sol.weights[(k, f)]).abs() < 1e-9, "{solver} frame {f}");
+            }
+        }
+        assert!(iters > 0);
+        assert_eq!(sol.iterations, iters, "{solver}");
+        assert_eq!(sol.unconverged, bad, "{solver}");
+    }
+}
