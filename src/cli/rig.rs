@@ -24,11 +24,17 @@ pub struct RigArgs {
     #[arg(long, value_parser = parse_format)]
     format: Option<keyshape_lab::sequence::Format>,
     /// The rig: a folder in the ICT FaceKit layout (neutral_face.obj, expressions.csv,
-    /// expression_deltas.csv, landmarks_multipie68.csv)
+    /// expression_deltas.csv, landmarks_multipie68.csv), or a glTF/GLB file whose first mesh
+    /// with morph targets is the rig (with --rig-landmarks)
     /// [default: ict_facekit_face in the shared data folder, found through $KSLAB_SHARED or
     /// beside this repository].
     #[arg(long, value_name = "DIR")]
     rig: Option<PathBuf>,
+    /// With a glTF/GLB --rig: a `landmark,vertex` CSV naming the mesh vertex of each of the
+    /// 68 iBUG landmarks (vertices counted across the mesh's primitives).
+    /// [default: none; required with a glTF rig, refused with a folder].
+    #[arg(long, value_name = "CSV")]
+    rig_landmarks: Option<PathBuf>,
     /// bounded (0 ≤ w ≤ 1, as rigs expect), nnls (w ≥ 0) or ls (unconstrained).
     #[arg(long, default_value = "bounded", value_parser = parse_solver)]
     solver: Solver,
@@ -111,7 +117,11 @@ pub fn run(a: &RigArgs) -> Result<()> {
             a.gltf.as_ref(),
         ],
         &[a.png_dir.as_ref()],
-        &[a.file.as_deref()],
+        &[
+            a.file.as_deref(),
+            a.rig.as_deref(),
+            a.rig_landmarks.as_deref(),
+        ],
     )?;
     if a.identity == Identity::None && a.neutral.is_some() {
         anyhow::bail!("--neutral does not apply with --identity none: no neutral frame is used");
@@ -143,8 +153,20 @@ pub fn run(a: &RigArgs) -> Result<()> {
         Some(d) => d.clone(),
         None => shared_data("ict_facekit_face")?,
     };
-    let (mesh, morph, marks) = Rig::read_ict_parts(&dir)
-        .with_context(|| format!("reading the rig in {}", dir.display()))?;
+    let (mesh, morph, marks) = if dir.is_dir() {
+        if a.rig_landmarks.is_some() {
+            anyhow::bail!("--rig-landmarks applies to a glTF rig; {} is a folder, which names its own landmarks", dir.display());
+        }
+        Rig::read_ict_parts(&dir)
+            .with_context(|| format!("reading the rig in {}", dir.display()))?
+    } else {
+        let csv = a.rig_landmarks.as_ref().ok_or_else(|| {
+            anyhow::anyhow!("{}: a glTF rig needs --rig-landmarks CSV (landmark,vertex for the 68 iBUG landmarks)", dir.display())
+        })?;
+        let (mesh, morph) = keyshape_lab::rig::gltf_rig::read_gltf_mesh(&dir)?;
+        let marks = keyshape_lab::rig::read_landmark_vertices(csv, mesh.positions.len())?;
+        (mesh, morph, marks)
+    };
     let rig = Rig::from_parts(&mesh.positions, &morph, &marks)?;
     let neutral = match a.neutral.as_deref().map(str::trim) {
         None | Some("auto") => Neutral::Auto,

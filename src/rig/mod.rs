@@ -11,6 +11,7 @@
 //! noise-free renders it converges to the rendered weights (tested to 1e-6).
 
 pub mod camera;
+pub mod gltf_rig;
 pub mod livelink;
 pub mod study;
 

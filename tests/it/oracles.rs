@@ -642,7 +642,10 @@ fn batch_iteration_counts_are_the_per_frame_reports_summed() {
             iters += u64::from(rep.iterations);
             bad += usize::from(!rep.converged);
             for k in 0..8 {
-                assert!((w[k] - sol.weights[(k, f)]).abs() < 1e-9, "{solver} frame {f}");
+                assert!(
+                    (w[k] - sol.weights[(k, f)]).abs() < 1e-9,
+                    "{solver} frame {f}"
+                );
             }
         }
         assert!(iters > 0);

@@ -572,3 +572,108 @@ fn the_mediapipe_correspondence_is_distinct_and_mirror_symmetric() {
     assert_eq!(r.code, 0, "{}", r.stderr);
     assert_eq!(std::fs::read_to_string(&w).unwrap().lines().count(), 217);
 }
+
+/// A glTF rig: the ICT face written as GLB with all 55 shapes as morph targets (names in
+/// `mesh.extras.targetNames`) and its landmark list read back gives the same rig to float
+/// precision, and `kslab rig --rig anim.glb --rig-landmarks marks.csv` the same weights.
+#[test]
+fn a_gltf_rig_with_a_landmark_list_solves_like_the_folder_it_came_from() {
+    let d = tempfile::tempdir().unwrap();
+    let dir = shared("ict_facekit_face");
+    let (mesh, morph, _) = Rig::read_ict_parts(&dir).unwrap();
+    let n = mesh.positions.len();
+    let dense: Vec<(String, Vec<[f64; 3]>)> = morph
+        .names
+        .iter()
+        .zip(&morph.deltas)
+        .map(|(name, d)| {
+            let mut v = vec![[0.0; 3]; n];
+            for &(i, o) in d {
+                v[i] = o;
+            }
+            (name.clone(), v)
+        })
+        .collect();
+    let glb = d.path().join("ict.glb");
+    let mut f = std::fs::File::create(&glb).unwrap();
+    // The OBJ's quads as triangles (the GLB writer takes any polygon and fans it).
+    keyshape_lab::io::gltf::write_morph_glb(
+        &mut f,
+        &mesh.positions,
+        &mesh.faces,
+        &dense,
+        &DMatrix::zeros(dense.len(), 2),
+        30.0,
+    )
+    .unwrap();
+    drop(f);
+    let marks = dir.join("landmarks_multipie68.csv");
+    let from_gltf = Rig::read_gltf(&glb, &marks).unwrap();
+    let from_dir = ict();
+    assert_eq!(from_gltf.names, from_dir.names);
+    for (a, b) in from_gltf.neutral.iter().zip(&from_dir.neutral) {
+        for k in 0..3 {
+            assert!((a[k] - b[k]).abs() < 1e-5);
+        }
+    }
+    for (da, db) in from_gltf.deltas.iter().zip(&from_dir.deltas) {
+        for (a, b) in da.iter().zip(db) {
+            for k in 0..3 {
+                assert!((a[k] - b[k]).abs() < 1e-6);
+            }
+        }
+    }
+    let track = shared("pyfeat_samples/news_sample_compact.csv")
+        .display()
+        .to_string();
+    let (w1, w2) = (d.path().join("w1.csv"), d.path().join("w2.csv"));
+    let r = kslab(&["rig", &track, "--out", &w1.display().to_string()]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let r = kslab(&[
+        "rig",
+        &track,
+        "--rig",
+        &glb.display().to_string(),
+        "--rig-landmarks",
+        &marks.display().to_string(),
+        "--out",
+        &w2.display().to_string(),
+    ]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let read = |p: &std::path::Path| -> Vec<Vec<f64>> {
+        std::fs::read_to_string(p)
+            .unwrap()
+            .lines()
+            .skip(1)
+            .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
+            .collect()
+    };
+    let (a, b) = (read(&w1), read(&w2));
+    let worst = a
+        .iter()
+        .zip(&b)
+        .flat_map(|(x, y)| x.iter().zip(y).map(|(u, v)| (u - v).abs()))
+        .fold(0.0, f64::max);
+    assert!(worst < 1e-3, "weights differ by {worst}");
+    // A glTF rig without its landmark list, and a list with a folder: refused.
+    let r = kslab(&[
+        "rig",
+        &track,
+        "--rig",
+        &glb.display().to_string(),
+        "--out",
+        &w2.display().to_string(),
+    ]);
+    assert_eq!(r.code, 1);
+    assert!(r.stderr.contains("needs --rig-landmarks"), "{}", r.stderr);
+    let r = kslab(&[
+        "rig",
+        &track,
+        "--rig-landmarks",
+        &marks.display().to_string(),
+        "--out",
+        &w2.display().to_string(),
+    ]);
+    assert_eq!(r.code, 1);
+    assert!(r.stderr.contains("applies to a glTF rig"), "{}", r.stderr);
+}
