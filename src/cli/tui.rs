@@ -22,6 +22,12 @@ pub struct TuiArgs {
     /// Feature correspondences for --mesh (`builtin`, a built-in name, or a JSON file).
     #[arg(long, default_value = "builtin", requires = "mesh")]
     features: String,
+    /// A blendshape rig (ICT FaceKit folder layout, e.g. ../shared/data/ict_facekit_face) to
+    /// solve the track onto when the lab opens (68-point or MediaPipe 468-point tracks, as
+    /// `kslab rig` with its defaults); `r` toggles the rig view.
+    /// [default: none].
+    #[arg(long, value_name = "DIR")]
+    rig: Option<PathBuf>,
     /// Head motion (removed by alignment) in what `e` exports: `apply` adds the per-frame
     /// pose to weights.csv (head_scale, head_angle_deg, head_tx, head_ty) and draws view.png
     /// in image coordinates, as `kslab retarget` does; `none` keeps both aligned.
@@ -59,7 +65,14 @@ pub fn run(a: &TuiArgs) -> Result<()> {
             Some(keyshape_lab::tui::mesh::mesh_view(&seq, obj, features)?)
         }
     };
-    keyshape_lab::tui::run(seq, &path, target, mesh, a.head_motion == "apply")
+    let rig = match &a.rig {
+        None => None,
+        Some(d) => {
+            let rig = keyshape_lab::rig::Rig::read_ict(d)?;
+            Some(keyshape_lab::tui::rig::rig_view(&seq, &rig)?)
+        }
+    };
+    keyshape_lab::tui::run(seq, &path, target, mesh, rig, a.head_motion == "apply")
 }
 
 impl Default for TuiArgs {
@@ -68,6 +81,7 @@ impl Default for TuiArgs {
             file: None,
             target: None,
             mesh: None,
+            rig: None,
             features: "builtin".into(),
             head_motion: "apply".into(),
         }

@@ -7,6 +7,7 @@ pub mod compute;
 pub mod export;
 pub mod mesh;
 pub mod request;
+pub mod rig;
 pub mod state;
 pub mod view;
 
@@ -60,6 +61,7 @@ pub fn command(c: char) -> Option<Action> {
         'e' => Action::Export,
         'o' => Action::Open,
         'x' => Action::Mesh,
+        'r' => Action::Rig,
         _ => return None,
     })
 }
@@ -169,6 +171,7 @@ pub fn run(
     path: &str,
     target: Option<crate::retarget::target::TargetSet>,
     mesh: Option<mesh::MeshView>,
+    rig: Option<rig::RigView>,
     export_head_motion: bool,
 ) -> anyhow::Result<()> {
     let mut s = State::new(&seq.source, seq.n_frames(), seq.fps().unwrap_or(30.0));
@@ -176,6 +179,8 @@ pub fn run(
     s.target_keys = target.is_some();
     s.mesh = mesh.map(std::sync::Arc::new);
     s.show_mesh = false; // the 2-D target first; `x` shows the mesh
+    s.show_rig = rig.is_some(); // opened with --rig: the rig first; `r` toggles
+    s.rig = rig.map(std::sync::Arc::new);
     let (jobs, results) = compute::spawn(seq, target);
     let mut terminal = ratatui::try_init()?;
     // ratatui's hook restores the terminal on a panic; a panic in the worker is caught and

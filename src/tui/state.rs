@@ -45,6 +45,8 @@ pub enum Action {
     Open,
     /// x: the transferred 3-D mesh in place of the 2-D target (with `--mesh`).
     Mesh,
+    /// r: the track solved onto the rig (with `--rig`) in place of the two top panels.
+    Rig,
     /// A digit starts a frame-number prompt; other characters go to an open prompt.
     Char(char),
     /// Enter in a prompt.
@@ -135,6 +137,10 @@ pub struct State {
     pub mesh: Option<std::sync::Arc<super::mesh::MeshView>>,
     /// Show the mesh in the target panel.
     pub show_mesh: bool,
+    /// The track solved onto a rig (`kslab tui --rig`).
+    pub rig: Option<std::sync::Arc<super::rig::RigView>>,
+    /// Show the rig view (track + posed rig, named weights) in place of the two top panels.
+    pub show_rig: bool,
     /// The key frames come from a user target set (`kslab tui --target`), not a method.
     pub target_keys: bool,
     clock: f64,
@@ -165,6 +171,8 @@ impl State {
             ticks: 0,
             mesh: None,
             show_mesh: false,
+            rig: None,
+            show_rig: false,
             target_keys: false,
             clock: 0.0,
         }
@@ -291,6 +299,11 @@ pub fn update(s: &mut State, action: Action) -> Vec<Effect> {
         Action::Split => s.split = !s.split,
         Action::Mesh if s.mesh.is_some() => s.show_mesh = !s.show_mesh,
         Action::Mesh => s.status = "no mesh: open the lab with --mesh M.obj".into(),
+        Action::Rig if s.rig.is_some() => s.show_rig = !s.show_rig,
+        Action::Rig => {
+            s.status =
+                "no rig: open the lab with --rig DIR (e.g. ../shared/data/ict_facekit_face)".into()
+        }
         Action::Export => return vec![Effect::Export],
         Action::Open => s.prompt = Some(Prompt::Open(String::new())),
         Action::Char(c) if c.is_ascii_digit() => s.prompt = Some(Prompt::Jump(c.to_string())),
@@ -326,6 +339,8 @@ pub fn update(s: &mut State, action: Action) -> Vec<Effect> {
                 s.curves = None;
                 s.mesh = None;
                 s.show_mesh = false;
+                s.rig = None;
+                s.show_rig = false;
                 s.target_keys = false;
                 return s.recompute();
             }

@@ -283,6 +283,12 @@ fn face_panels(f: &mut Frame, s: &State, c: &Computed, area: Rect) {
         return;
     }
     let [a, b] = Layout::horizontal([Constraint::Ratio(1, 2); 2]).areas(area);
+    if let (true, Some(r)) = (s.show_rig, &s.rig) {
+        let t = t.min(r.weights.len().saturating_sub(1));
+        f.render_widget(rig_panel(r, t), a);
+        f.render_widget(rig_weights(r, t, b.height.saturating_sub(2) as usize), b);
+        return;
+    }
     if let (true, Some(m)) = (s.show_mesh, &s.mesh) {
         let src = shape_panel(
             format!("source: tracked + recon · rms {rms:.2}"),
@@ -311,6 +317,68 @@ fn face_panels(f: &mut Frame, s: &State, c: &Computed, area: Rect) {
         tb,
     );
     f.render_widget(tgt, b);
+}
+
+/// The tracked landmarks (white) and the posed rig's under the fitted head pose (magenta).
+fn rig_panel(
+    r: &super::rig::RigView,
+    t: usize,
+) -> Canvas<'_, impl Fn(&mut ratatui::widgets::canvas::Context) + '_> {
+    Canvas::default()
+        .block(Block::bordered().title(format!(
+            "track + posed rig · rms {:.2}",
+            r.rms.get(t).copied().unwrap_or(f64::NAN)
+        )))
+        .marker(Marker::Braille)
+        .x_bounds(r.bounds.0)
+        .y_bounds(r.bounds.1)
+        .paint(move |ctx| {
+            for (pts, color) in [
+                (&r.tracked[t], Color::White),
+                (&r.fitted[t], Color::Magenta),
+            ] {
+                for line in &r.polylines {
+                    for w in line.windows(2) {
+                        let (p, q) = (pts[w[0]], pts[w[1]]);
+                        ctx.draw(&CLine {
+                            x1: p[0],
+                            y1: p[1],
+                            x2: q[0],
+                            y2: q[1],
+                            color,
+                        });
+                    }
+                }
+                ctx.layer();
+            }
+        })
+}
+
+/// The rig's weights on frame `t` as named bars, largest first, as many as fit.
+fn rig_weights(r: &super::rig::RigView, t: usize, rows: usize) -> Paragraph<'_> {
+    let w = &r.weights[t];
+    let mut order: Vec<usize> = (0..w.len()).collect();
+    order.sort_by(|&a, &b| w[b].abs().total_cmp(&w[a].abs()).then(a.cmp(&b)));
+    let shown = rows.max(1);
+    let lines: Vec<Line> = order
+        .iter()
+        .take(shown)
+        .map(|&i| {
+            let v = w[i];
+            let bar = "█".repeat((v.abs().min(1.0) * 12.0).round() as usize);
+            Line::from(vec![
+                Span::raw(format!("{:<16.16} ", r.names[i])),
+                Span::styled(
+                    format!("{bar:<12}"),
+                    Style::default().fg(if v < 0.0 { Color::Red } else { Color::Magenta }),
+                ),
+                Span::raw(format!(" {v:.2}")),
+            ])
+        })
+        .collect();
+    let active = w.iter().filter(|v| v.abs() > 1e-9).count();
+    Paragraph::new(lines)
+        .block(Block::bordered().title(format!("rig weights · {active} of {} active", w.len())))
 }
 
 fn mesh_panel(
@@ -628,7 +696,7 @@ fn footer(f: &mut Frame, s: &State, area: Rect) {
 }
 
 /// Every key, for the help overlay and the README.
-pub const KEYS: [(&str, &str); 20] = [
+pub const KEYS: [(&str, &str); 21] = [
     ("space", "play / pause"),
     ("← / →", "step one frame"),
     ("Home / End", "first / last frame"),
@@ -649,6 +717,10 @@ pub const KEYS: [(&str, &str); 20] = [
     ("e", "export weights CSV, view PNG, experiment TOML"),
     ("o", "open another sequence"),
     ("x", "3-D mesh of `--mesh` in place of the 2-D target"),
+    (
+        "r",
+        "the track solved onto `--rig` (posed rig, named weights)",
+    ),
     ("click timeline", "seek"),
     ("click chart", "pick the nearest method and k"),
     ("?", "this help"),

@@ -590,3 +590,40 @@ fn keys_that_do_not_apply_say_why_and_the_hull_shows_its_k() {
     assert_eq!(line, "…/track.csv▏");
     assert_eq!(line.chars().count(), 12);
 }
+
+/// Issue 16 item 8: `kslab tui --rig DIR` — the track solved onto the ICT rig when the lab
+/// opens; `r` shows the tracked landmarks with the posed rig and the rig's weights as named
+/// bars, largest first (on frame 150, the scream, jawOpen among the first). Without a rig,
+/// `r` says how to get one.
+#[test]
+fn the_rig_view_names_the_largest_weights_and_r_toggles_it() {
+    let rig = keyshape_lab::rig::Rig::read_ict(&crate::common::shared("ict_facekit_face")).unwrap();
+    let view = keyshape_lab::tui::rig::rig_view(&builtin_sequence().unwrap(), &rig).unwrap();
+    let mut s = computed_state(Settings::default());
+    update(&mut s, Action::Rig);
+    assert!(s.status.contains("open the lab with --rig"), "{}", s.status);
+    s.rig = Some(std::sync::Arc::new(view.clone()));
+    s.frame = 150;
+    update(&mut s, Action::Rig);
+    assert!(s.show_rig);
+    let text = screen(&s, 80, 24);
+    assert!(text.contains("track + posed rig"), "{text}");
+    assert!(text.contains("of 55 active"), "{text}");
+    // The bars are the frame's largest weights, in order, each with its name.
+    let w = &view.weights[150];
+    let mut order: Vec<usize> = (0..w.len()).collect();
+    order.sort_by(|&a, &b| w[b].abs().total_cmp(&w[a].abs()).then(a.cmp(&b)));
+    let first: Vec<&str> = order[..5].iter().map(|&i| view.names[i].as_str()).collect();
+    assert!(first.contains(&"jawOpen"), "{first:?}");
+    let pos: Vec<usize> = first
+        .iter()
+        .map(|n| text.find(&format!("{n} ")).unwrap())
+        .collect();
+    assert!(
+        pos.windows(2).all(|p| p[0] < p[1]),
+        "bars out of order: {first:?}"
+    );
+    assert_screen(&text, "tui_rig_80x24.txt");
+    update(&mut s, Action::Rig);
+    assert!(!s.show_rig);
+}
