@@ -385,14 +385,15 @@ pub fn write_outcome(o: &Outcome, dir: &Path) -> Result<Vec<PathBuf>> {
     if !o.rig_peer.is_empty() {
         let csv = dir.join("rig_vs_input_scores.csv");
         write_atomic(&csv, |w| {
-            writeln!(w, "identity,shape,r_pooled")?;
+            writeln!(w, "identity,clip,shape,r")?;
             for r in &o.rig_peer {
                 writeln!(
                     w,
-                    "{},{},{}",
+                    "{},{},{},{}",
                     r.identity,
+                    r.clip,
                     r.shape,
-                    r.r_pooled.map_or(String::new(), fmt_num)
+                    r.r.map_or(String::new(), fmt_num)
                 )?;
             }
             Ok(())

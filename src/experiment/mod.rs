@@ -235,7 +235,12 @@ pub fn run(spec: &Spec, base: &Path, tick: &(dyn Fn(usize, usize) + Sync)) -> Re
                 let cols = crate::io::read_columns(&p, &names)?;
                 let scores: Vec<(String, Vec<f64>)> =
                     names.iter().map(|n| n.to_string()).zip(cols).collect();
-                crate::rig::study::against_peer(&rig, &seq.coords, &scores)?
+                crate::rig::study::against_peer(
+                    &rig,
+                    &seq.coords,
+                    &scores,
+                    seq.segments.as_deref(),
+                )?
             } else {
                 Vec::new()
             };

@@ -219,19 +219,33 @@ pub struct PeerRow {
     pub identity: String,
     /// ARKit name (the peer's column, lower camel case).
     pub shape: String,
-    /// Pearson r over every frame; None when either series is constant (a frozen shape, one
-    /// held at a bound throughout, or a score the peer never moves), where r is undefined.
-    pub r_pooled: Option<f64>,
+    /// `all` (every frame pooled) or a clip label of the track.
+    pub clip: String,
+    /// Pearson r over the frames; None when either series is constant there (a frozen
+    /// shape, one held at a bound throughout, or a score the peer never moves), where r is
+    /// undefined.
+    pub r: Option<f64>,
 }
 
 /// Study (ii): the rig solve of `track` (bounded, each identity) against the peer's
 /// ARKit-style score columns `scores` (name → per-frame values, in py-feat's lower camel
-/// case); rig shapes split left/right where the peer has one column are averaged.
+/// case), pooled and per clip of `clips` (a label per frame); rig shapes split left/right
+/// where the peer has one column are averaged.
 pub fn against_peer(
     rig: &Rig,
     track: &DMatrix<f64>,
     scores: &[(String, Vec<f64>)],
+    clips: Option<&[String]>,
 ) -> Result<Vec<PeerRow>> {
+    let mut groups: Vec<(String, Vec<usize>)> = vec![("all".into(), (0..track.ncols()).collect())];
+    if let Some(labels) = clips {
+        for (f, l) in labels.iter().enumerate() {
+            match groups.iter_mut().skip(1).find(|g| g.0 == *l) {
+                Some(g) => g.1.push(f),
+                None => groups.push((l.clone(), vec![f])),
+            }
+        }
+    }
     let mut rows = Vec::new();
     for identity in [Identity::None, Identity::Offset, Identity::Rbf] {
         let opts = RigOptions {
@@ -258,12 +272,17 @@ pub fn against_peer(
             let ours: Vec<f64> = (0..track.ncols())
                 .map(|f| src.iter().map(|&s| r.weights[(s, f)]).sum::<f64>() / src.len() as f64)
                 .collect();
-            let constant = ours.iter().all(|&v| v == ours[0]) || peer.iter().all(|&v| v == peer[0]);
-            rows.push(PeerRow {
-                identity: identity.name().into(),
-                shape: name.clone(),
-                r_pooled: (!constant).then(|| correlation(&ours, peer)),
-            });
+            for (clip, frames) in &groups {
+                let a: Vec<f64> = frames.iter().map(|&f| ours[f]).collect();
+                let b: Vec<f64> = frames.iter().map(|&f| peer[f]).collect();
+                let constant = a.iter().all(|&v| v == a[0]) || b.iter().all(|&v| v == b[0]);
+                rows.push(PeerRow {
+                    identity: identity.name().into(),
+                    shape: name.clone(),
+                    clip: clip.clone(),
+                    r: (!constant).then(|| correlation(&a, &b)),
+                });
+            }
         }
     }
     Ok(rows)
