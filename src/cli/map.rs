@@ -349,19 +349,7 @@ fn morph(
         }
     }
     if let Some(p) = &a.morph_gltf {
-        // Only the shapes the mapping uses, densified.
-        let (dense, wu) = targets.used_dense(&w, mesh.positions.len());
-        let fps = prep.seq.fps().unwrap_or(30.0);
-        write_atomic(p, |f| {
-            keyshape_lab::io::gltf::write_morph_glb(
-                f,
-                &mesh.positions,
-                &mesh.faces,
-                &dense,
-                &wu,
-                fps,
-            )
-        })?;
+        targets.write_used_glb(p, &mesh, &w, prep.seq.fps().unwrap_or(30.0))?;
     }
     outln!(
         "drove {} morph targets of {} over {n} frames",

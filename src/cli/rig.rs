@@ -239,19 +239,7 @@ pub fn run(a: &RigArgs) -> Result<()> {
         })?;
     }
     if let Some(p) = &a.gltf {
-        // Only the shapes the performance uses, densified over the mesh.
-        let (dense, wu) = morph.used_dense(&r.weights, mesh.positions.len());
-        let fps = seq.fps().unwrap_or(30.0);
-        write_atomic(p, |f| {
-            keyshape_lab::io::gltf::write_morph_glb(
-                f,
-                &mesh.positions,
-                &mesh.faces,
-                &dense,
-                &wu,
-                fps,
-            )
-        })?;
+        morph.write_used_glb(p, &mesh, &r.weights, seq.fps().unwrap_or(30.0))?;
     }
     if let Some(dir) = &a.png_dir {
         write_pngs(dir, &seq, &rig, &r)?;

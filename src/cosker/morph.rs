@@ -116,6 +116,21 @@ impl MorphTargets {
         (dense, weights.select_rows(&used))
     }
 
+    /// Writes `mesh` animated by `weights` (shapes × frames) as GLB at `path` (atomically):
+    /// only the shapes with a nonzero weight, densified, as morph targets.
+    pub fn write_used_glb(
+        &self,
+        path: &Path,
+        mesh: &crate::io::obj::Mesh,
+        weights: &nalgebra::DMatrix<f64>,
+        fps: f64,
+    ) -> Result<()> {
+        let (dense, used) = self.used_dense(weights, mesh.positions.len());
+        crate::io::write_atomic(path, |f| {
+            crate::io::gltf::write_morph_glb(f, &mesh.positions, &mesh.faces, &dense, &used, fps)
+        })
+    }
+
     /// Eq. (8) into `out` (starting from `neutral`), weights clamped to [0, 1].
     pub fn blend(&self, neutral: &[[f64; 3]], weights: &[f64], out: &mut [[f64; 3]]) {
         out.copy_from_slice(neutral);

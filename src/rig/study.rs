@@ -41,7 +41,8 @@ pub struct RigStudySettings {
     pub against_input_scores: bool,
 }
 
-fn default_shapes() -> Vec<String> {
+/// The dozen shapes the recovery study drives by default.
+pub fn default_shapes() -> Vec<String> {
     [
         "jawOpen",
         "mouthSmile_L",

@@ -75,20 +75,7 @@ fn known_weights_rendered_under_a_moving_head_are_solved_back_exactly() {
     let rig = ict();
     let frames = 80;
     let cams = head_sweep(frames);
-    let names = [
-        "jawOpen",
-        "mouthSmile_L",
-        "mouthSmile_R",
-        "browInnerUp_L",
-        "eyeBlink_L",
-        "eyeBlink_R",
-        "mouthRollUpper",
-        "browDown_R",
-        "mouthFunnel",
-        "cheekPuff_L",
-        "mouthStretch_L",
-        "noseSneer_L",
-    ];
+    let names = keyshape_lab::rig::study::default_shapes();
     let mut truth = DMatrix::zeros(rig.k(), frames);
     for (j, n) in names.iter().enumerate() {
         let s = shape(&rig, n);
@@ -104,7 +91,7 @@ fn known_weights_rendered_under_a_moving_head_are_solved_back_exactly() {
             ..Default::default()
         };
         let r = solve_rig(&rig, &track, &[], &opts).unwrap();
-        for n in names {
+        for n in &names {
             assert!(!r.shapes[shape(&rig, n)].frozen, "{n} frozen");
         }
         let werr = (&r.weights - &truth).abs().max();
