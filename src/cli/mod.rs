@@ -119,7 +119,7 @@ enum Command {
     Template(template::TemplateArgs),
     /// Retarget the performance onto target key shapes (paper 000 Eq. 2, §5).
     Retarget(retarget::RetargetArgs),
-    /// Solve a 68-point track onto a blendshape rig (ARKit-style, e.g. ICT FaceKit) with head pose; weights and Live Link Face CSV.
+    /// Solve a tracked face (68 or MediaPipe 468 points) onto a blendshape rig (ARKit-style, e.g. ICT FaceKit) with head pose; weights, Live Link Face CSV, glTF.
     Rig(rig::RigArgs),
     /// Drive a 3-D mesh from the feature points: RBF transfer + skinning (paper 004).
     Transfer(transfer::TransferArgs),

@@ -20,7 +20,8 @@ pub struct RigArgs {
     /// 468-point track (read through the built-in 468 → 68 correspondence), 2-D
     /// [default: the built-in 216-frame MediaPipe sequence].
     file: Option<PathBuf>,
-    /// Force the input format: openface, pyfeat, pts, json or csv [default: detected].
+    /// Force the input format: mediapipe, openface, pyfeat, pts, json or csv [default:
+    /// detected].
     #[arg(long, value_parser = parse_format)]
     format: Option<keyshape_lab::sequence::Format>,
     /// The rig: a folder in the ICT FaceKit layout (neutral_face.obj, expressions.csv,
