@@ -264,7 +264,7 @@ pub fn run(a: &RigArgs) -> Result<()> {
             "neutral_frames": neutral_frames,
             "mean_rms": mean_rms,
             "unconverged": r.unconverged,
-            "mean_steps": r.alternations.iter().map(|&x| f64::from(x)).sum::<f64>() / r.alternations.len() as f64,
+            "mean_steps": r.steps.iter().map(|&x| f64::from(x)).sum::<f64>() / r.steps.len() as f64,
             "min_determination": a.min_determination,
             "identifiability": r.shapes.iter().map(|s| json!({
                 "shape": s.name,

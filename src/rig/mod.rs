@@ -276,7 +276,7 @@ pub struct RigOptions {
     /// at 0.
     pub min_determination: f64,
     /// Gauss–Newton steps per frame at most.
-    pub max_alternations: usize,
+    pub max_steps: usize,
     /// Causal temporal prior λ (≥ 0, squared image units per unit weight²): each frame
     /// minimises its landmark error plus `λ‖w − w_prev‖²`, `w_prev` the previous frame's
     /// weights (not across clips); 0 is off.
@@ -290,7 +290,7 @@ impl Default for RigOptions {
             identity: Identity::Offset,
             neutral: Neutral::Auto,
             min_determination: 0.02,
-            max_alternations: 50,
+            max_steps: 50,
             smooth: 0.0,
         }
     }
@@ -320,7 +320,7 @@ pub struct RigSolve {
     /// Per frame, RMS 2-D landmark error (track units).
     pub rms: Vec<f64>,
     /// Per frame, Gauss–Newton steps used.
-    pub alternations: Vec<u32>,
+    pub steps: Vec<u32>,
     /// Frames whose steps stopped at the cap.
     pub unconverged: usize,
     /// Per shape, identifiability.
@@ -422,14 +422,14 @@ fn frame_points(track: &DMatrix<f64>, f: usize) -> Vec<[f64; 2]> {
         .collect()
 }
 
-/// One frame's alternation state, reused from frame to frame (the warm start).
+/// One frame's solver state, reused from frame to frame (the warm start).
 struct FrameSolver<'a> {
     rig: &'a Rig,
     blocks: Blocks,
     /// Shapes solved for (not frozen), in rig order.
     free: Vec<usize>,
     solver: Solver,
-    max_alternations: usize,
+    max_steps: usize,
     w: Vec<f64>,
     state: Vec<Bound>,
     ws: Workspace,
@@ -441,7 +441,7 @@ struct FrameSolver<'a> {
 }
 
 impl<'a> FrameSolver<'a> {
-    fn new(rig: &'a Rig, free: Vec<usize>, solver: Solver, max_alternations: usize) -> Self {
+    fn new(rig: &'a Rig, free: Vec<usize>, solver: Solver, max_steps: usize) -> Self {
         let sub: Vec<Vec<[f64; 3]>> = free.iter().map(|&s| rig.deltas[s].clone()).collect();
         let m = free.len();
         FrameSolver {
@@ -449,7 +449,7 @@ impl<'a> FrameSolver<'a> {
             blocks: Blocks::new(&sub),
             free,
             solver,
-            max_alternations,
+            max_steps,
             w: vec![0.0; m],
             state: vec![Bound::Lower; m],
             ws: Workspace::new(m),
@@ -501,7 +501,7 @@ impl<'a> FrameSolver<'a> {
     /// camera `cam` and weights: the camera's six parameters (scale, a small rotation ω with
     /// `R ← R exp([ω]×)`, translation) are eliminated by their Schur complement, the weights
     /// solved under their bounds on what is left (warm-started active set), then the camera
-    /// step recovered. Returns the new camera and the largest change of a weight.
+    /// step recovered. Returns the camera the full step reaches.
     fn step(&mut self, cam: &Camera, u: &[[f64; 2]]) -> Camera {
         let m = self.free.len();
         let x = self.rig.posed(&self.full_weights());
@@ -690,7 +690,7 @@ impl<'a> FrameSolver<'a> {
         let mut cam = fit_camera(&self.rig.posed(&self.full_weights()), u)?;
         self.weights_for(&cam, u);
         let mut err = self.objective(&cam, u);
-        for it in 1..=self.max_alternations {
+        for it in 1..=self.max_steps {
             let (w0, state0) = (self.w.clone(), self.state.clone());
             let full = self.step(&cam, u);
             let mut accepted = None;
@@ -722,7 +722,7 @@ impl<'a> FrameSolver<'a> {
             }
         }
         self.cam = Some(cam);
-        Ok((self.max_alternations as u32, false, self.sq_error(&cam, u)))
+        Ok((self.max_steps as u32, false, self.sq_error(&cam, u)))
     }
 }
 
@@ -968,21 +968,16 @@ fn run(
 ) -> Result<RigSolve> {
     let frames = track.ncols();
     let mut weights = DMatrix::zeros(rig.k(), frames);
-    let (mut cameras, mut rms, mut alternations) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut cameras, mut rms, mut steps) = (Vec::new(), Vec::new(), Vec::new());
     let mut unconverged = 0;
     for (clip, person) in people {
-        let mut fs = FrameSolver::new(
-            person,
-            free.clone(),
-            opts.solver,
-            opts.max_alternations.max(1),
-        );
+        let mut fs = FrameSolver::new(person, free.clone(), opts.solver, opts.max_steps.max(1));
         fs.lambda = opts.smooth;
         for f in clip.clone() {
             let u = frame_points(track, f);
             let (it, ok, e) = fs.solve(&u)?;
             unconverged += usize::from(!ok);
-            alternations.push(it);
+            steps.push(it);
             rms.push((e / LANDMARKS as f64).sqrt());
             let w = fs.full_weights();
             if w.iter().any(|v| !v.is_finite()) {
@@ -1003,7 +998,7 @@ fn run(
         weights,
         cameras,
         rms,
-        alternations,
+        steps,
         unconverged,
         shapes: Vec::new(),
         neutrals: Vec::new(),

@@ -56,8 +56,7 @@ pub fn run(a: &RigBenchArgs) -> Result<()> {
             last = Some(r);
         }
         let r = last.ok_or_else(|| anyhow::anyhow!("no run"))?;
-        let steps =
-            r.alternations.iter().map(|&s| f64::from(s)).sum::<f64>() / r.alternations.len() as f64;
+        let steps = r.steps.iter().map(|&s| f64::from(s)).sum::<f64>() / r.steps.len() as f64;
         let rms = r.rms.iter().sum::<f64>() / r.rms.len() as f64;
         outln!(
             "| {} | {} | {:.0} | {:.1} | {:.3} |",
