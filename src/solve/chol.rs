@@ -56,4 +56,39 @@ mod tests {
         let mut s = vec![1.0, 1.0, 1.0, 1.0];
         assert!(!solve_spd(&mut s, 2, &mut [1.0, 1.0]));
     }
+
+    /// The singularity threshold is exactly `ε · max|aᵢᵢ| · p`: a pivot at or below it is
+    /// refused, one just above accepted — each case sits between the formula and a slip in
+    /// it (÷ p, ÷ max, the wrong diagonal), so the formula is pinned, not just its order.
+    #[test]
+    fn the_pivot_threshold_is_epsilon_times_the_largest_diagonal_times_p() {
+        let e = f64::EPSILON;
+        // Pivot ε against a threshold ≈ 2ε (÷ p would make it ε/2).
+        assert!(!solve_spd(
+            &mut [1.0, 1.0, 1.0, 1.0 + e],
+            2,
+            &mut [1.0, 1.0]
+        ));
+        // Pivot 4ε against ≈ 8ε (÷ max would make it ε/2).
+        assert!(!solve_spd(
+            &mut [4.0, 4.0, 4.0, 4.0 + 4.0 * e],
+            2,
+            &mut [1.0, 1.0]
+        ));
+        // The largest diagonal is the second: pivot 2ε against 2ε(1 + 2ε); reading an
+        // off-diagonal entry as the diagonal would make the threshold ε.
+        assert!(!solve_spd(
+            &mut [0.25, 0.5, 0.5, 1.0 + 2.0 * e],
+            2,
+            &mut [1.0, 1.0]
+        ));
+        // Just above: pivot 8ε against 2ε(1 + 8ε) is accepted and solves exactly.
+        let mut a = [1.0, 1.0, 1.0, 1.0 + 8.0 * e];
+        let mut b = [1.0, 1.0 + 8.0 * e];
+        assert!(solve_spd(&mut a, 2, &mut b));
+        assert!(
+            (b[0] - 0.0).abs() < 1e-12 && (b[1] - 1.0).abs() < 1e-12,
+            "{b:?}"
+        );
+    }
 }

@@ -653,3 +653,18 @@ fn batch_iteration_counts_are_the_per_frame_reports_summed() {
         assert_eq!(sol.unconverged, bad, "{solver}");
     }
 }
+
+/// `residuals` over more frames than one parallel chunk (600 > 256) equals each frame's
+/// ‖q − S w‖² computed column by column.
+#[test]
+fn residuals_past_the_first_chunk_are_each_frames_own() {
+    let s = DMatrix::from_fn(10, 3, |i, j| ((i * 7 + j * 3) % 11) as f64 - 5.0);
+    let w = DMatrix::from_fn(3, 600, |i, f| ((i + f) % 5) as f64 * 0.25);
+    let q = DMatrix::from_fn(10, 600, |i, f| ((i * 13 + f * 17) % 23) as f64 * 0.1);
+    let got = keyshape_lab::solve::residuals(&s, &w, &q);
+    assert_eq!(got.len(), 600);
+    for f in 0..600 {
+        let want = (q.column(f) - &s * w.column(f)).norm_squared();
+        assert!((got[f] - want).abs() <= 1e-12 * want.max(1.0), "frame {f}");
+    }
+}
