@@ -57,6 +57,33 @@ mod tests {
         assert!(!solve_spd(&mut s, 2, &mut [1.0, 1.0]));
     }
 
+    /// A generic 4 × 4 system (B Bᵀ + I) is solved: A x reproduces the right side.
+    #[test]
+    fn solves_a_generic_system_to_rounding() {
+        let b: Vec<f64> = (0..16)
+            .map(|i| ((i * 7 + 3) % 11) as f64 / 3.0 - 1.5)
+            .collect();
+        let mut a = vec![0.0; 16];
+        for i in 0..4 {
+            for j in 0..4 {
+                a[i * 4 + j] = (0..4).map(|k| b[i * 4 + k] * b[j * 4 + k]).sum::<f64>()
+                    + if i == j { 1.0 } else { 0.0 };
+            }
+        }
+        let orig = a.clone();
+        let rhs = [1.0, -2.0, 0.5, 3.0];
+        let mut x = rhs;
+        assert!(solve_spd(&mut a, 4, &mut x));
+        for i in 0..4 {
+            let ax: f64 = (0..4).map(|j| orig[i * 4 + j] * x[j]).sum();
+            assert!(
+                (ax - rhs[i]).abs() < 1e-12,
+                "row {i}: {ax} against {}",
+                rhs[i]
+            );
+        }
+    }
+
     /// The singularity threshold is exactly `ε · max|aᵢᵢ| · p`: a pivot at or below it is
     /// refused, one just above accepted — each case sits between the formula and a slip in
     /// it (÷ p, ÷ max, the wrong diagonal), so the formula is pinned, not just its order.
