@@ -7,7 +7,9 @@ news sample (issue 16, study (ii)). Usage:
 
 ICT `_L/_R` map to ARKit `Left/Right`; ICT's split browInnerUp and cheekPuff are averaged.
 Prints, per weights file, the pooled Pearson r of every shape py-feat scores (blank where
-either side is constant), and the median over shapes; then per clip the median r.
+either side is constant), and the median over shapes; then per clip the median r. With
+several files, also the median over the shapes no file holds constant (a fixed set, so that
+settings which freeze more shapes are not credited for dropping badly solved ones).
 Analysis only: kslab does not need Python.
 """
 import csv
@@ -54,6 +56,7 @@ def median(v):
 def main():
     news = read(NEWS)
     ref_names = [c for c in news[0] if c[0].islower() and c not in ("clip", "frame")]
+    pooled = {}
     for path in sys.argv[1:]:
         w = read(path)
         assert len(w) == len(news), f"{path}: {len(w)} rows, the news sample has {len(news)}"
@@ -78,6 +81,7 @@ def main():
         for name, r in rs.items():
             print(f"| {name} | {'' if r is None else f'{r:.2f}'} |")
         print(f"median r over shapes: {median(rs.values()):.3f}")
+        pooled[path] = rs
         clips = sorted({r['clip'] for r in news}, key=int)
         per = []
         for c in clips:
@@ -88,6 +92,11 @@ def main():
             ]))
         print(f"per clip, median r over shapes: median {median(per):.3f}, range {min(x for x in per if x is not None):.3f}–{max(x for x in per if x is not None):.3f}")
         print()
+    if len(pooled) > 1:
+        common = set.intersection(*[{n for n, r in rs.items() if r is not None} for rs in pooled.values()])
+        print(f"## fixed set: the {len(common)} shapes no file holds constant ({', '.join(sorted(common))})")
+        for path, rs in pooled.items():
+            print(f"{path}: median r {median([rs[n] for n in common]):.3f}")
 
 
 if __name__ == "__main__":
