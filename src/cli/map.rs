@@ -349,7 +349,7 @@ fn morph(
         }
     }
     if let Some(p) = &a.morph_gltf {
-        targets.write_used_glb(p, &mesh, &w, prep.seq.fps().unwrap_or(30.0))?;
+        targets.write_used_glb(p, &mesh, &w, prep.seq.fps().unwrap_or(30.0), None)?;
     }
     outln!(
         "drove {} morph targets of {} over {n} frames",

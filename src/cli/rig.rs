@@ -84,7 +84,7 @@ pub struct RigArgs {
     livelink: Option<PathBuf>,
     /// Write the rig's mesh animated by the weights as glTF (GLB): the shapes used as morph
     /// targets, named as the rig names them, and a weights animation at the track's frame
-    /// rate (30 when the file has none); head pose is not animated
+    /// rate (30 when the file has none), and the fitted head pose as the node's rotation
     /// [default: not written].
     #[arg(long, value_name = "FILE")]
     gltf: Option<PathBuf>,
@@ -240,7 +240,17 @@ pub fn run(a: &RigArgs) -> Result<()> {
         })?;
     }
     if let Some(p) = &a.gltf {
-        morph.write_used_glb(p, &mesh, &r.weights, seq.fps().unwrap_or(30.0))?;
+        // The head pose as the node's rotation: R maps the rig's frame into the camera's,
+        // which is glTF's view along −z.
+        let q: Vec<[f64; 4]> = r
+            .cameras
+            .iter()
+            .map(|c| {
+                let u = nalgebra::UnitQuaternion::from_matrix(&c.r);
+                [u.i, u.j, u.k, u.w]
+            })
+            .collect();
+        morph.write_used_glb(p, &mesh, &r.weights, seq.fps().unwrap_or(30.0), Some(&q))?;
     }
     if let Some(dir) = &a.png_dir {
         write_pngs(dir, &seq, &rig, &r)?;

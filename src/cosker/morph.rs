@@ -117,17 +117,27 @@ impl MorphTargets {
     }
 
     /// Writes `mesh` animated by `weights` (shapes × frames) as GLB at `path` (atomically):
-    /// only the shapes with a nonzero weight, densified, as morph targets.
+    /// only the shapes with a nonzero weight, densified, as morph targets; `rotations` (one
+    /// `[x, y, z, w]` quaternion per frame) animate the node's rotation too.
     pub fn write_used_glb(
         &self,
         path: &Path,
         mesh: &crate::io::obj::Mesh,
         weights: &nalgebra::DMatrix<f64>,
         fps: f64,
+        rotations: Option<&[[f64; 4]]>,
     ) -> Result<()> {
         let (dense, used) = self.used_dense(weights, mesh.positions.len());
         crate::io::write_atomic(path, |f| {
-            crate::io::gltf::write_morph_glb(f, &mesh.positions, &mesh.faces, &dense, &used, fps)
+            crate::io::gltf::write_morph_glb_posed(
+                f,
+                &mesh.positions,
+                &mesh.faces,
+                &dense,
+                &used,
+                fps,
+                rotations,
+            )
         })
     }
 

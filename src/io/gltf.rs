@@ -206,6 +206,20 @@ pub fn write_morph_glb(
     weights: &nalgebra::DMatrix<f64>,
     fps: f64,
 ) -> std::io::Result<()> {
+    write_morph_glb_posed(w, neutral, faces, targets, weights, fps, None)
+}
+
+/// [`write_morph_glb`] with the node's rotation animated too: one unit quaternion per frame
+/// (`[x, y, z, w]`, glTF's order), e.g. a fitted head pose.
+pub fn write_morph_glb_posed(
+    w: &mut dyn Write,
+    neutral: &[[f64; 3]],
+    faces: &[Vec<usize>],
+    targets: &[(String, Vec<[f64; 3]>)],
+    weights: &nalgebra::DMatrix<f64>,
+    fps: f64,
+    rotations: Option<&[[f64; 4]]>,
+) -> std::io::Result<()> {
     let mut bin = Bin {
         data: Vec::new(),
         views: Vec::new(),
@@ -231,6 +245,24 @@ pub fn write_morph_glb(
         json!({ "componentType": 5126, "count": n * targets.len(), "type": "SCALAR" }),
     );
     let names: Vec<&str> = targets.iter().map(|t| t.0.as_str()).collect();
+    let mut samplers = vec![json!({ "input": a_time, "output": a_w, "interpolation": "LINEAR" })];
+    let mut channels = vec![json!({ "sampler": 0, "target": { "node": 0, "path": "weights" } })];
+    if let Some(q) = rotations {
+        if q.len() != n {
+            return Err(std::io::Error::other(format!(
+                "{} head rotations for {n} frames",
+                q.len()
+            )));
+        }
+        let (qb, _) = f32s(q.iter().flatten().copied());
+        let a_q = bin.push(
+            &qb,
+            None,
+            json!({ "componentType": 5126, "count": n, "type": "VEC4" }),
+        );
+        samplers.push(json!({ "input": a_time, "output": a_q, "interpolation": "LINEAR" }));
+        channels.push(json!({ "sampler": 1, "target": { "node": 0, "path": "rotation" } }));
+    }
     let doc = json!({
         "asset": { "version": "2.0", "generator": concat!("keyshape-lab ", env!("CARGO_PKG_VERSION")) },
         "scene": 0,
@@ -238,8 +270,7 @@ pub fn write_morph_glb(
         "nodes": [{ "name": "face", "mesh": 0 }],
         "meshes": [{ "name": "face", "primitives": [{ "attributes": { "POSITION": a_pos }, "indices": a_idx, "mode": 4, "targets": tacc }],
                      "weights": vec![0.0; targets.len()], "extras": { "targetNames": names } }],
-        "animations": [{ "name": "performance", "samplers": [{ "input": a_time, "output": a_w, "interpolation": "LINEAR" }],
-                         "channels": [{ "sampler": 0, "target": { "node": 0, "path": "weights" } }] }],
+        "animations": [{ "name": "performance", "samplers": samplers, "channels": channels }],
         "accessors": bin.accessors,
         "bufferViews": bin.views,
         "buffers": [{ "byteLength": bin.data.len() }],

@@ -250,6 +250,23 @@ fn kslab_rig_writes_weights_pose_and_live_link_and_its_options_take_effect() {
     assert_eq!(std::fs::read_dir(&pngs).unwrap().count(), 477);
     assert!(pngs.join("rig_000200.png").exists());
     crate::common::assert_valid_gltf(std::path::Path::new(&glb));
+    // The GLB animates the weights and the head pose (the node's rotation), every frame.
+    let bytes = std::fs::read(&glb).unwrap();
+    let len = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+    let doc: serde_json::Value = serde_json::from_slice(&bytes[20..20 + len]).unwrap();
+    let channels = &doc["animations"][0]["channels"];
+    let paths: Vec<&str> = channels
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c["target"]["path"].as_str().unwrap())
+        .collect();
+    assert_eq!(paths, ["weights", "rotation"]);
+    let out_acc = doc["animations"][0]["samplers"][1]["output"]
+        .as_u64()
+        .unwrap() as usize;
+    assert_eq!(doc["accessors"][out_acc]["count"], 477);
+    assert_eq!(doc["accessors"][out_acc]["type"], "VEC4");
     let rig = ict();
     let lines: Vec<&str> = base.lines().collect();
     assert_eq!(lines[0], format!("frame,{}", rig.names.join(",")));
