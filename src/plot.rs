@@ -12,6 +12,12 @@ pub enum Style {
     Dashed,
     /// Markers only (a single large dot for one point, like the paper's hull).
     Marker,
+    /// A shaded interval: the points run along its upper edge and back along its lower
+    /// edge, and the closed polygon is filled lightly in the colour. Not in the legend.
+    Band,
+    /// A thin polyline without markers, one of many (one per person, say). Not in the
+    /// legend.
+    Thin,
 }
 
 /// One named series.
@@ -222,6 +228,49 @@ pub fn smoothing_plot(
             "target RMS error vs the tracked reference G(q) (px)".into()
         },
         series,
+        y_from_zero: true,
+        y_at_least: None,
+    }
+}
+
+/// One method's mean curve across a corpus with its 95 % interval: `(k, mean, lo, hi)`.
+pub type IntervalCurve = (String, Vec<(f64, f64, f64, f64)>);
+
+/// Mean curves across a corpus, each over its shaded 95 % interval (bands first, so no band
+/// hides a line).
+pub fn interval_plot(
+    curves: &[IntervalCurve],
+    title: &str,
+    x_label: &str,
+    y_label: &str,
+) -> PlotSpec {
+    let mut bands = Vec::new();
+    let mut lines = Vec::new();
+    for (name, pts) in curves {
+        let (color, style) = method_style(name);
+        let mut pts = pts.clone();
+        pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let mut edge: Vec<(f64, f64)> = pts.iter().map(|p| (p.0, p.3)).collect();
+        edge.extend(pts.iter().rev().map(|p| (p.0, p.2)));
+        bands.push(Series {
+            name: format!("{name} 95 %"),
+            points: edge,
+            style: Style::Band,
+            color,
+        });
+        lines.push(Series {
+            name: name.clone(),
+            points: pts.iter().map(|p| (p.0, p.1)).collect(),
+            style: if pts.len() == 1 { Style::Marker } else { style },
+            color,
+        });
+    }
+    bands.extend(lines);
+    PlotSpec {
+        title: title.to_string(),
+        x_label: x_label.to_string(),
+        y_label: y_label.to_string(),
+        series: bands,
         y_from_zero: true,
         y_at_least: None,
     }

@@ -1,5 +1,7 @@
 //! Writes an experiment's outcome: `curves.csv`, `report.json` and one PNG per solver.
 
+pub mod corpus;
+
 use crate::error::{Error, Result};
 use crate::experiment::{Outcome, Strip};
 use crate::io::{fmt_num, write_atomic};

@@ -133,6 +133,8 @@ enum Command {
     Smooth(smooth::SmoothArgs),
     /// Run a scripted experiment (experiments/*.toml): CSV, JSON and PNG reports.
     Run(run::RunArgs),
+    /// Combine the partial reports of a sharded corpus run (`kslab run … --shard i/n`) into its report.
+    Merge(run::MergeArgs),
     /// Measure solver and sweep speed (the figures in BENCHMARKS.md).
     Bench(bench::BenchArgs),
 }
@@ -156,6 +158,7 @@ pub fn main() -> ExitCode {
         Command::Smooth(a) => smooth::run(&a),
         Command::Map(a) => map::run(&a),
         Command::Run(a) => run::run(&a),
+        Command::Merge(a) => run::merge(&a),
         Command::Bench(a) => bench::run(&a),
     };
     match result {

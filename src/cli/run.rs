@@ -1,9 +1,12 @@
-//! `kslab run`: a scripted experiment, headless.
+//! `kslab run`: a scripted experiment, headless; `kslab merge`: a sharded corpus' parts
+//! combined into its report.
 
 use super::progress::Progress;
-use anyhow::Result;
+use anyhow::{bail, Result};
 use clap::Args;
+use keyshape_lab::experiment::corpus::{self, Shard};
 use keyshape_lab::experiment::{run as run_spec, Spec};
+use keyshape_lab::report::corpus::write_corpus;
 use keyshape_lab::report::write_outcome;
 use std::path::PathBuf;
 
@@ -12,26 +15,88 @@ use std::path::PathBuf;
 pub struct RunArgs {
     /// The experiment file (TOML; see experiments/ and the README).
     spec: PathBuf,
-    /// Output folder (default: `out/<spec name>/`).
+    /// Output folder (default: `out/<spec name>/`, and `out/<spec name>/shard-I-of-N/` for a
+    /// shard).
     #[arg(long)]
     out: Option<PathBuf>,
+    /// Run only part I of N of a corpus (`inputs = […]`): its sequences `u` with
+    /// `u mod N = I`, written as `partial.json` for `kslab merge`. `auto` (or the flag
+    /// alone) takes the part from a Slurm array task (SLURM_ARRAY_TASK_ID, _MIN, _COUNT) or
+    /// a Kubernetes Indexed Job pod (JOB_COMPLETION_INDEX and KSLAB_SHARD_COUNT).
+    #[arg(long, value_name = "I/N|auto", num_args = 0..=1, default_missing_value = "auto")]
+    shard: Option<String>,
+}
+
+/// Arguments of `kslab merge`.
+#[derive(Debug, Args)]
+pub struct MergeArgs {
+    /// The shards' output folders (each holding a `partial.json`), in any order.
+    #[arg(required = true)]
+    shards: Vec<PathBuf>,
+    /// Output folder for the combined report: the files an unsharded `kslab run` writes.
+    #[arg(long)]
+    out: PathBuf,
 }
 
 pub fn run(a: &RunArgs) -> Result<()> {
     let (spec, base) = Spec::from_path(&a.spec)?;
+    let stem = a
+        .spec
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "experiment".into());
+    let shard = match a.shard.as_deref() {
+        None => None,
+        Some("auto") => Some(Shard::from_env(&|k| std::env::var(k).ok())?),
+        Some(s) => Some(Shard::parse(s)?),
+    };
+    if shard.is_some() && spec.inputs.is_none() {
+        bail!(
+            "{}: --shard splits a corpus' sequences between processes; this experiment has one `input` (name several with `inputs = [...]`)",
+            a.spec.display()
+        );
+    }
     let dir = a.out.clone().unwrap_or_else(|| {
-        let stem = a
-            .spec
-            .file_stem()
-            .map(|s| s.to_string_lossy().into_owned())
-            .unwrap_or_else(|| "experiment".into());
-        PathBuf::from("out").join(stem)
+        let d = PathBuf::from("out").join(&stem);
+        match shard {
+            Some(s) => d.join(format!("shard-{}-of-{}", s.index, s.count)),
+            None => d,
+        }
     });
     super::check_outputs(&[], &[Some(&dir)], &[Some(&a.spec)])?;
     let progress = Progress::new(&spec.title);
-    let outcome = run_spec(&spec, &base, &|d, t| progress.tick(d, t))?;
+    let tick = |d, t| progress.tick(d, t);
+    let files = match (shard, spec.inputs.is_some()) {
+        (Some(s), _) => {
+            let p = corpus::run_shard(&spec, &base, &a.spec.display().to_string(), s, &tick)?;
+            vec![corpus::write_partial(&p, &dir)?]
+        }
+        (None, true) => write_corpus(&corpus::run(&spec, &base, &tick)?, &dir)?,
+        (None, false) => write_outcome(&run_spec(&spec, &base, &tick)?, &dir)?,
+    };
     progress.finish();
-    for f in write_outcome(&outcome, &dir)? {
+    for f in files {
+        outln!("{}", f.display());
+    }
+    Ok(())
+}
+
+pub fn merge(a: &MergeArgs) -> Result<()> {
+    let inputs: Vec<PathBuf> = a
+        .shards
+        .iter()
+        .map(|d| d.join(corpus::PARTIAL_FILE))
+        .collect();
+    let inputs: Vec<Option<&std::path::Path>> = inputs.iter().map(|p| Some(p.as_path())).collect();
+    super::check_outputs(&[], &[Some(&a.out)], &inputs)?;
+    if a.shards.iter().any(|s| s == &a.out) {
+        bail!(
+            "{}: the merged report would overwrite a shard's folder; give another --out",
+            a.out.display()
+        );
+    }
+    let o = corpus::merge(&a.shards)?;
+    for f in write_corpus(&o, &a.out)? {
         outln!("{}", f.display());
     }
     Ok(())

@@ -16,6 +16,7 @@
 //! png = true                 # optional: write curves_<solver>.png
 //! ```
 
+pub mod corpus;
 pub mod smoothing;
 pub mod spec;
 pub mod studies;
@@ -75,9 +76,14 @@ pub struct Outcome {
     pub rig_peer: Vec<crate::rig::study::PeerRow>,
 }
 
-/// Runs a spec whose relative paths are relative to `base`.
+/// Runs a spec whose relative paths are relative to `base` (one `input`; a corpus runs
+/// through [`corpus::run`]).
 pub fn run(spec: &Spec, base: &Path, tick: &(dyn Fn(usize, usize) + Sync)) -> Result<Outcome> {
-    let mut timings = Vec::new();
+    if spec.inputs.is_some() {
+        return Err(Error::invalid(
+            "this experiment names a corpus (`inputs`): run it with experiment::corpus::run",
+        ));
+    }
     let t = Instant::now();
     let (seq, input) = if spec.input == "builtin" {
         (builtin_sequence()?, crate::io::BUILTIN_NAME.to_string())
@@ -89,7 +95,20 @@ pub fn run(spec: &Spec, base: &Path, tick: &(dyn Fn(usize, usize) + Sync)) -> Re
         };
         (read_sequence(&p, &opts)?, p.display().to_string())
     };
-    timings.push(("read".to_string(), t.elapsed().as_secs_f64()));
+    let read = t.elapsed().as_secs_f64();
+    analyse(spec, base, seq, input, read, tick)
+}
+
+/// Runs a spec's studies on one sequence already read (`read`: the seconds reading took).
+pub(crate) fn analyse(
+    spec: &Spec,
+    base: &Path,
+    seq: crate::sequence::Sequence,
+    input: String,
+    read: f64,
+    tick: &(dyn Fn(usize, usize) + Sync),
+) -> Result<Outcome> {
+    let mut timings = vec![("read".to_string(), read)];
     let t = Instant::now();
     let prep = prepare(
         &seq,

@@ -16,8 +16,22 @@ use std::path::{Path, PathBuf};
 pub struct Spec {
     /// Title for plots and the report.
     pub title: String,
-    /// Input sequence, relative to the spec file, or `builtin`.
+    /// Input sequence, relative to the spec file, or `builtin` (give this or `inputs`).
+    #[serde(default)]
     pub input: String,
+    /// A corpus: many input sequences, each a path or glob relative to the spec file, or
+    /// `@list.txt` (a file of such lines, relative to itself). The curves and `[retarget]`
+    /// run on each and the report aggregates across them ([`super::corpus`]).
+    #[serde(default)]
+    pub inputs: Option<Vec<String>>,
+    /// With `inputs`: each clip of a file that has a clip column (py-feat) is its own
+    /// sequence of the corpus.
+    #[serde(default)]
+    pub split_clips: bool,
+    /// With `inputs`: bootstrap resamples of the corpus' sequences for the 95 % intervals
+    /// (default 2000).
+    #[serde(default)]
+    pub bootstrap: Option<usize>,
     /// Force an input format.
     #[serde(default)]
     pub format: Option<Format>,
@@ -246,6 +260,63 @@ impl Spec {
             let (line, col) = find_key(text, key);
             Error::parse(path, line, col, format!("{key}: {msg}"))
         };
+        match (&spec.inputs, spec.input.is_empty()) {
+            (None, true) => {
+                return Err(Error::parse(
+                    path,
+                    0,
+                    0,
+                    "input: missing: name the sequence (`input = \"file.csv\"` or \"builtin\"), or a corpus (`inputs = [\"tracks/*.csv\"]`)",
+                ))
+            }
+            (Some(_), false) => {
+                return Err(at(
+                    "inputs",
+                    "give `input` (one sequence) or `inputs` (a corpus), not both".into(),
+                ))
+            }
+            (Some(list), true) => {
+                if list.is_empty() {
+                    return Err(at("inputs", "name at least one sequence".into()));
+                }
+                let other = [
+                    ("modes", spec.modes.is_some()),
+                    ("intensity", spec.intensity.is_some()),
+                    ("map", spec.map.is_some()),
+                    ("smooth", spec.smooth.is_some()),
+                    ("rig", spec.rig.is_some()),
+                ];
+                if let Some((name, _)) = other.iter().find(|o| o.1) {
+                    return Err(at(
+                        "inputs",
+                        format!("a corpus runs the error curves and [retarget] on each sequence; [{name}] works on one input (use `input`)"),
+                    ));
+                }
+                if spec.compare_raw {
+                    return Err(at(
+                        "compare_raw",
+                        "a corpus aggregates the curves of one coordinate frame; run the raw curves as their own corpus (align = false)".into(),
+                    ));
+                }
+                if spec.bootstrap == Some(0) {
+                    return Err(at("bootstrap", "needs at least 1 resample".into()));
+                }
+            }
+            (None, false) => {
+                if spec.split_clips {
+                    return Err(at(
+                        "split_clips",
+                        "splits the files of a corpus (`inputs`) into clips; with one `input` it has nothing to split".into(),
+                    ));
+                }
+                if spec.bootstrap.is_some() {
+                    return Err(at(
+                        "bootstrap",
+                        "sets the resamples of a corpus' intervals (`inputs`); one `input` has none".into(),
+                    ));
+                }
+            }
+        }
         if spec.k.0 == 0 || spec.k.0 > spec.k.1 {
             return Err(at(
                 "k",

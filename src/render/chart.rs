@@ -61,6 +61,22 @@ fn line(pixmap: &mut Pixmap, pts: &[(f32, f32)], color: [u8; 3], width: f32, das
     pixmap.stroke_path(&path, &paint(color), &stroke, Transform::identity(), None);
 }
 
+/// A closed polygon filled at low opacity (a [`Style::Band`]).
+fn band(pixmap: &mut Pixmap, pts: &[(f32, f32)], color: [u8; 3]) {
+    let mut pb = PathBuilder::new();
+    let Some(&(x, y)) = pts.first() else { return };
+    pb.move_to(x, y);
+    for &(x, y) in &pts[1..] {
+        pb.line_to(x, y);
+    }
+    pb.close();
+    if let Some(path) = pb.finish() {
+        let mut p = paint(color);
+        p.set_color_rgba8(color[0], color[1], color[2], 48);
+        pixmap.fill_path(&path, &p, FillRule::Winding, Transform::identity(), None);
+    }
+}
+
 fn dot(pixmap: &mut Pixmap, x: f32, y: f32, r: f32, color: [u8; 3]) {
     if let Some(path) = PathBuilder::from_circle(x, y, r) {
         pixmap.fill_path(
@@ -205,6 +221,8 @@ pub fn render_plot(spec: &PlotSpec, width: u32, height: u32) -> Result<Pixmap> {
     for s in &spec.series {
         let pts: Vec<(f32, f32)> = s.points.iter().map(|&(x, y)| (sx(x), sy(y))).collect();
         match s.style {
+            Style::Band => band(&mut pm, &pts, s.color),
+            Style::Thin => line(&mut pm, &pts, s.color, 1.0, false),
             Style::Marker => pts
                 .iter()
                 .for_each(|&(x, y)| dot(&mut pm, x, y, fs * 0.45, s.color)),
@@ -283,13 +301,17 @@ fn legend(
     fs: f32,
     drawn: &[Vec<(f32, f32)>],
 ) {
-    let wmax = spec
+    let listed: Vec<&crate::plot::Series> = spec
         .series
+        .iter()
+        .filter(|s| !matches!(s.style, Style::Band | Style::Thin))
+        .collect();
+    let wmax = listed
         .iter()
         .map(|s| text::width(&s.name, fs))
         .fold(0.0, f32::max);
     let (w, row) = (wmax + fs * 3.6, fs * 1.4);
-    let h = row * spec.series.len() as f32 + fs * 0.6;
+    let h = row * listed.len() as f32 + fs * 0.6;
     let pad = fs * 0.5;
     // Top right first (ties keep it), then top left, bottom right, bottom left.
     let corners = [
@@ -317,7 +339,7 @@ fn legend(
             );
         }
     }
-    for (i, s) in spec.series.iter().enumerate() {
+    for (i, s) in listed.iter().enumerate() {
         let cy = y + fs * 0.3 + row * (i as f32 + 0.5);
         let (lx0, lx1) = (x + fs * 0.5, x + fs * 2.4);
         match s.style {
