@@ -243,8 +243,8 @@ pub struct Partial {
 }
 
 /// The corpus' sequences, in order: each `inputs` entry in turn (a glob's matches
-/// sorted), each file's clips in order of first appearance when `split_clips`. Reads the
-/// files only to list their clips.
+/// sorted), each file's clips in order of first appearance when `split_clips` (a file
+/// without a clip column stays whole). Reads the files only to list their clips.
 pub fn units(spec: &Spec, base: &Path) -> Result<Vec<Unit>> {
     let entries = spec
         .inputs
@@ -271,28 +271,32 @@ pub fn units(spec: &Spec, base: &Path) -> Result<Vec<Unit>> {
     let mut out = Vec::new();
     for (f, s) in files.iter().zip(&stems) {
         let name = if unique { s.clone() } else { f.clone() };
-        if spec.split_clips {
-            let seq = read(spec, base, f)?;
-            let clips = clip_names(&seq).ok_or_else(|| {
-                Error::file(
-                    base.join(f),
-                    "split_clips: this file has no clip column to split by",
-                )
-            })?;
-            for c in clips {
-                out.push(Unit {
-                    name: format!("{name}#{c}"),
-                    input: f.clone(),
-                    clip: Some(c),
-                });
-            }
+        let clips = if spec.split_clips {
+            clip_names(&read(spec, base, f)?)
         } else {
-            out.push(Unit {
+            None
+        };
+        match clips {
+            Some(clips) => {
+                for c in clips {
+                    out.push(Unit {
+                        name: format!("{name}#{c}"),
+                        input: f.clone(),
+                        clip: Some(c),
+                    });
+                }
+            }
+            None => out.push(Unit {
                 name,
                 input: f.clone(),
                 clip: None,
-            });
+            }),
         }
+    }
+    if spec.split_clips && out.iter().all(|u| u.clip.is_none()) {
+        return Err(Error::invalid(
+            "split_clips: no file of the corpus has a clip column to split by",
+        ));
     }
     Ok(out)
 }
@@ -558,6 +562,33 @@ pub struct WinRow {
     pub contests: usize,
 }
 
+/// A method that chooses its own k per sequence (the hull), and how the other methods do
+/// at that k on the same sequence.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct OwnKRow {
+    /// Method.
+    pub method: String,
+    /// Solver.
+    pub solver: String,
+    /// Its k on each sequence, in corpus order.
+    pub ks: Vec<usize>,
+    /// Its error across sequences (IOD).
+    pub rms_iod: Interval,
+    /// Each other method at the same k on the same sequences (those whose k is in range).
+    pub against: Vec<OwnKComparison>,
+}
+
+/// Another method at an own-k method's k: `other − own` in IOD.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct OwnKComparison {
+    /// The other method.
+    pub method: String,
+    /// Mean of rms_iod(other) − rms_iod(own), with its interval.
+    pub diff: Interval,
+    /// Sequences on which the other method's error is lower.
+    pub lower: usize,
+}
+
 /// Per tracing-noise level, two solvers of `[retarget]` on the same sequences.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct RetargetPairedRow {
@@ -588,6 +619,8 @@ pub struct CorpusOutcome {
     pub paired: Vec<PairedRow>,
     /// Wins over all k.
     pub wins: Vec<WinRow>,
+    /// Methods that choose their own k (the hull), against the others at that k.
+    pub own_k: Vec<OwnKRow>,
     /// Solver against solver through the target, on the same sequences.
     pub retarget_paired: Vec<RetargetPairedRow>,
 }
@@ -631,8 +664,25 @@ pub fn aggregate(spec: &Spec, results: Vec<UnitResult>) -> Result<CorpusOutcome>
         return Err(Error::invalid("the corpus has no sequence"));
     }
     let draws = resamples(n, spec.bootstrap.unwrap_or(2000), spec.seed);
-    let methods: Vec<String> = spec.methods.iter().map(|m| m.name()).collect();
     let solvers: Vec<&str> = spec.solvers.iter().map(|s| s.name()).collect();
+    // Methods with an error at every k of the range on every sequence; the others (the
+    // hull) choose their own k per sequence and are compared at it.
+    let has_all = |m: &str| {
+        results.iter().all(|r| {
+            solvers.iter().all(|s| {
+                (spec.k.0..=spec.k.1).all(|k| {
+                    r.curves
+                        .iter()
+                        .any(|c| c.method == m && c.solver == *s && c.k == k)
+                })
+            })
+        })
+    };
+    let (methods, own): (Vec<String>, Vec<String>) = spec
+        .methods
+        .iter()
+        .map(|m| m.name())
+        .partition(|m| has_all(m));
     // rms_iod[sequence] of one (method, solver, k).
     let curve = |m: &str, s: &str, k: usize| -> Result<Vec<f64>> {
         results
@@ -707,6 +757,61 @@ pub fn aggregate(spec: &Spec, results: Vec<UnitResult>) -> Result<CorpusOutcome>
             }
         }
     }
+    let mut own_k = Vec::new();
+    for m in &own {
+        for s in &solvers {
+            // Per sequence: the method's own k and error.
+            let mut at: Vec<(usize, f64)> = Vec::with_capacity(n);
+            for r in &results {
+                let mine: Vec<&CurvePoint> = r
+                    .curves
+                    .iter()
+                    .filter(|c| c.method == *m && c.solver == *s)
+                    .collect();
+                match mine.as_slice() {
+                    [c] => at.push((c.k, c.rms / r.iod)),
+                    _ => {
+                        return Err(Error::invalid(format!(
+                            "sequence {}: {m}/{s} has {} error points; a method is either on every k of the range or at one k of its own",
+                            r.unit.name,
+                            mine.len()
+                        )))
+                    }
+                }
+            }
+            let own_errors: Vec<f64> = at.iter().map(|a| a.1).collect();
+            let mut against = Vec::new();
+            for c in &methods {
+                let mut d = Vec::new();
+                for (r, &(k, e)) in results.iter().zip(&at) {
+                    if let Some(p) = r
+                        .curves
+                        .iter()
+                        .find(|p| p.method == *c && p.solver == *s && p.k == k)
+                    {
+                        d.push(p.rms / r.iod - e);
+                    }
+                }
+                if d.is_empty() {
+                    continue;
+                }
+                // Resamples of the sequences that have the comparison.
+                let sub = resamples(d.len(), draws.len(), spec.seed);
+                against.push(OwnKComparison {
+                    method: c.clone(),
+                    diff: interval(&d, &sub),
+                    lower: d.iter().filter(|x| **x < 0.0).count(),
+                });
+            }
+            own_k.push(OwnKRow {
+                method: m.clone(),
+                solver: s.to_string(),
+                ks: at.iter().map(|a| a.0).collect(),
+                rms_iod: interval(&own_errors, &draws),
+                against,
+            });
+        }
+    }
     let mut retarget_paired = Vec::new();
     if let Some(rt) = &spec.retarget {
         let get = |r: &UnitResult, s: &str, noise: f64| -> Result<RetargetPoint> {
@@ -750,6 +855,7 @@ pub fn aggregate(spec: &Spec, results: Vec<UnitResult>) -> Result<CorpusOutcome>
         summary,
         paired,
         wins,
+        own_k,
         retarget_paired,
     })
 }

@@ -104,6 +104,36 @@ pub fn write_corpus(o: &CorpusOutcome, dir: &Path) -> Result<Vec<PathBuf>> {
             Ok(())
         })?;
     }
+    if !o.own_k.is_empty() {
+        put("corpus_own_k.csv", &|w| {
+            writeln!(w, "method,solver,sequences,mean_k,mean_rms_iod,lo95,hi95,compared_with,compared_sequences,mean_diff_iod,diff_lo95,diff_hi95,other_lower")?;
+            for r in &o.own_k {
+                let mean_k = r.ks.iter().sum::<usize>() as f64 / r.ks.len() as f64;
+                let head = format!(
+                    "{},{},{},{},{}",
+                    r.method,
+                    r.solver,
+                    r.rms_iod.n,
+                    fmt_num(mean_k),
+                    iv(&r.rms_iod)
+                );
+                if r.against.is_empty() {
+                    writeln!(w, "{head},,,,,,")?;
+                }
+                for c in &r.against {
+                    writeln!(
+                        w,
+                        "{head},{},{},{},{}",
+                        c.method,
+                        c.diff.n,
+                        iv(&c.diff),
+                        c.lower
+                    )?;
+                }
+            }
+            Ok(())
+        })?;
+    }
     if o.spec.retarget.is_some() {
         put("corpus_retarget.csv", &|w| {
             writeln!(w, "sequence,solver,trace_noise,source_rms,target_rms,source_rms_iod,target_rms_iod,negative_share,max_abs_weight")?;
@@ -163,15 +193,32 @@ pub fn write_corpus(o: &CorpusOutcome, dir: &Path) -> Result<Vec<PathBuf>> {
                     (m, pts)
                 })
                 .collect();
-            if curves.iter().all(|c| c.1.is_empty()) {
+            let curves: Vec<IntervalCurve> =
+                curves.into_iter().filter(|c| !c.1.is_empty()).collect();
+            if curves.is_empty() {
                 continue;
             }
-            let spec = interval_plot(
+            let mut spec = interval_plot(
                 &curves,
                 &format!("{}: mean over {n} sequences, 95 % interval", o.spec.title),
                 "number of key shapes k",
                 &format!("RMS error per point (IOD), {}", s.name()),
             );
+            for r in o.own_k.iter().filter(|r| r.solver == s.name()) {
+                let (color, _) = crate::plot::method_style(&r.method);
+                let errors = o.results.iter().zip(&r.ks).filter_map(|(u, &k)| {
+                    u.curves
+                        .iter()
+                        .find(|c| c.method == r.method && c.solver == r.solver && c.k == k)
+                        .map(|c| (k as f64, c.rms / u.iod))
+                });
+                spec.series.push(Series {
+                    name: format!("{} (each sequence, at its own k)", r.method),
+                    points: errors.collect(),
+                    style: Style::Marker,
+                    color,
+                });
+            }
             let name = format!("corpus_{}.png", s.name());
             save_png(&render_plot(&spec, 900, 600)?, &dir.join(&name))?;
             figures.push(name);
@@ -196,6 +243,7 @@ pub fn write_corpus(o: &CorpusOutcome, dir: &Path) -> Result<Vec<PathBuf>> {
         })).collect::<Vec<_>>(),
         "summary": o.summary,
         "wins": o.wins,
+        "own_k": o.own_k,
         "retarget_paired": o.retarget_paired,
         "files": files.iter().filter_map(|f| f.file_name()).map(|f| f.to_string_lossy().into_owned())
             .chain(figures.iter().cloned()).collect::<Vec<_>>(),

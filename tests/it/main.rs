@@ -8,6 +8,7 @@ mod align;
 mod bad_input;
 mod catalogue;
 mod common;
+mod corpus;
 mod experiments;
 mod fuzz_smoke;
 mod keyshapes;
