@@ -61,5 +61,11 @@ fi
 $K rig -q $S/pyfeat_samples/news_sample_compact.csv --out "$T/rig_w.csv" --png-dir "$T/rig" > /dev/null
 cp "$T/rig/rig_000200.png" docs/rig_news_200.png
 
+# Corpus studies (issue 17): the cross-sequence curves and LS − NNLS per sequence.
+$K run -q experiments/corpus_fig6_face_ibug68.toml --out "$T/corpus_face" > /dev/null
+cp "$T/corpus_face/corpus_nnls.png" docs/corpus_fig6_face_ibug68_nnls.png
+$K run -q experiments/corpus_fig6_lips_ibug68.toml --out "$T/corpus_lips" > /dev/null
+cp "$T/corpus_lips/corpus_retarget.png" docs/corpus_lips_ibug68_retarget.png
+
 # The lab's screen in the README is text captured from tmux: see "The first five minutes".
 echo "regenerated: $(ls docs/*.png | wc -l) pictures in docs/ (git diff --stat docs/ shows which changed)"

@@ -547,6 +547,8 @@ pub struct PairedRow {
     pub diff: Interval,
     /// Sequences on which `a`'s error is below `b`'s.
     pub a_lower: usize,
+    /// Sequences on which `b`'s error is below `a`'s (the rest are ties).
+    pub b_lower: usize,
 }
 
 /// Per method and solver: wins over every (sequence, k).
@@ -743,6 +745,7 @@ pub fn aggregate(spec: &Spec, results: Vec<UnitResult>) -> Result<CorpusOutcome>
                             b: methods[b].clone(),
                             diff: interval(&d, &draws),
                             a_lower: d.iter().filter(|x| **x < 0.0).count(),
+                            b_lower: d.iter().filter(|x| **x > 0.0).count(),
                         });
                     }
                 }

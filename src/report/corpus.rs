@@ -79,19 +79,20 @@ pub fn write_corpus(o: &CorpusOutcome, dir: &Path) -> Result<Vec<PathBuf>> {
         put("corpus_paired.csv", &|w| {
             writeln!(
                 w,
-                "solver,k,method_a,method_b,sequences,mean_diff_iod,lo95,hi95,a_lower"
+                "solver,k,method_a,method_b,sequences,mean_diff_iod,lo95,hi95,a_lower,b_lower"
             )?;
             for r in &o.paired {
                 writeln!(
                     w,
-                    "{},{},{},{},{},{},{}",
+                    "{},{},{},{},{},{},{},{}",
                     r.solver,
                     r.k,
                     r.a,
                     r.b,
                     r.diff.n,
                     iv(&r.diff),
-                    r.a_lower
+                    r.a_lower,
+                    r.b_lower
                 )?;
             }
             Ok(())
