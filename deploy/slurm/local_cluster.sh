@@ -7,6 +7,11 @@
 #   bash deploy/slurm/local_cluster.sh stop     # stop the daemons
 set -euo pipefail
 
+# Whether a daemon runs (a zombie left by a killed parent does not count).
+running() {
+  ps -C "$1" -o stat= 2>/dev/null | grep -qv '^Z'
+}
+
 if [ "${1:-}" = stop ]; then
   pkill -x slurmd || true
   pkill -x slurmctld || true
@@ -31,7 +36,7 @@ if [ ! -s /etc/munge/munge.key ]; then
 fi
 chown munge:munge /etc/munge/munge.key
 chmod 400 /etc/munge/munge.key
-if ! pgrep -x munged >/dev/null; then
+if ! running munged; then
   runuser -u munge -- /usr/sbin/munged
 fi
 
@@ -64,22 +69,23 @@ PartitionName=main Nodes=$host Default=YES MaxTime=INFINITE State=UP
 CONF
 mv "$conf.new" "$conf"
 
-if ! pgrep -x slurmctld >/dev/null; then
+if ! running slurmctld; then
   /usr/sbin/slurmctld
 fi
-if ! pgrep -x slurmd >/dev/null; then
+if ! running slurmd; then
   /usr/sbin/slurmd
 fi
 
-# Wait for the node to come up idle (or mixed/allocated, if jobs already run).
-for _ in $(seq 1 60); do
-  state=$(sinfo -h -n "$host" -o %t 2>/dev/null || true)
+# Wait (at most a minute) for the node to come up idle (or mixed/allocated, if jobs run).
+deadline=$((SECONDS + 60))
+while [ "$SECONDS" -lt "$deadline" ]; do
+  state=$(timeout 5 sinfo -h -n "$host" -o %t 2>/dev/null || true)
   case "$state" in
     idle* | mix* | alloc*) sinfo; exit 0 ;;
   esac
   sleep 1
 done
-echo "error: the Slurm node $host did not come up; see /var/log/slurm/" >&2
-sinfo >&2 || true
-tail -20 /var/log/slurm/slurmctld.log /var/log/slurm/slurmd.log >&2 || true
+echo "error: the Slurm node $host did not come up within a minute; see /var/log/slurm/" >&2
+timeout 5 sinfo >&2 || true
+tail -n 20 /var/log/slurm/slurmctld.log /var/log/slurm/slurmd.log >&2 || true
 exit 1
