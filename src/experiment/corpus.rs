@@ -376,7 +376,7 @@ fn clip_names(seq: &Sequence) -> Option<Vec<String>> {
     let segs = seq.segments.as_ref()?;
     let mut out: Vec<String> = Vec::new();
     for s in segs {
-        if out.last() != Some(s) && !out.contains(s) {
+        if !out.contains(s) {
             out.push(s.clone());
         }
     }

