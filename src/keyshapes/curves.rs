@@ -44,14 +44,6 @@ pub fn sweep(
         )));
     }
     an.check_k(hi)?;
-    // Refuse what cannot finish before doing any of the rest.
-    if methods.contains(&Method::Greedy) && an.frames() > super::GRAM_LIMIT {
-        return Err(Error::invalid(format!(
-            "method greedy is limited to {} frames (it keeps the frames' Gram matrix); this sequence has {}: leave greedy out of --methods",
-            super::GRAM_LIMIT,
-            an.frames()
-        )));
-    }
     let total = methods.len() * solvers.len();
     let done = std::sync::atomic::AtomicUsize::new(0);
     let jobs: Vec<(Method, Solver)> = solvers

@@ -2,10 +2,11 @@
 //! lowers paper 000 Eq. (5). The paper notes that the optimal key set is a combinatorial
 //! search; greedy shows how far each heuristic is from a direct search of it.
 
-use super::{Analysis, Heuristic, Selection};
+use super::{Analysis, Heuristic, Selection, GRAM_LIMIT};
 use crate::error::{Error, Result};
 use crate::solve::Solver;
 use nalgebra::DMatrix;
+use rayon::prelude::*;
 
 /// Greedy forward selection under `solver`.
 ///
@@ -37,21 +38,157 @@ impl Heuristic for Greedy {
 }
 
 /// The greedy choice of `kmax` frames and Eq. (5) after each addition.
+///
+/// Up to [`GRAM_LIMIT`] frames this works from the frames' Gram matrix. Beyond it, where
+/// that matrix would not fit (80 GB at 100,000 frames), least squares runs
+/// [`greedy_ls_feature_space`] — the same choice, exactly, from a values × values matrix —
+/// and nnls/bounded run the Gram-matrix greedy on an evenly spaced subsample of
+/// [`GRAM_LIMIT`] frames ([`greedy_subsampled`]): candidates and the residuals that rank
+/// them come from the subsample (an approximation), the errors reported are exact, on every
+/// frame.
 pub fn greedy_path(
     an: &Analysis,
     kmax: usize,
     solver: Solver,
     shortlist: usize,
 ) -> Result<(Vec<usize>, Vec<f64>)> {
+    if an.frames() > GRAM_LIMIT {
+        return if solver == Solver::Ls {
+            greedy_ls_feature_space(an, kmax)
+        } else {
+            greedy_subsampled(an, kmax, solver, shortlist, GRAM_LIMIT)
+        };
+    }
+    greedy_gram(an, kmax, solver, shortlist)
+}
+
+/// Least-squares greedy without the frames × frames Gram matrix, choosing exactly what the
+/// Gram-matrix greedy chooses. With `B` an orthonormal basis of the chosen frames and
+/// `r_c = q_c − B Bᵀ q_c` the residual of candidate `c`, its gain is
+/// `‖Qᵀ r_c‖² / ‖r_c‖² = r_cᵀ C r_c / ‖r_c‖²` with `C = Q Qᵀ` (values × values). Writing
+/// `C = W Wᵀ` (its eigenvectors scaled by √λ), `Wᵀ r_c = Z[:, c] − (Wᵀ B) a_c` with
+/// `Z = Wᵀ Q` formed once and `a_c = Bᵀ q_c` grown by one row per step, so each step costs
+/// O(frames · values · k) and memory is two matrices of the coordinates' size.
+pub fn greedy_ls_feature_space(an: &Analysis, kmax: usize) -> Result<(Vec<usize>, Vec<f64>)> {
     an.check_k(kmax)?;
-    let mut kr = an.frame_gram()?.clone();
-    let n = kr.ncols();
-    let top = (0..n).map(|c| kr[(c, c)]).fold(0.0, f64::max);
+    let q = &an.coords;
+    let (d, n) = q.shape();
+    let c = q * q.transpose();
+    let eig = nalgebra::SymmetricEigen::new(c);
+    let lmax = eig.eigenvalues.iter().copied().fold(0.0, f64::max);
+    let keep: Vec<usize> = (0..d)
+        .filter(|&i| eig.eigenvalues[i] > lmax * 1e-15 * d as f64)
+        .collect();
+    let mut w = DMatrix::<f64>::zeros(d, keep.len());
+    for (j, &i) in keep.iter().enumerate() {
+        w.set_column(j, &(eig.eigenvectors.column(i) * eig.eigenvalues[i].sqrt()));
+    }
+    let z = w.tr_mul(q);
+    let top = an.sq_norms.iter().copied().fold(0.0, f64::max);
+    let m = keep.len();
+    // Filled one row (column) per step: Bᵀ Q, the orthonormal basis B of the chosen
+    // frames, and Wᵀ B.
+    let mut a = DMatrix::<f64>::zeros(kmax, n);
+    let mut b = DMatrix::<f64>::zeros(d, kmax);
+    let mut wb = DMatrix::<f64>::zeros(m, kmax);
+    let mut taken = vec![false; n];
+    let mut chosen = Vec::with_capacity(kmax);
+    let mut errors = Vec::with_capacity(kmax);
+    for j in 0..kmax {
+        let (aj, wbj) = (a.rows(0, j), wb.columns(0, j));
+        let scored: Vec<(usize, f64)> = (0..n)
+            .into_par_iter()
+            .filter_map(|c| {
+                if taken[c] {
+                    return None;
+                }
+                let ac = aj.column(c);
+                let rr = an.sq_norms[c] - ac.norm_squared();
+                if rr <= 1e-12 * top {
+                    return None;
+                }
+                let v = z.column(c) - wbj * ac;
+                Some((c, v.norm_squared() / rr))
+            })
+            .collect();
+        let Some(&(pick, _)) = scored
+            .iter()
+            .max_by(|x, y| x.1.total_cmp(&y.1).then(y.0.cmp(&x.0)))
+        else {
+            return Err(Error::invalid(format!(
+                "greedy: only {} linearly independent shapes, {kmax} asked for",
+                chosen.len()
+            )));
+        };
+        // The new basis vector: the pick's residual, orthogonalised twice for stability.
+        let mut r = q.column(pick).clone_owned();
+        for _ in 0..2 {
+            let bj = b.columns(0, j);
+            let coef = bj.tr_mul(&r);
+            r -= bj * coef;
+        }
+        let norm = r.norm();
+        if !(norm > 0.0) {
+            return Err(Error::invalid(
+                "greedy: a chosen frame lies in the span of the others",
+            ));
+        }
+        r /= norm;
+        a.row_mut(j).copy_from(&r.tr_mul(q));
+        wb.column_mut(j).copy_from(&w.tr_mul(&r));
+        b.column_mut(j).copy_from(&r);
+        taken[pick] = true;
+        chosen.push(pick);
+        errors.push(an.weights_and_error(&chosen, Solver::Ls)?.1);
+    }
+    Ok((chosen, errors))
+}
+
+/// Greedy on an evenly spaced subsample of at most `limit` frames (every ⌈frames /
+/// limit⌉-th, from the first): its choice, mapped back to the whole sequence, and the
+/// exact Eq. (5) error of each prefix on every frame.
+pub fn greedy_subsampled(
+    an: &Analysis,
+    kmax: usize,
+    solver: Solver,
+    shortlist: usize,
+    limit: usize,
+) -> Result<(Vec<usize>, Vec<f64>)> {
+    an.check_k(kmax)?;
+    let n = an.frames();
+    let step = n.div_ceil(limit.max(1));
+    let sub: Vec<usize> = (0..n).step_by(step).collect();
+    let small = Analysis::with_axes(an.coords.select_columns(&sub), an.points, 3)?;
+    let (keys, _) = greedy_gram(&small, kmax, solver, shortlist)?;
+    let chosen: Vec<usize> = keys.iter().map(|&c| sub[c]).collect();
+    let errors = (1..=chosen.len())
+        .map(|k| an.weights_and_error(&chosen[..k], solver).map(|x| x.1))
+        .collect::<Result<Vec<f64>>>()?;
+    Ok((chosen, errors))
+}
+
+/// The greedy choice from the frames' Gram matrix (at most [`GRAM_LIMIT`] frames).
+pub fn greedy_gram(
+    an: &Analysis,
+    kmax: usize,
+    solver: Solver,
+    shortlist: usize,
+) -> Result<(Vec<usize>, Vec<f64>)> {
+    an.check_k(kmax)?;
+    let k_full = an.frame_gram()?;
+    // The residuals' Gram matrix K_R, updated each step, only for least squares: the
+    // constrained gains work from K itself, so nnls/bounded keep one frames × frames matrix.
+    let mut kr = if solver == Solver::Ls {
+        k_full.clone()
+    } else {
+        DMatrix::zeros(0, 0)
+    };
+    let n = k_full.ncols();
+    let top = (0..n).map(|c| k_full[(c, c)]).fold(0.0, f64::max);
     let mut chosen: Vec<usize> = Vec::with_capacity(kmax);
     let mut taken = vec![false; n];
     let mut errors = Vec::with_capacity(kmax);
     let mut weights = DMatrix::<f64>::zeros(0, n);
-    let k_full = an.frame_gram()?;
     for _ in 0..kmax {
         let mut gains: Vec<(usize, f64)> = if solver == Solver::Ls {
             // Exact least-squares gain of every remaining frame.
@@ -92,7 +229,7 @@ pub fn greedy_path(
             best.ok_or_else(|| Error::invalid("greedy: no candidate"))?
         };
         // K_R ← K_R − u uᵀ with u = K_R[:, c] / sqrt(K_R[c, c]).
-        if kr[(pick, pick)] > 0.0 {
+        if solver == Solver::Ls && kr[(pick, pick)] > 0.0 {
             let u = kr.column(pick) / kr[(pick, pick)].sqrt();
             kr.ger(-1.0, &u, &u, 1.0);
         }
@@ -118,25 +255,26 @@ fn constrained_gains(
     } else {
         f64::INFINITY
     };
-    // R[c, t] = ⟨q_c, r_t⟩ with r_t the current residual of frame t.
-    let r = if chosen.is_empty() {
-        k_full.clone()
-    } else {
-        k_full - k_full.select_columns(chosen) * weights
-    };
+    // R[c, t] = ⟨q_c, r_t⟩ = K[c, t] − Σ_j K[c, key_j] W[j, t], with r_t the current
+    // residual of frame t, one row at a time (never a second frames × frames matrix).
+    let kc = k_full.select_columns(chosen);
+    let j = chosen.len();
     let n = k_full.ncols();
     (0..n)
+        .into_par_iter()
         .filter(|&c| !taken[c] && k_full[(c, c)] > 1e-12 * top)
         .map(|c| {
             let qq = k_full[(c, c)];
-            let gain: f64 = r
-                .row(c)
-                .iter()
-                .map(|&rc| {
-                    let a = (rc / qq).clamp(0.0, upper);
-                    2.0 * a * rc - a * a * qq
-                })
-                .sum();
+            let kcol = k_full.column(c);
+            let mut gain = 0.0;
+            for t in 0..n {
+                let mut rc = kcol[t];
+                for i in 0..j {
+                    rc -= kc[(c, i)] * weights[(i, t)];
+                }
+                let a = (rc / qq).clamp(0.0, upper);
+                gain += 2.0 * a * rc - a * a * qq;
+            }
             (c, gain)
         })
         .collect()

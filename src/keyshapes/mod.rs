@@ -14,7 +14,7 @@ mod kmeans;
 mod random;
 mod spread;
 
-pub use greedy::{greedy_path, Greedy};
+pub use greedy::{greedy_gram, greedy_ls_feature_space, greedy_path, greedy_subsampled, Greedy};
 pub use hull::Hull;
 pub use kmeans::KMeans;
 pub use random::Random;
@@ -29,7 +29,8 @@ use std::collections::HashSet;
 use std::sync::OnceLock;
 
 /// Largest sequence for which the frames' Gram matrix (frames² values) is formed; longer
-/// sequences evaluate errors from the shapes directly and cannot use `greedy`.
+/// sequences evaluate errors from the shapes directly, and `greedy` works without it
+/// ([`greedy_path`]).
 pub const GRAM_LIMIT: usize = 6000;
 
 /// Key shapes chosen: frames of the sequence, or (`kmeansN-mean`) shapes that are not frames.
@@ -299,7 +300,7 @@ impl Analysis {
     pub fn frame_gram(&self) -> Result<&DMatrix<f64>> {
         if self.frames() > GRAM_LIMIT {
             return Err(Error::invalid(format!(
-                "method greedy is limited to {GRAM_LIMIT} frames (it keeps the frames' Gram matrix); this sequence has {}",
+                "the frames' Gram matrix is formed for at most {GRAM_LIMIT} frames; this sequence has {}",
                 self.frames()
             )));
         }

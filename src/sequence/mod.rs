@@ -1,6 +1,7 @@
 //! Tracked sequences: frames × points × dims, stored as one shape per column.
 
 mod layout;
+pub mod synthetic;
 
 pub use layout::{Group, Layout};
 

@@ -493,36 +493,41 @@ fn info_ranges_are_those_of_the_selected_points() {
     assert!(lips[0].0 > seq.ranges()[0].0 + 10.0);
 }
 
-/// Greedy over more frames than its Gram matrix allows is refused before any other method
-/// runs, naming greedy (issue 11 item 15).
+/// Greedy over more frames than its Gram matrix allows used to be refused (issue 11 item
+/// 15); since issue 17 it runs without that matrix (least squares exactly, nnls on a
+/// subsample with exact errors) and the curve has every k.
 #[test]
-fn greedy_beyond_its_limit_is_refused_up_front() {
+fn greedy_beyond_the_gram_limit_runs_without_the_frames_gram_matrix() {
     let d = tempfile::tempdir().unwrap();
     let p = d.path().join("long.csv");
     let mut text = String::from("frame,x0,y0,x1,y1,x2,y2\n");
     for f in 0..6001 {
         let a = (f as f64 * 0.01).sin();
-        text.push_str(&format!("{f},0,0,{},0,0,{}\n", 1.0 + a, 1.0 - 0.5 * a));
+        let b = (f as f64 * 0.037).cos();
+        text.push_str(&format!("{f},0,0,{},{b},0,{}\n", 1.0 + a, 1.0 - 0.5 * a));
     }
     std::fs::write(&p, text).unwrap();
-    let t = std::time::Instant::now();
+    let out = d.path().join("c.csv");
     let (code, _, err) = run(&[
         "curves",
         p.to_str().unwrap(),
         "--no-align",
         "--methods",
         "spread,greedy",
+        "--solver",
+        "nnls,ls",
         "--k",
-        "1..2",
+        "1..3",
+        "--out",
+        out.to_str().unwrap(),
     ]);
-    assert_eq!(code, 1);
-    assert!(
-        err.contains("method greedy is limited to 6000 frames"),
-        "{err}"
-    );
-    assert!(err.contains("this sequence has 6001"), "{err}");
-    // refused before the sweep: no time spent on the other methods (generous bound)
-    assert!(t.elapsed().as_secs() < 20);
+    assert_eq!(code, 0, "{err}");
+    let csv = std::fs::read_to_string(&out).unwrap();
+    for solver in ["nnls", "ls"] {
+        for k in 1..=3 {
+            assert!(csv.contains(&format!("greedy,{solver},{k},")), "{csv}");
+        }
+    }
 }
 
 /// Default data paths do not depend on the current directory: `intensity` run from `/`

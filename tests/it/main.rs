@@ -19,6 +19,7 @@ mod readers;
 mod reference;
 mod retarget;
 mod rig;
+mod scale;
 mod smoothing;
 mod solvers;
 mod svg_transforms;

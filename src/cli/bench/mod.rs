@@ -4,6 +4,7 @@
 mod curves;
 mod nnls;
 mod rig;
+mod scale;
 mod smooth;
 mod transfer;
 mod tui;
@@ -30,6 +31,8 @@ enum What {
     Smooth(smooth::SmoothBenchArgs),
     /// Rig solve throughput (camera + 55 ICT shapes per frame) on one core.
     Rig(rig::RigBenchArgs),
+    /// Wall time and peak memory of solve, keys and curves on long generated tracks (issue 17).
+    Scale(scale::ScaleArgs),
     /// Input-to-redraw latency of the lab when k or the method changes.
     Tui(tui::TuiBenchArgs),
 }
@@ -42,5 +45,6 @@ pub fn run(a: &BenchArgs) -> Result<()> {
         What::Transfer(t) => transfer::run(t),
         What::Smooth(s) => smooth::run(s),
         What::Rig(r) => rig::run(r),
+        What::Scale(s) => scale::run(s),
     }
 }

@@ -1,0 +1,115 @@
+//! Long tracks (issue 17): greedy beyond the frames' Gram matrix, generated tracks, and
+//! peak memory through the real binary.
+
+use crate::common::shared;
+use keyshape_lab::decompose::{prepare, PrepareOptions};
+use keyshape_lab::io::{read_sequence, ReadOptions};
+use keyshape_lab::keyshapes::{greedy_gram, greedy_ls_feature_space, greedy_subsampled, Analysis};
+use keyshape_lab::solve::Solver;
+
+fn analysis(file: &str, points: Option<&str>) -> Analysis {
+    let seq = read_sequence(&shared(file), &ReadOptions::default()).unwrap();
+    let prep = prepare(
+        &seq,
+        &PrepareOptions {
+            points: points.map(String::from),
+            align: true,
+        },
+    )
+    .unwrap();
+    Analysis::new(prep.seq.coords.clone(), prep.seq.points).unwrap()
+}
+
+const TRACKS: [(&str, Option<&str>); 5] = [
+    ("mediapipe_face_tracks/liveportrait_d6.csv", Some("lips")),
+    ("mediapipe_face_tracks/liveportrait_d6.csv", None),
+    ("mediapipe_face_tracks/liveportrait_d9.csv", Some("lips")),
+    (
+        "mediapipe_face_tracks/pyfeat_wolfganglanger_pexels.csv",
+        None,
+    ),
+    ("pyfeat_samples/news_sample_compact.csv", None),
+];
+
+#[test]
+fn least_squares_greedy_without_the_gram_matrix_chooses_exactly_what_the_gram_path_does() {
+    for (file, points) in TRACKS {
+        let an = analysis(file, points);
+        let (k1, e1) = greedy_gram(&an, 16, Solver::Ls, 8).unwrap();
+        let (k2, e2) = greedy_ls_feature_space(&an, 16).unwrap();
+        eprintln!("{file} {points:?}: {k1:?} {k2:?}");
+        assert_eq!(k1, k2, "{file} {points:?}");
+        for (a, b) in e1.iter().zip(&e2) {
+            assert!((a - b).abs() <= 1e-9 * a.abs().max(1e-300), "{a} {b}");
+        }
+    }
+}
+
+#[test]
+fn subsampled_greedy_reports_exact_errors_and_stays_near_the_exact_greedy() {
+    for (file, points) in TRACKS {
+        let an = analysis(file, points);
+        for solver in [Solver::Nnls, Solver::Bounded] {
+            let (_, exact) = greedy_gram(&an, 12, solver, 8).unwrap();
+            let limit = an.frames() / 4;
+            let (keys, sub) = greedy_subsampled(&an, 12, solver, 8, limit).unwrap();
+            // Its errors are the exact errors of its keys on every frame.
+            for k in 1..=12 {
+                let e = an.weights_and_error(&keys[..k], solver).unwrap().1;
+                assert_eq!(e, sub[k - 1]);
+            }
+            let ratio: Vec<f64> = exact.iter().zip(&sub).map(|(a, b)| b / a).collect();
+            eprintln!(
+                "{file} {points:?} {solver:?} 1/4 subsample / exact: {:.3?}",
+                ratio
+            );
+        }
+    }
+}
+
+/// Greedy and k-means on generated long tracks through the real binary, with peak memory
+/// from `kslab bench scale` (wait4's rusage): both finish, and memory grows no faster than
+/// the frames (the frames × frames Gram matrix would be 12.8 GB at 40,000 frames).
+#[test]
+fn greedy_on_a_long_generated_track_runs_in_memory_linear_in_frames() {
+    let d = tempfile::tempdir().unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_kslab"))
+        .args([
+            "bench",
+            "scale",
+            "--frames",
+            "10000,40000",
+            "--steps",
+            "greedy,solve",
+            "--json",
+            "--dir",
+        ])
+        .arg(d.path())
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let rows: Vec<serde_json::Value> = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(rows.len(), 4);
+    for r in &rows {
+        assert_eq!(r["ok"], true, "{r}");
+    }
+    let peak = |step: &str, frames: u64| {
+        rows.iter()
+            .find(|r| r["step"] == step && r["frames"] == frames)
+            .and_then(|r| r["peak_mb"].as_f64())
+    };
+    if let (Some(a), Some(b)) = (peak("greedy", 10000), peak("greedy", 40000)) {
+        // 4× the frames: at most 4× the memory (fixed costs make it less).
+        assert!(b / a < 4.0, "greedy peak {a} MB at 10k, {b} MB at 40k");
+        // Measured: about 11.5 KB per frame at 100,000 frames (BENCHMARKS.md).
+        assert!(b * 1e6 / 40000.0 < 16_000.0, "greedy: {b} MB at 40k frames");
+    }
+    // The generated track is the size asked for.
+    let track = d.path().join("track_40000x68.csv");
+    let seq = read_sequence(&track, &ReadOptions::default()).unwrap();
+    assert_eq!((seq.n_frames(), seq.points), (40000, 68));
+}
