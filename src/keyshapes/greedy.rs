@@ -128,7 +128,7 @@ pub fn greedy_ls_feature_space(an: &Analysis, kmax: usize) -> Result<(Vec<usize>
             r -= bj * coef;
         }
         let norm = r.norm();
-        if !(norm > 0.0) {
+        if norm.is_nan() || norm <= 0.0 {
             return Err(Error::invalid(
                 "greedy: a chosen frame lies in the span of the others",
             ));
