@@ -113,3 +113,76 @@ fn greedy_on_a_long_generated_track_runs_in_memory_linear_in_frames() {
     let seq = read_sequence(&track, &ReadOptions::default()).unwrap();
     assert_eq!((seq.n_frames(), seq.points), (40000, 68));
 }
+
+#[test]
+fn bench_scale_refuses_what_it_cannot_run_and_generates_one_track_on_request() {
+    let d = tempfile::tempdir().unwrap();
+    let k = |args: &[&str]| crate::common::kslab(args);
+    let r = k(&["bench", "scale", "--steps", "greedy,sort"]);
+    assert_eq!(r.code, 1);
+    assert!(r.stderr.contains("unknown step 'sort'"), "{}", r.stderr);
+    let r = k(&["bench", "scale", "--frames", "0"]);
+    assert_eq!(r.code, 1);
+    let two = d.path().join("two.csv");
+    let r = k(&[
+        "bench",
+        "scale",
+        "--frames",
+        "10,20",
+        "--generate",
+        two.to_str().unwrap(),
+    ]);
+    assert_eq!(r.code, 1);
+    assert!(r.stderr.contains("one --frames value"), "{}", r.stderr);
+    assert!(!two.exists());
+    let r = k(&[
+        "bench",
+        "scale",
+        "--points",
+        "100",
+        "--frames",
+        "10",
+        "--generate",
+        two.to_str().unwrap(),
+    ]);
+    assert_eq!(r.code, 1);
+    assert!(
+        r.stderr.contains("68 or 468 points, not 100"),
+        "{}",
+        r.stderr
+    );
+    assert!(!two.exists(), "a refused generate left a file");
+    for points in [68usize, 468] {
+        let p = d.path().join(format!("g{points}.csv"));
+        let r = k(&[
+            "bench",
+            "scale",
+            "--frames",
+            "500",
+            "--points",
+            &points.to_string(),
+            "--generate",
+            p.to_str().unwrap(),
+        ]);
+        assert_eq!(r.code, 0, "{}", r.stderr);
+        let seq = read_sequence(&p, &ReadOptions::default()).unwrap();
+        assert_eq!((seq.n_frames(), seq.points), (500, points));
+        // Real shapes under drift and noise: the face moves, but stays a face-sized thing.
+        let (x, y) = (seq.ranges()[0], seq.ranges()[1]);
+        assert!(x.1 - x.0 > 50.0 && x.1 - x.0 < 1000.0, "{x:?}");
+        assert!(y.1 - y.0 > 50.0 && y.1 - y.0 < 1000.0, "{y:?}");
+        // Seeded: the same track twice.
+        let p2 = d.path().join(format!("h{points}.csv"));
+        k(&[
+            "bench",
+            "scale",
+            "--frames",
+            "500",
+            "--points",
+            &points.to_string(),
+            "--generate",
+            p2.to_str().unwrap(),
+        ]);
+        assert_eq!(std::fs::read(&p).unwrap(), std::fs::read(&p2).unwrap());
+    }
+}
