@@ -91,17 +91,6 @@ fn fit_rotation_scale(x: &[f64], y: &[f64], dims: usize) -> Option<(f64, f64)> {
     Some((dot / nx, angle))
 }
 
-fn centred(shape: &[f64], dims: usize) -> (Vec<f64>, [f64; 3]) {
-    let c = centroid(shape, dims);
-    let mut v = shape.to_vec();
-    for p in v.chunks_mut(dims) {
-        for d in 0..dims {
-            p[d] -= c[d];
-        }
-    }
-    (v, c)
-}
-
 fn size(shape: &[f64]) -> f64 {
     shape.iter().map(|v| v * v).sum::<f64>().sqrt()
 }
@@ -129,32 +118,42 @@ pub fn procrustes(coords: &DMatrix<f64>, dims: usize) -> Result<Aligned> {
     if n == 0 {
         return Err(Error::invalid("cannot align an empty sequence"));
     }
-    let centred_frames: Vec<(Vec<f64>, [f64; 3])> = coords
-        .column_iter()
-        .map(|c| centred(c.as_slice(), dims))
-        .collect();
-    let target_size = centred_frames.iter().map(|(v, _)| size(v)).sum::<f64>() / n as f64;
+    // One copy of the coordinates: centred here, each frame aligned in place at the end
+    // (the iterations only need the mean, not every aligned frame).
+    let mut out = coords.clone();
+    let mut centroids = Vec::with_capacity(n);
+    for mut col in out.column_iter_mut() {
+        let v = col.as_mut_slice();
+        let c = centroid(v, dims);
+        for p in v.chunks_mut(dims) {
+            for d in 0..dims {
+                p[d] -= c[d];
+            }
+        }
+        centroids.push(c);
+    }
+    let target_size = out.column_iter().map(|c| size(c.as_slice())).sum::<f64>() / n as f64;
     let degenerate = |i: usize| {
         Error::invalid(format!(
             "frame column {i}: all points coincide, so the shape cannot be aligned (use --no-align)"
         ))
     };
-    let reference = centred_frames[0].0.clone();
+    let reference = out.column(0).as_slice().to_vec();
     let mut mean = reference.clone();
-    let mut aligned = vec![Vec::new(); n];
     let mut fits = vec![(1.0, 0.0); n];
     let mut iterations = 0;
+    let mut y = vec![0.0; mean.len()];
     for it in 0..100 {
         iterations = it + 1;
         let mut next = vec![0.0; mean.len()];
-        for (i, (x, _)) in centred_frames.iter().enumerate() {
+        for (i, x) in out.column_iter().enumerate() {
+            let x = x.as_slice();
             let (s, a) = fit_rotation_scale(x, &mean, dims).ok_or_else(|| degenerate(i))?;
-            let mut y = x.clone();
+            y.copy_from_slice(x);
             transform(&mut y, dims, s, a);
             for (m, v) in next.iter_mut().zip(&y) {
                 *m += v / n as f64;
             }
-            aligned[i] = y;
             fits[i] = (s, a);
         }
         // Fix the gauge: frame 0's orientation, the input's mean size.
@@ -175,25 +174,24 @@ pub fn procrustes(coords: &DMatrix<f64>, dims: usize) -> Result<Aligned> {
             break;
         }
     }
-    // Final fit of every frame onto the converged mean.
-    for (i, (x, _)) in centred_frames.iter().enumerate() {
+    // Final fit of every frame onto the converged mean, in place.
+    for (i, mut x) in out.column_iter_mut().enumerate() {
+        let x = x.as_mut_slice();
         let (s, a) = fit_rotation_scale(x, &mean, dims).ok_or_else(|| degenerate(i))?;
-        let mut y = x.clone();
-        transform(&mut y, dims, s, a);
-        aligned[i] = y;
+        transform(x, dims, s, a);
         fits[i] = (s, a);
     }
     let head = fits
         .iter()
-        .zip(&centred_frames)
-        .map(|(&(s, a), (_, c))| Similarity {
+        .zip(&centroids)
+        .map(|(&(s, a), c)| Similarity {
             scale: 1.0 / s,
             angle: -a,
             t: *c,
         })
         .collect();
     Ok(Aligned {
-        coords: DMatrix::from_iterator(coords.nrows(), n, aligned.into_iter().flatten()),
+        coords: out,
         head,
         mean: DVector::from_vec(mean),
         iterations,

@@ -45,8 +45,7 @@ pub fn prepare(seq: &Sequence, opts: &PrepareOptions) -> Result<Prepared> {
             )))
         }
     };
-    let mut base = seq.clone();
-    let head = if opts.align {
+    let (base, head) = if opts.align {
         // Name the frame and file, not an internal column, when a shape cannot be aligned.
         for (c, col) in seq.coords.column_iter().enumerate() {
             let v = col.as_slice();
@@ -66,10 +65,9 @@ pub fn prepare(seq: &Sequence, opts: &PrepareOptions) -> Result<Prepared> {
         }
         let al = procrustes(&seq.coords, seq.dims)
             .map_err(|e| Error::file(&seq.source, e.to_string()))?;
-        base.coords = al.coords;
-        Some(al.head)
+        (seq.with_coords(al.coords), Some(al.head))
     } else {
-        None
+        (seq.clone(), None)
     };
     let selected = if point_indices.len() == seq.points {
         base

@@ -95,10 +95,31 @@ impl Pca {
             p.truncate(r);
             return Ok(p);
         }
-        let (mean, x) = centre(coords);
+        // Centred implicitly (X = Q − μ1ᵀ), so no copy of the coordinates is made:
+        // X v = Q v − μ (1ᵀ v) and Xᵀ u = Qᵀ u − 1 (μᵀ u).
+        let mean = coords.column_mean();
         let denom = (n - 1) as f64;
-        let total_variance = x.norm_squared() / denom;
-        let xt = x.transpose();
+        let total_variance = coords
+            .column_iter()
+            .map(|c| (c - &mean).norm_squared())
+            .sum::<f64>()
+            / denom;
+        let x_times = |v: &DMatrix<f64>| -> DMatrix<f64> {
+            let mut out = coords * v;
+            for (j, s) in v.row_sum().iter().enumerate() {
+                out.column_mut(j).axpy(-s, &mean, 1.0);
+            }
+            out
+        };
+        let xt_times = |u: &DMatrix<f64>| -> DMatrix<f64> {
+            // (uᵀQ)ᵀ: a plain product runs the blocked kernel, which tr_mul does not.
+            let mut out = (u.transpose() * coords).transpose();
+            let mu = u.tr_mul(&mean);
+            for (j, s) in mu.iter().enumerate() {
+                out.column_mut(j).add_scalar_mut(-s);
+            }
+            out
+        };
         // Deterministic start: a fixed pseudo-random block (splitmix64).
         let mut state = 0x9E37_79B9_7F4A_7C15u64;
         let mut start = DMatrix::<f64>::zeros(n, l);
@@ -109,9 +130,9 @@ impl Pca {
             z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
             *v = ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64 - 0.5;
         }
-        let mut q = (&x * start).qr().q();
+        let mut q = x_times(&start).qr().q();
         for _ in 0..100 {
-            let z = &x * (&xt * &q); // C·Q (times n − 1)
+            let z = x_times(&xt_times(&q)); // C·Q (times n − 1)
             let b = q.tr_mul(&z);
             let b = (&b + b.transpose()) * 0.5;
             let eig = SymmetricEigen::new(b);
@@ -177,10 +198,13 @@ impl Pca {
     /// Coordinates of each column of `coords` on the first `n` axes (n × frames).
     pub fn project(&self, coords: &DMatrix<f64>, n: usize) -> DMatrix<f64> {
         let n = n.min(self.components.ncols());
-        let mut centred = coords.clone();
-        for mut c in centred.column_iter_mut() {
-            c -= &self.mean;
+        // Cᵀ(Q − μ1ᵀ) = CᵀQ − (Cᵀμ)1ᵀ: no centred copy of the coordinates.
+        let c = self.components.columns(0, n);
+        let mut p = c.transpose() * coords;
+        let cm = c.tr_mul(&self.mean);
+        for mut col in p.column_iter_mut() {
+            col -= &cm;
         }
-        self.components.columns(0, n).transpose() * centred
+        p
     }
 }

@@ -113,10 +113,12 @@ pub fn run(a: &KeysArgs) -> Result<()> {
     let k = k_for(a.method, a.k)?;
     a.heuristic.check(&[a.method], a.solver)?;
     let progress = super::progress::Progress::new("keys");
-    let (_, prep) = a.input.prepare()?;
+    let (_, mut prep) = a.input.prepare()?;
     let method = a.heuristic.apply(a.method);
     let axes = keyshape_lab::keyshapes::axes_needed(&[method], k);
-    let an = Analysis::with_axes(prep.seq.coords.clone(), prep.seq.points, axes)?;
+    // The analysis takes the coordinates; only the frame numbers and source are used after.
+    let coords = std::mem::replace(&mut prep.seq.coords, nalgebra::DMatrix::zeros(0, 0));
+    let an = Analysis::with_axes(coords, prep.seq.points, axes)?;
     let opts = a.heuristic.options(a.solver);
     let sel = method.heuristic(&opts).select(&an, k)?;
     let frames: Vec<i64> = sel.columns.iter().map(|&c| prep.seq.frames[c]).collect();

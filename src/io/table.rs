@@ -81,8 +81,16 @@ pub(super) fn read(path: &Path, text: &str, format: Format, dims: usize) -> Resu
     let (valid_col, frame_col) = (find(cols.valid), find(cols.frame));
     let (time_col, seg_col) = (find(cols.time), find(cols.segment));
 
-    let mut data = Vec::new();
-    let (mut frames, mut failed) = (Vec::new(), Vec::new());
+    // Room for every line up front: growing by doubling would hold up to twice the
+    // coordinates while the last copy is made.
+    let lines = text.bytes().filter(|&b| b == b'\n').count() + 1;
+    // (Each value takes at least two bytes with its comma, which bounds a hostile guess.)
+    let mut data = Vec::with_capacity(
+        lines
+            .saturating_mul(coord_cols.len())
+            .min(text.len() / 2 + 1),
+    );
+    let (mut frames, mut failed) = (Vec::with_capacity(lines), Vec::new());
     let (mut times, mut segments) = (Vec::new(), Vec::new());
     let mut record = csv::StringRecord::new();
     let mut row = 0i64;

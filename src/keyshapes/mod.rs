@@ -28,6 +28,20 @@ use nalgebra::DMatrix;
 use std::collections::HashSet;
 use std::sync::OnceLock;
 
+/// A 128-bit digest of the bits of `v`: two SipHash passes with different keys.
+fn digest(v: &[f64]) -> (u64, u64) {
+    use std::hash::{Hash, Hasher};
+    let mut a = std::collections::hash_map::DefaultHasher::new();
+    let mut b = std::collections::hash_map::DefaultHasher::new();
+    0x5bd1_e995_u64.hash(&mut b);
+    for x in v {
+        let bits = x.to_bits();
+        bits.hash(&mut a);
+        bits.hash(&mut b);
+    }
+    (a.finish(), b.finish())
+}
+
 /// Largest sequence for which the frames' Gram matrix (frames² values) is formed; longer
 /// sequences evaluate errors from the shapes directly, and `greedy` works without it
 /// ([`greedy_path`]).
@@ -260,9 +274,11 @@ impl Analysis {
         let axes = axes.min(coords.nrows().min(coords.ncols()));
         let pca = Pca::fit_leading(&coords, axes.max(3))?;
         let proj = pca.project(&coords, axes.max(3));
-        let mut seen = HashSet::new();
+        // Distinct shapes counted by a 128-bit digest of each column's bits, not a copy of
+        // the coordinates (two distinct shapes share a digest with probability ~2⁻¹²⁸).
+        let mut seen = HashSet::with_capacity(coords.ncols());
         for c in coords.column_iter() {
-            seen.insert(c.iter().map(|v| v.to_bits()).collect::<Vec<u64>>());
+            seen.insert(digest(c.as_slice()));
         }
         let sq_norms = coords.column_iter().map(|c| c.norm_squared()).collect();
         Ok(Analysis {

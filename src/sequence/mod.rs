@@ -198,6 +198,22 @@ impl Sequence {
         Ok(())
     }
 
+    /// The same sequence with other coordinates of the same shape (frame for frame), without
+    /// copying the old ones.
+    pub fn with_coords(&self, coords: DMatrix<f64>) -> Sequence {
+        Sequence {
+            source: self.source.clone(),
+            format: self.format,
+            dims: self.dims,
+            points: self.points,
+            coords,
+            frames: self.frames.clone(),
+            times: self.times.clone(),
+            segments: self.segments.clone(),
+            failed: self.failed.clone(),
+        }
+    }
+
     /// Number of valid frames.
     pub fn n_frames(&self) -> usize {
         self.coords.ncols()
