@@ -40,14 +40,33 @@ impl Pca {
         if n < 2 {
             return Err(Error::invalid("PCA needs at least 2 frames"));
         }
-        let (mean, x) = centre(coords);
-        let denom = (n - 1) as f64;
-        let total_variance = x.norm_squared() / denom;
         let small_side = rows <= n;
-        let gram = if small_side {
-            &x * x.transpose()
+        let denom = (n - 1) as f64;
+        // With fewer coordinates than frames (long tracks), X Xᵀ is summed over blocks of
+        // centred columns, never holding a centred copy of them all; otherwise the frames'
+        // XᵀX needs the centred copy, which is then small.
+        let (mean, x) = if small_side {
+            (coords.column_mean(), DMatrix::zeros(0, 0))
         } else {
-            x.transpose() * &x
+            centre(coords)
+        };
+        let (gram, total_variance) = if small_side {
+            let mut g = DMatrix::<f64>::zeros(rows, rows);
+            let mut total = 0.0;
+            const BLOCK: usize = 4096;
+            for start in (0..n).step_by(BLOCK) {
+                let w = BLOCK.min(n - start);
+                let mut b = coords.columns(start, w).clone_owned();
+                for mut c in b.column_iter_mut() {
+                    c -= &mean;
+                }
+                total += b.norm_squared();
+                g += &b * b.transpose();
+            }
+            (g, total / denom)
+        } else {
+            let t = x.norm_squared() / denom;
+            (x.transpose() * &x, t)
         };
         let eig = SymmetricEigen::new(gram);
         let mut order: Vec<usize> = (0..eig.eigenvalues.len()).collect();
