@@ -104,12 +104,16 @@ impl Pca {
     /// Householder re-orthonormalisation, Rayleigh–Ritz) on the centred data, never forming
     /// a covariance matrix. Stops when every kept pair has `‖C v − λ v‖ ≤ 1e-10 · λ₁`; if 100
     /// rounds do not get there, or the problem is small, it falls back to [`Pca::fit`].
-    /// Much faster than the full decomposition when r is a small part of the rank.
+    /// Much faster than the full decomposition when r is a small part of the rank; with
+    /// at most 8 (r + 12) coordinates per frame the full one is used (it is then cheaper).
     pub fn fit_leading(coords: &DMatrix<f64>, r: usize) -> Result<Pca> {
         let (rows, n) = coords.shape();
         let r = r.min(rows.min(n));
         let l = r + 12;
-        if n < 2 || rows.min(n) <= 2 * l {
+        // The full decomposition costs rows² · n (plus rows³), one round here 2 · rows · n · l:
+        // with few coordinates (68 points: 136) the full fit is cheaper than two rounds,
+        // and it does not depend on how well the spectrum separates.
+        if n < 2 || rows.min(n) <= 2 * l || (rows <= n && rows <= 8 * l) {
             let mut p = Pca::fit(coords)?;
             p.truncate(r);
             return Ok(p);
