@@ -923,6 +923,15 @@ pub fn read_partial(dir: &Path) -> Result<Partial> {
     let text = crate::io::read_text(&path)?;
     let p: Partial = serde_json::from_str(&text)
         .map_err(|e| Error::parse(&path, e.line() as u64, e.column() as u64, e.to_string()))?;
+    if p.shard.count == 0 || p.shard.index >= p.shard.count {
+        return Err(Error::file(
+            &path,
+            format!(
+                "shard {}/{} is not a part of a split (0 ≤ i < n)",
+                p.shard.index, p.shard.count
+            ),
+        ));
+    }
     if p.format != PARTIAL_FORMAT {
         return Err(Error::file(
             &path,

@@ -222,6 +222,18 @@ fn merge_refuses_a_missing_or_repeated_shard_and_shards_of_other_experiments() {
         assert!(r.stderr.contains(want), "{args:?}: {}", r.stderr);
         assert!(!Path::new(&out).exists(), "a refused merge wrote {out}");
     }
+    // A partial edited to a shard outside its split is refused, not indexed.
+    let text = std::fs::read_to_string(d.join("s2/partial.json")).unwrap();
+    let bad = text.replacen("\"index\": 2", "\"index\": 7", 1);
+    assert_ne!(bad, text);
+    std::fs::write(d.join("s2/partial.json"), bad).unwrap();
+    let r = kslab(&["merge", &s(0), &s(1), &s(2), "--out", &out]);
+    assert_eq!(r.code, 1);
+    assert!(
+        r.stderr.contains("shard 7/3 is not a part of a split"),
+        "{}",
+        r.stderr
+    );
     // A damaged partial names its file and position.
     std::fs::write(d.join("s2/partial.json"), "{\"format\": 1, \"kslab\": ").unwrap();
     let r = kslab(&["merge", &s(0), &s(1), &s(2), "--out", &out]);
