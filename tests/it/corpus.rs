@@ -426,6 +426,15 @@ fn the_bootstrap_interval_has_the_width_theory_gives() {
     assert_eq!((c.lo, c.mean, c.hi), (0.25, 0.25, 0.25));
     let one = interval(&[3.0], &[vec![0], vec![0]]);
     assert_eq!((one.lo, one.hi), (3.0, 3.0));
+    // The percentiles interpolate linearly between order statistics: resampled means 0, 2
+    // and 4 put the 2.5 % point at 0.05 of the way from 0 to 2, the 97.5 % point at 0.95
+    // of the way from 2 to 4.
+    let i = interval(&[0.0, 4.0], &[vec![1, 1], vec![0, 0], vec![0, 1]]);
+    assert!(
+        (i.lo - 0.1).abs() < 1e-15 && (i.hi - 3.9).abs() < 1e-15,
+        "{i:?}"
+    );
+    assert_eq!(i.mean, 2.0);
 }
 
 #[test]
