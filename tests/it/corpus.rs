@@ -796,3 +796,134 @@ fn the_kubernetes_manifests_validate_and_run_an_indexed_job_reading_its_shard() 
     let (spec, _) = Spec::from_path(&Path::new(env!("CARGO_MANIFEST_DIR")).join(&exp)).unwrap();
     assert!(spec.inputs.is_some(), "{exp} is not a corpus");
 }
+
+/// The aggregation on hand-made per-sequence results with ties: wins count every tied
+/// method, paired and own-k counts are strict on both sides, and the retarget differences
+/// (target and source) are exactly the per-sequence ones.
+#[test]
+fn aggregates_of_hand_made_results_with_ties_are_exact() {
+    use keyshape_lab::experiment::corpus::{
+        aggregate, CurvePoint, RetargetPoint, Unit, UnitResult,
+    };
+    let spec = Spec::from_str(
+        Path::new("t.toml"),
+        "title = \"t\"\ninputs = [\"a\"]\nmethods = [\"spread\", \"kmeans2\", \"hull\"]\nk = \"2..3\"\nsolvers = [\"nnls\"]\nbootstrap = 50\n[retarget]\nmethod = \"spread\"\nk = 2\nsolvers = [\"ls\", \"nnls\"]\ntrace_noise = [0.0]\n",
+    )
+    .unwrap();
+    let unit = |name: &str, curves: &[(&str, usize, f64)], rt: [(f64, f64); 2]| UnitResult {
+        unit: Unit {
+            name: name.into(),
+            input: format!("{name}.csv"),
+            clip: None,
+        },
+        frames: 10,
+        points: 2,
+        iod: 2.0,
+        curves: curves
+            .iter()
+            .map(|&(m, k, rms)| CurvePoint {
+                method: m.into(),
+                solver: "nnls".into(),
+                k,
+                total_sq_error: rms * rms * 20.0,
+                rms: 2.0 * rms,
+            })
+            .collect(),
+        retarget: ["ls", "nnls"]
+            .iter()
+            .zip(rt)
+            .map(|(s, (src, tgt))| RetargetPoint {
+                solver: s.to_string(),
+                trace_noise: 0.0,
+                source_rms: 2.0 * src,
+                target_rms: 2.0 * tgt,
+                negative_share: 0.0,
+                max_abs_weight: 1.0,
+            })
+            .collect(),
+        seconds: 0.0,
+    };
+    // rms / iod is the middle number: iod = 2 and rms is stored doubled.
+    let results = vec![
+        unit(
+            "a",
+            &[
+                ("spread", 2, 1.0),
+                ("spread", 3, 0.5),
+                ("kmeans2", 2, 1.0),
+                ("kmeans2", 3, 0.6),
+                ("hull", 2, 0.9),
+            ],
+            [(0.1, 1.0), (0.2, 1.0)],
+        ),
+        unit(
+            "b",
+            &[
+                ("spread", 2, 2.0),
+                ("spread", 3, 1.0),
+                ("kmeans2", 2, 1.5),
+                ("kmeans2", 3, 1.2),
+                ("hull", 3, 1.0),
+            ],
+            [(0.2, 0.5), (0.2, 1.0)],
+        ),
+        unit(
+            "c",
+            &[
+                ("spread", 2, 3.0),
+                ("spread", 3, 2.0),
+                ("kmeans2", 2, 3.5),
+                ("kmeans2", 3, 1.0),
+                ("hull", 2, 3.0),
+            ],
+            [(0.3, 0.8), (0.6, 1.0)],
+        ),
+    ];
+    let o = aggregate(&spec, results).unwrap();
+    let wins = |m: &str, k: usize| {
+        o.summary
+            .iter()
+            .find(|r| r.method == m && r.k == k)
+            .unwrap()
+            .wins
+    };
+    // k = 2: a ties (both win), b kmeans2, c spread. k = 3: spread, spread, kmeans2.
+    assert_eq!((wins("spread", 2), wins("kmeans2", 2)), (2, 2));
+    assert_eq!((wins("spread", 3), wins("kmeans2", 3)), (2, 1));
+    let total: Vec<(String, usize, usize)> = o
+        .wins
+        .iter()
+        .map(|w| (w.method.clone(), w.wins, w.contests))
+        .collect();
+    assert_eq!(
+        total,
+        [("spread".to_string(), 4, 6), ("kmeans2".to_string(), 3, 6)]
+    );
+    // Paired spread − kmeans2: one row per k, no pair of a method with itself.
+    assert_eq!(o.paired.len(), 2);
+    let p2 = &o.paired[0];
+    assert_eq!(
+        (p2.a.as_str(), p2.b.as_str(), p2.k),
+        ("spread", "kmeans2", 2)
+    );
+    assert_eq!((p2.a_lower, p2.b_lower), (1, 1), "d = [0, 0.5, -0.5]");
+    assert!(p2.diff.mean.abs() < 1e-15);
+    let p3 = &o.paired[1];
+    assert_eq!((p3.a_lower, p3.b_lower), (2, 1), "d = [-0.1, -0.2, 1.0]");
+    assert!((p3.diff.mean - 0.7 / 3.0).abs() < 1e-15);
+    // The hull at its own k: spread ties twice and is never lower; kmeans2 is never lower.
+    let h = &o.own_k[0];
+    assert_eq!(h.ks, [2, 3, 2]);
+    assert!((h.rms_iod.mean - (0.9 + 1.0 + 3.0) / 3.0).abs() < 1e-15);
+    let (sp, km) = (&h.against[0], &h.against[1]);
+    assert_eq!((sp.method.as_str(), sp.lower, sp.diff.n), ("spread", 0, 3));
+    assert!((sp.diff.mean - 0.1 / 3.0).abs() < 1e-12);
+    assert_eq!((km.method.as_str(), km.lower), ("kmeans2", 0));
+    assert!((km.diff.mean - 0.8 / 3.0).abs() < 1e-12);
+    // Retarget ls − nnls: target [0, -0.5, -0.2] (ls lower on b and c; a ties),
+    // source [-0.1, 0, -0.3].
+    let r = &o.retarget_paired[0];
+    assert_eq!((r.a.as_str(), r.b.as_str(), r.a_lower), ("ls", "nnls", 2));
+    assert!((r.target_diff.mean + 0.7 / 3.0).abs() < 1e-15, "{r:?}");
+    assert!((r.source_diff.mean + 0.4 / 3.0).abs() < 1e-15, "{r:?}");
+}
