@@ -435,6 +435,9 @@ fn the_bootstrap_interval_has_the_width_theory_gives() {
         "{i:?}"
     );
     assert_eq!(i.mean, 2.0);
+    // One resample (bootstrap = 1): both ends are its mean, and nothing reads past it.
+    let i = interval(&[1.0, 3.0], &[vec![0, 0]]);
+    assert_eq!((i.lo, i.hi, i.mean), (1.0, 1.0, 2.0));
 }
 
 #[test]
