@@ -158,6 +158,15 @@ pub fn difference_bands(order: usize, t: usize) -> Vec<Vec<f64>> {
 /// the free variables only. Frame `s`'s block has as many rows as it has free variables, so
 /// with NNLS's typical sparse weights the cost falls with the cube of the free count: about
 /// `frames · (order + 1) · n³` for `n` free weights per frame, linear in frames.
+///
+/// Storage is what the substitutions must read, no more: the diagonal blocks `L_{s,s}` as
+/// packed lower triangles, and the blocks `L_{s,s−j}` for `0 < j < order` densely. The
+/// outermost block is never stored: `H`'s block there is `λ·band_order(s)` times a selection
+/// `P` of the variables free in both frames, and nothing is subtracted from it, so
+/// `L_{s,s−order} = λ·band_order(s)·P·L_{c,c}^{−T}` (c = s − order) — the substitutions
+/// apply it as a triangular solve with `L_{c,c}`, which they read anyway. For order 1 that
+/// leaves `n(n + 1)/2` values per frame instead of `2n²`: the substitutions and the
+/// factorisation are bound by memory traffic, not arithmetic, at these block sizes.
 pub struct BandedSystem {
     t: usize,
     p: usize,
@@ -165,12 +174,15 @@ pub struct BandedSystem {
     free: Vec<usize>,
     /// `free[fstart[s]..fstart[s + 1]]` are frame `s`'s.
     fstart: Vec<usize>,
-    /// Start of block `L_{s, s−j}` (row-major, `n_s × n_{s−j}`) in `l`: `off[s * (p + 1) + j]`.
+    /// Start in `l` of `L_{s,s}` (packed lower triangle, row after row) at `off[s * (p + 1)]`
+    /// and of `L_{s,s−j}` (row-major, `n_s × n_{s−j}`) at `off[s * (p + 1) + j]`, `0 < j < p`.
     off: Vec<usize>,
     l: Vec<f64>,
     /// `1 / L_{s,s}[x, x]` of every free variable (compact order): substitution multiplies
     /// by it, keeping a division's latency off the recurrences' critical path.
     inv: Vec<f64>,
+    /// `λ·band_p(s)`: the outermost block's scale at frame `s`.
+    outer: Vec<f64>,
     /// The mask it was factorised with (`fixed[s * k + i]`), for [`Self::factor_reusing`].
     fixed: Vec<bool>,
 }
@@ -180,6 +192,15 @@ pub struct BandedSystem {
 fn dot(a: &[f64], b: &[f64]) -> f64 {
     let n = a.len().min(b.len());
     let (a, b) = (&a[..n], &b[..n]);
+    if n < 8 {
+        // Short rows (the common case: a handful of free weights per frame): the setup of
+        // the four sums costs more than it saves.
+        let mut acc = 0.0;
+        for i in 0..n {
+            acc += a[i] * b[i];
+        }
+        return acc;
+    }
     let mut acc = [0.0f64; 4];
     let (ca, cb) = (a.chunks_exact(4), b.chunks_exact(4));
     let (ra, rb) = (ca.remainder(), cb.remainder());
@@ -190,6 +211,47 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
     }
     let tail: f64 = ra.iter().zip(rb).map(|(x, y)| x * y).sum();
     (acc[0] + acc[1]) + (acc[2] + acc[3]) + tail
+}
+
+/// Entries in a packed lower triangle of order `n`; row `x` starts at `tri(x)`.
+fn tri(n: usize) -> usize {
+    n * (n + 1) / 2
+}
+
+/// Calls `f(x, y)` for every pair with `a[x] == b[y]` (both sorted ascending).
+fn matches(a: &[usize], b: &[usize], mut f: impl FnMut(usize, usize)) {
+    let (mut x, mut y) = (0, 0);
+    while x < a.len() && y < b.len() {
+        match a[x].cmp(&b[y]) {
+            std::cmp::Ordering::Equal => {
+                f(x, y);
+                x += 1;
+                y += 1;
+            }
+            std::cmp::Ordering::Less => x += 1,
+            std::cmp::Ordering::Greater => y += 1,
+        }
+    }
+}
+
+/// `u ← L⁻ᵀ u` for a packed lower triangle `d` with reciprocal pivots `inv`.
+fn solve_lt(d: &[f64], inv: &[f64], u: &mut [f64]) {
+    let n = u.len();
+    for x in (0..n).rev() {
+        let mut v = u[x];
+        for z in x + 1..n {
+            v -= d[tri(z) + x] * u[z];
+        }
+        u[x] = v * inv[x];
+    }
+}
+
+/// `u ← L⁻¹ u` for a packed lower triangle `d` with reciprocal pivots `inv`.
+fn solve_l(d: &[f64], inv: &[f64], u: &mut [f64]) {
+    for x in 0..u.len() {
+        let v = u[x] - dot(&d[tri(x)..tri(x) + x], &u[..x]);
+        u[x] = v * inv[x];
+    }
 }
 
 impl BandedSystem {
@@ -237,17 +299,27 @@ impl BandedSystem {
         let mut off = vec![0usize; t * (p + 1)];
         let mut total = 0;
         for s in 0..t {
-            for j in 0..=p.min(s) {
-                off[s * (p + 1) + j] = total;
-                total += n(s) * n(s - j);
+            off[s * (p + 1)] = total;
+            total += tri(n(s));
+            for j in 1..=p.min(s) {
+                if j < p {
+                    off[s * (p + 1) + j] = total;
+                    total += n(s) * n(s - j);
+                }
             }
         }
         let (mut l, mut inv) = recycle.map(|r| (r.l, r.inv)).unwrap_or_default();
-        l.clear();
+        // Every entry is written below: no need to clear what is kept.
         l.resize(total, 0.0);
-        inv.clear();
+        l.truncate(total);
         inv.resize(free.len(), 0.0);
+        inv.truncate(free.len());
+        let outer: Vec<f64> = (0..t)
+            .map(|s| if p > 0 { lambda * bands[p][s] } else { 0.0 })
+            .collect();
         let mut tmp = vec![0.0; k * k];
+        // The outermost block of the current frame, computed but not stored.
+        let mut edge = vec![0.0; k * k];
         let mut lead = vec![0usize; k];
         let prev = prev.filter(|o| o.t == t && o.p == p && o.fixed.len() == fixed.len());
         // same_mask[s]: frame s's mask is the old one; same_row[s]: so is its row of L.
@@ -258,7 +330,7 @@ impl BandedSystem {
             None => vec![false; t],
         };
         let mut same_row = vec![false; t];
-        // The row of frame s (blocks j = 0..=min(p, s)) occupies one contiguous range.
+        // The row of frame s (its stored blocks) occupies one contiguous range.
         let row_range = |off: &[usize], s: usize, len: usize| {
             let a = off[s * (p + 1)];
             let b = if s + 1 < t {
@@ -290,23 +362,16 @@ impl BandedSystem {
                 m.fill(0.0);
                 let v = lambda * bands[j][s];
                 if v != 0.0 {
-                    let (mut x, mut y) = (0, 0);
-                    while x < ns && y < nc {
-                        match fs[x].cmp(&fc[y]) {
-                            std::cmp::Ordering::Equal => {
-                                m[x * nc + y] = v;
-                                x += 1;
-                                y += 1;
-                            }
-                            std::cmp::Ordering::Less => x += 1,
-                            std::cmp::Ordering::Greater => y += 1,
-                        }
-                    }
+                    matches(fs, fc, |x, y| m[x * nc + y] = v);
                 }
-                // − Σ_{r = s−p}^{c−1} L_{s,r} L_{c,r}ᵀ
+                // − Σ_{r = s−p}^{c−1} L_{s,r} L_{c,r}ᵀ (c − r < p: stored; s − r = p: `edge`).
                 for r in s.saturating_sub(p)..c {
                     let nr = n(r);
-                    let ls = &l[off[s * (p + 1) + (s - r)]..][..ns * nr];
+                    let ls = if s - r == p {
+                        &edge[..ns * nr]
+                    } else {
+                        &l[off[s * (p + 1) + (s - r)]..][..ns * nr]
+                    };
                     let lc = &l[off[c * (p + 1) + (c - r)]..][..nc * nr];
                     for x in 0..ns {
                         let row = &ls[x * nr..(x + 1) * nr];
@@ -318,7 +383,7 @@ impl BandedSystem {
                 // L_{s,c} = M L_{c,c}^{-T}: row x solves L_{c,c} zᵀ = M[x, :]ᵀ. A row's
                 // leading zeros stay zero (forward substitution), and for order 1 M is
                 // λ times a selection, so most of each row is skipped.
-                let d = &l[off[c * (p + 1)]..][..nc * nc];
+                let d = &l[off[c * (p + 1)]..][..tri(nc)];
                 let ic = &inv[fstart[c]..fstart[c + 1]];
                 for x in 0..ns {
                     let row = &mut m[x * nc..(x + 1) * nc];
@@ -326,12 +391,16 @@ impl BandedSystem {
                         continue;
                     };
                     for y in y0..nc {
-                        let v = row[y] - dot(&row[y0..y], &d[y * nc + y0..y * nc + y]);
+                        let v = row[y] - dot(&row[y0..y], &d[tri(y) + y0..tri(y) + y]);
                         row[y] = v * ic[y];
                     }
                 }
-                let o = off[s * (p + 1) + j];
-                l[o..o + ns * nc].copy_from_slice(m);
+                if j == p {
+                    edge[..ns * nc].copy_from_slice(m);
+                } else {
+                    let o = off[s * (p + 1) + j];
+                    l[o..o + ns * nc].copy_from_slice(m);
+                }
             }
             // Diagonal: A_{s,s} − Σ_{r = s−p}^{s−1} L_{s,r} L_{s,r}ᵀ, then Cholesky.
             let m = &mut tmp[..ns * ns];
@@ -343,7 +412,11 @@ impl BandedSystem {
             }
             for r in s.saturating_sub(p)..s {
                 let nr = n(r);
-                let ls = &l[off[s * (p + 1) + (s - r)]..][..ns * nr];
+                let ls = if s - r == p {
+                    &edge[..ns * nr]
+                } else {
+                    &l[off[s * (p + 1) + (s - r)]..][..ns * nr]
+                };
                 // Leading zeros of each row (from the selection structure above).
                 for (x, z) in lead[..ns].iter_mut().enumerate() {
                     *z = ls[x * nr..(x + 1) * nr]
@@ -377,12 +450,11 @@ impl BandedSystem {
                         m[x * ns + y] = v * is[y];
                     }
                 }
-                for y in x + 1..ns {
-                    m[x * ns + y] = 0.0;
-                }
             }
             let o = off[s * (p + 1)];
-            l[o..o + ns * ns].copy_from_slice(m);
+            for x in 0..ns {
+                l[o + tri(x)..o + tri(x) + x + 1].copy_from_slice(&m[x * ns..x * ns + x + 1]);
+            }
             if let (Some(o), true) = (prev, same_mask[s.saturating_sub(p)..=s].iter().all(|v| *v)) {
                 let old = &o.l[row_range(&o.off, s, o.l.len())];
                 let new = &l[row_range(&off, s, total)];
@@ -398,6 +470,7 @@ impl BandedSystem {
             off,
             l,
             inv,
+            outer,
             fixed: fixed.to_vec(),
         })
     }
@@ -432,30 +505,58 @@ impl BandedSystem {
         }
     }
 
+    /// Frame `s`'s free variable indices.
+    fn free_of(&self, s: usize) -> &[usize] {
+        &self.free[self.fstart[s]..self.fstart[s + 1]]
+    }
+
+    /// `L_{s,s}` packed, and its reciprocal pivots.
+    fn diag(&self, s: usize) -> (&[f64], &[f64]) {
+        let ns = self.fstart[s + 1] - self.fstart[s];
+        (
+            &self.l[self.off[s * (self.p + 1)]..][..tri(ns)],
+            &self.inv[self.fstart[s]..self.fstart[s + 1]],
+        )
+    }
+
     /// `y ← L⁻¹ y` on compact vectors, from frame `s0` on: `y` holds frames `s0..` only
     /// (compact index minus `fstart[s0]`) and is zero before them, as is the result.
     fn forward(&self, y: &mut [f64], s0: usize) {
         let (t, p, fs) = (self.t, self.p, &self.fstart);
         let base = fs[s0];
         let n = |s: usize| fs[s + 1] - fs[s];
+        let mut u: Vec<f64> = Vec::new();
         for s in s0..t {
             let ns = n(s);
             for r in s.saturating_sub(p).max(s0)..s {
                 let nr = n(r);
-                let a = &self.l[self.off[s * (p + 1) + (s - r)]..][..ns * nr];
                 let (head, tail) = y.split_at_mut(fs[s] - base);
                 let yr = &head[fs[r] - base..fs[r] - base + nr];
-                for x in 0..ns {
-                    tail[x] -= dot(&a[x * nr..(x + 1) * nr], yr);
+                if s - r < p {
+                    let a = &self.l[self.off[s * (p + 1) + (s - r)]..][..ns * nr];
+                    for x in 0..ns {
+                        tail[x] -= dot(&a[x * nr..(x + 1) * nr], yr);
+                    }
+                } else {
+                    // L_{s,r} y_r = v·P·(L_{r,r}^{-T} y_r).
+                    let v = self.outer[s];
+                    if v == 0.0 {
+                        continue;
+                    }
+                    if u.len() < nr {
+                        u.resize(nr, 0.0);
+                    }
+                    let ur = &mut u[..nr];
+                    ur.copy_from_slice(yr);
+                    let (d, ir) = self.diag(r);
+                    solve_lt(d, ir, ur);
+                    matches(self.free_of(s), self.free_of(r), |x, z| {
+                        tail[x] -= v * ur[z]
+                    });
                 }
             }
-            let d = &self.l[self.off[s * (p + 1)]..][..ns * ns];
-            let is = &self.inv[fs[s]..fs[s] + ns];
-            let ys = &mut y[fs[s] - base..fs[s] - base + ns];
-            for x in 0..ns {
-                let v = ys[x] - dot(&d[x * ns..x * ns + x], &ys[..x]);
-                ys[x] = v * is[x];
-            }
+            let (d, is) = self.diag(s);
+            solve_l(d, is, &mut y[fs[s] - base..fs[s] - base + ns]);
         }
     }
 
@@ -463,33 +564,45 @@ impl BandedSystem {
     fn backward(&self, y: &mut [f64]) {
         let (t, p, fs) = (self.t, self.p, &self.fstart);
         let n = |s: usize| fs[s + 1] - fs[s];
+        let mut u: Vec<f64> = Vec::new();
         for s in (0..t).rev() {
             let ns = n(s);
             for m in s + 1..(s + p + 1).min(t) {
                 let nm = n(m);
-                let a = &self.l[self.off[m * (p + 1) + (m - s)]..][..nm * ns];
                 let (head, tail) = y.split_at_mut(fs[m]);
                 let ym = &tail[..nm];
                 let ys = &mut head[fs[s]..fs[s] + ns];
-                for z in 0..nm {
-                    let c = ym[z];
-                    if c != 0.0 {
-                        for (v, lv) in ys.iter_mut().zip(&a[z * ns..(z + 1) * ns]) {
-                            *v -= lv * c;
+                if m - s < p {
+                    let a = &self.l[self.off[m * (p + 1) + (m - s)]..][..nm * ns];
+                    for z in 0..nm {
+                        let c = ym[z];
+                        if c != 0.0 {
+                            for (v, lv) in ys.iter_mut().zip(&a[z * ns..(z + 1) * ns]) {
+                                *v -= lv * c;
+                            }
                         }
+                    }
+                } else {
+                    // L_{m,s}ᵀ y_m = v·L_{s,s}^{-1}·(Pᵀ y_m).
+                    let v = self.outer[m];
+                    if v == 0.0 {
+                        continue;
+                    }
+                    if u.len() < ns {
+                        u.resize(ns, 0.0);
+                    }
+                    let us = &mut u[..ns];
+                    us.fill(0.0);
+                    matches(self.free_of(m), self.free_of(s), |z, x| us[x] = ym[z]);
+                    let (d, is) = self.diag(s);
+                    solve_l(d, is, us);
+                    for (a, b) in ys.iter_mut().zip(us.iter()) {
+                        *a -= v * b;
                     }
                 }
             }
-            let d = &self.l[self.off[s * (p + 1)]..][..ns * ns];
-            let is = &self.inv[fs[s]..fs[s] + ns];
-            let ys = &mut y[fs[s]..fs[s] + ns];
-            for x in (0..ns).rev() {
-                let mut v = ys[x];
-                for z in x + 1..ns {
-                    v -= d[z * ns + x] * ys[z];
-                }
-                ys[x] = v * is[x];
-            }
+            let (d, is) = self.diag(s);
+            solve_lt(d, is, &mut y[fs[s]..fs[s] + ns]);
         }
     }
 }
@@ -749,26 +862,42 @@ fn hessian_times(g: &DMatrix<f64>, lambda: f64, bands: &[Vec<f64>], w: &[f64]) -
     let k = g.nrows();
     let t = bands[0].len();
     let p = bands.len() - 1;
-    // G·W as one matrix product: `w` is W (k × t) column-major, frame after frame.
-    let mut out = (g * nalgebra::DMatrixView::from_slice(w, k, t))
-        .data
-        .as_vec()
-        .clone();
-    for s in 0..t {
-        for j in 0..=p {
-            if j <= s {
-                let c = lambda * bands[j][s];
-                if c != 0.0 {
-                    for x in 0..k {
-                        out[s * k + x] += c * w[(s - j) * k + x];
-                        if j > 0 {
-                            out[(s - j) * k + x] += c * w[s * k + x];
+    let mut out = vec![0.0; w.len()];
+    if k == 0 {
+        return out;
+    }
+    // Row-wise, in chunks of frames run in parallel: frame s's entries are
+    // G·w_s + Σ_{|j| ≤ p} λ·DᵀD[s, s + j]·w_{s+j}; G·W of a chunk as one matrix product
+    // (`w` is W, k × t, column-major: frame after frame).
+    const CHUNK: usize = 2048;
+    out.par_chunks_mut(CHUNK * k)
+        .enumerate()
+        .for_each(|(ci, o)| {
+            let s0 = ci * CHUNK;
+            let n = o.len() / k;
+            let wv = nalgebra::DMatrixView::from_slice(&w[s0 * k..(s0 + n) * k], k, n);
+            let mut ov = nalgebra::DMatrixViewMut::from_slice(o, k, n);
+            g.mul_to(&wv, &mut ov);
+            for s in s0..s0 + n {
+                let row = &mut o[(s - s0) * k..(s - s0 + 1) * k];
+                let mut add = |c: f64, f: usize| {
+                    if c != 0.0 {
+                        for (v, x) in row.iter_mut().zip(&w[f * k..(f + 1) * k]) {
+                            *v += c * x;
                         }
+                    }
+                };
+                add(lambda * bands[0][s], s);
+                for j in 1..=p {
+                    if j <= s {
+                        add(lambda * bands[j][s], s - j);
+                    }
+                    if s + j < t {
+                        add(lambda * bands[j][s + j], s + j);
                     }
                 }
             }
-        }
-    }
+        });
     out
 }
 
@@ -871,7 +1000,9 @@ pub fn smooth_from(
         });
     }
     let g = s.tr_mul(s);
-    let b = s.tr_mul(q);
+    // Sᵀ once: `st * q` runs as blocked GEMMs (in parallel chunks), `s.tr_mul(q)` as column
+    // dot products.
+    let b = super::chunked_product(&s.transpose(), q);
     match smoothing.mode {
         SmoothMode::Offline => offline(&g, &b, &plain.weights, solver, smoothing, segments),
         SmoothMode::Causal => causal(&g, &b, solver, smoothing, segments),
@@ -940,7 +1071,8 @@ fn segment(
     // (and the one before it, whose storage the next one takes).
     let cache: std::cell::RefCell<Option<SegmentSystem>> = std::cell::RefCell::new(None);
     let spare: std::cell::RefCell<Option<SegmentSystem>> = std::cell::RefCell::new(None);
-    let solve_with = |fixed: &[bool], values: &[f64]| -> Result<Vec<f64>> {
+    // `values`: the fixed variables' values (None: all 0, as NNLS fixes them).
+    let solve_with = |fixed: &[bool], values: Option<&[f64]>| -> Result<Vec<f64>> {
         let sys = SegmentSystem::factor_reusing(
             g,
             sm.lambda,
@@ -952,29 +1084,33 @@ fn segment(
             spare.borrow_mut().take(),
         )?;
         // rhs = b − H·v (v: fixed values, 0 elsewhere); fixed rows take their values.
-        // (NNLS fixes at 0 only: then H·v = 0 and the product is skipped.)
-        let mut rhs: Vec<f64> = if values.iter().all(|v| *v == 0.0) {
-            b.to_vec()
-        } else {
-            let hv = hessian_times(g, sm.lambda, &bands, values);
-            b.iter().zip(&hv).map(|(x, y)| x - y).collect()
+        // (With every fixed value 0, H·v = 0 and the product is skipped.)
+        let values = values.filter(|v| v.iter().any(|x| *x != 0.0));
+        let mut rhs: Vec<f64> = match values {
+            None => b.to_vec(),
+            Some(v) => {
+                let hv = hessian_times(g, sm.lambda, &bands, v);
+                b.iter().zip(&hv).map(|(x, y)| x - y).collect()
+            }
         };
-        for i in 0..rhs.len() {
-            if fixed[i] {
-                rhs[i] = 0.0;
+        for (r, f) in rhs.iter_mut().zip(fixed) {
+            if *f {
+                *r = 0.0;
             }
         }
         sys.solve(&mut rhs);
         *spare.borrow_mut() = cache.borrow_mut().replace(sys);
-        Ok(rhs
-            .iter()
-            .zip(values)
-            .zip(fixed)
-            .map(|((x, v), f)| if *f { *v } else { *x })
-            .collect())
+        if let Some(v) = values {
+            for ((r, f), x) in rhs.iter_mut().zip(fixed).zip(v) {
+                if *f {
+                    *r = *x;
+                }
+            }
+        }
+        Ok(rhs)
     };
     if solver == Solver::Ls {
-        let w = solve_with(&vec![false; b.len()], &vec![0.0; b.len()])?;
+        let w = solve_with(&vec![false; b.len()], None)?;
         let res = kkt_residual(g, sm.lambda, sm.order, b, &w, solver);
         return Ok((w, 1, res, true));
     }
@@ -987,8 +1123,10 @@ fn segment(
         let mut w = start.to_vec();
         let mut prev: Option<(Vec<bool>, Vec<bool>)> = None;
         for it in 1..=cap {
-            let hw = hessian_times(g, sm.lambda, &bands, &w);
-            let grad: Vec<f64> = hw.iter().zip(b).map(|(x, y)| x - y).collect();
+            let mut grad = hessian_times(g, sm.lambda, &bands, &w);
+            for (x, y) in grad.iter_mut().zip(b) {
+                *x -= y;
+            }
             let at_lower: Vec<bool> = (0..w.len()).map(|i| grad[i] - c * w[i] > 0.0).collect();
             let at_upper: Vec<bool> = (0..w.len())
                 .map(|i| upper.is_finite() && !at_lower[i] && -grad[i] - c * (upper - w[i]) > 0.0)
@@ -1004,11 +1142,13 @@ fn segment(
                 .zip(&at_upper)
                 .map(|(l, u)| *l || *u)
                 .collect();
-            let values: Vec<f64> = at_upper
-                .iter()
-                .map(|&u| if u { upper } else { 0.0 })
-                .collect();
-            w = solve_with(&fixed, &values)?;
+            let values: Option<Vec<f64>> = at_upper.iter().any(|u| *u).then(|| {
+                at_upper
+                    .iter()
+                    .map(|&u| if u { upper } else { 0.0 })
+                    .collect()
+            });
+            w = solve_with(&fixed, values.as_deref())?;
             prev = Some((at_lower, at_upper));
         }
         Ok(None)
