@@ -108,54 +108,82 @@ fn transform(shape: &mut [f64], dims: usize, scale: f64, angle: f64) {
     }
 }
 
-/// Generalised Procrustes alignment of every column of `coords` (`dims` values per point).
+/// Centres a flat shape on its centroid in place; returns the centroid.
+pub fn centre(shape: &mut [f64], dims: usize) -> [f64; 3] {
+    let c = centroid(shape, dims);
+    for p in shape.chunks_mut(dims) {
+        for d in 0..dims {
+            p[d] -= c[d];
+        }
+    }
+    c
+}
+
+fn degenerate(i: usize) -> Error {
+    Error::invalid(format!(
+        "frame column {i}: all points coincide, so the shape cannot be aligned (use --no-align)"
+    ))
+}
+
+/// Aligns a centred shape onto the Procrustes `mean` in place (frame column `i`, for the
+/// message when it cannot be); returns the similarity taking it back to where it was, given
+/// its centroid `c`.
+pub fn align_to(
+    shape: &mut [f64],
+    mean: &[f64],
+    dims: usize,
+    c: [f64; 3],
+    i: usize,
+) -> Result<Similarity> {
+    let (s, a) = fit_rotation_scale(shape, mean, dims).ok_or_else(|| degenerate(i))?;
+    transform(shape, dims, s, a);
+    Ok(Similarity {
+        scale: 1.0 / s,
+        angle: -a,
+        t: c,
+    })
+}
+
+/// The generalised Procrustes mean of `n` centred shapes that `replay` presents, each time
+/// it is called, in order: `replay(f)` calls `f(i, shape_i)` for i = 0..n. The frames are
+/// visited once for their sizes and once per round, so they need not be in memory: a file
+/// can be read again each time (a streamed solve does). Returns the mean and the rounds.
 ///
 /// The mean is started at frame 0, re-estimated until it moves less than 1e-10 of its
 /// size (at most 100 rounds), and kept at the input's mean centroid size and frame 0's
 /// orientation, so the result does not drift.
-pub fn procrustes(coords: &DMatrix<f64>, dims: usize) -> Result<Aligned> {
-    let n = coords.ncols();
+pub fn procrustes_mean<F>(n: usize, dims: usize, mut replay: F) -> Result<(Vec<f64>, usize)>
+where
+    F: FnMut(&mut dyn FnMut(usize, &[f64]) -> Result<()>) -> Result<()>,
+{
     if n == 0 {
         return Err(Error::invalid("cannot align an empty sequence"));
     }
-    // One copy of the coordinates: centred here, each frame aligned in place at the end
-    // (the iterations only need the mean, not every aligned frame).
-    let mut out = coords.clone();
-    let mut centroids = Vec::with_capacity(n);
-    for mut col in out.column_iter_mut() {
-        let v = col.as_mut_slice();
-        let c = centroid(v, dims);
-        for p in v.chunks_mut(dims) {
-            for d in 0..dims {
-                p[d] -= c[d];
-            }
+    let mut sizes = 0.0;
+    let mut reference = Vec::new();
+    replay(&mut |i, x| {
+        if i == 0 {
+            reference = x.to_vec();
         }
-        centroids.push(c);
-    }
-    let target_size = out.column_iter().map(|c| size(c.as_slice())).sum::<f64>() / n as f64;
-    let degenerate = |i: usize| {
-        Error::invalid(format!(
-            "frame column {i}: all points coincide, so the shape cannot be aligned (use --no-align)"
-        ))
-    };
-    let reference = out.column(0).as_slice().to_vec();
+        sizes += size(x);
+        Ok(())
+    })?;
+    let target_size = sizes / n as f64;
     let mut mean = reference.clone();
-    let mut fits = vec![(1.0, 0.0); n];
     let mut iterations = 0;
     let mut y = vec![0.0; mean.len()];
     for it in 0..100 {
         iterations = it + 1;
         let mut next = vec![0.0; mean.len()];
-        for (i, x) in out.column_iter().enumerate() {
-            let x = x.as_slice();
+        replay(&mut |i, x| {
             let (s, a) = fit_rotation_scale(x, &mean, dims).ok_or_else(|| degenerate(i))?;
             y.copy_from_slice(x);
             transform(&mut y, dims, s, a);
             for (m, v) in next.iter_mut().zip(&y) {
                 *m += v / n as f64;
             }
-            fits[i] = (s, a);
-        }
+            Ok(())
+        })?;
         // Fix the gauge: frame 0's orientation, the input's mean size.
         let (_, a) = fit_rotation_scale(&next, &reference, dims).ok_or_else(|| degenerate(0))?;
         let ns = size(&next);
@@ -174,22 +202,33 @@ pub fn procrustes(coords: &DMatrix<f64>, dims: usize) -> Result<Aligned> {
             break;
         }
     }
-    // Final fit of every frame onto the converged mean, in place.
-    for (i, mut x) in out.column_iter_mut().enumerate() {
-        let x = x.as_mut_slice();
-        let (s, a) = fit_rotation_scale(x, &mean, dims).ok_or_else(|| degenerate(i))?;
-        transform(x, dims, s, a);
-        fits[i] = (s, a);
+    Ok((mean, iterations))
+}
+
+/// Generalised Procrustes alignment of every column of `coords` (`dims` values per point):
+/// [`procrustes_mean`], then every frame aligned onto it ([`align_to`]).
+pub fn procrustes(coords: &DMatrix<f64>, dims: usize) -> Result<Aligned> {
+    let n = coords.ncols();
+    if n == 0 {
+        return Err(Error::invalid("cannot align an empty sequence"));
     }
-    let head = fits
-        .iter()
-        .zip(&centroids)
-        .map(|(&(s, a), c)| Similarity {
-            scale: 1.0 / s,
-            angle: -a,
-            t: *c,
-        })
+    // One copy of the coordinates: centred here, each frame aligned in place at the end
+    // (the rounds only need the mean, not every aligned frame).
+    let mut out = coords.clone();
+    let centroids: Vec<[f64; 3]> = out
+        .column_iter_mut()
+        .map(|mut col| centre(col.as_mut_slice(), dims))
         .collect();
+    let (mean, iterations) = procrustes_mean(n, dims, |f| {
+        for (i, x) in out.column_iter().enumerate() {
+            f(i, x.as_slice())?;
+        }
+        Ok(())
+    })?;
+    let mut head = Vec::with_capacity(n);
+    for (i, mut x) in out.column_iter_mut().enumerate() {
+        head.push(align_to(x.as_mut_slice(), &mean, dims, centroids[i], i)?);
+    }
     Ok(Aligned {
         coords: out,
         head,

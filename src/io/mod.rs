@@ -8,7 +8,7 @@ pub mod json;
 pub mod obj;
 mod pts;
 pub mod svg;
-mod table;
+pub mod table;
 
 pub use atomic::{check_output, check_output_dir, write_atomic};
 pub use builtin::{builtin_sequence, BUILTIN_NAME};

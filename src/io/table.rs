@@ -57,99 +57,242 @@ fn columns(format: Format, dims: usize) -> Columns {
     }
 }
 
+/// One data row of a landmark table.
+pub struct Row<'a> {
+    /// The frame number (the row number for formats without one).
+    pub frame: i64,
+    /// The row's line in the file (for messages).
+    pub line: u64,
+    /// False for a frame the tracker marked as failed (its coordinates are not read).
+    pub tracked: bool,
+    /// The coordinates in shape order (empty for a failed frame).
+    pub coords: &'a [f64],
+    /// The time stamp, for formats with one.
+    pub time: Option<f64>,
+    /// The clip label, for formats with one.
+    pub segment: Option<&'a str>,
+}
+
+/// Frame numbers seen so far, kept as runs of consecutive frames on consecutive lines: a
+/// track's frames take one run (plus one per gap), not one entry each, so a streamed read
+/// stays in memory independent of its length and still names a duplicate's first line.
+#[derive(Default)]
+struct SeenFrames {
+    /// Run start → (length, line of its first frame).
+    runs: std::collections::BTreeMap<i64, (i64, u64)>,
+    /// The run the last frame went into.
+    last: Option<i64>,
+}
+
+impl SeenFrames {
+    /// Records `frame` on `line`; the line it was first seen on when it is a duplicate.
+    fn insert(&mut self, frame: i64, line: u64) -> Option<u64> {
+        if let Some((&s, &(len, l0))) = self.runs.range(..=frame).next_back() {
+            if frame - s < len {
+                return Some(l0 + (frame - s) as u64);
+            }
+        }
+        if let Some(s) = self.last {
+            let run = self.runs.get_mut(&s).expect("the last run is kept");
+            if frame == s + run.0 && line == run.1 + run.0 as u64 {
+                run.0 += 1;
+                return None;
+            }
+        }
+        self.runs.insert(frame, (1, line));
+        self.last = Some(frame);
+        None
+    }
+}
+
+/// A landmark table read row by row, from any reader: what [`read`] collects into a
+/// [`Sequence`], and what a streamed solve reads in constant memory.
+pub struct TableRows<R: std::io::Read> {
+    path: std::path::PathBuf,
+    rdr: csv::Reader<R>,
+    header: Vec<String>,
+    coord_cols: Vec<usize>,
+    valid_col: Option<usize>,
+    frame_col: Option<usize>,
+    time_col: Option<usize>,
+    seg_col: Option<usize>,
+    record: csv::StringRecord,
+    coords: Vec<f64>,
+    row: i64,
+    seen: SeenFrames,
+    dims: usize,
+}
+
+impl<R: std::io::Read> TableRows<R> {
+    /// Reads the header of a table of `format` from `reader` (`path` names it in errors).
+    pub fn new(path: &Path, reader: R, format: Format, dims: usize) -> Result<Self> {
+        let cols = columns(format, dims);
+        let mut rdr = csv::ReaderBuilder::new()
+            .trim(csv::Trim::All)
+            .flexible(true)
+            .has_headers(true)
+            .from_reader(reader);
+        let header: Vec<String> = rdr
+            .headers()
+            .map_err(|e| csv_error(path, &e))?
+            .iter()
+            .map(str::to_string)
+            .collect();
+        let index: HashMap<&str, usize> = header
+            .iter()
+            .enumerate()
+            .map(|(i, h)| (h.as_str(), i))
+            .collect();
+        let coord_cols = coordinate_columns(path, &index, &cols, dims, format)?;
+        let find = |name: Option<&str>| name.and_then(|n| index.get(n).copied());
+        let (valid_col, frame_col) = (find(cols.valid), find(cols.frame));
+        let (time_col, seg_col) = (find(cols.time), find(cols.segment));
+        Ok(TableRows {
+            path: path.to_path_buf(),
+            rdr,
+            coord_cols,
+            valid_col,
+            frame_col,
+            time_col,
+            seg_col,
+            header,
+            record: csv::StringRecord::new(),
+            coords: Vec::new(),
+            row: 0,
+            seen: SeenFrames::default(),
+            dims,
+        })
+    }
+
+    /// Points per shape.
+    pub fn points(&self) -> usize {
+        self.coord_cols.len() / self.dims
+    }
+
+    /// Values per shape (`dims × points`).
+    pub fn values(&self) -> usize {
+        self.coord_cols.len()
+    }
+
+    /// Whether rows carry a time stamp.
+    pub fn has_time(&self) -> bool {
+        self.time_col.is_some()
+    }
+
+    /// Whether rows carry a clip label.
+    pub fn has_segments(&self) -> bool {
+        self.seg_col.is_some()
+    }
+
+    /// The next data row (blank lines skipped), or None at the end.
+    pub fn next_row(&mut self) -> Result<Option<Row<'_>>> {
+        let path = self.path.as_path();
+        loop {
+            if !self
+                .rdr
+                .read_record(&mut self.record)
+                .map_err(|e| csv_error(path, &e))?
+            {
+                return Ok(None);
+            }
+            let record = &self.record;
+            let line = record.position().map_or(0, |p| p.line());
+            if record.len() == 1 && record.get(0) == Some("") {
+                continue; // blank line
+            }
+            if record.as_slice().len() > super::MAX_LINE_BYTES {
+                return Err(Error::parse(
+                    path,
+                    line,
+                    0,
+                    format!(
+                        "line is longer than {} bytes: not a text table",
+                        super::MAX_LINE_BYTES
+                    ),
+                ));
+            }
+            let header = &self.header;
+            if record.len() != header.len() {
+                let col = record.len().min(header.len()) as u64 + 1;
+                return Err(Error::parse(
+                    path,
+                    line,
+                    col,
+                    format!(
+                        "ragged row: {} fields, the header has {}",
+                        record.len(),
+                        header.len()
+                    ),
+                ));
+            }
+            let frame = match self.frame_col {
+                Some(c) => parse_int(path, line, c, &header[c], &record[c])?,
+                None => self.row,
+            };
+            self.row += 1;
+            if let Some(first) = self.seen.insert(frame, line) {
+                let c = self.frame_col.map_or(0, |c| c as u64 + 1);
+                return Err(Error::parse(
+                    path,
+                    line,
+                    c,
+                    format!("frame {frame} appears twice (first on line {first}): frame numbers must be unique"),
+                ));
+            }
+            let tracked = match self.valid_col {
+                Some(c) => parse_num(path, line, c, &header[c], &record[c])? != 0.0,
+                None => true,
+            };
+            self.coords.clear();
+            let mut time = None;
+            if tracked {
+                for &c in &self.coord_cols {
+                    self.coords
+                        .push(parse_num(path, line, c, &header[c], &record[c])?);
+                }
+                if let Some(c) = self.time_col {
+                    time = Some(parse_num(path, line, c, &header[c], &record[c])?);
+                }
+            }
+            return Ok(Some(Row {
+                frame,
+                line,
+                tracked,
+                coords: &self.coords,
+                time,
+                segment: self.seg_col.map(|c| &self.record[c]),
+            }));
+        }
+    }
+}
+
 /// Reads a landmark table of the given format.
 pub(super) fn read(path: &Path, text: &str, format: Format, dims: usize) -> Result<Sequence> {
-    let cols = columns(format, dims);
-    let mut rdr = csv::ReaderBuilder::new()
-        .trim(csv::Trim::All)
-        .flexible(true)
-        .has_headers(true)
-        .from_reader(text.as_bytes());
-    let header: Vec<String> = rdr
-        .headers()
-        .map_err(|e| csv_error(path, &e))?
-        .iter()
-        .map(str::to_string)
-        .collect();
-    let index: HashMap<&str, usize> = header
-        .iter()
-        .enumerate()
-        .map(|(i, h)| (h.as_str(), i))
-        .collect();
-    let coord_cols = coordinate_columns(path, &index, &cols, dims, format)?;
-    let find = |name: Option<&str>| name.and_then(|n| index.get(n).copied());
-    let (valid_col, frame_col) = (find(cols.valid), find(cols.frame));
-    let (time_col, seg_col) = (find(cols.time), find(cols.segment));
-
+    let mut rows = TableRows::new(path, text.as_bytes(), format, dims)?;
+    let width = rows.values();
     // Room for every line up front: growing by doubling would hold up to twice the
     // coordinates while the last copy is made.
     let lines = text.bytes().filter(|&b| b == b'\n').count() + 1;
     // (Each value takes at least two bytes with its comma, which bounds a hostile guess.)
-    let mut data = Vec::with_capacity(
-        lines
-            .saturating_mul(coord_cols.len())
-            .min(text.len() / 2 + 1),
-    );
+    let mut data = Vec::with_capacity(lines.saturating_mul(width).min(text.len() / 2 + 1));
     let (mut frames, mut failed) = (Vec::with_capacity(lines), Vec::new());
     let (mut times, mut segments) = (Vec::new(), Vec::new());
-    let mut record = csv::StringRecord::new();
-    let mut row = 0i64;
-    let mut seen: HashMap<i64, u64> = HashMap::new();
-    while rdr
-        .read_record(&mut record)
-        .map_err(|e| csv_error(path, &e))?
-    {
-        let line = record.position().map_or(0, |p| p.line());
-        if record.len() == 1 && record.get(0) == Some("") {
-            continue; // blank line
-        }
-        if record.len() != header.len() {
-            let col = record.len().min(header.len()) as u64 + 1;
-            return Err(Error::parse(
-                path,
-                line,
-                col,
-                format!(
-                    "ragged row: {} fields, the header has {}",
-                    record.len(),
-                    header.len()
-                ),
-            ));
-        }
-        let frame = match frame_col {
-            Some(c) => parse_int(path, line, c, &header[c], &record[c])?,
-            None => row,
-        };
-        row += 1;
-        if let Some(first) = seen.insert(frame, line) {
-            let c = frame_col.map_or(0, |c| c as u64 + 1);
-            return Err(Error::parse(
-                path,
-                line,
-                c,
-                format!("frame {frame} appears twice (first on line {first}): frame numbers must be unique"),
-            ));
-        }
-        let ok = match valid_col {
-            Some(c) => parse_num(path, line, c, &header[c], &record[c])? != 0.0,
-            None => true,
-        };
-        if !ok {
-            failed.push(frame);
+    let (has_time, has_segments) = (rows.has_time(), rows.has_segments());
+    while let Some(r) = rows.next_row()? {
+        if !r.tracked {
+            failed.push(r.frame);
             continue;
         }
-        for &c in &coord_cols {
-            data.push(parse_num(path, line, c, &header[c], &record[c])?);
+        data.extend_from_slice(r.coords);
+        frames.push(r.frame);
+        if let Some(t) = r.time {
+            times.push(t);
         }
-        frames.push(frame);
-        if let Some(c) = time_col {
-            times.push(parse_num(path, line, c, &header[c], &record[c])?);
-        }
-        if let Some(c) = seg_col {
-            segments.push(record[c].to_string());
+        if let Some(s) = r.segment {
+            segments.push(s.to_string());
         }
     }
-    let points = coord_cols.len() / dims;
+    let points = rows.points();
     let n = frames.len();
     Ok(Sequence {
         source: path.display().to_string(),
@@ -158,8 +301,8 @@ pub(super) fn read(path: &Path, text: &str, format: Format, dims: usize) -> Resu
         points,
         coords: DMatrix::from_vec(dims * points, n, data),
         frames,
-        times: time_col.map(|_| times),
-        segments: seg_col.map(|_| segments),
+        times: has_time.then_some(times),
+        segments: has_segments.then_some(segments),
         failed,
     })
 }
