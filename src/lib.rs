@@ -47,6 +47,7 @@ pub mod retarget;
 pub mod rig;
 pub mod sequence;
 pub mod solve;
+pub mod stream;
 pub mod transfer;
 pub mod tui;
 

@@ -64,6 +64,13 @@ pub struct SolveArgs {
     /// acceleration: lags less). Needs --smooth [default: 1].
     #[arg(long, requires = "smooth")]
     smooth_order: Option<usize>,
+    /// Stream: read FILE (a CSV table, gzipped or not) in passes and write each chunk of
+    /// weights as soon as it is solved, in memory independent of the track's length (for
+    /// hour-long tracks). The weights are exactly those of the in-memory solve; alignment
+    /// costs one pass over the file per Procrustes round. Needs FILE; refuses --png,
+    /// --json and the offline temporal prior (--smooth-mode causal streams).
+    #[arg(long, conflicts_with_all = ["png", "json"])]
+    stream: bool,
 }
 
 fn parse_mode(s: &str) -> Result<SmoothMode, String> {
@@ -96,6 +103,9 @@ pub fn run(a: &SolveArgs) -> Result<()> {
         &[a.input.file.as_deref()],
     )?;
     super::check_json_stdout(a.json, a.out.as_ref())?;
+    if a.stream {
+        return run_stream(a, smoothing);
+    }
     let progress = super::progress::Progress::new("solve");
     let (_, prep) = a.input.prepare()?;
     let seq = &prep.seq;
@@ -213,6 +223,130 @@ pub fn run(a: &SolveArgs) -> Result<()> {
             d.mean_rms(),
             100.0 * d.negative_share(),
             d.max_abs_weight(),
+            p.display()
+        );
+    }
+    Ok(())
+}
+
+/// `kslab solve --stream`: [`keyshape_lab::stream::stream_solve`] into the CSV as it goes.
+fn run_stream(a: &SolveArgs, smoothing: Option<Smoothing>) -> Result<()> {
+    use keyshape_lab::stream::{stream_solve, StreamOptions};
+    let Some(path) = a.input.file.as_deref() else {
+        anyhow::bail!("--stream reads a FILE in several passes: give one (the built-in sequence is 216 frames: drop --stream)");
+    };
+    if let Some(sm) = &smoothing {
+        if sm.mode == SmoothMode::Offline {
+            anyhow::bail!(
+                "--stream with --smooth: the offline prior solves the whole sequence at once; add --smooth-mode causal (each frame from the past only), or drop --stream"
+            );
+        }
+    }
+    let mut opts = SolveOptions::new(a.solver);
+    opts.rcond = a.rcond;
+    let so = StreamOptions {
+        format: a.input.format,
+        dims: usize::from(a.input.dims),
+        points: a.input.points.clone(),
+        align: !a.input.no_align,
+        keys: a.keys.clone(),
+        neutral: a.neutral,
+        solve: opts,
+        smoothing,
+    };
+    let header = {
+        let mut h = String::from("frame,rms");
+        for k in &a.keys {
+            h.push_str(&format!(",w_{k}"));
+        }
+        h
+    };
+    // The stream's own error, kept while the writer sees only that it stopped.
+    let mut failure: Option<keyshape_lab::error::Error> = None;
+    let mut summary = None;
+    let mut fill = |w: &mut dyn Write| -> std::io::Result<()> {
+        // The header goes out with the first frame: an error found while the passes before
+        // the solve check the input leaves standard output empty.
+        let mut line = format!("{header}\n");
+        let mut io_err: Option<std::io::Error> = None;
+        let r = stream_solve(path, &so, &mut |f| {
+            line.push_str(&format!("{},{}", f.frame, fmt_num(f.rms)));
+            for v in f.weights {
+                line.push(',');
+                line.push_str(&fmt_num(*v));
+            }
+            line.push('\n');
+            let r = w.write_all(line.as_bytes()).map_err(|e| {
+                let msg = e.to_string();
+                io_err = Some(e);
+                keyshape_lab::error::Error::invalid(msg)
+            });
+            line.clear();
+            r
+        });
+        match r {
+            Ok(s) => {
+                summary = Some(s);
+                Ok(())
+            }
+            Err(e) => {
+                if let Some(ioe) = io_err.take() {
+                    return Err(ioe);
+                }
+                failure = Some(e);
+                Err(std::io::Error::other("the streamed solve failed"))
+            }
+        }
+    };
+    let written = match &a.out {
+        Some(p) => write_atomic(p, &mut fill).map_err(anyhow::Error::from),
+        None => {
+            let stdout = std::io::stdout();
+            let mut lock = std::io::BufWriter::new(stdout.lock());
+            match fill(&mut lock).and_then(|()| lock.flush()) {
+                // `kslab solve … | head` closes the pipe early: not an error.
+                Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => return Ok(()),
+                r => r.map_err(anyhow::Error::from),
+            }
+        }
+    };
+    if let Some(e) = failure {
+        return Err(e.into());
+    }
+    written?;
+    let Some(s) = summary else {
+        anyhow::bail!("the streamed solve stopped without a result");
+    };
+    if s.rank < a.keys.len() {
+        eprintln!(
+            "warning: the {} key shapes span only {} dimensions (duplicate or dependent shapes); \
+             LS returns the minimum-norm weights",
+            a.keys.len(),
+            s.rank
+        );
+    } else if s.condition > 1e8 {
+        eprintln!(
+            "warning: key shapes are nearly dependent (condition number {:.2e})",
+            s.condition
+        );
+    }
+    if s.unconverged > 0 {
+        eprintln!(
+            "warning: {} frames hit the active-set iteration cap",
+            s.unconverged
+        );
+    }
+    if let Some(p) = &a.out {
+        sayln!(
+            super::is_stdout(a.out.as_ref()),
+            "{} frames ({} failed, skipped), {} keys, {}, streamed in {} passes ({} Procrustes rounds): overall RMS {:.4} → {}",
+            s.frames,
+            s.failed,
+            a.keys.len(),
+            a.solver,
+            s.passes,
+            s.align_rounds,
+            (s.total_sq_error / (s.frames * s.points).max(1) as f64).sqrt(),
             p.display()
         );
     }

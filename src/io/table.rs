@@ -92,10 +92,13 @@ impl SeenFrames {
                 return Some(l0 + (frame - s) as u64);
             }
         }
-        if let Some(s) = self.last {
-            let run = self.runs.get_mut(&s).expect("the last run is kept");
-            if frame == s + run.0 && line == run.1 + run.0 as u64 {
-                run.0 += 1;
+        if let Some(run) = self
+            .last
+            .and_then(|s| self.runs.get_mut(&s).map(|r| (s, r)))
+        {
+            let (s, (len, l0)) = run;
+            if frame == s + *len && line == *l0 + *len as u64 {
+                *len += 1;
                 return None;
             }
         }
@@ -105,11 +108,77 @@ impl SeenFrames {
     }
 }
 
+/// A reader that notes where the lines of what passes through it have content, so a
+/// record's position gives its true line. The csv crate positions a record where parsing
+/// resumed after the previous one — before any blank lines it skips, and on the `\n` of a
+/// CRLF — so its own line count is off after a blank line and with CRLF line ends. Only
+/// the lines read ahead of the last record asked about are kept: memory does not grow with
+/// the file.
+struct LineIndex<R> {
+    inner: R,
+    /// Bytes read so far.
+    pos: u64,
+    /// Lines read but not yet passed: (offset of their `\n`, offset of their first byte
+    /// that is not `\r` or `\n`, if any).
+    lines: std::collections::VecDeque<(u64, Option<u64>)>,
+    /// The first content byte of the line being read.
+    open: Option<u64>,
+    /// Lines already passed.
+    passed: u64,
+}
+
+impl<R> LineIndex<R> {
+    fn new(inner: R) -> Self {
+        LineIndex {
+            inner,
+            pos: 0,
+            lines: Default::default(),
+            open: None,
+            passed: 0,
+        }
+    }
+
+    /// The line (from 1) of the first content at or after byte `at`; calls must not go
+    /// backwards.
+    fn line_at(&mut self, at: u64) -> u64 {
+        while self.lines.front().is_some_and(|&(nl, _)| nl < at) {
+            self.lines.pop_front();
+            self.passed += 1;
+        }
+        let mut line = self.passed + 1;
+        for &(_, first) in &self.lines {
+            if first.is_some_and(|c| c >= at) {
+                return line;
+            }
+            line += 1;
+        }
+        line
+    }
+}
+
+impl<R: std::io::Read> std::io::Read for LineIndex<R> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        let n = self.inner.read(buf)?;
+        for (i, b) in buf[..n].iter().enumerate() {
+            let at = self.pos + i as u64;
+            match b {
+                b'\n' => self.lines.push_back((at, self.open.take())),
+                b'\r' => {}
+                _ => {
+                    self.open.get_or_insert(at);
+                }
+            }
+        }
+        self.pos += n as u64;
+        Ok(n)
+    }
+}
+
 /// A landmark table read row by row, from any reader: what [`read`] collects into a
 /// [`Sequence`], and what a streamed solve reads in constant memory.
 pub struct TableRows<R: std::io::Read> {
     path: std::path::PathBuf,
-    rdr: csv::Reader<R>,
+    rdr: csv::Reader<LineIndex<R>>,
     header: Vec<String>,
     coord_cols: Vec<usize>,
     valid_col: Option<usize>,
@@ -131,10 +200,10 @@ impl<R: std::io::Read> TableRows<R> {
             .trim(csv::Trim::All)
             .flexible(true)
             .has_headers(true)
-            .from_reader(reader);
+            .from_reader(LineIndex::new(reader));
         let header: Vec<String> = rdr
             .headers()
-            .map_err(|e| csv_error(path, &e))?
+            .map_err(|e| csv_error(path, &e, None))?
             .iter()
             .map(str::to_string)
             .collect();
@@ -188,15 +257,19 @@ impl<R: std::io::Read> TableRows<R> {
     pub fn next_row(&mut self) -> Result<Option<Row<'_>>> {
         let path = self.path.as_path();
         loop {
-            if !self
-                .rdr
-                .read_record(&mut self.record)
-                .map_err(|e| csv_error(path, &e))?
-            {
-                return Ok(None);
+            match self.rdr.read_record(&mut self.record) {
+                Ok(true) => {}
+                Ok(false) => return Ok(None),
+                Err(e) => {
+                    let line = e.position().map(|p| self.rdr.get_mut().line_at(p.byte()));
+                    return Err(csv_error(path, &e, line));
+                }
             }
+            let line = match self.record.position() {
+                Some(p) => self.rdr.get_mut().line_at(p.byte()),
+                None => 0,
+            };
             let record = &self.record;
-            let line = record.position().map_or(0, |p| p.line());
             if record.len() == 1 && record.get(0) == Some("") {
                 continue; // blank line
             }
@@ -391,8 +464,9 @@ fn coordinate_columns(
     Ok(out)
 }
 
-fn csv_error(path: &Path, e: &csv::Error) -> Error {
-    let line = e.position().map_or(0, |p| p.line());
+/// A csv error at `line` (None: the line the csv crate counted).
+fn csv_error(path: &Path, e: &csv::Error, line: Option<u64>) -> Error {
+    let line = line.unwrap_or_else(|| e.position().map_or(0, |p| p.line()));
     Error::parse(path, line, 0, format!("CSV error: {e}"))
 }
 

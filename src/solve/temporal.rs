@@ -1294,6 +1294,123 @@ fn projected_newton(
     Ok((w, NEWTON_ITERATIONS as u64))
 }
 
+/// What every frame of a causal solve shares: the Gram forms with and without the prior.
+pub struct CausalShared {
+    k: usize,
+    solver: Solver,
+    sm: Smoothing,
+    gram_l: Gram,
+    gram_0: Gram,
+    pinv_0: DMatrix<f64>,
+    chol_l: nalgebra::Cholesky<f64, nalgebra::Dyn>,
+}
+
+/// One segment's running state of a causal solve: the weights of the last two frames and
+/// the active-set workspaces. Frames go in one at a time ([`CausalShared::step`]), so the
+/// solve runs as the frames arrive (a streamed solve feeds it chunk after chunk).
+pub struct CausalState {
+    ws0: Workspace,
+    wsl: Workspace,
+    prev: Vec<f64>,
+    prev2: Vec<f64>,
+    /// Frames of the segment so far.
+    pub frames: usize,
+    /// Active-set iterations so far.
+    pub iterations: u64,
+    /// Frames that hit the active-set iteration cap.
+    pub unconverged: usize,
+}
+
+impl CausalShared {
+    /// From `G = SᵀS`, for `solver` under the prior `sm` (its mode is not looked at).
+    pub fn new(g: &DMatrix<f64>, solver: Solver, sm: &Smoothing) -> Result<CausalShared> {
+        sm.check()?;
+        let k = g.nrows();
+        let upper = match solver {
+            Solver::Bounded => 1.0,
+            _ => f64::INFINITY,
+        };
+        let mut gl = g.clone();
+        for i in 0..k {
+            gl[(i, i)] += sm.lambda;
+        }
+        let gram_l = Gram::from_matrix(&gl, upper);
+        let gram_0 = Gram::from_matrix(g, upper);
+        let pinv_0 = super::lstsq::gram_pseudo_inverse(g, None);
+        let chol_l = gl
+            .clone()
+            .cholesky()
+            .ok_or_else(|| Error::invalid("temporal prior: SᵀS + λI is not positive definite"))?;
+        Ok(CausalShared {
+            k,
+            solver,
+            sm: *sm,
+            gram_l,
+            gram_0,
+            pinv_0,
+            chol_l,
+        })
+    }
+
+    /// A fresh segment's state.
+    pub fn start(&self) -> CausalState {
+        CausalState {
+            ws0: Workspace::new(self.k),
+            wsl: Workspace::new(self.k),
+            prev: vec![0.0; self.k],
+            prev2: vec![0.0; self.k],
+            frames: 0,
+            iterations: 0,
+            unconverged: 0,
+        }
+    }
+
+    /// The next frame's weights into `w` from its `bt = Sᵀq_t`.
+    pub fn step(&self, st: &mut CausalState, bt: &[f64], w: &mut [f64]) {
+        let (k, sm) = (self.k, &self.sm);
+        let i = st.frames;
+        // The prediction from the past; the segment's first frame has none.
+        let pred: Option<Vec<f64>> = match (i, sm.order) {
+            (0, _) => None,
+            (1, _) | (_, 1) => Some(st.prev.clone()),
+            _ => Some((0..k).map(|x| 2.0 * st.prev[x] - st.prev2[x]).collect()),
+        };
+        let rhs: Vec<f64> = match &pred {
+            None => bt.to_vec(),
+            Some(p) => (0..k).map(|x| bt[x] + sm.lambda * p[x]).collect(),
+        };
+        let out: Vec<f64> = match (self.solver, pred.is_some()) {
+            (Solver::Ls, true) => self
+                .chol_l
+                .solve(&nalgebra::DVector::from_vec(rhs))
+                .iter()
+                .copied()
+                .collect(),
+            (Solver::Ls, false) => (&self.pinv_0 * nalgebra::DVector::from_vec(rhs))
+                .iter()
+                .copied()
+                .collect(),
+            (_, with_prior) => {
+                let (gram, ws) = if with_prior {
+                    (&self.gram_l, &mut st.wsl)
+                } else {
+                    (&self.gram_0, &mut st.ws0)
+                };
+                let mut w = vec![0.0; k];
+                let mut state = vec![Bound::Lower; k];
+                let rep = solve_frame(gram, &rhs, &mut w, &mut state, ws);
+                st.iterations += u64::from(rep.iterations);
+                st.unconverged += usize::from(!rep.converged);
+                w
+            }
+        };
+        std::mem::swap(&mut st.prev, &mut st.prev2);
+        st.prev.copy_from_slice(&out);
+        w.copy_from_slice(&out);
+        st.frames += 1;
+    }
+}
+
 fn causal(
     g: &DMatrix<f64>,
     b: &DMatrix<f64>,
@@ -1302,71 +1419,17 @@ fn causal(
     segments: &[Range<usize>],
 ) -> Result<Smoothed> {
     let k = g.nrows();
-    let upper = match solver {
-        Solver::Bounded => 1.0,
-        _ => f64::INFINITY,
-    };
-    let mut gl = g.clone();
-    for i in 0..k {
-        gl[(i, i)] += sm.lambda;
-    }
-    let gram_l = Gram::from_matrix(&gl, upper);
-    let gram_0 = Gram::from_matrix(g, upper);
-    let pinv_0 = super::lstsq::gram_pseudo_inverse(g, None);
-    let chol_l = gl
-        .clone()
-        .cholesky()
-        .ok_or_else(|| Error::invalid("temporal prior: SᵀS + λI is not positive definite"))?;
+    let shared = CausalShared::new(g, solver, sm)?;
     let parts: Vec<(Vec<f64>, u64, usize)> = segments
         .par_iter()
         .map(|r| {
             let mut out = vec![0.0; r.len() * k];
-            // One workspace per Gram form: a workspace caches the factor of its free set.
-            let (mut ws0, mut wsl) = (Workspace::new(k), Workspace::new(k));
-            let (mut iters, mut bad) = (0u64, 0usize);
+            let mut st = shared.start();
             for (i, col) in r.clone().enumerate() {
-                let bt = b.column(col);
-                // The prediction from the past; the segment's first frame has none.
-                let pred: Option<Vec<f64>> = match (i, sm.order) {
-                    (0, _) => None,
-                    (1, _) | (_, 1) => Some(out[(i - 1) * k..i * k].to_vec()),
-                    _ => Some(
-                        (0..k)
-                            .map(|x| 2.0 * out[(i - 1) * k + x] - out[(i - 2) * k + x])
-                            .collect(),
-                    ),
-                };
-                let rhs: Vec<f64> = match &pred {
-                    None => bt.iter().copied().collect(),
-                    Some(p) => (0..k).map(|x| bt[x] + sm.lambda * p[x]).collect(),
-                };
-                let w: Vec<f64> = match (solver, pred.is_some()) {
-                    (Solver::Ls, true) => chol_l
-                        .solve(&nalgebra::DVector::from_vec(rhs))
-                        .iter()
-                        .copied()
-                        .collect(),
-                    (Solver::Ls, false) => (&pinv_0 * nalgebra::DVector::from_vec(rhs))
-                        .iter()
-                        .copied()
-                        .collect(),
-                    (_, with_prior) => {
-                        let (gram, ws) = if with_prior {
-                            (&gram_l, &mut wsl)
-                        } else {
-                            (&gram_0, &mut ws0)
-                        };
-                        let mut w = vec![0.0; k];
-                        let mut state = vec![Bound::Lower; k];
-                        let rep = solve_frame(gram, &rhs, &mut w, &mut state, ws);
-                        iters += u64::from(rep.iterations);
-                        bad += usize::from(!rep.converged);
-                        w
-                    }
-                };
-                out[i * k..(i + 1) * k].copy_from_slice(&w);
+                let bt: Vec<f64> = b.column(col).iter().copied().collect();
+                shared.step(&mut st, &bt, &mut out[i * k..(i + 1) * k]);
             }
-            (out, iters, bad)
+            (out, st.iterations, st.unconverged)
         })
         .collect();
     let mut weights = DMatrix::zeros(k, b.ncols());
@@ -1382,6 +1445,10 @@ fn causal(
         ));
     }
     // Causal weights satisfy per-frame KKT conditions; report the worst of them.
+    let mut gl = g.clone();
+    for i in 0..k {
+        gl[(i, i)] += sm.lambda;
+    }
     let mut kkt = 0.0f64;
     for r in segments {
         for (i, col) in r.clone().enumerate() {

@@ -22,6 +22,7 @@ mod rig;
 mod scale;
 mod smoothing;
 mod solvers;
+mod stream;
 mod svg_transforms;
 mod temporal;
 mod transfer;

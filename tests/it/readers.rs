@@ -140,3 +140,39 @@ fn layouts_select_groups_on_real_tracks() {
     let ib = Layout::ibug68().select("lips").unwrap();
     assert_eq!(ib, (48..68).collect::<Vec<_>>());
 }
+
+/// Duplicate frames are found, with the line they first appeared on, wherever they fall:
+/// inside a run of consecutive frames, at a run's ends, after a gap or a blank line, out of
+/// order (the reader keeps runs of frames, not one entry per frame).
+#[test]
+fn duplicate_frames_name_their_first_line_inside_and_across_runs() {
+    let d = tempfile::tempdir().unwrap();
+    // Lines: 1 header, 2–5 frames 10–13, 6 blank, 7 frame 14, 8 frame 20, 9 frame 5.
+    let body = "frame,x0,y0,x1,y1\n10,0,0,1,1\n11,0,0,1,2\n12,0,0,1,3\n13,0,0,1,4\n\n14,0,0,1,5\n20,0,0,1,6\n5,0,0,1,7\n";
+    for (dup, first) in [(10, 2), (12, 4), (13, 5), (14, 7), (20, 8), (5, 9)] {
+        let p = d.path().join(format!("dup{dup}.csv"));
+        std::fs::write(&p, format!("{body}{dup},0,0,1,9\n")).unwrap();
+        let e = read_sequence(
+            &p,
+            &ReadOptions {
+                format: None,
+                dims: 2,
+            },
+        )
+        .unwrap_err();
+        let want = format!("dup{dup}.csv:10:1: frame {dup} appears twice (first on line {first})");
+        assert!(e.to_string().contains(&want), "{e} (want {want})");
+    }
+    // Frames that only neighbour earlier ones are fine.
+    let p = d.path().join("ok.csv");
+    std::fs::write(&p, format!("{body}15,0,0,1,9\n9,0,0,1,9\n21,0,0,1,9\n")).unwrap();
+    let s = read_sequence(
+        &p,
+        &ReadOptions {
+            format: None,
+            dims: 2,
+        },
+    )
+    .unwrap();
+    assert_eq!(s.frames, [10, 11, 12, 13, 14, 20, 5, 15, 9, 21]);
+}

@@ -17,12 +17,12 @@ pub struct ScaleArgs {
     /// Points per frame: 68 (iBUG, through the built-in 468 → 68 correspondence) or 468.
     #[arg(long, default_value_t = 68)]
     points: usize,
-    /// What to run: solve (16 keys, nnls), kmeans2 (`keys --method kmeans2 --k 16`),
+    /// What to run: solve (16 keys, nnls), stream (the same with `--stream`), kmeans2 (`keys --method kmeans2 --k 16`),
     /// greedy (`keys --method greedy --k 16`), curves (`curves --k 2..16`, default methods).
     #[arg(
         long,
         value_delimiter = ',',
-        default_value = "solve,kmeans2,greedy,curves"
+        default_value = "solve,stream,kmeans2,greedy,curves"
     )]
     steps: Vec<String>,
     /// Only write one generated track (the first of --frames) to this file, and stop.
@@ -52,7 +52,7 @@ struct Measure {
     error: String,
 }
 
-const STEPS: [&str; 4] = ["solve", "kmeans2", "greedy", "curves"];
+const STEPS: [&str; 5] = ["solve", "stream", "kmeans2", "greedy", "curves"];
 
 pub fn run(a: &ScaleArgs) -> Result<()> {
     if let Some(bad) = a.steps.iter().find(|s| !STEPS.contains(&s.as_str())) {
@@ -101,6 +101,17 @@ pub fn run(a: &ScaleArgs) -> Result<()> {
                     keys.join(","),
                     "--solver".into(),
                     "nnls".into(),
+                    "--out".into(),
+                    out,
+                ],
+                "stream" => vec![
+                    "solve".into(),
+                    t.clone(),
+                    "--keys".into(),
+                    keys.join(","),
+                    "--solver".into(),
+                    "nnls".into(),
+                    "--stream".into(),
                     "--out".into(),
                     out,
                 ],
