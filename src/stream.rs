@@ -67,6 +67,10 @@ pub struct StreamSummary {
     pub unconverged: usize,
     /// Total squared error (paper 000 Eq. 5).
     pub total_sq_error: f64,
+    /// Mean of the per-frame RMS (as [`crate::decompose::Decomposition::mean_rms`]).
+    pub mean_rms: f64,
+    /// Largest |w|.
+    pub max_abs_weight: f64,
 }
 
 /// One frame's result, handed to the caller in frame order.
@@ -357,6 +361,7 @@ pub fn stream_solve(
     let mut state = causal.as_ref().map(|c| c.start());
     let mut last: Option<(i64, Option<String>)> = None;
     let (mut unconverged, mut total) = (0usize, 0.0f64);
+    let (mut rms_sum, mut wmax) = (0.0f64, 0.0f64);
     let mut wbuf = vec![0.0; k];
     let mut flush = |chunk: &DMatrix<f64>,
                      frames: &[i64],
@@ -396,9 +401,12 @@ pub fn stream_solve(
                 )));
             }
             total += err[t];
+            let rms = (err[t] / selected.len() as f64).sqrt();
+            rms_sum += rms;
+            wmax = w.iter().fold(wmax, |m, x| m.max(x.abs()));
             sink(FrameWeights {
                 frame: frames[t],
-                rms: (err[t] / selected.len() as f64).sqrt(),
+                rms,
                 weights: w.as_slice(),
             })?;
         }
@@ -434,5 +442,7 @@ pub fn stream_solve(
         condition: pinv.condition,
         unconverged,
         total_sq_error: total,
+        mean_rms: rms_sum / n as f64,
+        max_abs_weight: wmax,
     })
 }

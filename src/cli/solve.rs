@@ -339,14 +339,15 @@ fn run_stream(a: &SolveArgs, smoothing: Option<Smoothing>) -> Result<()> {
     if let Some(p) = &a.out {
         sayln!(
             super::is_stdout(a.out.as_ref()),
-            "{} frames ({} failed, skipped), {} keys, {}, streamed in {} passes ({} Procrustes rounds): overall RMS {:.4} → {}",
+            "{} frames ({} failed, skipped), {} keys, {}, streamed in {} passes ({} Procrustes rounds): mean RMS {:.4}, max |w| {:.3} → {}",
             s.frames,
             s.failed,
             a.keys.len(),
             a.solver,
             s.passes,
             s.align_rounds,
-            (s.total_sq_error / (s.frames * s.points).max(1) as f64).sqrt(),
+            s.mean_rms,
+            s.max_abs_weight,
             p.display()
         );
     }

@@ -281,3 +281,33 @@ fn stream_refusals() {
     assert!(r.stderr.contains("oops"), "{}", r.stderr);
     assert!(!out.exists());
 }
+
+/// The streamed summary line reports the in-memory solve's mean RMS and largest |w|.
+#[test]
+fn the_streamed_summary_matches_the_in_memory_one() {
+    let news = shared("pyfeat_samples/news_sample_compact.csv");
+    let n = news.to_str().unwrap();
+    let d = tempfile::tempdir().unwrap();
+    let o = d.path().join("w.csv");
+    let o = o.to_str().unwrap();
+    // "mean RMS x" and "max |w| y" of a summary line.
+    let pick = |s: &str| -> (String, String) {
+        let field = |name: &str| {
+            let a = s.find(name).unwrap_or_else(|| panic!("{name} in {s}")) + name.len();
+            s[a..]
+                .split([',', ' '])
+                .find(|t| !t.is_empty())
+                .unwrap()
+                .to_string()
+        };
+        (field("mean RMS"), field("max |w|"))
+    };
+    for solver in ["nnls", "ls", "bounded"] {
+        let b = kslab(&["solve", n, "--keys", "3,17,42", "--solver", solver, "-o", o]);
+        let s = kslab(&[
+            "solve", n, "--keys", "3,17,42", "--solver", solver, "-o", o, "--stream",
+        ]);
+        assert_eq!((b.code, s.code), (0, 0));
+        assert_eq!(pick(&b.stdout), pick(&s.stdout), "{solver}");
+    }
+}

@@ -131,7 +131,14 @@ pub fn run(a: &CurvesBenchArgs) -> Result<()> {
     let mut together = f64::INFINITY;
     for _ in 0..3 {
         let t = Instant::now();
-        std::hint::black_box(sweep(&an, &methods, 2..=a.kmax, &[Solver::Nnls], &opts, &|_, _| {})?);
+        std::hint::black_box(sweep(
+            &an,
+            &methods,
+            2..=a.kmax,
+            &[Solver::Nnls],
+            &opts,
+            &|_, _| {},
+        )?);
         together = together.min(t.elapsed().as_secs_f64());
     }
     outln!(
