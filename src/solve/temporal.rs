@@ -185,6 +185,8 @@ pub struct BandedSystem {
     outer: Vec<f64>,
     /// The mask it was factorised with (`fixed[s * k + i]`), for [`Self::factor_reusing`].
     fixed: Vec<bool>,
+    /// Block rows copied from the earlier factorisation instead of computed.
+    copied: usize,
 }
 
 /// `a · b` over the shorter length, in four independent sums so the compiler can vectorise
@@ -330,6 +332,7 @@ impl BandedSystem {
             None => vec![false; t],
         };
         let mut same_row = vec![false; t];
+        let mut copied = 0;
         // The row of frame s (its stored blocks) occupies one contiguous range.
         let row_range = |off: &[usize], s: usize, len: usize| {
             let a = off[s * (p + 1)];
@@ -351,6 +354,7 @@ impl BandedSystem {
                 l[dst].copy_from_slice(&o.l[src]);
                 inv[fstart[s]..fstart[s + 1]].copy_from_slice(&o.inv[o.fstart[s]..o.fstart[s + 1]]);
                 same_row[s] = true;
+                copied += 1;
                 continue;
             }
             for j in (1..=p.min(s)).rev() {
@@ -472,6 +476,7 @@ impl BandedSystem {
             inv,
             outer,
             fixed: fixed.to_vec(),
+            copied,
         })
     }
 
@@ -797,6 +802,15 @@ impl SegmentSystem {
             xb,
             c,
         })))
+    }
+
+    /// Block rows (frames) copied from the earlier factorisation `factor_reusing` was given,
+    /// instead of computed: what the reuse saved.
+    pub fn copied_rows(&self) -> usize {
+        match self {
+            SegmentSystem::One(b) => b.copied,
+            SegmentSystem::Split(sp) => sp.a.copied + sp.b.copied,
+        }
     }
 
     /// Solves `H x = rhs` in place, as [`BandedSystem::solve`].

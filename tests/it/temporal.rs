@@ -511,7 +511,75 @@ proptest! {
         for i in 0..x1.len() {
             prop_assert_eq!(x1[i].to_bits(), x2[i].to_bits(), "at {}: {} vs {}", i, x1[i], x2[i]);
         }
+        // The reuse takes effect: the frames before the first changed one, at least, are
+        // copied (in the one-sweep factorisation; the two-ended one copies per half).
+        prop_assert_eq!(fresh.copied_rows(), 0);
+        let changed_frames: Vec<usize> = (0..t)
+            .filter(|&f| first[f * k..(f + 1) * k] != second[f * k..(f + 1) * k])
+            .collect();
+        match changed_frames.first() {
+            None => prop_assert_eq!(reused.copied_rows(), t - usize::from(split && t >= 4 * order + 4) * order),
+            Some(&f0) if !split => prop_assert!(reused.copied_rows() >= f0, "{} copied, first change at {}", reused.copied_rows(), f0),
+            Some(_) => {}
+        }
     }
+}
+
+/// An earlier factorisation of another segment length or order is not reused (its rows
+/// do not line up): the result is the fresh one and nothing is copied.
+#[test]
+fn an_incompatible_earlier_factorisation_is_not_reused() {
+    use keyshape_lab::solve::temporal::{difference_bands, SegmentSystem};
+    let seed: Vec<f64> = (0..40)
+        .map(|i| ((i * 37 % 17) as f64 - 8.0) / 9.0)
+        .collect();
+    let (s, _) = problem(8, 3, 2, &seed, false);
+    let g = s.transpose() * &s;
+    let (t, k) = (12, 3);
+    let fixed: Vec<bool> = (0..t * k).map(|i| i % 4 == 0).collect();
+    let fresh =
+        SegmentSystem::factor(&g, 5.0, &difference_bands(1, t), &fixed, 1e-12, false).unwrap();
+    let rhs: Vec<f64> = (0..t * k).map(|i| seed[i % seed.len()]).collect();
+    let mut want = rhs.clone();
+    fresh.solve(&mut want);
+    for (ot, order) in [(t + 1, 1), (t - 1, 1), (t, 2)] {
+        let ofixed: Vec<bool> = (0..ot * k).map(|i| i % 4 == 0).collect();
+        let old =
+            SegmentSystem::factor(&g, 5.0, &difference_bands(order, ot), &ofixed, 1e-12, false)
+                .unwrap();
+        let re = SegmentSystem::factor_reusing(
+            &g,
+            5.0,
+            &difference_bands(1, t),
+            &fixed,
+            1e-12,
+            false,
+            Some(&old),
+            None,
+        )
+        .unwrap();
+        assert_eq!(
+            re.copied_rows(),
+            0,
+            "reused rows of a {ot}-frame order-{order} factor"
+        );
+        let mut got = rhs.clone();
+        re.solve(&mut got);
+        assert_eq!(got, want);
+    }
+    // The same segment and order is reused whole when nothing changed.
+    let same = SegmentSystem::factor_reusing(
+        &g,
+        5.0,
+        &difference_bands(1, t),
+        &fixed,
+        1e-12,
+        false,
+        Some(&fresh),
+        None,
+    )
+    .unwrap();
+    assert_eq!(same.copied_rows(), t);
 }
 
 /// The objective `--json` states, per mode and order.
