@@ -317,25 +317,7 @@ fn run_stream(a: &SolveArgs, smoothing: Option<Smoothing>) -> Result<()> {
     let Some(s) = summary else {
         anyhow::bail!("the streamed solve stopped without a result");
     };
-    if s.rank < a.keys.len() {
-        eprintln!(
-            "warning: the {} key shapes span only {} dimensions (duplicate or dependent shapes); \
-             LS returns the minimum-norm weights",
-            a.keys.len(),
-            s.rank
-        );
-    } else if s.condition > 1e8 {
-        eprintln!(
-            "warning: key shapes are nearly dependent (condition number {:.2e})",
-            s.condition
-        );
-    }
-    if s.unconverged > 0 {
-        eprintln!(
-            "warning: {} frames hit the active-set iteration cap",
-            s.unconverged
-        );
-    }
+    warn_solve(a.keys.len(), s.rank, s.condition, s.unconverged);
     if let Some(p) = &a.out {
         sayln!(
             super::is_stdout(a.out.as_ref()),
@@ -371,24 +353,21 @@ pub fn weight_jitter(w: &nalgebra::DMatrix<f64>, segs: &[std::ops::Range<usize>]
 }
 
 fn warn(d: &Decomposition) {
-    let k = d.key_columns.len();
-    if d.rank < k {
+    warn_solve(d.key_columns.len(), d.rank, d.condition, d.unconverged);
+}
+
+/// The warnings of a solve on `k` keys: dependent shapes, iteration caps.
+fn warn_solve(k: usize, rank: usize, condition: f64, unconverged: usize) {
+    if rank < k {
         eprintln!(
-            "warning: the {k} key shapes span only {} dimensions (duplicate or dependent shapes); \
-             LS returns the minimum-norm weights",
-            d.rank
+            "warning: the {k} key shapes span only {rank} dimensions (duplicate or dependent shapes); \
+             LS returns the minimum-norm weights"
         );
-    } else if d.condition > 1e8 {
-        eprintln!(
-            "warning: key shapes are nearly dependent (condition number {:.2e})",
-            d.condition
-        );
+    } else if condition > 1e8 {
+        eprintln!("warning: key shapes are nearly dependent (condition number {condition:.2e})");
     }
-    if d.unconverged > 0 {
-        eprintln!(
-            "warning: {} frames hit the active-set iteration cap",
-            d.unconverged
-        );
+    if unconverged > 0 {
+        eprintln!("warning: {unconverged} frames hit the active-set iteration cap");
     }
 }
 

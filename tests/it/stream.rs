@@ -311,3 +311,40 @@ fn the_streamed_summary_matches_the_in_memory_one() {
         assert_eq!(pick(&b.stdout), pick(&s.stdout), "{solver}");
     }
 }
+
+/// Dependent key shapes are warned about, streamed or not, and give the same weights.
+#[test]
+fn streamed_solves_warn_about_dependent_keys_as_the_in_memory_one_does() {
+    let d = tempfile::tempdir().unwrap();
+    let p = d.path().join("dup.csv");
+    // Frames 0 and 1 are the same shape: two keys spanning one dimension.
+    let mut text = String::from("frame,x0,y0,x1,y1,x2,y2\n0,0,0,1,0,0,1\n1,0,0,1,0,0,1\n");
+    for f in 2..40 {
+        let a = f as f64 * 0.01;
+        text.push_str(&format!("{f},0,0,{},0,0,{}\n", 1.0 + a, 1.0 - a));
+    }
+    std::fs::write(&p, text).unwrap();
+    let (a, b) = both(&p, &["--keys", "0,1", "--solver", "ls", "--no-align"]);
+    assert!(a == b);
+    for stream in [false, true] {
+        let mut args = vec![
+            "solve",
+            p.to_str().unwrap(),
+            "--keys",
+            "0,1",
+            "--solver",
+            "ls",
+            "--no-align",
+        ];
+        if stream {
+            args.push("--stream");
+        }
+        let r = kslab(&args);
+        assert_eq!(r.code, 0, "{}", r.stderr);
+        assert!(
+            r.stderr.contains("span only 1 dimensions"),
+            "stream {stream}: {}",
+            r.stderr
+        );
+    }
+}
