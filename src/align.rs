@@ -208,13 +208,18 @@ where
 /// Generalised Procrustes alignment of every column of `coords` (`dims` values per point):
 /// [`procrustes_mean`], then every frame aligned onto it ([`align_to`]).
 pub fn procrustes(coords: &DMatrix<f64>, dims: usize) -> Result<Aligned> {
-    let n = coords.ncols();
+    procrustes_owned(coords.clone(), dims)
+}
+
+/// [`procrustes`] on coordinates the caller gives up: aligned in place, so no second copy
+/// of a long track is held.
+pub fn procrustes_owned(mut out: DMatrix<f64>, dims: usize) -> Result<Aligned> {
+    let n = out.ncols();
     if n == 0 {
         return Err(Error::invalid("cannot align an empty sequence"));
     }
-    // One copy of the coordinates: centred here, each frame aligned in place at the end
-    // (the rounds only need the mean, not every aligned frame).
-    let mut out = coords.clone();
+    // Centred here, each frame aligned in place at the end (the rounds only need the mean,
+    // not every aligned frame).
     let centroids: Vec<[f64; 3]> = out
         .column_iter_mut()
         .map(|mut col| centre(col.as_mut_slice(), dims))

@@ -2,7 +2,7 @@
 //! combinations of key shapes taken from the sequence itself, absolute (Eq. 3/4) or as
 //! deltas from a neutral frame (`q − N = Σ wᵢ (Sᵢ − N)`).
 
-use crate::align::{procrustes, Similarity};
+use crate::align::{procrustes_owned, Similarity};
 use crate::error::{Error, Result};
 use crate::sequence::{Layout, Sequence};
 use crate::solve::temporal::{smooth_from, Smoothed, Smoothing};
@@ -34,6 +34,12 @@ pub struct Prepared {
 /// Aligns the whole face (more points give a steadier fit than the selected group alone),
 /// then keeps the selected points.
 pub fn prepare(seq: &Sequence, opts: &PrepareOptions) -> Result<Prepared> {
+    prepare_owned(seq.clone(), opts)
+}
+
+/// [`prepare`] on a sequence the caller gives up: aligned in place, so a long track is held
+/// once, not twice (the input and its aligned copy).
+pub fn prepare_owned(seq: Sequence, opts: &PrepareOptions) -> Result<Prepared> {
     let layout = Layout::for_points(seq.points);
     let point_indices = match (&opts.points, &layout) {
         (None, _) => (0..seq.points).collect(),
@@ -63,13 +69,17 @@ pub fn prepare(seq: &Sequence, opts: &PrepareOptions) -> Result<Prepared> {
                 ));
             }
         }
-        let al = procrustes(&seq.coords, seq.dims)
+        let mut seq = seq;
+        let coords = std::mem::replace(&mut seq.coords, DMatrix::zeros(0, 0));
+        let al = procrustes_owned(coords, seq.dims)
             .map_err(|e| Error::file(&seq.source, e.to_string()))?;
-        (seq.with_coords(al.coords), Some(al.head))
+        seq.coords = al.coords;
+        (seq, Some(al.head))
     } else {
-        (seq.clone(), None)
+        (seq, None)
     };
-    let selected = if point_indices.len() == seq.points {
+    let points = base.points;
+    let selected = if point_indices.len() == points {
         base
     } else {
         base.select_points(&point_indices)?

@@ -77,7 +77,7 @@ pub fn run(a: &CurvesArgs) -> Result<()> {
     let constrained = a.solvers.iter().copied().find(|s| *s != Solver::Ls);
     a.heuristic
         .check(&a.methods, constrained.unwrap_or(a.solvers[0]))?;
-    let (_, mut prep) = a.input.prepare()?;
+    let mut prep = a.input.prepare_only()?;
     let methods: Vec<Method> = a.methods.iter().map(|m| a.heuristic.apply(*m)).collect();
     let axes = keyshape_lab::keyshapes::axes_needed(&methods, a.k.1);
     // The analysis takes the coordinates; only the frame numbers and source are used after.

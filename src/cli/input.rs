@@ -2,7 +2,7 @@
 
 use anyhow::Result;
 use clap::Args;
-use keyshape_lab::decompose::{prepare, PrepareOptions, Prepared};
+use keyshape_lab::decompose::{prepare, prepare_owned, PrepareOptions, Prepared};
 use keyshape_lab::io::{builtin_sequence, read_sequence, ReadOptions};
 use keyshape_lab::sequence::{Format, Sequence};
 use std::path::PathBuf;
@@ -51,16 +51,24 @@ impl InputArgs {
         })
     }
 
+    /// Reads and prepares, keeping only the prepared sequence: aligned in place, so a long
+    /// track is held once.
+    pub fn prepare_only(&self) -> Result<Prepared> {
+        let seq = self.read()?;
+        Ok(prepare_owned(seq, &self.prepare_options())?)
+    }
+
+    fn prepare_options(&self) -> PrepareOptions {
+        PrepareOptions {
+            points: self.points.clone(),
+            align: !self.no_align,
+        }
+    }
+
     /// Reads and prepares (selects points, aligns).
     pub fn prepare(&self) -> Result<(Sequence, Prepared)> {
         let seq = self.read()?;
-        let prepared = prepare(
-            &seq,
-            &PrepareOptions {
-                points: self.points.clone(),
-                align: !self.no_align,
-            },
-        )?;
+        let prepared = prepare(&seq, &self.prepare_options())?;
         Ok((seq, prepared))
     }
 }

@@ -113,7 +113,7 @@ pub fn run(a: &KeysArgs) -> Result<()> {
     let k = k_for(a.method, a.k)?;
     a.heuristic.check(&[a.method], a.solver)?;
     let progress = super::progress::Progress::new("keys");
-    let (_, mut prep) = a.input.prepare()?;
+    let mut prep = a.input.prepare_only()?;
     let method = a.heuristic.apply(a.method);
     let axes = keyshape_lab::keyshapes::axes_needed(&[method], k);
     // The analysis takes the coordinates; only the frame numbers and source are used after.

@@ -139,7 +139,7 @@ pub fn run(a: &MapArgs) -> Result<()> {
         ],
     )?;
     let progress = super::progress::Progress::new("map: reading");
-    let (_, prep) = a.input.prepare()?;
+    let prep = a.input.prepare_only()?;
     let actions = Actions::read(&a.actions)?;
     let src = model_of(&prep, &actions, a).with_context(|| format!("{}", a.actions.display()))?;
     let traj = trajectories(&src, &prep.seq.coords);

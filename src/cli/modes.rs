@@ -125,7 +125,7 @@ pub fn run(a: &ModesArgs) -> Result<()> {
         &[a.input.file.as_deref(), Some(&a.actions), a.regions.file()],
     )?;
     let progress = super::progress::Progress::new("modes");
-    let (_, prep) = a.input.prepare()?;
+    let prep = a.input.prepare_only()?;
     let (pts, ropts) = a.regions.build(&prep)?;
     let actions = Actions::read(&a.actions)?;
     let st = orthogonality_study(

@@ -107,7 +107,7 @@ pub fn run(a: &SolveArgs) -> Result<()> {
         return run_stream(a, smoothing);
     }
     let progress = super::progress::Progress::new("solve");
-    let (_, prep) = a.input.prepare()?;
+    let prep = a.input.prepare_only()?;
     let seq = &prep.seq;
     let cols = super::keys::frame_columns(seq, &a.keys)?;
     let neutral = match a.neutral {

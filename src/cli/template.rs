@@ -27,7 +27,7 @@ pub fn run(a: &TemplateArgs) -> Result<()> {
     super::check_outputs(&[Some(&a.out)], &[], &[a.input.file.as_deref()])?;
     a.heuristic.check(&a.choice.methods(), Solver::Nnls)?;
     let progress = super::progress::Progress::new("template");
-    let (_, prep) = a.input.prepare()?;
+    let prep = a.input.prepare_only()?;
     let s = &prep.seq;
     if s.dims != 2 {
         anyhow::bail!("SVG templates are 2-D: use --dims 2");

@@ -75,7 +75,7 @@ pub fn run(a: &TransferArgs) -> Result<()> {
         ],
     )?;
     let progress = super::progress::Progress::new("transfer: reading");
-    let (_, prep) = a.input.prepare()?;
+    let prep = a.input.prepare_only()?;
     let s = &prep.seq;
     let mesh = read_obj(&a.mesh)?;
     let layout = keyshape_lab::sequence::Layout::for_points(s.points);

@@ -160,6 +160,9 @@ pub fn greedy_subsampled(
     let sub: Vec<usize> = (0..n).step_by(step).collect();
     let small = Analysis::with_axes(an.coords.select_columns(&sub), an.points, 3)?;
     let (keys, _) = greedy_gram(&small, kmax, solver, shortlist)?;
+    // The subsample's Gram matrix (up to 288 MB) goes before the exact errors allocate
+    // theirs (k × frames products), so the two never add up.
+    drop(small);
     let chosen: Vec<usize> = keys.iter().map(|&c| sub[c]).collect();
     let errors = (1..=chosen.len())
         .map(|k| an.weights_and_error(&chosen[..k], solver).map(|x| x.1))
