@@ -165,7 +165,7 @@ pub fn greedy_subsampled(
     drop(small);
     let chosen: Vec<usize> = keys.iter().map(|&c| sub[c]).collect();
     let errors = (1..=chosen.len())
-        .map(|k| an.weights_and_error(&chosen[..k], solver).map(|x| x.1))
+        .map(|k| an.error(&chosen[..k], solver))
         .collect::<Result<Vec<f64>>>()?;
     Ok((chosen, errors))
 }

@@ -347,7 +347,71 @@ impl Analysis {
     /// Paper 000 Eq. (5), `E = Σ_t ‖Q_t − S w_t‖²`, for key columns `keys` under `solver`,
     /// computed from inner products: `‖q‖² − 2 wᵀb + wᵀ G w` per frame.
     pub fn error(&self, keys: &[usize], solver: Solver) -> Result<f64> {
-        self.weights_and_error(keys, solver).map(|(_, e)| e)
+        if self.frames() <= GRAM_LIMIT {
+            return self.weights_and_error(keys, solver).map(|(_, e)| e);
+        }
+        if let Some(&bad) = keys.iter().find(|&&c| c >= self.frames()) {
+            return Err(Error::invalid(format!(
+                "key column {bad} out of range (0..{})",
+                self.frames()
+            )));
+        }
+        let s = self.coords.select_columns(keys);
+        let st = s.transpose();
+        self.error_in_blocks(
+            &s.tr_mul(&s),
+            |a, m| &st * self.coords.columns(a, m),
+            solver,
+            &format!("key columns {keys:?}"),
+        )
+    }
+
+    /// The Eq. (5) error from `G` and `B = SᵀQ` formed block by block (`b(start, len)`), so a
+    /// long track never holds a keys × frames matrix, let alone three: the blocks are a
+    /// multiple of the solver's chunk, so every frame is solved (warm starts included)
+    /// exactly as [`Self::solve_products`] solves it, and the sum runs in the same order.
+    fn error_in_blocks<F>(&self, g: &DMatrix<f64>, b: F, solver: Solver, what: &str) -> Result<f64>
+    where
+        F: Fn(usize, usize) -> DMatrix<f64>,
+    {
+        const BLOCK: usize = 16 * crate::solve::CHUNK;
+        let pinv = (solver == Solver::Ls).then(|| lstsq::gram_pseudo_inverse(g, None));
+        let upper = if solver == Solver::Bounded {
+            1.0
+        } else {
+            f64::INFINITY
+        };
+        let gram = (solver != Solver::Ls).then(|| Gram::from_matrix(g, upper));
+        let n = self.frames();
+        let mut e = 0.0;
+        let mut bad = 0usize;
+        for a in (0..n).step_by(BLOCK) {
+            let m = BLOCK.min(n - a);
+            let bb = b(a, m);
+            let w = match (&pinv, &gram) {
+                (Some(p), _) => p * &bb,
+                (None, Some(gr)) => {
+                    let (w, unconverged, _) = active_set_from_gram(gr, &bb, true);
+                    bad += unconverged;
+                    w
+                }
+                (None, None) => unreachable!("a solver is either LS or constrained"),
+            };
+            let gw = g * &w;
+            for t in 0..m {
+                let (wt, bt, gwt) = (w.column(t), bb.column(t), gw.column(t));
+                e += (self.sq_norms[a + t] - 2.0 * wt.dot(&bt) + wt.dot(&gwt)).max(0.0);
+            }
+        }
+        if bad > 0 {
+            return Err(Error::invalid(format!(
+                "{solver} did not converge on {bad} frames (iteration cap) for {what}"
+            )));
+        }
+        if !e.is_finite() {
+            return Err(Error::invalid("reconstruction error is not finite"));
+        }
+        Ok(e)
     }
 
     /// The weights (k × frames) and Eq. (5) error of key columns `keys` under `solver`.
@@ -381,8 +445,19 @@ impl Analysis {
 
     /// Eq. (5) of a selection (see [`Analysis::selection_weights_and_error`]).
     pub fn selection_error(&self, sel: &Selection, solver: Solver) -> Result<f64> {
-        self.selection_weights_and_error(sel, solver)
-            .map(|(_, e)| e)
+        match &sel.shapes {
+            None => self.error(&sel.columns, solver),
+            Some(s) if self.frames() > GRAM_LIMIT && s.nrows() == self.coords.nrows() => self
+                .error_in_blocks(
+                    &s.tr_mul(s),
+                    |a, m| s.tr_mul(&self.coords.columns(a, m)),
+                    solver,
+                    "the cluster mean shapes",
+                ),
+            Some(_) => self
+                .selection_weights_and_error(sel, solver)
+                .map(|(_, e)| e),
+        }
     }
 
     /// Weights from `G = SᵀS`, `B = SᵀQ` and the Eq. (5) error from inner products.

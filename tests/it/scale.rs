@@ -197,3 +197,56 @@ fn bench_scale_refuses_what_it_cannot_run_and_generates_one_track_on_request() {
         assert_eq!(std::fs::read(&p).unwrap(), std::fs::read(&p2).unwrap());
     }
 }
+
+/// Past the Gram matrix's limit, errors are summed block by block (never a keys × frames
+/// matrix): the same value, bit for bit, as solving every frame at once, for every solver,
+/// for key frames and for k-means' mean shapes.
+#[test]
+fn blocked_errors_on_long_tracks_equal_the_one_pass_errors() {
+    use keyshape_lab::keyshapes::{Heuristic, KMeans, GRAM_LIMIT};
+    let mut text = Vec::new();
+    keyshape_lab::sequence::synthetic::write_long_track(&mut text, GRAM_LIMIT + 1500, 68, 3)
+        .unwrap();
+    let seq = keyshape_lab::io::parse_sequence(
+        std::path::Path::new("long.csv"),
+        std::str::from_utf8(&text).unwrap(),
+        &ReadOptions::default(),
+    )
+    .unwrap();
+    let prep = prepare(
+        &seq,
+        &PrepareOptions {
+            points: None,
+            align: true,
+        },
+    )
+    .unwrap();
+    let an = Analysis::new(prep.seq.coords.clone(), prep.seq.points).unwrap();
+    assert!(an.frames() > GRAM_LIMIT);
+    let keys: Vec<usize> = (0..9).map(|i| i * (an.frames() - 1) / 8).collect();
+    for solver in [Solver::Ls, Solver::Nnls, Solver::Bounded] {
+        let one = an.weights_and_error(&keys, solver).unwrap().1;
+        let blocked = an.error(&keys, solver).unwrap();
+        assert_eq!(
+            one.to_bits(),
+            blocked.to_bits(),
+            "{solver:?}: {one} vs {blocked}"
+        );
+        let sel = KMeans {
+            pcs: 2,
+            seed: 1,
+            mean: true,
+        }
+        .select(&an, 6)
+        .unwrap();
+        let one = an.selection_weights_and_error(&sel, solver).unwrap().1;
+        let blocked = an.selection_error(&sel, solver).unwrap();
+        assert_eq!(
+            one.to_bits(),
+            blocked.to_bits(),
+            "{solver:?} mean shapes: {one} vs {blocked}"
+        );
+    }
+    // An out-of-range key is refused, not read past the end.
+    assert!(an.error(&[0, an.frames()], Solver::Nnls).is_err());
+}
