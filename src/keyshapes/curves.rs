@@ -1,6 +1,6 @@
 //! Error curves (paper 000 Fig. 6): Eq. (5) against k for each method and solver.
 
-use super::{greedy_path, Analysis, KeyOptions, Method};
+use super::{greedy_path, Analysis, KeyOptions, Method, GRAM_LIMIT};
 use crate::error::{Error, Result};
 use crate::solve::Solver;
 use rayon::prelude::*;
@@ -50,17 +50,35 @@ pub fn sweep(
         .iter()
         .flat_map(|&s| methods.iter().map(move |&m| (m, s)))
         .collect();
-    let parts: Vec<Result<Vec<CurveRow>>> = jobs
+    let run = |&(m, s): &(Method, Solver)| {
+        let rows = curve(an, m, lo, hi, s, opts);
+        tick(
+            done.fetch_add(1, std::sync::atomic::Ordering::SeqCst) + 1,
+            total,
+        );
+        rows
+    };
+    // Past the Gram limit greedy holds its subsample's Gram matrix (up to 288 MB) while it
+    // runs: it runs first, alone (it is parallel inside), so that memory never adds to the
+    // other methods'. Shorter tracks run every curve at once. The rows are the same either
+    // way, in the same order.
+    let alone = |m: &Method| an.frames() > GRAM_LIMIT && matches!(m, Method::Greedy);
+    let mut parts: Vec<Option<Result<Vec<CurveRow>>>> = jobs.iter().map(|_| None).collect();
+    for (i, j) in jobs.iter().enumerate() {
+        if alone(&j.0) {
+            parts[i] = Some(run(j));
+        }
+    }
+    let rest: Vec<(usize, Result<Vec<CurveRow>>)> = jobs
         .par_iter()
-        .map(|&(m, s)| {
-            let rows = curve(an, m, lo, hi, s, opts);
-            tick(
-                done.fetch_add(1, std::sync::atomic::Ordering::SeqCst) + 1,
-                total,
-            );
-            rows
-        })
+        .enumerate()
+        .filter(|(_, j)| !alone(&j.0))
+        .map(|(i, j)| (i, run(j)))
         .collect();
+    for (i, r) in rest {
+        parts[i] = Some(r);
+    }
+    let parts: Vec<Result<Vec<CurveRow>>> = parts.into_iter().flatten().collect();
     let mut rows = Vec::new();
     for p in parts {
         rows.extend(p?);
