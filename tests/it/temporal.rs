@@ -633,3 +633,26 @@ fn d6_lips() -> keyshape_lab::decompose::Prepared {
     )
     .unwrap()
 }
+
+/// A system that is not positive definite is refused with the frame it fails at, not
+/// factorised into NaNs (the prior's callers never build one; the guard is for the rest).
+#[test]
+fn an_indefinite_banded_system_is_refused() {
+    use keyshape_lab::solve::temporal::{difference_bands, SegmentSystem};
+    // One variable per frame: frame 0's pivot is −1 + 0.1 < 0.
+    let g = -DMatrix::<f64>::identity(1, 1);
+    let fixed = vec![false; 5];
+    let e = SegmentSystem::factor(&g, 0.1, &difference_bands(1, 5), &fixed, 0.0, false)
+        .err()
+        .expect("an indefinite system factorised");
+    assert!(
+        e.to_string().contains("not positive definite at frame 0"),
+        "{e}"
+    );
+    // Positive definite but for one NaN entry: refused too.
+    let g = DMatrix::<f64>::from_element(1, 1, f64::NAN);
+    let e = SegmentSystem::factor(&g, 0.1, &difference_bands(1, 5), &fixed, 0.0, false)
+        .err()
+        .expect("a NaN system factorised");
+    assert!(e.to_string().contains("at frame 0 (pivot NaN)"), "{e}");
+}
