@@ -168,15 +168,16 @@ pub fn stream_solve(
     // Pass 1: columns of the key frames and the neutral, the segment step, the checks the
     // in-memory path makes when it reads and prepares.
     let mut passes = 1;
-    let (mut n, mut failed, mut values) = (0usize, 0usize, 0usize);
+    let (mut n, mut failed) = (0usize, 0usize);
     let mut key_cols: Vec<Option<usize>> = vec![None; opts.keys.len()];
     let mut neutral_col = None;
     let mut step: Option<i64> = None;
     let (mut lo, mut hi) = (i64::MAX, i64::MIN);
     let mut failed_keys = Vec::new();
+    let values;
     {
         let mut rows = TableRows::new(path, open(path)?, format, dims)?;
-        values = values.max(rows.values());
+        values = rows.values();
         let mut last: Option<i64> = None;
         while let Some(r) = rows.next_row()? {
             let wanted = opts.keys.contains(&r.frame) || opts.neutral == Some(r.frame);

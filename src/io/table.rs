@@ -174,8 +174,8 @@ impl<R: std::io::Read> std::io::Read for LineIndex<R> {
     }
 }
 
-/// A landmark table read row by row, from any reader: what [`read`] collects into a
-/// [`Sequence`], and what a streamed solve reads in constant memory.
+/// A landmark table read row by row, from any reader: what [`crate::io::read_sequence`]
+/// collects into a [`Sequence`], and what a streamed solve reads in constant memory.
 pub struct TableRows<R: std::io::Read> {
     path: std::path::PathBuf,
     rdr: csv::Reader<LineIndex<R>>,
