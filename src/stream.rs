@@ -128,17 +128,41 @@ fn format_of(path: &Path, given: Option<Format>) -> Result<Format> {
 }
 
 /// Every tracked row of one pass, in order: `f(column, frame, segment label, coords)`.
-fn pass<F>(path: &Path, format: Format, dims: usize, mut f: F) -> Result<()>
+/// The file must still hold the `n` tracked frames, with the same width, that the first
+/// pass found: a file changed between passes is an error, not a mix of two tracks.
+fn pass<F>(
+    path: &Path,
+    format: Format,
+    dims: usize,
+    n: usize,
+    values: usize,
+    mut f: F,
+) -> Result<()>
 where
     F: FnMut(usize, i64, Option<&str>, &[f64]) -> Result<()>,
 {
+    let changed = || {
+        Error::file(
+            path,
+            "changed while it was read: --stream reads the file several times; let the tracker finish writing it first",
+        )
+    };
     let mut rows = TableRows::new(path, open(path)?, format, dims)?;
+    if rows.values() != values {
+        return Err(changed());
+    }
     let mut col = 0;
     while let Some(r) = rows.next_row()? {
         if r.tracked {
+            if col == n {
+                return Err(changed());
+            }
             f(col, r.frame, r.segment, r.coords)?;
             col += 1;
         }
+    }
+    if col != n {
+        return Err(changed());
     }
     Ok(())
 }
@@ -292,7 +316,7 @@ pub fn stream_solve(
         let mut buf = vec![0.0; values];
         let (mean, rounds) = procrustes_mean(n, dims, |f| {
             passes += 1;
-            pass(path, format, dims, |c, _, _, v| {
+            pass(path, format, dims, n, values, |c, _, _, v| {
                 buf.copy_from_slice(v);
                 centre(&mut buf, dims);
                 f(c, &buf)
@@ -320,7 +344,7 @@ pub fn stream_solve(
     let mut s = DMatrix::zeros(rows, cols.len());
     let mut base: Option<Vec<f64>> = None;
     let mut buf = Vec::with_capacity(values);
-    pass(path, format, dims, |c, _, _, v| {
+    pass(path, format, dims, n, values, |c, _, _, v| {
         let is_key = cols.contains(&c);
         if is_key || neutral == Some(c) {
             let shape = prepare(c, v, &mut buf)?;
@@ -413,7 +437,7 @@ pub fn stream_solve(
         }
         Ok(())
     };
-    pass(path, format, dims, |c, frame, label, v| {
+    pass(path, format, dims, n, values, |c, frame, label, v| {
         let mut shape = prepare(c, v, &mut buf)?;
         if let Some(b) = &base {
             for (x, y) in shape.iter_mut().zip(b) {
@@ -446,4 +470,26 @@ pub fn stream_solve(
         mean_rms: rms_sum / n as f64,
         max_abs_weight: wmax,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A pass that finds another number of tracked frames, or another width, than the first
+    /// pass is refused: the file changed between passes.
+    #[test]
+    fn a_file_changed_between_passes_is_refused() {
+        let d = std::env::temp_dir().join(format!("kslab-stream-{}", std::process::id()));
+        std::fs::create_dir_all(&d).unwrap();
+        let p = d.join("t.csv");
+        std::fs::write(&p, "frame,x0,y0,x1,y1\n0,0,0,1,0\n1,0,0,1,1\n2,0,0,2,1\n").unwrap();
+        let ok = pass(&p, Format::Csv, 2, 3, 4, |_, _, _, _| Ok(()));
+        assert!(ok.is_ok());
+        for (n, values) in [(2, 4), (4, 4), (3, 6)] {
+            let e = pass(&p, Format::Csv, 2, n, values, |_, _, _, _| Ok(())).unwrap_err();
+            assert!(e.to_string().contains("changed while it was read"), "{e}");
+        }
+        let _ = std::fs::remove_dir_all(&d);
+    }
 }
