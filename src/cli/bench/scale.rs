@@ -94,27 +94,23 @@ pub fn run(a: &ScaleArgs) -> Result<()> {
             let keys: Vec<String> = (0..16).map(|i| (i * (n - 1) / 15).to_string()).collect();
             let out = dir.join(format!("{step}_{n}.csv")).display().to_string();
             let args: Vec<String> = match step.as_str() {
-                "solve" => vec![
-                    "solve".into(),
-                    t.clone(),
-                    "--keys".into(),
-                    keys.join(","),
-                    "--solver".into(),
-                    "nnls".into(),
-                    "--out".into(),
-                    out,
-                ],
-                "stream" => vec![
-                    "solve".into(),
-                    t.clone(),
-                    "--keys".into(),
-                    keys.join(","),
-                    "--solver".into(),
-                    "nnls".into(),
-                    "--stream".into(),
-                    "--out".into(),
-                    out,
-                ],
+                // `stream` is `solve` with `--stream`: the same keys, solver and output.
+                "solve" | "stream" => {
+                    let mut v: Vec<String> = vec![
+                        "solve".into(),
+                        t.clone(),
+                        "--keys".into(),
+                        keys.join(","),
+                        "--solver".into(),
+                        "nnls".into(),
+                        "--out".into(),
+                        out,
+                    ];
+                    if step == "stream" {
+                        v.push("--stream".into());
+                    }
+                    v
+                }
                 "kmeans2" => vec![
                     "keys".into(),
                     t.clone(),
