@@ -10,7 +10,7 @@
 pub mod curves;
 mod greedy;
 mod hull;
-mod kmeans;
+pub mod kmeans;
 mod random;
 mod spread;
 
