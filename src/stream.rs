@@ -16,8 +16,8 @@
 
 use crate::align::{align_to, centre, procrustes_mean};
 use crate::error::{Error, Result};
+use crate::io::detect_format;
 use crate::io::table::TableRows;
-use crate::io::{detect_format, MAX_INPUT_BYTES};
 use crate::sequence::{Format, Layout};
 use crate::solve::temporal::{CausalShared, SmoothMode, Smoothing};
 use crate::solve::{lstsq, residuals, solve_batch, SolveOptions, CHUNK};
@@ -92,15 +92,7 @@ fn open(path: &Path) -> Result<Box<dyn Read>> {
             "is not a regular file; --stream reads a file (several times)",
         ));
     }
-    let f = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
-    let r = BufReader::with_capacity(1 << 16, f);
-    Ok(if path.extension().is_some_and(|e| e == "gz") {
-        Box::new(BufReader::new(
-            flate2::read::MultiGzDecoder::new(r).take(MAX_INPUT_BYTES + 1),
-        ))
-    } else {
-        Box::new(r.take(MAX_INPUT_BYTES + 1))
-    })
+    crate::io::open_input(path)
 }
 
 /// The format: as given, or detected from the name and the first line.

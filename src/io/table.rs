@@ -341,13 +341,34 @@ impl<R: std::io::Read> TableRows<R> {
 
 /// Reads a landmark table of the given format.
 pub(super) fn read(path: &Path, text: &str, format: Format, dims: usize) -> Result<Sequence> {
-    let mut rows = TableRows::new(path, text.as_bytes(), format, dims)?;
+    let lines = text.bytes().filter(|&b| b == b'\n').count() + 1;
+    read_rows(
+        path,
+        text.as_bytes(),
+        lines,
+        text.len() as u64,
+        format,
+        dims,
+    )
+}
+
+/// Reads a landmark table of the given format from `reader`, which holds `bytes` bytes in
+/// `lines` lines (for the room reserved up front; a wrong count costs memory, not results).
+pub(super) fn read_rows<R: std::io::Read>(
+    path: &Path,
+    reader: R,
+    lines: usize,
+    bytes: u64,
+    format: Format,
+    dims: usize,
+) -> Result<Sequence> {
+    let mut rows = TableRows::new(path, reader, format, dims)?;
     let width = rows.values();
     // Room for every line up front: growing by doubling would hold up to twice the
     // coordinates while the last copy is made.
-    let lines = text.bytes().filter(|&b| b == b'\n').count() + 1;
     // (Each value takes at least two bytes with its comma, which bounds a hostile guess.)
-    let mut data = Vec::with_capacity(lines.saturating_mul(width).min(text.len() / 2 + 1));
+    let room = usize::try_from(bytes / 2 + 1).unwrap_or(usize::MAX);
+    let mut data = Vec::with_capacity(lines.saturating_mul(width).min(room));
     let (mut frames, mut failed) = (Vec::with_capacity(lines), Vec::new());
     let (mut times, mut segments) = (Vec::new(), Vec::new());
     let (has_time, has_segments) = (rows.has_time(), rows.has_segments());

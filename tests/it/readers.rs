@@ -176,3 +176,91 @@ fn duplicate_frames_name_their_first_line_inside_and_across_runs() {
     .unwrap();
     assert_eq!(s.frames, [10, 11, 12, 13, 14, 20, 5, 15, 9, 21]);
 }
+
+/// `read_sequence` parses a landmark table straight from the file (a check pass, then the
+/// rows, without holding the text); it must give exactly what parsing the whole text gives,
+/// and the same error where that fails.
+#[test]
+fn tables_read_from_the_file_equal_the_whole_text_parse() {
+    use keyshape_lab::io::{parse_sequence, read_text};
+    use std::io::Write;
+    let same = |path: &std::path::Path, opts: &ReadOptions| {
+        let streamed = read_sequence(path, opts);
+        let whole = read_text(path).and_then(|t| parse_sequence(path, &t, opts));
+        match (streamed, whole) {
+            (Ok(a), Ok(b)) => {
+                assert_eq!(a.coords, b.coords, "{}", path.display());
+                assert_eq!(a.frames, b.frames);
+                assert_eq!(a.failed, b.failed);
+                assert_eq!(a.times, b.times);
+                assert_eq!(a.segments, b.segments);
+                assert_eq!((a.format, a.dims, a.points), (b.format, b.dims, b.points));
+                assert_eq!(a.source, b.source);
+                a.n_frames()
+            }
+            (Err(a), Err(b)) => {
+                assert_eq!(a.to_string(), b.to_string());
+                0
+            }
+            (a, b) => panic!(
+                "{}: streamed {:?}, whole {:?}",
+                path.display(),
+                a.err(),
+                b.err()
+            ),
+        }
+    };
+    let d2 = ReadOptions::default();
+    let d3 = ReadOptions {
+        format: None,
+        dims: 3,
+    };
+    for rel in [
+        "mediapipe_face_tracks/liveportrait_d6.csv",
+        "mediapipe_face_tracks/liveportrait_d9.csv",
+        "mediapipe_face_tracks/liveportrait_d18.csv",
+        "mediapipe_face_tracks/pyfeat_wolfganglanger_pexels.csv",
+        "pyfeat_samples/news_sample_compact.csv",
+        "pyfeat_samples/openface_test.csv",
+    ] {
+        assert!(same(&shared(rel), &d2) > 0, "{rel}");
+    }
+    assert!(same(&shared("mediapipe_face_tracks/liveportrait_d6.csv"), &d3) > 0);
+    assert!(same(&shared("pyfeat_samples/openface_test.csv"), &d3) > 0);
+    let forced = ReadOptions {
+        format: Some(Format::Pyfeat),
+        dims: 2,
+    };
+    assert!(same(&shared("pyfeat_samples/openface_test.csv"), &forced) > 0);
+
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(shared("pyfeat_samples/openface_test.csv")).unwrap();
+    let write = |name: &str, bytes: &[u8]| {
+        let p = dir.path().join(name);
+        std::fs::write(&p, bytes).unwrap();
+        p
+    };
+    // gzip, CRLF line ends with blank lines, no final line end.
+    let mut gz = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
+    gz.write_all(text.as_bytes()).unwrap();
+    assert!(same(&write("t.csv.gz", &gz.finish().unwrap()), &d2) > 0);
+    let crlf = text.replace('\n', "\r\n\r\n");
+    assert!(same(&write("crlf.csv", crlf.as_bytes()), &d2) > 0);
+    assert!(same(&write("noend.csv", text.trim_end().as_bytes()), &d2) > 0);
+    // Failures: the same message either way.
+    let lines: Vec<&str> = text.lines().collect();
+    let mut bad = lines[..6].join("\n").into_bytes();
+    bad.extend_from_slice(b"\n\xff\xfe");
+    bad.extend_from_slice(lines[6].as_bytes());
+    for (name, bytes) in [
+        ("utf8.csv", bad),
+        ("blank_first.csv", format!("\n{text}").into_bytes()),
+        ("spaces.csv", b" \n \n\t\n".to_vec()),
+        ("ragged.csv", format!("{}\n1,2,3\n", lines[0]).into_bytes()),
+        ("noheader.csv", b"a,b,c\n1,2,3\n".to_vec()),
+        ("json.csv", b"{\"frames\": []}\n".to_vec()),
+        ("badgz.csv.gz", b"not gzip at all".to_vec()),
+    ] {
+        assert_eq!(same(&write(name, &bytes), &d2), 0, "{name} should fail");
+    }
+}
