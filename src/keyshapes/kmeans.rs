@@ -11,25 +11,68 @@ use rand::SeedableRng;
 use rand_xoshiro::Xoshiro256Plus;
 use rayon::prelude::*;
 
-/// Restarts of k-means; the best (lowest within-cluster sum of squares) is kept.
-pub const RESTARTS: usize = 10;
+/// How k-means starts and restarts: the k-means++ start (each centre drawn with
+/// probability proportional to its squared distance to the nearest centre so far), with
+/// `trials` candidates drawn per centre and the one that most lowers the sum of those
+/// distances kept, and `restarts` runs from independent starts, the one with the lowest
+/// inertia kept.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Seeding {
+    /// Independent starts; the lowest inertia wins.
+    pub restarts: usize,
+    /// Candidates per centre: `None` for 2 + ⌊ln k⌋ (the greedy k-means++ of Arthur and
+    /// Vassilvitskii, scikit-learn's default), `Some(1)` for plain k-means++ (linfa's).
+    pub trials: Option<usize>,
+}
 
-/// linfa's k-means with [`RESTARTS`] k-means++ starts, ≤ 300 Lloyd iterations and a 1e-6
-/// tolerance: the centroids (one row per cluster) of the run with the lowest inertia.
-///
-/// This is exactly `KMeans::params_with_rng(k, Xoshiro256Plus::seed_from_u64(seed))
-/// .n_runs(10)` (tested bit for bit against it), with two differences in how it gets there:
-///
-/// * the k-means++ starts are drawn here, keeping each frame's distance to its nearest
-///   centre chosen so far: `k` passes over the frames instead of linfa's `k²/2` (it
-///   recomputes every distance to every centre for each new one). The draws are the same
-///   (one `WeightedIndex` draw per centre, from the same generator in the same order, over
-///   the same squared distances), so the starts are too;
-/// * the 10 restarts then run in parallel, each as a one-run linfa fit from its start.
+impl Seeding {
+    /// What the lab uses: greedy k-means++, 3 restarts. On the real tracks its inertia is
+    /// that of 10 plain k-means++ restarts (linfa's default) to within 1 % on average, for
+    /// less than a third of the work (see BENCHMARKS.md, "The Fig. 6 sweep").
+    pub const LAB: Seeding = Seeding {
+        restarts: 3,
+        trials: None,
+    };
+    /// linfa's own `KMeans::params_with_rng(k, rng)`: 10 plain k-means++ restarts.
+    pub const LINFA: Seeding = Seeding {
+        restarts: 10,
+        trials: Some(1),
+    };
+
+    /// Candidates drawn per centre for `k` clusters.
+    pub fn trials(&self, k: usize) -> usize {
+        self.trials
+            .unwrap_or(2 + (k as f64).ln().floor() as usize)
+            .max(1)
+    }
+}
+
+/// k-means with [`Seeding::LAB`]: the centroids (one row per cluster).
 pub fn fit(data: &Array2<f64>, k: usize, seed: u64) -> Result<Array2<f64>> {
+    fit_with(data, k, seed, Seeding::LAB)
+}
+
+/// k-means on the rows of `data`: starts drawn here from a `Xoshiro256Plus` seeded with
+/// `seed`, one after another, then each run as a one-run linfa fit (≤ 300 Lloyd
+/// iterations, tolerance 1e-6) from its start, the runs in parallel; the first run with the
+/// strictly lowest inertia is kept, as linfa keeps it.
+///
+/// With [`Seeding::LINFA`] this is linfa's own 10-run fit (tested against it): the draws
+/// are linfa's (one `WeightedIndex` draw per centre, from the same generator in the same
+/// order, over the same squared distances), but each frame keeps its distance to the
+/// nearest centre so far, so a start takes `k` passes over the frames instead of linfa's
+/// `k²/2`.
+pub fn fit_with(data: &Array2<f64>, k: usize, seed: u64, seeding: Seeding) -> Result<Array2<f64>> {
+    if seeding.restarts == 0 {
+        return Err(Error::invalid("k-means needs at least one restart"));
+    }
     let mut rng = Xoshiro256Plus::seed_from_u64(seed);
-    let starts: Vec<Array2<f64>> = (0..RESTARTS)
-        .map(|_| kmeans_plusplus(data, k, &mut rng))
+    let trials = seeding.trials(k);
+    let starts: Vec<Array2<f64>> = (0..seeding.restarts)
+        .map(|_| {
+            kmeans_plusplus(data, k, trials, &mut rng)
+                .map(|rows| data.select(ndarray::Axis(0), &rows))
+        })
         .collect::<Result<_>>()?;
     let dataset = DatasetBase::from(data.view());
     let runs: Vec<(f64, Array2<f64>)> = starts
@@ -45,7 +88,6 @@ pub fn fit(data: &Array2<f64>, k: usize, seed: u64) -> Result<Array2<f64>> {
             Ok((model.inertia(), model.centroids().clone()))
         })
         .collect::<Result<_>>()?;
-    // linfa keeps the first run with the strictly lowest inertia.
     let mut best: Option<(f64, Array2<f64>)> = None;
     for (inertia, c) in runs {
         if best.as_ref().is_none_or(|(b, _)| inertia < *b) {
@@ -56,36 +98,60 @@ pub fn fit(data: &Array2<f64>, k: usize, seed: u64) -> Result<Array2<f64>> {
         .ok_or_else(|| Error::invalid("k-means: no run converged to a finite inertia"))
 }
 
-/// One k-means++ start, drawn as linfa draws it: the first centre uniformly (a
-/// `WeightedIndex` over ones), each next one with probability proportional to its squared
-/// distance to the nearest centre so far (frame 0 when every distance is 0, without a draw).
-fn kmeans_plusplus(data: &Array2<f64>, k: usize, rng: &mut Xoshiro256Plus) -> Result<Array2<f64>> {
-    let (n, d) = data.dim();
-    let mut centres = Array2::zeros((k, d));
+/// Squared distance from row `centre` to row `t` of `data`, summed over the axes in order
+/// (as linfa's `L2Dist::rdistance` sums it).
+fn sq_dist(data: &Array2<f64>, centre: usize, t: usize) -> f64 {
+    let (c, r) = (data.row(centre), data.row(t));
+    let mut dist = 0.0;
+    for a in 0..data.ncols() {
+        let diff = c[a] - r[a];
+        dist += diff * diff;
+    }
+    dist
+}
+
+/// One k-means++ start (rows of `data` as centres): the first centre uniformly (a
+/// `WeightedIndex` over ones); for each next one, `trials` candidates drawn with
+/// probability proportional to their squared distance to the nearest centre so far, and
+/// the candidate leaving the lowest sum of those distances kept (the first on a tie). When
+/// every distance is 0 the centre is frame 0, without a draw, as in linfa. With one trial
+/// this is linfa's k-means++, draw for draw.
+pub fn kmeans_plusplus(
+    data: &Array2<f64>,
+    k: usize,
+    trials: usize,
+    rng: &mut Xoshiro256Plus,
+) -> Result<Vec<usize>> {
+    let n = data.nrows();
     let first = WeightedIndex::new(std::iter::repeat_n(1.0f64, n))
         .map_err(|e| Error::invalid(format!("k-means: {e}")))?
         .sample(rng);
-    centres.row_mut(0).assign(&data.row(first));
-    let mut nearest = vec![f64::INFINITY; n];
-    for c in 1..k {
-        let centre = centres.row(c - 1);
-        for (t, best) in nearest.iter_mut().enumerate() {
-            let row = data.row(t);
-            let mut dist = 0.0;
-            for a in 0..d {
-                let diff = centre[a] - row[a];
-                dist += diff * diff;
+    let mut chosen = vec![first];
+    let mut nearest: Vec<f64> = (0..n).map(|t| sq_dist(data, first, t)).collect();
+    let (mut trial, mut kept) = (vec![0.0; n], vec![0.0; n]);
+    for _ in 1..k {
+        let Ok(w) = WeightedIndex::new(nearest.iter()) else {
+            chosen.push(0);
+            continue;
+        };
+        let mut best: Option<(f64, usize)> = None;
+        for _ in 0..trials.max(1) {
+            let cand = w.sample(rng);
+            let mut pot = 0.0;
+            for (t, (x, &near)) in trial.iter_mut().zip(&nearest).enumerate() {
+                *x = near.min(sq_dist(data, cand, t));
+                pot += *x;
             }
-            if dist < *best {
-                *best = dist;
+            if best.is_none_or(|(b, _)| pot < b) {
+                best = Some((pot, cand));
+                std::mem::swap(&mut kept, &mut trial);
             }
         }
-        let next = WeightedIndex::new(nearest.iter())
-            .map(|w| w.sample(rng))
-            .unwrap_or(0);
-        centres.row_mut(c).assign(&data.row(next));
+        let (_, cand) = best.expect("at least one trial");
+        std::mem::swap(&mut nearest, &mut kept);
+        chosen.push(cand);
     }
-    Ok(centres)
+    Ok(chosen)
 }
 
 /// k-means (linfa-clustering, k-means++ start, 10 seeded runs, ≤ 300 iterations) on the

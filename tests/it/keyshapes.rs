@@ -284,16 +284,18 @@ fn fig6_shape_holds_on_real_lips_spread_is_nested_and_decreasing() {
     }
 }
 
-/// `kmeans::fit` draws the k-means++ starts itself (k passes over the frames) and runs the
-/// restarts in parallel; it must give linfa's own 10-run fit on real tracks, for several
+/// `kmeans::fit_with(…, Seeding::LINFA)` draws the k-means++ starts itself (k passes over
+/// the frames) and runs the restarts in parallel; it must give linfa's own 10-run fit on
+/// real tracks, for several
 /// axes, k and seeds: the same frame nearest each centre, the same cluster for every frame,
 /// and centres bit for bit, except where two restarts ended in the same clusters with
 /// inertias that differ in the last bits (linfa compares the sums, `fit` can only read them
 /// divided by the frame count) — there the centres agree to 1e-9.
 #[test]
-fn kmeans_fit_is_linfas_own_ten_run_fit_bit_for_bit() {
+fn kmeans_with_linfas_seeding_is_linfas_own_ten_run_fit() {
     use keyshape_lab::decompose::{prepare, PrepareOptions};
     use keyshape_lab::io::{read_sequence, ReadOptions};
+    use keyshape_lab::keyshapes::kmeans::{fit_with, Seeding};
     use linfa::prelude::*;
     use rand::SeedableRng;
     let files = [
@@ -316,7 +318,7 @@ fn kmeans_fit_is_linfas_own_ten_run_fit_bit_for_bit() {
         for pcs in [1, 2, 3, 5] {
             let data = ndarray::Array2::from_shape_fn((an.frames(), pcs), |(t, a)| an.proj[(a, t)]);
             for (k, seed) in [(2, 7), (3, 0), (7, 7), (12, 123), (16, 7), (24, 9)] {
-                let ours = keyshape_lab::keyshapes::kmeans::fit(&data, k, seed).unwrap();
+                let ours = fit_with(&data, k, seed, Seeding::LINFA).unwrap();
                 let linfa = linfa_clustering::KMeans::params_with_rng(
                     k,
                     rand_xoshiro::Xoshiro256Plus::seed_from_u64(seed),
@@ -363,5 +365,75 @@ fn kmeans_fit_is_linfas_own_ten_run_fit_bit_for_bit() {
     assert!(
         exact * 4 >= compared * 3,
         "only {exact} of {compared} fits bit for bit"
+    );
+}
+
+/// Greedy k-means++ against brute force: replaying the same generator, each centre must be,
+/// of the candidates drawn for it (with probability proportional to the squared distance
+/// to the nearest centre so far, recomputed here from every chosen centre), the one leaving
+/// the lowest sum of squared distances to the nearest centre. With one trial it is plain
+/// k-means++; with more, the start's potential is lower on average over seeds.
+#[test]
+fn greedy_kmeans_plusplus_keeps_the_best_of_its_candidates() {
+    use keyshape_lab::keyshapes::kmeans::kmeans_plusplus;
+    use rand::distributions::{Distribution, WeightedIndex};
+    use rand::SeedableRng;
+    use rand_xoshiro::Xoshiro256Plus;
+    let seq = keyshape_lab::io::builtin_sequence().unwrap();
+    let an = Analysis::new(seq.coords, seq.points).unwrap();
+    let data = ndarray::Array2::from_shape_fn((an.frames(), 3), |(t, a)| an.proj[(a, t)]);
+    let d =
+        |i: usize, t: usize| -> f64 { (0..3).map(|a| (data[(i, a)] - data[(t, a)]).powi(2)).sum() };
+    let nearest = |chosen: &[usize]| -> Vec<f64> {
+        (0..data.nrows())
+            .map(|t| {
+                chosen
+                    .iter()
+                    .map(|&c| d(c, t))
+                    .fold(f64::INFINITY, f64::min)
+            })
+            .collect()
+    };
+    let potential = |chosen: &[usize]| nearest(chosen).iter().sum::<f64>();
+    let (mut pot1, mut pot5) = (0.0, 0.0);
+    for seed in 0..20 {
+        for (k, trials) in [(6, 1), (6, 4), (12, 5)] {
+            let got = kmeans_plusplus(&data, k, trials, &mut Xoshiro256Plus::seed_from_u64(seed))
+                .unwrap();
+            let mut rng = Xoshiro256Plus::seed_from_u64(seed);
+            let first = WeightedIndex::new(vec![1.0; data.nrows()])
+                .unwrap()
+                .sample(&mut rng);
+            let mut want = vec![first];
+            while want.len() < k {
+                let w = WeightedIndex::new(nearest(&want)).unwrap();
+                let cands: Vec<usize> = (0..trials).map(|_| w.sample(&mut rng)).collect();
+                let score = |c: usize| {
+                    let mut v = want.clone();
+                    v.push(c);
+                    potential(&v)
+                };
+                // The first candidate with the lowest potential.
+                let best = cands
+                    .iter()
+                    .copied()
+                    .fold(None, |b: Option<usize>, c| match b {
+                        Some(b) if score(b) <= score(c) => Some(b),
+                        _ => Some(c),
+                    });
+                want.push(best.unwrap());
+            }
+            assert_eq!(got, want, "seed {seed}, k = {k}, {trials} trials");
+            if k == 12 {
+                pot5 += potential(&got);
+                let plain =
+                    kmeans_plusplus(&data, k, 1, &mut Xoshiro256Plus::seed_from_u64(seed)).unwrap();
+                pot1 += potential(&plain);
+            }
+        }
+    }
+    assert!(
+        pot5 < 0.8 * pot1,
+        "greedy starts {pot5} against plain {pot1}"
     );
 }
