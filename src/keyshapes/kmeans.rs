@@ -147,7 +147,9 @@ pub fn kmeans_plusplus(
                 std::mem::swap(&mut kept, &mut trial);
             }
         }
-        let (_, cand) = best.expect("at least one trial");
+        let Some((_, cand)) = best else {
+            return Err(Error::invalid("k-means++: no candidate drawn"));
+        };
         std::mem::swap(&mut nearest, &mut kept);
         chosen.push(cand);
     }
