@@ -177,6 +177,8 @@ pub struct KMeans {
     pub seed: u64,
     /// Key shapes are the clusters' mean shapes, not frames.
     pub mean: bool,
+    /// Starts and restarts ([`Seeding::LAB`] unless a benchmark compares them).
+    pub seeding: Seeding,
 }
 
 impl Heuristic for KMeans {
@@ -193,7 +195,7 @@ impl Heuristic for KMeans {
         an.need_axes(self.pcs, &self.name())?;
         let n = an.frames();
         let data = Array2::from_shape_fn((n, self.pcs), |(t, a)| an.proj[(a, t)]);
-        let centroids = fit(&data, k, self.seed)?;
+        let centroids = fit_with(&data, k, self.seed, self.seeding)?;
         let mut taken = vec![false; n];
         let mut columns = Vec::with_capacity(k);
         for c in 0..k {

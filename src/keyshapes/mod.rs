@@ -189,6 +189,7 @@ impl Method {
                 pcs,
                 seed: opts.seed,
                 mean,
+                seeding: kmeans::Seeding::LAB,
             }),
             Method::Hull => Box::new(Hull),
             Method::Greedy => Box::new(Greedy {

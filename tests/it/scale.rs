@@ -238,6 +238,7 @@ fn blocked_errors_on_long_tracks_equal_the_one_pass_errors() {
             pcs: 2,
             seed: 1,
             mean: true,
+            seeding: keyshape_lab::keyshapes::kmeans::Seeding::LAB,
         }
         .select(&an, 6)
         .unwrap();

@@ -2,6 +2,7 @@
 //! like with like.
 
 mod curves;
+mod kmeans;
 mod nnls;
 mod rig;
 mod scale;
@@ -25,6 +26,8 @@ enum What {
     Nnls(nnls::NnlsArgs),
     /// The full error-curve sweep (all methods, k = 2..24) against a plain implementation.
     Curves(curves::CurvesBenchArgs),
+    /// k-means seeding: the lab's (greedy k-means++, 3 restarts) against linfa's default.
+    Kmeans(kmeans::KmeansBenchArgs),
     /// Paper 004 mesh deformation throughput on the ICT face.
     Transfer(transfer::TransferBenchArgs),
     /// The offline temporal prior against the unsmoothed batch NNLS, and its memory.
@@ -41,6 +44,7 @@ pub fn run(a: &BenchArgs) -> Result<()> {
     match &a.what {
         What::Nnls(n) => nnls::run(n),
         What::Curves(c) => curves::run(c),
+        What::Kmeans(k) => kmeans::run(k),
         What::Tui(t) => tui::run(t),
         What::Transfer(t) => transfer::run(t),
         What::Smooth(s) => smooth::run(s),
