@@ -253,17 +253,54 @@ impl KeyChoiceArgs {
         if !self.keys.is_empty() {
             return frame_columns(seq, &self.keys);
         }
+        self.choose(coords, points, opts).0
+    }
+
+    /// As [`KeyChoiceArgs::columns`] on `seq`'s own coordinates, without a copy: the
+    /// analysis holds them while it chooses and hands them back.
+    pub fn columns_in_place(
+        &self,
+        seq: &mut keyshape_lab::sequence::Sequence,
+        opts: &KeyOptions,
+    ) -> Result<Vec<usize>> {
+        if !self.keys.is_empty() {
+            return frame_columns(seq, &self.keys);
+        }
+        let coords = std::mem::replace(&mut seq.coords, DMatrix::zeros(0, 0));
+        let (cols, coords) = self.choose(coords, seq.points, opts);
+        seq.coords = coords;
+        cols
+    }
+
+    /// The heuristic's key columns of `coords`, and `coords` back (empty if the analysis
+    /// could not be built, which is then the error).
+    fn choose(
+        &self,
+        coords: DMatrix<f64>,
+        points: usize,
+        opts: &KeyOptions,
+    ) -> (Result<Vec<usize>>, DMatrix<f64>) {
         let m = self.method.unwrap_or(Method::Spread);
         let k = match (m, self.k) {
-            (Method::Hull, _) => k_for(m, self.k)?,
+            (Method::Hull, _) => match k_for(m, self.k) {
+                Ok(k) => k,
+                Err(e) => return (Err(e), coords),
+            },
             (_, k) => k.unwrap_or(12),
         };
-        let an = Analysis::with_axes(
+        let an = match Analysis::with_axes(
             coords,
             points,
             keyshape_lab::keyshapes::axes_needed(&[m], k),
-        )?;
-        let sel = m.heuristic(opts).select(&an, k)?;
-        Ok(sel.key_frames(&m, "retargeting")?.to_vec())
+        ) {
+            Ok(an) => an,
+            Err(e) => return (Err(e.into()), DMatrix::zeros(0, 0)),
+        };
+        let cols = m
+            .heuristic(opts)
+            .select(&an, k)
+            .map_err(anyhow::Error::from)
+            .and_then(|sel| Ok(sel.key_frames(&m, "retargeting")?.to_vec()));
+        (cols, an.coords)
     }
 }

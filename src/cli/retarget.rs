@@ -11,7 +11,9 @@ use keyshape_lab::render::{apng::write_apng, save_png};
 use keyshape_lab::retarget::regions::{plan, Regions};
 use keyshape_lab::retarget::setup::{builtin_target, polylines_for};
 use keyshape_lab::retarget::target::TargetSet;
-use keyshape_lab::retarget::{retarget, with_head_motion, KeyPlan, Retargeted, Target};
+use keyshape_lab::retarget::{
+    retarget, retarget_errors, with_head_motion, KeyPlan, Retargeted, Target,
+};
 use keyshape_lab::sequence::Sequence;
 use keyshape_lab::solve::Solver;
 use nalgebra::DMatrix;
@@ -151,18 +153,23 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
     }
     let progress = super::progress::Progress::new("retarget");
     progress.step("retarget: reading");
-    let (seq, prep) = a.input.prepare()?;
-    progress.step("retarget: key shapes and weights");
-    let head = match a.head_motion.as_deref() {
-        Some("none") => None,
-        _ => prep.head.as_deref(),
+    // The raw track is kept only where it is read again: per-frame pictures, and the
+    // built-in target of a point subset (it is made from the whole face). Otherwise the
+    // track is aligned in place and held once.
+    let pictures_asked = a.png_dir.is_some() || a.apng.is_some();
+    let (seq, mut prep) = if pictures_asked || a.input.points.is_some() {
+        let (seq, prep) = a.input.prepare()?;
+        (Some(seq), prep)
+    } else {
+        (None, a.input.prepare_only()?)
     };
-    let s = &prep.seq;
+    progress.step("retarget: key shapes and weights");
     let opts = a.heuristic.options(a.solver);
     let neutral = a
         .neutral
         .map(|f| {
-            s.column_of_frame(f)
+            prep.seq
+                .column_of_frame(f)
                 .with_context(|| format!("--neutral {f}"))
         })
         .transpose()?;
@@ -176,6 +183,29 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
     if set.is_some() && !chosen && a.choice.k.is_some() {
         anyhow::bail!("--k applies with --method; without it the key frames are the target's own");
     }
+    // The built-in target is made now, so the raw track can go before the key choice:
+    // only the per-frame pictures need it after.
+    let builtin = match (&a.target, &set) {
+        (Some(_), Some(_)) => None,
+        _ => Some(target_for(
+            a,
+            seq.as_ref().unwrap_or(&prep.seq),
+            &prep,
+            None,
+            &[],
+        )?),
+    };
+    let seq = seq.filter(|_| pictures_asked);
+    // The global key choice works on the aligned coordinates themselves (no copy).
+    let global = match &a.regions {
+        None if set.is_none() || chosen => Some(a.choice.columns_in_place(&mut prep.seq, &opts)?),
+        _ => None,
+    };
+    let head = match a.head_motion.as_deref() {
+        Some("none") => None,
+        _ => prep.head.as_deref(),
+    };
+    let s = &prep.seq;
     let plan_keys = match &a.regions {
         // A target set stands for the frames it was drawn from: those are the keys, unless
         // --keys or --method asks for others (then the frames must match, said below).
@@ -197,7 +227,7 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
                 .collect::<Result<Vec<_>>>()?;
             KeyPlan::Global(cols)
         }
-        None => KeyPlan::Global(a.choice.columns(s, s.coords.clone(), s.points, &opts)?),
+        None => KeyPlan::Global(global.context("the global key choice")?),
         Some(r) => {
             let layout = prep
                 .layout
@@ -278,8 +308,20 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
             );
         }
     }
-    let (target, target_lines) = target_for(a, &seq, &prep, set.as_ref(), &key_frames)?;
-    let r = retarget(&s.coords, s.dims, &plan_keys, &target, neutral, a.solver)?;
+    let (target, target_lines) = match builtin {
+        Some(t) => t,
+        None => {
+            let set = set.as_ref().context("a target set")?;
+            target_for(a, &prep.seq, &prep, Some(set), &key_frames)?
+        }
+    };
+    // Per-frame pictures need the reconstructions and the raw track; the CSV and the
+    // summary need only the weights and the per-frame errors.
+    let r = if pictures_asked {
+        retarget(&s.coords, s.dims, &plan_keys, &target, neutral, a.solver)?
+    } else {
+        retarget_errors(&s.coords, s.dims, &plan_keys, &target, neutral, a.solver)?
+    };
     if r.unconverged > 0 {
         eprintln!(
             "warning: {} did not converge on {} frames (iteration cap); their weights are the last iterate",
@@ -301,7 +343,7 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
         "negative_share": r.negative_share(),
         "unconverged_frames": r.unconverged,
         "target": a.target.as_ref().map_or("builtin:cartoon".to_string(), |p| p.display().to_string()),
-        "head_motion": match (head, r.target.nrows() == s.coords.nrows()) {
+        "head_motion": match (head, r.target_points * s.dims == s.coords.nrows()) {
             (None, _) if a.input.no_align => "kept in the coordinates (--no-align)",
             (None, _) => "none (aligned coordinates)",
             (Some(_), true) => "applied: pictures in image coordinates, per-frame pose columns in --out",
@@ -342,16 +384,16 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
         }
         let title = format!(
             "{}: weights over time, {} keys, {}",
-            seq.source.rsplit('/').next().unwrap_or(&seq.source),
+            s.source.rsplit('/').next().unwrap_or(&s.source),
             rows,
             a.solver
         );
         let pm = keyshape_lab::render::weights::weights_picture(&all, &columns, &s.frames, &title)?;
         save_png(&pm, png)?;
     }
-    if a.png_dir.is_some() || a.apng.is_some() {
+    if let Some(seq) = &seq {
         progress.step("retarget: pictures");
-        pictures(a, &seq, &prep, head, &r, &target_lines, &progress)?;
+        pictures(a, seq, &prep, head, &r, &target_lines, &progress)?;
     }
     Ok(())
 }

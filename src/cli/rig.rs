@@ -143,11 +143,14 @@ pub fn run(a: &RigArgs) -> Result<()> {
         )?,
         None => keyshape_lab::io::builtin_sequence()?,
     };
-    let seq = match seq.points {
-        keyshape_lab::rig::LANDMARKS => seq,
-        468 => seq.select_points(&keyshape_lab::rig::mediapipe_to_ibug68()?)?,
-        n => anyhow::bail!(
-            "{name}: kslab rig needs 68-point tracks in iBUG order or MediaPipe 468-point tracks; this one has {n} points"
+    // (A `match` on a moved value: the 468-point track is freed once its 68 points are
+    // taken, instead of living on under a shadowed name.)
+    let seq = match seq {
+        seq if seq.points == keyshape_lab::rig::LANDMARKS => seq,
+        seq if seq.points == 468 => seq.select_points(&keyshape_lab::rig::mediapipe_to_ibug68()?)?,
+        seq => anyhow::bail!(
+            "{name}: kslab rig needs 68-point tracks in iBUG order or MediaPipe 468-point tracks; this one has {} points",
+            seq.points
         ),
     };
     let dir = match &a.rig {

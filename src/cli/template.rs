@@ -27,13 +27,13 @@ pub fn run(a: &TemplateArgs) -> Result<()> {
     super::check_outputs(&[Some(&a.out)], &[], &[a.input.file.as_deref()])?;
     a.heuristic.check(&a.choice.methods(), Solver::Nnls)?;
     let progress = super::progress::Progress::new("template");
-    let prep = a.input.prepare_only()?;
-    let s = &prep.seq;
-    if s.dims != 2 {
+    let mut prep = a.input.prepare_only()?;
+    if prep.seq.dims != 2 {
         anyhow::bail!("SVG templates are 2-D: use --dims 2");
     }
     let opts = a.heuristic.options(Solver::Nnls);
-    let cols = a.choice.columns(s, s.coords.clone(), s.points, &opts)?;
+    let cols = a.choice.columns_in_place(&mut prep.seq, &opts)?;
+    let s = &prep.seq;
     let keys: Vec<(i64, Vec<f64>)> = cols
         .iter()
         .map(|&c| (s.frames[c], s.coords.column(c).iter().copied().collect()))

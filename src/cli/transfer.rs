@@ -60,6 +60,9 @@ pub struct TransferArgs {
     json: bool,
 }
 
+/// Frames deformed at a time.
+const MESH_CHUNK: usize = 256;
+
 pub fn run(a: &TransferArgs) -> Result<()> {
     if a.input.points.is_some() {
         anyhow::bail!("--points does not apply to transfer: the feature correspondence chooses the points (use --groups)");
@@ -110,24 +113,68 @@ pub fn run(a: &TransferArgs) -> Result<()> {
             .collect();
         tr.skin.paint(w, &names)?;
     }
-    let t1 = Instant::now();
-    let frames = tr.all_frames(&s.coords);
-    let deform = t1.elapsed().as_secs_f64();
     let every = a.every as usize;
-    if let Some(dir) = &a.obj_dir {
+    for dir in [&a.obj_dir, &a.png_dir].into_iter().flatten() {
         std::fs::create_dir_all(dir).with_context(|| format!("{}", dir.display()))?;
-        progress.step("transfer: OBJ frames");
-        for (t, pos) in frames.iter().enumerate().step_by(every) {
-            progress.tick(t, frames.len());
-            let p = dir.join(format!("frame_{:06}.obj", s.frames[t]));
-            write_atomic(&p, |w| {
-                write_obj(
-                    w,
-                    pos,
-                    &tr.mesh.faces,
-                    &format!("kslab transfer: frame {} of {}", s.frames[t], s.source),
-                )
-            })?;
+    }
+    let marks: Vec<usize> = tr.features.features.iter().map(|f| f.target).collect();
+    let lines = prep
+        .layout
+        .as_ref()
+        .map(|l| polylines_for(l, &prep.point_indices))
+        .unwrap_or_default();
+    let (mb, sb) = (
+        mesh_bounds(&tr.mesh.positions),
+        bounds_of(&[&s.coords], s.dims),
+    );
+    // The frames are deformed a chunk at a time and written as they come, so memory holds
+    // one chunk of meshes, not the whole track's.
+    let n = s.n_frames();
+    let (mut deform, mut max_disp) = (0.0, 0.0f64);
+    if a.obj_dir.is_some() || a.png_dir.is_some() {
+        progress.step("transfer: frames");
+    }
+    for c0 in (0..n).step_by(MESH_CHUNK) {
+        let t1 = Instant::now();
+        let frames = tr.frames(&s.coords, c0..n.min(c0 + MESH_CHUNK));
+        deform += t1.elapsed().as_secs_f64();
+        max_disp = frames
+            .iter()
+            .flat_map(|f| {
+                f.iter().zip(&tr.mesh.positions).map(|(a, b)| {
+                    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+                })
+            })
+            .fold(max_disp, f64::max);
+        for (i, pos) in frames.iter().enumerate() {
+            let t = c0 + i;
+            if t % every != 0 {
+                continue;
+            }
+            progress.tick(t, n);
+            if let Some(dir) = &a.obj_dir {
+                let p = dir.join(format!("frame_{:06}.obj", s.frames[t]));
+                write_atomic(&p, |w| {
+                    write_obj(
+                        w,
+                        pos,
+                        &tr.mesh.faces,
+                        &format!("kslab transfer: frame {} of {}", s.frames[t], s.source),
+                    )
+                })?;
+            }
+            if let Some(dir) = &a.png_dir {
+                let m = wireframe(pos, &tr.mesh.faces, &marks, mb, 420, "target mesh")?;
+                let pic = transfer_frame(
+                    col(&s.coords, t),
+                    s.dims,
+                    &lines,
+                    sb,
+                    &m,
+                    &format!("frame {}", s.frames[t]),
+                )?;
+                save_png(&pic, &dir.join(format!("frame_{:06}.png", s.frames[t])))?;
+            }
         }
     }
     if let Some(p) = &a.gltf {
@@ -137,41 +184,8 @@ pub fn run(a: &TransferArgs) -> Result<()> {
             keyshape_lab::io::gltf::write_glb(w, &tr, &s.coords, fps)
         })?;
     }
-    if let Some(dir) = &a.png_dir {
-        std::fs::create_dir_all(dir).with_context(|| format!("{}", dir.display()))?;
-        let mb = mesh_bounds(&tr.mesh.positions);
-        let sb = bounds_of(&[&s.coords], s.dims);
-        let lines = prep
-            .layout
-            .as_ref()
-            .map(|l| polylines_for(l, &prep.point_indices))
-            .unwrap_or_default();
-        let marks: Vec<usize> = tr.features.features.iter().map(|f| f.target).collect();
-        progress.step("transfer: PNG frames");
-        for (t, pos) in frames.iter().enumerate().step_by(every) {
-            progress.tick(t, frames.len());
-            let m = wireframe(pos, &tr.mesh.faces, &marks, mb, 420, "target mesh")?;
-            let pic = transfer_frame(
-                col(&s.coords, t),
-                s.dims,
-                &lines,
-                sb,
-                &m,
-                &format!("frame {}", s.frames[t]),
-            )?;
-            save_png(&pic, &dir.join(format!("frame_{:06}.png", s.frames[t])))?;
-        }
-    }
     progress.finish();
     let moved = tr.skin.influences.iter().filter(|i| !i.is_empty()).count();
-    let max_disp = frames
-        .iter()
-        .flat_map(|f| {
-            f.iter().zip(&tr.mesh.positions).map(|(a, b)| {
-                ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
-            })
-        })
-        .fold(0.0, f64::max);
     let trained_on = format!(
         "the RBF is trained on one frame, {} ({}), mapped onto the mesh's neutral feature vertices; every frame goes through that one transform",
         s.frames[ncol],

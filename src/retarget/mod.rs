@@ -244,6 +244,42 @@ pub fn retarget_smoothed(
         &[std::ops::Range<usize>],
     )>,
 ) -> Result<Retargeted> {
+    retarget_impl(
+        q, dims, plan, target, neutral, solver, truth, smoothing, true,
+    )
+}
+
+/// As [`retarget`], keeping only the weights and the per-frame errors: [`Retargeted::source`]
+/// and [`Retargeted::target`] are 0 × frames and [`Retargeted::truth`] is `None`. The
+/// frames are reconstructed (and `G(Q)` evaluated) a chunk at a time, so on a long track
+/// this holds the weights and one chunk instead of three more copies of the sequence. The
+/// weights and errors are those [`retarget`] gives, bit for bit (tested).
+pub fn retarget_errors(
+    q: &DMatrix<f64>,
+    dims: usize,
+    plan: &KeyPlan,
+    target: &Target,
+    neutral: Option<usize>,
+    solver: Solver,
+) -> Result<Retargeted> {
+    retarget_impl(q, dims, plan, target, neutral, solver, None, None, false)
+}
+
+#[allow(clippy::too_many_arguments)]
+fn retarget_impl(
+    q: &DMatrix<f64>,
+    dims: usize,
+    plan: &KeyPlan,
+    target: &Target,
+    neutral: Option<usize>,
+    solver: Solver,
+    truth: Option<&DMatrix<f64>>,
+    smoothing: Option<(
+        &crate::solve::temporal::Smoothing,
+        &[std::ops::Range<usize>],
+    )>,
+    keep: bool,
+) -> Result<Retargeted> {
     let (n, frames) = q.shape();
     let points = n / dims;
     let (regions, key_sets): (Option<&RegionPlan>, Vec<Vec<usize>>) = match plan {
@@ -280,11 +316,12 @@ pub fn retarget_smoothed(
         Target::Warp { .. } => n,
         Target::Shapes { keys, .. } => keys.nrows(),
     };
-    let mut source = DMatrix::zeros(n, frames);
-    let mut out = DMatrix::zeros(n_t, frames);
-    let mut weights = Vec::new();
+    // Per region: its rows, weights and (delta-mode) key shapes; then the frames are
+    // reconstructed in chunks, so only what the caller keeps is ever whole.
+    let mut parts: Vec<Part> = Vec::with_capacity(key_sets.len());
     let mut unconverged = 0;
-    for (r, keys) in key_sets.iter().enumerate() {
+    for keys in key_sets.iter() {
+        let r = parts.len();
         let rows: Vec<usize> = match regions {
             None => (0..n).collect(),
             Some(p) => p.members[r]
@@ -337,7 +374,7 @@ pub fn retarget_smoothed(
                 (Some(nq), Some(nb))
             }
         };
-        let delta = |m: &DMatrix<f64>, base: &Option<DVector<f64>>| {
+        let delta = |m: &DMatrix<f64>, base: &Option<DVector<f64>>| -> DMatrix<f64> {
             let mut m = m.clone();
             if let Some(b) = base {
                 for mut c in m.column_iter_mut() {
@@ -347,9 +384,18 @@ pub fn retarget_smoothed(
             m
         };
         let s_d = delta(&s_full, &src_base);
-        let q_d = delta(q, &src_base);
         let b_d = delta(&b_full, &tgt_base);
-        let (s_r, q_r) = (s_d.select_rows(&rows), q_d.select_rows(&rows));
+        // The frames as solved: borrowed when they need no change (no neutral, every row).
+        let q_d: std::borrow::Cow<DMatrix<f64>> = match &src_base {
+            None => std::borrow::Cow::Borrowed(q),
+            Some(_) => std::borrow::Cow::Owned(delta(q, &src_base)),
+        };
+        let s_r = s_d.select_rows(&rows);
+        let q_r: std::borrow::Cow<DMatrix<f64>> = if regions.is_none() {
+            q_d
+        } else {
+            std::borrow::Cow::Owned(q_d.select_rows(&rows))
+        };
         let sol = solve_batch(&s_r, &q_r, &SolveOptions::new(solver))?;
         let w = match smoothing {
             Some((sm, segs)) if sm.lambda > 0.0 => {
@@ -362,52 +408,54 @@ pub fn retarget_smoothed(
                 sol.weights
             }
         };
-        let mut rec_s = &s_d * &w;
-        let mut rec_t = &b_d * &w;
-        if let (Some(sb), Some(tb)) = (&src_base, &tgt_base) {
-            for mut c in rec_s.column_iter_mut() {
-                c += sb;
-            }
-            for mut c in rec_t.column_iter_mut() {
-                c += tb;
-            }
-        }
-        match regions {
-            None => {
-                source = rec_s;
-                out = rec_t;
-            }
-            Some(p) => {
-                for i in 0..points {
-                    let bw = p.blend[(i, r)];
-                    if bw == 0.0 {
-                        continue;
-                    }
-                    for d in 0..dims {
-                        let row = i * dims + d;
-                        for t in 0..frames {
-                            source[(row, t)] += bw * rec_s[(row, t)];
-                            out[(row, t)] += bw * rec_t[(row, t)];
-                        }
-                    }
-                }
-            }
-        }
-        weights.push(w);
+        parts.push(Part {
+            s_d,
+            b_d,
+            bases: src_base.zip(tgt_base),
+            w,
+        });
     }
-    let source_sq = (0..frames)
-        .map(|t| (q.column(t) - source.column(t)).norm_squared())
-        .collect();
-    let truth = match (target, truth) {
-        (Target::Warp { .. }, Some(t)) if t.shape() == q.shape() => Some(t.clone()),
-        (Target::Warp { g, .. }, _) => Some(g.apply_all(q)),
-        (Target::Shapes { .. }, _) => None,
+    let mut source = DMatrix::zeros(if keep { n } else { 0 }, frames);
+    let mut out = DMatrix::zeros(if keep { n_t } else { 0 }, frames);
+    let mut source_sq = vec![0.0; frames];
+    let warp = match target {
+        Target::Warp { g, .. } => Some(g),
+        Target::Shapes { .. } => None,
     };
-    let target_sq = truth.as_ref().map(|tr| {
-        (0..frames)
-            .map(|t| (tr.column(t) - out.column(t)).norm_squared())
-            .collect()
-    });
+    let given_truth = truth.filter(|t| warp.is_some() && t.shape() == q.shape());
+    // The whole G(Q) only when it is kept; otherwise chunk by chunk.
+    let truth = match (keep, given_truth, warp) {
+        (true, Some(t), _) => Some(t.clone()),
+        (true, None, Some(g)) => Some(g.apply_all(q)),
+        _ => None,
+    };
+    let mut target_sq = warp.map(|_| vec![0.0; frames]);
+    for c0 in (0..frames).step_by(RECON_CHUNK) {
+        let len = RECON_CHUNK.min(frames - c0);
+        let (rec_s, rec_t) = reconstruct(&parts, regions, dims, n, n_t, c0, len);
+        for t in 0..len {
+            source_sq[c0 + t] = (q.column(c0 + t) - rec_s.column(t)).norm_squared();
+        }
+        if let Some(sq) = target_sq.as_mut() {
+            let chunk_truth;
+            let tr = match (&truth, given_truth, warp) {
+                (Some(tr), _, _) => tr.columns(c0, len),
+                (None, Some(tr), _) => tr.columns(c0, len),
+                (None, None, Some(g)) => {
+                    chunk_truth = g.apply_all(&q.columns(c0, len).clone_owned());
+                    chunk_truth.columns(0, len)
+                }
+                (None, None, None) => unreachable!("target_sq exists only for a warp"),
+            };
+            for t in 0..len {
+                sq[c0 + t] = (tr.column(t) - rec_t.column(t)).norm_squared();
+            }
+        }
+        if keep {
+            source.columns_mut(c0, len).copy_from(&rec_s);
+            out.columns_mut(c0, len).copy_from(&rec_t);
+        }
+    }
     Ok(Retargeted {
         unconverged,
         keys: if given.is_some() {
@@ -415,7 +463,7 @@ pub fn retarget_smoothed(
         } else {
             key_sets
         },
-        weights,
+        weights: parts.into_iter().map(|p| p.w).collect(),
         source,
         target: out,
         truth,
@@ -424,6 +472,68 @@ pub fn retarget_smoothed(
         points,
         target_points: n_t / dims,
     })
+}
+
+/// Frames reconstructed per chunk (source and target), so a run that keeps only the
+/// errors holds a chunk of them, not the whole sequence.
+const RECON_CHUNK: usize = 4096;
+
+/// One region's solve: its key shapes (minus the neutral in delta mode), the neutrals,
+/// and the weights.
+struct Part {
+    s_d: DMatrix<f64>,
+    b_d: DMatrix<f64>,
+    bases: Option<(DVector<f64>, DVector<f64>)>,
+    w: DMatrix<f64>,
+}
+
+/// Source and target reconstructions of frames `c0..c0 + len`: each region's
+/// `S_d w + base`, blended over regions (or the one region's, whole).
+fn reconstruct(
+    parts: &[Part],
+    regions: Option<&RegionPlan>,
+    dims: usize,
+    n: usize,
+    n_t: usize,
+    c0: usize,
+    len: usize,
+) -> (DMatrix<f64>, DMatrix<f64>) {
+    let one = |p: &Part| {
+        let w = p.w.columns(c0, len);
+        let mut rec_s = &p.s_d * w;
+        let mut rec_t = &p.b_d * w;
+        if let Some((sb, tb)) = &p.bases {
+            for mut c in rec_s.column_iter_mut() {
+                c += sb;
+            }
+            for mut c in rec_t.column_iter_mut() {
+                c += tb;
+            }
+        }
+        (rec_s, rec_t)
+    };
+    let Some(plan) = regions else {
+        return one(&parts[0]);
+    };
+    let mut source = DMatrix::zeros(n, len);
+    let mut out = DMatrix::zeros(n_t, len);
+    for (r, p) in parts.iter().enumerate() {
+        let (rec_s, rec_t) = one(p);
+        for i in 0..n / dims {
+            let bw = plan.blend[(i, r)];
+            if bw == 0.0 {
+                continue;
+            }
+            for d in 0..dims {
+                let row = i * dims + d;
+                for t in 0..len {
+                    source[(row, t)] += bw * rec_s[(row, t)];
+                    out[(row, t)] += bw * rec_t[(row, t)];
+                }
+            }
+        }
+    }
+    (source, out)
 }
 
 /// Adds the seeded tracing offsets of key column `key` (see [`Target::Warp`]).

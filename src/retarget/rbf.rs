@@ -105,13 +105,26 @@ impl Rbf {
         out
     }
 
-    /// Maps every column of `shapes`, in parallel.
+    /// Maps every column of `shapes`, in parallel, into one new matrix (no copy per column).
     pub fn apply_all(&self, shapes: &DMatrix<f64>) -> DMatrix<f64> {
         use rayon::prelude::*;
-        let cols: Vec<Vec<f64>> = (0..shapes.ncols())
-            .into_par_iter()
-            .map(|c| self.apply(shapes.column(c).as_slice()))
-            .collect();
-        DMatrix::from_iterator(shapes.nrows(), shapes.ncols(), cols.into_iter().flatten())
+        let n = shapes.nrows();
+        let mut out = DMatrix::zeros(n, shapes.ncols());
+        if n > 0 {
+            out.as_mut_slice()
+                .par_chunks_mut(n)
+                .enumerate()
+                .for_each(|(c, col)| {
+                    let shape = shapes.column(c);
+                    for (x, o) in shape
+                        .as_slice()
+                        .chunks(self.dims)
+                        .zip(col.chunks_mut(self.dims))
+                    {
+                        self.apply_point(x, o);
+                    }
+                });
+        }
+        out
     }
 }

@@ -57,14 +57,24 @@ pub fn builtin_target(seq: &Sequence, prep: &Prepared) -> Result<(Rbf, f64)> {
             seq.points
         ))
     })?;
-    let full = prepare(
-        seq,
-        &PrepareOptions {
-            points: None,
-            align: prep.head.is_some(),
-        },
-    )?;
-    let mean = full.seq.coords.column_mean();
+    // Alignment always fits the whole face and then keeps the selected points, so when
+    // every point is kept `prep` already is the whole prepared face: no second copy.
+    let all_points = prep.point_indices.len() == seq.points
+        && prep.point_indices.iter().enumerate().all(|(i, &p)| i == p);
+    let mean = if all_points {
+        prep.seq.coords.column_mean()
+    } else {
+        prepare(
+            seq,
+            &PrepareOptions {
+                points: None,
+                align: prep.head.is_some(),
+            },
+        )?
+        .seq
+        .coords
+        .column_mean()
+    };
     Ok((
         cartoon_warp(mean.as_slice(), layout)?,
         iod(mean.as_slice(), layout)?,

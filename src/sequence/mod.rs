@@ -253,10 +253,17 @@ impl Sequence {
             .iter()
             .flat_map(|&p| (0..self.dims).map(move |d| p * self.dims + d))
             .collect();
+        // Field by field: `..self.clone()` would copy every coordinate only to drop them.
         Ok(Sequence {
-            coords: self.coords.select_rows(&rows),
+            source: self.source.clone(),
+            format: self.format,
+            dims: self.dims,
             points: indices.len(),
-            ..self.clone()
+            coords: self.coords.select_rows(&rows),
+            frames: self.frames.clone(),
+            times: self.times.clone(),
+            segments: self.segments.clone(),
+            failed: self.failed.clone(),
         })
     }
 

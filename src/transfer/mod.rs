@@ -118,8 +118,19 @@ impl Transfer {
 
     /// Deformed positions of every frame (columns of `coords`), in parallel.
     pub fn all_frames(&self, coords: &DMatrix<f64>) -> Vec<Vec<[f64; 3]>> {
+        self.frames(coords, 0..coords.ncols())
+    }
+
+    /// The deformed mesh of the frames (columns of `coords`) in `range`, in parallel: what
+    /// a caller walking a long track chunk by chunk asks for (a mesh of 9,409 vertices is
+    /// 226 kB, so every frame of an hour at once would be 24 GB).
+    pub fn frames(
+        &self,
+        coords: &DMatrix<f64>,
+        range: std::ops::Range<usize>,
+    ) -> Vec<Vec<[f64; 3]>> {
         use rayon::prelude::*;
-        (0..coords.ncols())
+        range
             .into_par_iter()
             .map(|c| self.frame(coords.column(c).as_slice()))
             .collect()

@@ -669,3 +669,125 @@ fn the_cartoon_target_stays_inside_its_outline_on_every_real_frame() {
         );
     }
 }
+
+/// `retarget_errors` (what `kslab retarget` runs without pictures) reconstructs the frames
+/// a chunk at a time and keeps only the weights and the per-frame errors; they must be
+/// `retarget`'s bit for bit: global keys, delta mode, face regions, a drawn target, and a
+/// generated track of 9,000 frames (three reconstruction chunks).
+#[test]
+fn retarget_errors_equal_the_full_retarget_bit_for_bit() {
+    use keyshape_lab::retarget::retarget_errors;
+    let check = |q: &DMatrix<f64>, plan_keys: &KeyPlan, target: &Target, neutral, what: &str| {
+        for solver in [Solver::Nnls, Solver::Ls] {
+            let full = retarget(q, 2, plan_keys, target, neutral, solver).unwrap();
+            let lean = retarget_errors(q, 2, plan_keys, target, neutral, solver).unwrap();
+            assert_eq!(full.weights, lean.weights, "{what} {solver:?}: weights");
+            let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            assert_eq!(
+                bits(&full.source_sq),
+                bits(&lean.source_sq),
+                "{what}: source errors"
+            );
+            assert_eq!(
+                full.target_sq.as_deref().map(bits),
+                lean.target_sq.as_deref().map(bits),
+                "{what}: target errors"
+            );
+            assert_eq!(
+                (full.points, full.target_points),
+                (lean.points, lean.target_points)
+            );
+            assert_eq!(full.unconverged, lean.unconverged);
+            assert_eq!(full.jitter().to_bits(), lean.jitter().to_bits());
+            assert_eq!((lean.source.nrows(), lean.target.nrows()), (0, 0));
+            assert!(lean.truth.is_none());
+            assert_eq!(full.source.ncols(), q.ncols());
+        }
+    };
+    // Real: d6, whole face and lips, with the built-in target.
+    let seq = keyshape_lab::io::read_sequence(
+        &shared("mediapipe_face_tracks/liveportrait_d6.csv"),
+        &Default::default(),
+    )
+    .unwrap();
+    let face = prepare(
+        &seq,
+        &PrepareOptions {
+            points: None,
+            align: true,
+        },
+    )
+    .unwrap();
+    let (g, iod) = builtin_target(&seq, &face).unwrap();
+    let warp = Target::Warp {
+        g,
+        trace_noise: 0.01 * iod,
+    };
+    let keys = vec![0, 100, 250, 400, 600, 800, 1000];
+    let q = &face.seq.coords;
+    check(q, &KeyPlan::Global(keys.clone()), &warp, None, "d6 face");
+    check(
+        q,
+        &KeyPlan::Global(keys.clone()),
+        &warp,
+        Some(5),
+        "d6 face, delta",
+    );
+    let layout = Layout::mediapipe468();
+    let all: Vec<usize> = (0..468).collect();
+    let p = plan(
+        &Regions::builtin(&layout).unwrap(),
+        &layout,
+        &all,
+        q.column_mean().as_slice(),
+        2,
+    )
+    .unwrap();
+    let per_region = p.members.iter().map(|_| keys.clone()).collect();
+    check(
+        q,
+        &KeyPlan::Regions(p, per_region),
+        &warp,
+        None,
+        "d6 regions",
+    );
+    let drawn = Target::Shapes {
+        keys: q.select_columns(&keys) * 1.5,
+        neutral: None,
+    };
+    check(
+        q,
+        &KeyPlan::Global(keys.clone()),
+        &drawn,
+        None,
+        "d6 drawn target",
+    );
+    // Generated: 9,000 frames of 68 points.
+    let mut text = Vec::new();
+    keyshape_lab::sequence::synthetic::write_long_track(&mut text, 9000, 68, 3).unwrap();
+    let path = std::env::temp_dir().join(format!("kslab_retarget_long_{}.csv", std::process::id()));
+    std::fs::write(&path, &text).unwrap();
+    let long = keyshape_lab::io::read_sequence(&path, &Default::default()).unwrap();
+    std::fs::remove_file(&path).unwrap();
+    let lp = prepare(
+        &long,
+        &PrepareOptions {
+            points: None,
+            align: true,
+        },
+    )
+    .unwrap();
+    let (g, _) = builtin_target(&long, &lp).unwrap();
+    let warp = Target::Warp {
+        g,
+        trace_noise: 0.0,
+    };
+    let keys: Vec<usize> = (0..12).map(|i| i * 700).collect();
+    check(
+        &lp.seq.coords,
+        &KeyPlan::Global(keys),
+        &warp,
+        None,
+        "9,000 generated frames",
+    );
+}
