@@ -75,8 +75,16 @@ pub fn run(a: &SmoothArgs) -> Result<()> {
     };
     st.check(30.0)?;
     let progress = super::progress::Progress::new("smooth");
-    let (seq, prep) = a.input.prepare()?;
-    let rows = smoothing_study(&seq, &prep, &st, &Default::default())?;
+    // The raw track only for a point subset (the built-in target is made from the whole
+    // face); otherwise it is aligned in place and held once.
+    let (raw, prep) = if a.input.points.is_some() {
+        let (seq, prep) = a.input.prepare()?;
+        (Some(seq), prep)
+    } else {
+        (None, a.input.prepare_only()?)
+    };
+    let seq = raw.as_ref().unwrap_or(&prep.seq);
+    let rows = smoothing_study(seq, &prep, &st, &Default::default())?;
     std::fs::create_dir_all(&a.out)?;
     let title = format!(
         "{} {} k={} {}",

@@ -331,38 +331,23 @@ pub fn smoothing_study(
     let q = &prep.seq.coords;
     let points = prep.seq.points;
     let segs = segments(&prep.seq.frames, prep.seq.segments.as_deref());
-    let an = Analysis::with_axes(
-        q.clone(),
-        points,
-        crate::keyshapes::axes_needed(&[st.method], st.key_count()),
-    )?;
-    let sel = st.method.heuristic(opts).select(&an, st.key_count())?;
-    let s = sel.key_shapes(&an);
+    let s = {
+        let an = Analysis::with_axes(
+            q.clone(),
+            points,
+            crate::keyshapes::axes_needed(&[st.method], st.key_count()),
+        )?;
+        let sel = st.method.heuristic(opts).select(&an, st.key_count())?;
+        sel.key_shapes(&an)
+    };
     let (g, _) = crate::retarget::setup::builtin_target(seq, prep)?;
     let b = g.apply_all(&s);
-    let truth = g.apply_all(q);
-    let clean = gaussian_lowpass(q, &segs, st.clean_sigma);
-    let truth_clean = g.apply_all(&clean);
     let plain = solve_batch(&s, q, &SolveOptions::new(st.solver))?;
     let w0 = plain.weights.clone();
-    let rms = |a: &DMatrix<f64>, b: &DMatrix<f64>| {
-        ((a - b).norm_squared() / (a.ncols() * points).max(1) as f64).sqrt()
-    };
-    let row = |approach: &str, setting: String, w: &DMatrix<f64>, kkt: Option<f64>| {
-        let out = &b * w;
-        SmoothRow {
-            approach: approach.to_string(),
-            setting,
-            source_rms: rms(&(&s * w), q),
-            target_rms_tracked: rms(&out, &truth),
-            target_rms_clean: rms(&out, &truth_clean),
-            jitter_target: jitter(&out, &segs, points),
-            jitter_weights: jitter(w, &segs, w.nrows()),
-            lag_frames: lag(w, &w0, &segs, 15),
-            kkt,
-        }
-    };
-    let mut rows = vec![row("none", "λ 0".into(), &w0, None)];
+    // Every setting's weights first (keys × frames each); the errors after, in one pass
+    // over the frames.
+    let mut sets: Vec<(String, String, DMatrix<f64>, Option<f64>)> =
+        vec![("none".into(), "λ 0".into(), w0.clone(), None)];
     for (mode, order, name) in [
         (SmoothMode::Offline, 1, "prior offline order 1"),
         (SmoothMode::Offline, 2, "prior offline order 2"),
@@ -381,14 +366,107 @@ pub fn smoothing_study(
                     r.kkt
                 )));
             }
-            rows.push(row(name, format!("λ {lambda}"), &r.weights, Some(r.kkt)));
+            sets.push((name.into(), format!("λ {lambda}"), r.weights, Some(r.kkt)));
         }
     }
     for f in st.filters(fps) {
         let w = f.apply(&w0, &segs, st.solver)?;
-        rows.push(row(&f.series(), f.setting(), &w, None));
+        sets.push((f.series(), f.setting(), w, None));
     }
-    Ok(rows)
+    let clean = gaussian_lowpass(q, &segs, st.clean_sigma);
+    let errors = frame_errors(q, &clean, &s, &b, &g, &sets, &segs, points);
+    let frames = q.ncols();
+    let rms = |sq: f64| (sq / (frames * points).max(1) as f64).sqrt();
+    Ok(sets
+        .iter()
+        .zip(errors)
+        .map(|((approach, setting, w, kkt), e)| SmoothRow {
+            approach: approach.clone(),
+            setting: setting.clone(),
+            source_rms: rms(e.source),
+            target_rms_tracked: rms(e.tracked),
+            target_rms_clean: rms(e.clean),
+            jitter_target: if e.jitter_count == 0 {
+                0.0
+            } else {
+                (e.jitter / e.jitter_count as f64).sqrt()
+            },
+            jitter_weights: jitter(w, &segs, w.nrows()),
+            lag_frames: lag(w, &w0, &segs, 15),
+            kkt: *kkt,
+        })
+        .collect())
+}
+
+/// One setting's sums over the frames: squared source error, squared target error
+/// against the warp of the tracked and of the clean points, and the target's squared
+/// second differences with their count (as [`jitter`] sums them).
+#[derive(Debug, Clone, Copy, Default)]
+struct ErrorSums {
+    source: f64,
+    tracked: f64,
+    clean: f64,
+    jitter: f64,
+    jitter_count: usize,
+}
+
+/// Frames handled at a time by [`frame_errors`].
+const ERROR_CHUNK: usize = 4096;
+
+/// Every setting's [`ErrorSums`], a chunk of frames at a time: the reconstructions
+/// `S w_t` and `B w_t` and the references `G(q_t)` and `G(clean_t)` exist for one chunk
+/// only, so a long track holds its frames and their low-pass (two copies), not six. Each
+/// sum adds the frames in order, frame by frame, exactly as a norm over the whole matrix
+/// adds them (column by column), so the figures are the whole-matrix ones.
+#[allow(clippy::too_many_arguments)]
+fn frame_errors(
+    q: &DMatrix<f64>,
+    clean: &DMatrix<f64>,
+    s: &DMatrix<f64>,
+    b: &DMatrix<f64>,
+    g: &crate::retarget::rbf::Rbf,
+    sets: &[(String, String, DMatrix<f64>, Option<f64>)],
+    segs: &[Range<usize>],
+    points: usize,
+) -> Vec<ErrorSums> {
+    let frames = q.ncols();
+    // Frames with both neighbours in their segment: where the second difference is taken.
+    let mut interior = vec![false; frames];
+    for r in segs {
+        for t in r.start + 1..r.end.saturating_sub(1) {
+            interior[t] = true;
+        }
+    }
+    let mut sums = vec![ErrorSums::default(); sets.len()];
+    for c0 in (0..frames).step_by(ERROR_CHUNK) {
+        let len = ERROR_CHUNK.min(frames - c0);
+        let truth = g.apply_all(&q.columns(c0, len).clone_owned());
+        let truth_clean = g.apply_all(&clean.columns(c0, len).clone_owned());
+        // One frame of context on each side for the second difference.
+        let (lo, hi) = (c0.saturating_sub(1), (c0 + len + 1).min(frames));
+        for ((_, _, w, _), e) in sets.iter().zip(sums.iter_mut()) {
+            let rec = s * w.columns(c0, len);
+            for t in 0..len {
+                let d = rec.column(t) - q.column(c0 + t);
+                e.source += d.dotc(&d);
+            }
+            let out = b * w.columns(lo, hi - lo);
+            for t in c0..c0 + len {
+                let o = out.column(t - lo);
+                let d = o - truth.column(t - c0);
+                e.tracked += d.dotc(&d);
+                let d = o - truth_clean.column(t - c0);
+                e.clean += d.dotc(&d);
+                if interior[t] {
+                    let d2 =
+                        out.column(t + 1 - lo) - out.column(t - lo) * 2.0 + out.column(t - 1 - lo);
+                    e.jitter += d2.norm_squared();
+                    e.jitter_count += points;
+                }
+            }
+        }
+    }
+    sums
 }
 
 /// Each approach's target errors interpolated at a common jitter level (linear between the
