@@ -68,6 +68,67 @@ impl Pca {
             let t = x.norm_squared() / denom;
             (x.transpose() * &x, t)
         };
+        Ok(Pca::from_gram(
+            gram,
+            mean,
+            total_variance,
+            (rows, n),
+            (!small_side).then_some(&x),
+        ))
+    }
+
+    /// The full PCA of `n` columns of `rows` values each, made block by block by
+    /// `block(start, width)` (columns `start..start + width`) and never held together: what
+    /// [`Pca::fit`] gives for the matrix of those columns, bit for bit (the same blocks of
+    /// 4,096 columns, the same sums in the same order). For data generated on the fly,
+    /// such as paper 002's region training set (four shapes per frame). Needs `rows ≤ n`.
+    pub fn fit_blocks(
+        rows: usize,
+        n: usize,
+        block: &dyn Fn(usize, usize) -> DMatrix<f64>,
+    ) -> Result<Pca> {
+        if n < 2 {
+            return Err(Error::invalid("PCA needs at least 2 frames"));
+        }
+        if rows > n {
+            return Err(Error::invalid(format!(
+                "a block-wise PCA needs at least as many columns as values per column ({n} < {rows})"
+            )));
+        }
+        const BLOCK: usize = 4096;
+        // The mean as `column_mean` adds it: a·col + out per column, in order.
+        let denom_mean = 1.0 / n as f64;
+        let mut mean = DVector::<f64>::zeros(rows);
+        for start in (0..n).step_by(BLOCK) {
+            let b = block(start, BLOCK.min(n - start));
+            for c in b.column_iter() {
+                mean.axpy(denom_mean, &c, 1.0);
+            }
+        }
+        let mut g = DMatrix::<f64>::zeros(rows, rows);
+        let mut total = 0.0;
+        for start in (0..n).step_by(BLOCK) {
+            let mut b = block(start, BLOCK.min(n - start));
+            for mut c in b.column_iter_mut() {
+                c -= &mean;
+            }
+            total += b.norm_squared();
+            g += &b * b.transpose();
+        }
+        let denom = (n - 1) as f64;
+        Ok(Pca::from_gram(g, mean, total / denom, (rows, n), None))
+    }
+
+    /// Axes from the Gram matrix of the centred data: `X Xᵀ` (rows × rows), or `XᵀX`
+    /// (n × n) with `x` the centred data, whose axes are then `X v`.
+    fn from_gram(
+        gram: DMatrix<f64>,
+        mean: DVector<f64>,
+        total_variance: f64,
+        (rows, n): (usize, usize),
+        x: Option<&DMatrix<f64>>,
+    ) -> Pca {
+        let denom = (n - 1) as f64;
         let eig = SymmetricEigen::new(gram);
         let mut order: Vec<usize> = (0..eig.eigenvalues.len()).collect();
         order.sort_by(|&a, &b| eig.eigenvalues[b].total_cmp(&eig.eigenvalues[a]));
@@ -79,7 +140,10 @@ impl Pca {
         let mut components = DMatrix::zeros(rows, keep.len());
         for (c, &j) in keep.iter().enumerate() {
             let v = eig.eigenvectors.column(j);
-            let mut axis = if small_side { v.clone_owned() } else { &x * v };
+            let mut axis = match x {
+                None => v.clone_owned(),
+                Some(x) => x * v,
+            };
             let norm = axis.norm();
             if norm > 0.0 {
                 axis /= norm;
@@ -92,12 +156,12 @@ impl Pca {
             components.set_column(c, &axis);
         }
         let variances = keep.iter().map(|&j| eig.eigenvalues[j] / denom).collect();
-        Ok(Pca {
+        Pca {
             mean,
             components,
             variances,
             total_variance,
-        })
+        }
     }
 
     /// The leading `r` axes only, by block subspace iteration (block of r + 12 vectors,

@@ -3,7 +3,7 @@
 use super::input::InputArgs;
 use anyhow::Result;
 use clap::Args;
-use keyshape_lab::experiment::smoothing::{smoothing_study, SmoothStudySettings};
+use keyshape_lab::experiment::smoothing::{smoothing_study_in_place, SmoothStudySettings};
 use keyshape_lab::keyshapes::Method;
 use keyshape_lab::solve::Solver;
 use std::path::PathBuf;
@@ -77,14 +77,14 @@ pub fn run(a: &SmoothArgs) -> Result<()> {
     let progress = super::progress::Progress::new("smooth");
     // The raw track only for a point subset (the built-in target is made from the whole
     // face); otherwise it is aligned in place and held once.
-    let (raw, prep) = if a.input.points.is_some() {
+    let (raw, mut prep) = if a.input.points.is_some() {
         let (seq, prep) = a.input.prepare()?;
         (Some(seq), prep)
     } else {
         (None, a.input.prepare_only()?)
     };
+    let rows = smoothing_study_in_place(raw.as_ref(), &mut prep, &st, &Default::default())?;
     let seq = raw.as_ref().unwrap_or(&prep.seq);
-    let rows = smoothing_study(seq, &prep, &st, &Default::default())?;
     std::fs::create_dir_all(&a.out)?;
     let title = format!(
         "{} {} k={} {}",

@@ -356,6 +356,47 @@ pub fn artificial_set(coords: &DMatrix<f64>, regions: &[Region], dims: usize) ->
     out
 }
 
+/// The action-specific model: the PCA of [`artificial_set`] (leading `modes` axes), made
+/// from its columns a block at a time instead of the set itself, which is as many copies
+/// of the sequence as there are regions. The same axes as fitting the set's matrix with
+/// [`Pca::fit_leading`] where that takes the full decomposition (up to 176 values per
+/// shape: 88 points in 2-D; tested bit for bit); with more values per shape it replaces
+/// fit_leading's subspace iteration by the full decomposition, which is exact rather than
+/// converged to 1e-10.
+pub fn artificial_pca(
+    coords: &DMatrix<f64>,
+    regions: &[Region],
+    dims: usize,
+    modes: usize,
+) -> Result<Pca> {
+    let (rows, n) = coords.shape();
+    let total = n * regions.len();
+    if total <= rows {
+        // Fewer shapes than values: the set is small; fit it whole.
+        return Pca::fit_leading(&artificial_set(coords, regions, dims), modes);
+    }
+    let mean = coords.column_mean();
+    let block = |start: usize, width: usize| -> DMatrix<f64> {
+        let mut out = DMatrix::zeros(rows, width);
+        for j in 0..width {
+            let (r, i) = ((start + j) / n, (start + j) % n);
+            out.set_column(
+                j,
+                &region_shape(
+                    &mean,
+                    coords.column(i).as_slice(),
+                    &regions[r].weights,
+                    dims,
+                ),
+            );
+        }
+        out
+    };
+    let mut p = Pca::fit_blocks(rows, total, &block)?;
+    p.truncate(modes.min(rows.min(total)));
+    Ok(p)
+}
+
 /// Paper 002 Eq. (9): `M(cᵢ, cⱼ) = (cᵢ·cⱼ)² / ((cⱼ·cⱼ)(cᵢ·cᵢ))` — 0 for orthogonal vectors,
 /// 1 for parallel ones (0 when either is zero).
 pub fn orthogonality(ci: &DVector<f64>, cj: &DVector<f64>) -> f64 {
@@ -509,8 +550,7 @@ pub fn orthogonality_study(
         ));
     }
     let vecs = action_vectors(coords, frames, dims, regions, actions)?;
-    let artificial = artificial_set(coords, regions, dims);
-    let action_model = Pca::fit_leading(&artificial, modes)?;
+    let action_model = artificial_pca(coords, regions, dims, modes)?;
     let plain = Pca::fit_leading(coords, modes)?;
     Ok(OrthogonalityStudy {
         names: actions.actions.iter().map(|a| a.name.clone()).collect(),

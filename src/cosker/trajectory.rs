@@ -10,7 +10,7 @@
 //! where the two models encode the action in opposite directions), and the normalised
 //! tracks, scaled by the target's own extremes, synthesise the target person's shapes.
 
-use crate::cosker::modes::{action_vectors, artificial_set, Actions, Region};
+use crate::cosker::modes::{action_vectors, artificial_pca, Actions, Region};
 use crate::error::{Error, Result};
 use crate::pca::Pca;
 use nalgebra::{DMatrix, DVector};
@@ -79,7 +79,7 @@ pub fn person_model(
             "a person's model needs at least 1 mode (--modes)",
         ));
     }
-    let pca = Pca::fit_leading(&artificial_set(coords, regions, dims), modes)?;
+    let pca = artificial_pca(coords, regions, dims, modes)?;
     let m = pca.components.ncols();
     let b = pca.project(coords, m);
     let upper: Vec<f64> = (0..m)

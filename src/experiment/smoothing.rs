@@ -24,7 +24,7 @@ use crate::keyshapes::{Analysis, KeyOptions, Method};
 use crate::solve::filters::PostFilter;
 use crate::solve::temporal::{segments, smooth_from, SmoothMode, Smoothing};
 use crate::solve::{solve_batch, SolveOptions, Solver};
-use nalgebra::DMatrix;
+use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
 use std::ops::Range;
 
@@ -237,31 +237,50 @@ pub struct SmoothRow {
 /// Zero-phase Gaussian low-pass of every row within segments (σ in frames, truncated at
 /// 3σ, renormalised at the ends).
 pub fn gaussian_lowpass(x: &DMatrix<f64>, segs: &[Range<usize>], sigma: f64) -> DMatrix<f64> {
-    let h = (3.0 * sigma).ceil() as i64;
-    let kern: Vec<f64> = (-h..=h)
-        .map(|d| (-(d * d) as f64 / (2.0 * sigma * sigma)).exp())
-        .collect();
+    let lp = Lowpass::new(sigma);
     let mut out = x.clone();
     for r in segs {
         for t in r.clone() {
-            let (mut acc, mut wsum) = (vec![0.0; x.nrows()], 0.0);
-            for d in -h..=h {
-                let u = t as i64 + d;
-                if u < r.start as i64 || u >= r.end as i64 {
-                    continue;
-                }
-                let w = kern[(d + h) as usize];
-                wsum += w;
-                for (i, a) in acc.iter_mut().enumerate() {
-                    *a += w * x[(i, u as usize)];
-                }
-            }
-            for (i, a) in acc.into_iter().enumerate() {
-                out[(i, t)] = a / wsum;
-            }
+            out.set_column(t, &lp.frame(x, r, t));
         }
     }
     out
+}
+
+/// The Gaussian low-pass of one frame at a time (what [`gaussian_lowpass`] computes for
+/// each frame), so a caller can filter a chunk of a long track without a filtered copy
+/// of it all.
+struct Lowpass {
+    h: i64,
+    kern: Vec<f64>,
+}
+
+impl Lowpass {
+    fn new(sigma: f64) -> Self {
+        let h = (3.0 * sigma).ceil() as i64;
+        let kern = (-h..=h)
+            .map(|d| (-(d * d) as f64 / (2.0 * sigma * sigma)).exp())
+            .collect();
+        Lowpass { h, kern }
+    }
+
+    /// Frame `t` of `x` filtered within its segment `r`.
+    fn frame(&self, x: &DMatrix<f64>, r: &Range<usize>, t: usize) -> DVector<f64> {
+        let h = self.h;
+        let (mut acc, mut wsum) = (vec![0.0; x.nrows()], 0.0);
+        for d in -h..=h {
+            let u = t as i64 + d;
+            if u < r.start as i64 || u >= r.end as i64 {
+                continue;
+            }
+            let w = self.kern[(d + h) as usize];
+            wsum += w;
+            for (i, a) in acc.iter_mut().enumerate() {
+                *a += w * x[(i, u as usize)];
+            }
+        }
+        DVector::from_iterator(x.nrows(), acc.into_iter().map(|a| a / wsum))
+    }
 }
 
 /// RMS of the second temporal difference within segments, per value.
@@ -326,28 +345,103 @@ pub fn smoothing_study(
     st: &SmoothStudySettings,
     opts: &KeyOptions,
 ) -> Result<Vec<SmoothRow>> {
+    st.check(seq.fps().unwrap_or(30.0))?;
+    let (s, _) = key_shapes(prep.seq.coords.clone(), prep.seq.points, st, opts);
+    study_with_keys(seq, prep, st, s?)
+}
+
+/// As [`smoothing_study`], choosing the key shapes on `prep`'s own coordinates instead of
+/// a copy (they are handed back): for a long track held once. `seq` is the sequence
+/// `prep` came from, or `None` when `prep` keeps every point (the built-in target is then
+/// made from `prep` itself).
+pub fn smoothing_study_in_place(
+    seq: Option<&crate::sequence::Sequence>,
+    prep: &mut Prepared,
+    st: &SmoothStudySettings,
+    opts: &KeyOptions,
+) -> Result<Vec<SmoothRow>> {
+    st.check(seq.unwrap_or(&prep.seq).fps().unwrap_or(30.0))?;
+    let coords = std::mem::replace(&mut prep.seq.coords, DMatrix::zeros(0, 0));
+    let (s, coords) = key_shapes(coords, prep.seq.points, st, opts);
+    prep.seq.coords = coords;
+    let s = s?;
+    study_with_keys(seq.unwrap_or(&prep.seq), prep, st, s)
+}
+
+/// The study's key shapes, and the coordinates back (empty if the analysis failed).
+fn key_shapes(
+    coords: DMatrix<f64>,
+    points: usize,
+    st: &SmoothStudySettings,
+    opts: &KeyOptions,
+) -> (Result<DMatrix<f64>>, DMatrix<f64>) {
+    let an = match Analysis::with_axes(
+        coords,
+        points,
+        crate::keyshapes::axes_needed(&[st.method], st.key_count()),
+    ) {
+        Ok(an) => an,
+        Err(e) => return (Err(e), DMatrix::zeros(0, 0)),
+    };
+    let s = st
+        .method
+        .heuristic(opts)
+        .select(&an, st.key_count())
+        .map(|sel| sel.key_shapes(&an));
+    (s, an.coords)
+}
+
+fn study_with_keys(
+    seq: &crate::sequence::Sequence,
+    prep: &Prepared,
+    st: &SmoothStudySettings,
+    s: DMatrix<f64>,
+) -> Result<Vec<SmoothRow>> {
     let fps = seq.fps().unwrap_or(30.0);
-    st.check(fps)?;
     let q = &prep.seq.coords;
     let points = prep.seq.points;
     let segs = segments(&prep.seq.frames, prep.seq.segments.as_deref());
-    let s = {
-        let an = Analysis::with_axes(
-            q.clone(),
-            points,
-            crate::keyshapes::axes_needed(&[st.method], st.key_count()),
-        )?;
-        let sel = st.method.heuristic(opts).select(&an, st.key_count())?;
-        sel.key_shapes(&an)
-    };
     let (g, _) = crate::retarget::setup::builtin_target(seq, prep)?;
     let b = g.apply_all(&s);
     let plain = solve_batch(&s, q, &SolveOptions::new(st.solver))?;
     let w0 = plain.weights.clone();
-    // Every setting's weights first (keys × frames each); the errors after, in one pass
-    // over the frames.
-    let mut sets: Vec<(String, String, DMatrix<f64>, Option<f64>)> =
-        vec![("none".into(), "λ 0".into(), w0.clone(), None)];
+    // The settings' weights (keys × frames each) are kept until they add up to a quarter
+    // of the coordinates' size, then their errors are measured in one pass over the frames
+    // and the weights dropped.
+    let budget = (q.len() / 4).max(1);
+    let lowpass = Lowpass::new(st.clean_sigma);
+    let frames = q.ncols();
+    let rms = |sq: f64| (sq / (frames * points).max(1) as f64).sqrt();
+    let mut rows = Vec::new();
+    let mut sets: Vec<(String, String, DMatrix<f64>, Option<f64>)> = Vec::new();
+    let mut flush = |sets: &mut Vec<(String, String, DMatrix<f64>, Option<f64>)>| {
+        let errors = frame_errors(q, &lowpass, &s, &b, &g, sets, &segs, points);
+        for ((approach, setting, w, kkt), e) in sets.drain(..).zip(errors) {
+            rows.push(SmoothRow {
+                approach,
+                setting,
+                source_rms: rms(e.source),
+                target_rms_tracked: rms(e.tracked),
+                target_rms_clean: rms(e.clean),
+                jitter_target: if e.jitter_count == 0 {
+                    0.0
+                } else {
+                    (e.jitter / e.jitter_count as f64).sqrt()
+                },
+                jitter_weights: jitter(&w, &segs, w.nrows()),
+                lag_frames: lag(&w, &w0, &segs, 15),
+                kkt,
+            });
+        }
+    };
+    let mut add = |sets: &mut Vec<(String, String, DMatrix<f64>, Option<f64>)>,
+                   set: (String, String, DMatrix<f64>, Option<f64>)| {
+        sets.push(set);
+        if sets.iter().map(|x| x.2.len()).sum::<usize>() >= budget {
+            flush(sets);
+        }
+    };
+    add(&mut sets, ("none".into(), "λ 0".into(), w0.clone(), None));
     for (mode, order, name) in [
         (SmoothMode::Offline, 1, "prior offline order 1"),
         (SmoothMode::Offline, 2, "prior offline order 2"),
@@ -366,36 +460,20 @@ pub fn smoothing_study(
                     r.kkt
                 )));
             }
-            sets.push((name.into(), format!("λ {lambda}"), r.weights, Some(r.kkt)));
+            add(
+                &mut sets,
+                (name.into(), format!("λ {lambda}"), r.weights, Some(r.kkt)),
+            );
         }
     }
     for f in st.filters(fps) {
         let w = f.apply(&w0, &segs, st.solver)?;
-        sets.push((f.series(), f.setting(), w, None));
+        add(&mut sets, (f.series(), f.setting(), w, None));
     }
-    let clean = gaussian_lowpass(q, &segs, st.clean_sigma);
-    let errors = frame_errors(q, &clean, &s, &b, &g, &sets, &segs, points);
-    let frames = q.ncols();
-    let rms = |sq: f64| (sq / (frames * points).max(1) as f64).sqrt();
-    Ok(sets
-        .iter()
-        .zip(errors)
-        .map(|((approach, setting, w, kkt), e)| SmoothRow {
-            approach: approach.clone(),
-            setting: setting.clone(),
-            source_rms: rms(e.source),
-            target_rms_tracked: rms(e.tracked),
-            target_rms_clean: rms(e.clean),
-            jitter_target: if e.jitter_count == 0 {
-                0.0
-            } else {
-                (e.jitter / e.jitter_count as f64).sqrt()
-            },
-            jitter_weights: jitter(w, &segs, w.nrows()),
-            lag_frames: lag(w, &w0, &segs, 15),
-            kkt: *kkt,
-        })
-        .collect())
+    if !sets.is_empty() {
+        flush(&mut sets);
+    }
+    Ok(rows)
 }
 
 /// One setting's sums over the frames: squared source error, squared target error
@@ -415,13 +493,13 @@ const ERROR_CHUNK: usize = 4096;
 
 /// Every setting's [`ErrorSums`], a chunk of frames at a time: the reconstructions
 /// `S w_t` and `B w_t` and the references `G(q_t)` and `G(clean_t)` exist for one chunk
-/// only, so a long track holds its frames and their low-pass (two copies), not six. Each
+/// only (the low-pass too, frame by frame), so a long track is held once, not six times. Each
 /// sum adds the frames in order, frame by frame, exactly as a norm over the whole matrix
 /// adds them (column by column), so the figures are the whole-matrix ones.
 #[allow(clippy::too_many_arguments)]
 fn frame_errors(
     q: &DMatrix<f64>,
-    clean: &DMatrix<f64>,
+    lowpass: &Lowpass,
     s: &DMatrix<f64>,
     b: &DMatrix<f64>,
     g: &crate::retarget::rbf::Rbf,
@@ -432,16 +510,30 @@ fn frame_errors(
     let frames = q.ncols();
     // Frames with both neighbours in their segment: where the second difference is taken.
     let mut interior = vec![false; frames];
-    for r in segs {
+    // Each frame's segment, for the low-pass.
+    let mut seg_of = vec![0usize; frames];
+    for (k, r) in segs.iter().enumerate() {
         for t in r.start + 1..r.end.saturating_sub(1) {
             interior[t] = true;
+        }
+        for t in r.clone() {
+            seg_of[t] = k;
         }
     }
     let mut sums = vec![ErrorSums::default(); sets.len()];
     for c0 in (0..frames).step_by(ERROR_CHUNK) {
         let len = ERROR_CHUNK.min(frames - c0);
         let truth = g.apply_all(&q.columns(c0, len).clone_owned());
-        let truth_clean = g.apply_all(&clean.columns(c0, len).clone_owned());
+        let mut clean = DMatrix::zeros(q.nrows(), len);
+        for j in 0..len {
+            let t = c0 + j;
+            match segs.get(seg_of[t]).filter(|r| r.contains(&t)) {
+                Some(r) => clean.set_column(j, &lowpass.frame(q, r, t)),
+                // A frame in no segment keeps its value, as gaussian_lowpass leaves it.
+                None => clean.set_column(j, &q.column(t)),
+            }
+        }
+        let truth_clean = g.apply_all(&clean);
         // One frame of context on each side for the second difference.
         let (lo, hi) = (c0.saturating_sub(1), (c0 + len + 1).min(frames));
         for ((_, _, w, _), e) in sets.iter().zip(sums.iter_mut()) {

@@ -204,9 +204,29 @@ fn table_2_on_d6_is_a_measurement_with_blended_regions() {
     check_table(&blended.plain);
     // Each entry is Eq. 9 of the actions' projections on the leading modes, computed here.
     let vecs = action_vectors(&prep.seq.coords, &prep.seq.frames, 2, &regions, &actions).unwrap();
-    let model =
-        keyshape_lab::pca::Pca::fit_leading(&artificial_set(&prep.seq.coords, &regions, 2), 10)
-            .unwrap();
+    // The study fits the set block by block, never holding it (`artificial_pca`): that is
+    // the full decomposition of the set's matrix, bit for bit; fit_leading's subspace
+    // iteration on the matrix agrees with it to its 1e-10 convergence tolerance.
+    let art = artificial_set(&prep.seq.coords, &regions, 2);
+    let mut model = keyshape_lab::pca::Pca::fit(&art).unwrap();
+    model.truncate(10);
+    let blocks =
+        keyshape_lab::cosker::modes::artificial_pca(&prep.seq.coords, &regions, 2, 10).unwrap();
+    assert_eq!(blocks.components, model.components);
+    assert_eq!(blocks.variances, model.variances);
+    assert_eq!(blocks.mean, model.mean);
+    let iterated = keyshape_lab::pca::Pca::fit_leading(&art, 10).unwrap();
+    for (a, b) in iterated.variances.iter().zip(&model.variances) {
+        assert!((a - b).abs() <= 1e-9 * model.variances[0], "{a} vs {b}");
+    }
+    for c in 0..10 {
+        let cos = iterated
+            .components
+            .column(c)
+            .dot(&model.components.column(c))
+            .abs();
+        assert!(cos > 1.0 - 1e-8, "axis {c}: |cos| {cos}");
+    }
     let proj: Vec<DVector<f64>> = vecs
         .iter()
         .map(|v| model.components.tr_mul(&(v - &model.mean)))
@@ -705,4 +725,41 @@ fn orthogonality_picture_has_both_axes_and_a_scale() {
         })
     });
     assert!(ink_above, "column names drawn above the grid");
+}
+
+/// With 68 points (136 values per shape) `Pca::fit_leading` takes the full decomposition,
+/// so the block-wise action model must be fit_leading's on the materialised set, bit for
+/// bit (a generated 3,000-frame track, iBUG regions: several blocks of 4,096 shapes).
+#[test]
+fn the_block_wise_action_model_is_fit_leadings_on_68_points() {
+    let mut text = Vec::new();
+    keyshape_lab::sequence::synthetic::write_long_track(&mut text, 3000, 68, 5).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("long.csv");
+    std::fs::write(&path, &text).unwrap();
+    let seq = keyshape_lab::io::read_sequence(&path, &Default::default()).unwrap();
+    let prep = keyshape_lab::decompose::prepare(
+        &seq,
+        &keyshape_lab::decompose::PrepareOptions {
+            points: None,
+            align: true,
+        },
+    )
+    .unwrap();
+    let layout = Layout::ibug68();
+    let regions = ModeRegions::builtin(&layout)
+        .unwrap()
+        .weights(&layout, &prep.seq.coords, 2, &RegionOptions::default())
+        .unwrap();
+    let q = &prep.seq.coords;
+    assert!(q.ncols() * regions.len() > 4096, "more than one block");
+    let whole = keyshape_lab::pca::Pca::fit_leading(&artificial_set(q, &regions, 2), 10).unwrap();
+    let blocks = keyshape_lab::cosker::modes::artificial_pca(q, &regions, 2, 10).unwrap();
+    assert_eq!(blocks.components, whole.components);
+    assert_eq!(blocks.variances, whole.variances);
+    assert_eq!(blocks.mean, whole.mean);
+    assert_eq!(
+        blocks.total_variance.to_bits(),
+        whole.total_variance.to_bits()
+    );
 }
