@@ -67,14 +67,17 @@ fn subsampled_greedy_reports_exact_errors_and_stays_near_the_exact_greedy() {
     }
 }
 
-/// Solve, k-means and greedy on generated long tracks through the real binary, with peak
+/// Solve, k-means, greedy, template, retarget, transfer and modes on generated long tracks
+/// through the real binary, with peak
 /// memory from `kslab bench scale` (wait4's rusage): all finish, and memory grows linearly
 /// in frames. The slope between 10,000 and 40,000 frames is the memory per frame
 /// without the fixed costs. Measured on 2026-12-01 (eighth session, after the reader
 /// stopped holding the file's text): solve 1.4 kB, kmeans2 1.3 kB, greedy 3.6 kB per frame
 /// of 68 points (one copy of the coordinates is 1.1 kB; greedy's includes its subsample's
-/// Gram matrix, 5,000 frames at 10k and 5,715 at 40k: 2.0 kB per frame of the slope). The
-/// bounds below are those plus a margin: a copy of the coordinates more would break them.
+/// Gram matrix, 5,000 frames at 10k and 5,715 at 40k: 2.0 kB per frame of the slope);
+/// template, retarget, transfer and modes (after they stopped copying the track) 1.0, 1.1,
+/// 0.5 and 1.0 kB. The bounds below are those plus a margin: a copy of the coordinates more
+/// would break them.
 /// The frames × frames Gram matrix would be 12.8 GB at 40,000 frames.
 #[test]
 fn long_generated_tracks_run_in_memory_linear_in_frames() {
@@ -86,7 +89,7 @@ fn long_generated_tracks_run_in_memory_linear_in_frames() {
             "--frames",
             "10000,40000",
             "--steps",
-            "solve,kmeans2,greedy",
+            "solve,kmeans2,greedy,template,retarget,transfer,modes",
             "--json",
             "--dir",
         ])
@@ -99,7 +102,7 @@ fn long_generated_tracks_run_in_memory_linear_in_frames() {
         String::from_utf8_lossy(&out.stderr)
     );
     let rows: Vec<serde_json::Value> = serde_json::from_slice(&out.stdout).unwrap();
-    assert_eq!(rows.len(), 6);
+    assert_eq!(rows.len(), 14);
     for r in &rows {
         assert_eq!(r["ok"], true, "{r}");
     }
@@ -112,6 +115,10 @@ fn long_generated_tracks_run_in_memory_linear_in_frames() {
         ("solve", 2_300.0),
         ("kmeans2", 2_300.0),
         ("greedy", 4_500.0),
+        ("template", 2_000.0),
+        ("retarget", 2_000.0),
+        ("transfer", 2_000.0),
+        ("modes", 2_000.0),
     ] {
         if let (Some(a), Some(b)) = (peak(step, 10000), peak(step, 40000)) {
             let slope = (b - a) * 1e6 / 30000.0;

@@ -18,7 +18,11 @@ pub struct ScaleArgs {
     #[arg(long, default_value_t = 68)]
     points: usize,
     /// What to run: solve (16 keys, nnls), stream (the same with `--stream`), kmeans2 (`keys --method kmeans2 --k 16`),
-    /// greedy (`keys --method greedy --k 16`), curves (`curves --k 2..16`, default methods).
+    /// greedy (`keys --method greedy --k 16`), curves (`curves --k 2..16`, default methods);
+    /// and the other subcommands with their defaults: info, template, retarget (built-in
+    /// target), transfer (onto the ICT face at 68 points, the MediaPipe canonical face at 468;
+    /// `--json`), modes (d6's actions), rig (ICT FaceKit), smooth (needs ../shared/data for
+    /// transfer, modes and rig).
     #[arg(
         long,
         value_delimiter = ',',
@@ -52,7 +56,10 @@ struct Measure {
     error: String,
 }
 
-const STEPS: [&str; 5] = ["solve", "stream", "kmeans2", "greedy", "curves"];
+const STEPS: [&str; 12] = [
+    "solve", "stream", "kmeans2", "greedy", "curves", "info", "template", "retarget", "transfer",
+    "modes", "rig", "smooth",
+];
 
 pub fn run(a: &ScaleArgs) -> Result<()> {
     if let Some(bad) = a.steps.iter().find(|s| !STEPS.contains(&s.as_str())) {
@@ -127,13 +134,57 @@ pub fn run(a: &ScaleArgs) -> Result<()> {
                     "--k".into(),
                     "16".into(),
                 ],
-                _ => vec![
+                "curves" => vec![
                     "curves".into(),
                     t.clone(),
                     "--k".into(),
                     "2..16".into(),
                     "--out".into(),
                     out,
+                ],
+                "info" => vec!["info".into(), t.clone()],
+                "template" => vec![
+                    "template".into(),
+                    t.clone(),
+                    "--out".into(),
+                    dir.join(format!("template_{n}.svg")).display().to_string(),
+                ],
+                "retarget" => vec!["retarget".into(), t.clone(), "--out".into(), out],
+                "transfer" => {
+                    let (mesh, features) = if a.points == 468 {
+                        (
+                            "mediapipe_canonical_face/canonical_face_model.obj",
+                            "mediapipe_to_canonical",
+                        )
+                    } else {
+                        ("ict_facekit_face/neutral_face.obj", "ibug68_to_ict")
+                    };
+                    vec![
+                        "transfer".into(),
+                        t.clone(),
+                        "--mesh".into(),
+                        keyshape_lab::io::shared_data(mesh)?.display().to_string(),
+                        "--features".into(),
+                        features.into(),
+                        "--json".into(),
+                    ]
+                }
+                "modes" => vec![
+                    "modes".into(),
+                    t.clone(),
+                    "--actions".into(),
+                    concat!(
+                        env!("CARGO_MANIFEST_DIR"),
+                        "/assets/cosker/actions_liveportrait_d6.json"
+                    )
+                    .into(),
+                ],
+                "rig" => vec!["rig".into(), t.clone(), "--out".into(), out],
+                _ => vec![
+                    "smooth".into(),
+                    t.clone(),
+                    "--out".into(),
+                    dir.join(format!("smooth_{n}")).display().to_string(),
                 ],
             };
             let m = measure(&exe, &args, step, n, a.points)?;
