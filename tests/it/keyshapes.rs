@@ -149,6 +149,23 @@ proptest! {
 }
 
 #[test]
+fn kmeans_heuristics_are_named_as_the_cli_names_them() {
+    use keyshape_lab::keyshapes::kmeans::{KMeans, Seeding};
+    use keyshape_lab::keyshapes::Heuristic;
+    let h = |pcs, mean| KMeans {
+        pcs,
+        seed: 7,
+        mean,
+        seeding: Seeding::LAB,
+    };
+    assert_eq!(h(2, false).name(), "kmeans2");
+    assert_eq!(h(3, true).name(), "kmeans3-mean");
+    for m in Method::ALL {
+        assert_eq!(m.heuristic(&KeyOptions::default()).name(), m.name());
+    }
+}
+
+#[test]
 fn kmeans_is_deterministic_for_a_seed_and_differs_across_seeds() {
     let seq = keyshape_lab::io::builtin_sequence().unwrap();
     let an = Analysis::new(seq.coords, seq.points).unwrap();
@@ -436,6 +453,23 @@ fn greedy_kmeans_plusplus_keeps_the_best_of_its_candidates() {
         pot5 < 0.8 * pot1,
         "greedy starts {pot5} against plain {pot1}"
     );
+    // Ties: on three points in a line, −1 and +1 leave the same potential once 0 is a
+    // centre, so the first drawn must win (as the brute force above takes the first).
+    let line = ndarray::Array2::from_shape_vec((3, 1), vec![-1.0, 0.0, 1.0]).unwrap();
+    let mut ties = 0;
+    for seed in 0..64 {
+        let mut rng = Xoshiro256Plus::seed_from_u64(seed);
+        let first = WeightedIndex::new(vec![1.0; 3]).unwrap().sample(&mut rng);
+        if first != 1 {
+            continue;
+        }
+        let w = WeightedIndex::new(vec![1.0, 0.0, 1.0]).unwrap();
+        let cands: Vec<usize> = (0..3).map(|_| w.sample(&mut rng)).collect();
+        let got = kmeans_plusplus(&line, 2, 3, &mut Xoshiro256Plus::seed_from_u64(seed)).unwrap();
+        assert_eq!(got, vec![1, cands[0]], "seed {seed}: candidates {cands:?}");
+        ties += usize::from(cands.iter().any(|&c| c != cands[0]));
+    }
+    assert!(ties > 3, "only {ties} seeds drew both ends");
 }
 
 /// `kslab bench kmeans` compares the two seedings on a real track: one row per clustered
