@@ -763,3 +763,31 @@ fn the_block_wise_action_model_is_fit_leadings_on_68_points() {
         whole.total_variance.to_bits()
     );
 }
+
+/// `Pca::fit_blocks` at its edges: one column and more values than columns are refused
+/// with a message; two columns, and as many columns as values, are fitted exactly as
+/// `Pca::fit` fits the same matrix.
+#[test]
+fn block_wise_pca_refuses_what_it_cannot_fit_and_fits_its_edges() {
+    use keyshape_lab::pca::Pca;
+    let m = nalgebra::DMatrix::from_fn(3, 5, |i, j| {
+        ((i * 7 + j * 3) % 5) as f64 + 0.1 * (i * j) as f64
+    });
+    let fit = |rows: usize, n: usize| {
+        let part = m.view((0, 0), (rows, n)).clone_owned();
+        let blocks = Pca::fit_blocks(rows, n, &|s, w| part.columns(s, w).clone_owned());
+        (blocks, part)
+    };
+    let e = fit(2, 1).0.unwrap_err().to_string();
+    assert!(e.contains("at least 2 frames"), "{e}");
+    let e = fit(3, 2).0.unwrap_err().to_string();
+    assert!(e.contains("at least as many columns"), "{e}");
+    for (rows, n) in [(2, 2), (3, 3), (3, 5)] {
+        let (blocks, part) = fit(rows, n);
+        let blocks = blocks.unwrap();
+        let whole = Pca::fit(&part).unwrap();
+        assert_eq!(blocks.components, whole.components, "{rows} × {n}");
+        assert_eq!(blocks.variances, whole.variances);
+        assert_eq!(blocks.mean, whole.mean);
+    }
+}
