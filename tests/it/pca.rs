@@ -115,3 +115,40 @@ fn leading_axes_by_subspace_iteration_match_the_full_decomposition() {
         }
     }
 }
+
+/// The sign convention that makes axes (and so spread's and the lab's projections)
+/// deterministic: every axis's largest-magnitude coordinate is positive, and the axes
+/// are unit vectors, for the full fit from either side (more frames than values and
+/// fewer) and for the block-wise fit.
+#[test]
+fn every_axis_is_a_unit_vector_with_a_positive_largest_coordinate() {
+    let seq = keyshape_lab::io::read_sequence(
+        &crate::common::shared("pyfeat_samples/news_sample_compact.csv"),
+        &Default::default(),
+    )
+    .unwrap();
+    let q = seq.coords; // 136 values, 477 frames
+    let wide = q.columns(0, 40).clone_owned(); // 136 values, 40 frames
+    let blocks =
+        Pca::fit_blocks(q.nrows(), q.ncols(), &|s, w| q.columns(s, w).clone_owned()).unwrap();
+    for (what, p) in [
+        ("tall", Pca::fit(&q).unwrap()),
+        ("wide", Pca::fit(&wide).unwrap()),
+        ("blocks", blocks),
+    ] {
+        assert!(p.components.ncols() >= 10, "{what}");
+        for (c, axis) in p.components.column_iter().enumerate() {
+            assert!(
+                (axis.norm() - 1.0).abs() < 1e-12,
+                "{what} axis {c}: norm {}",
+                axis.norm()
+            );
+            let imax = axis.iamax();
+            assert!(
+                axis[imax] > 0.0,
+                "{what} axis {c}: largest coordinate {}",
+                axis[imax]
+            );
+        }
+    }
+}
