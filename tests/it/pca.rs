@@ -152,3 +152,21 @@ fn every_axis_is_a_unit_vector_with_a_positive_largest_coordinate() {
         }
     }
 }
+
+/// The rank cutoff: an axis whose variance is below 1e-13 · max(values, frames) of the
+/// largest is numerically zero and dropped; one well above is kept.
+#[test]
+fn axes_below_the_rank_cutoff_are_dropped() {
+    // 3 values × 40 frames, variances along the coordinate axes 1 : 0.25 : s.
+    let data = |s: f64| {
+        DMatrix::from_fn(3, 40, |i, t| {
+            let u = ((t * 37 + 11) % 40) as f64 / 20.0 - 0.975;
+            let v = ((t * 13 + 5) % 40) as f64 / 20.0 - 0.975;
+            let w = ((t * 29 + 3) % 40) as f64 / 20.0 - 0.975;
+            [u, 0.5 * v, s.sqrt() * w][i]
+        })
+    };
+    // 1e-13 · 40 · top is the cutoff: 1e-14 of the top variance is below it, 1e-9 above.
+    assert_eq!(Pca::fit(&data(1e-14)).unwrap().components.ncols(), 2);
+    assert_eq!(Pca::fit(&data(1e-9)).unwrap().components.ncols(), 3);
+}
