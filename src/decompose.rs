@@ -234,7 +234,7 @@ pub fn decompose_smoothed(
     let smoothed = match smoothing {
         Some((sm, segs)) if sm.lambda > 0.0 => {
             let (rank, condition) = (sol.rank, sol.condition);
-            let r = smooth_from(&s, q, sol, opts.solver, sm, segs)?;
+            let r = smooth_from(&s, q, &sol, opts.solver, sm, segs)?;
             sol = crate::solve::Solution {
                 weights: r.weights.clone(),
                 rank,

@@ -302,30 +302,31 @@ pub fn jitter(x: &DMatrix<f64>, segs: &[Range<usize>], per: usize) -> f64 {
 /// The shift in −`max`..=`max` frames maximising the cross-correlation of `a` with `b`
 /// (rows mean-removed, summed over rows, within segments): positive when `a` trails `b`.
 pub fn lag(a: &DMatrix<f64>, b: &DMatrix<f64>, segs: &[Range<usize>], max: i64) -> i64 {
-    let centre = |m: &DMatrix<f64>| {
-        let mut c = m.clone();
-        for r in segs {
-            for i in 0..m.nrows() {
-                let mean = (r.start..r.end).map(|t| m[(i, t)]).sum::<f64>() / r.len().max(1) as f64;
-                for t in r.clone() {
-                    c[(i, t)] -= mean;
-                }
-            }
-        }
-        c
+    // Each row's mean in each segment, subtracted where the products are taken (no
+    // mean-removed copies of the two series).
+    let means = |m: &DMatrix<f64>| -> Vec<Vec<f64>> {
+        segs.iter()
+            .map(|r| {
+                (0..m.nrows())
+                    .map(|i| {
+                        (r.start..r.end).map(|t| m[(i, t)]).sum::<f64>() / r.len().max(1) as f64
+                    })
+                    .collect()
+            })
+            .collect()
     };
-    let (a, b) = (centre(a), centre(b));
+    let (ma, mb) = (means(a), means(b));
     let mut best = (f64::NEG_INFINITY, 0i64);
     for d in -max..=max {
         let mut acc = 0.0;
-        for r in segs {
+        for (r, (ma, mb)) in segs.iter().zip(ma.iter().zip(&mb)) {
             for t in r.clone() {
                 let u = t as i64 - d;
                 if u < r.start as i64 || u >= r.end as i64 {
                     continue;
                 }
                 for i in 0..a.nrows() {
-                    acc += a[(i, t)] * b[(i, u as usize)];
+                    acc += (a[(i, t)] - ma[i]) * (b[(i, u as usize)] - mb[i]);
                 }
             }
         }
@@ -404,7 +405,7 @@ fn study_with_keys(
     let (g, _) = crate::retarget::setup::builtin_target(seq, prep)?;
     let b = g.apply_all(&s);
     let plain = solve_batch(&s, q, &SolveOptions::new(st.solver))?;
-    let w0 = plain.weights.clone();
+    let w0 = &plain.weights;
     // The settings' weights (keys × frames each) are kept until they add up to a quarter
     // of the coordinates' size, then their errors are measured in one pass over the frames
     // and the weights dropped.
@@ -429,7 +430,7 @@ fn study_with_keys(
                     (e.jitter / e.jitter_count as f64).sqrt()
                 },
                 jitter_weights: jitter(&w, &segs, w.nrows()),
-                lag_frames: lag(&w, &w0, &segs, 15),
+                lag_frames: lag(&w, w0, &segs, 15),
                 kkt,
             });
         }
@@ -441,39 +442,54 @@ fn study_with_keys(
             flush(sets);
         }
     };
-    add(&mut sets, ("none".into(), "λ 0".into(), w0.clone(), None));
-    for (mode, order, name) in [
+    // The settings in the report's order: none, the prior offline order 1, order 2,
+    // causal, the filters. The order-2 solves, which need the most memory, run first,
+    // while no other setting's weights are held; the rows are put back in order at the end
+    // (each row's figures do not depend on which others share its pass).
+    let priors = [
         (SmoothMode::Offline, 1, "prior offline order 1"),
         (SmoothMode::Offline, 2, "prior offline order 2"),
         (SmoothMode::Causal, 1, "prior causal order 1"),
-    ] {
-        for &lambda in &st.lambdas {
+    ];
+    let nl = st.lambdas.len();
+    let mut place: Vec<usize> = Vec::new();
+    for p in [1, 0, 2] {
+        if p == 0 {
+            place.push(0);
+            add(&mut sets, ("none".into(), "λ 0".into(), w0.clone(), None));
+        }
+        let (mode, order, name) = priors[p];
+        for (li, &lambda) in st.lambdas.iter().enumerate() {
             let sm = Smoothing {
                 lambda,
                 order,
                 mode,
             };
-            let r = smooth_from(&s, q, plain.clone(), st.solver, &sm, &segs)?;
+            let r = smooth_from(&s, q, &plain, st.solver, &sm, &segs)?;
             if r.unconverged > 0 {
                 return Err(Error::invalid(format!(
                     "{name} λ {lambda}: the smoothed solve did not settle (KKT residual {:e})",
                     r.kkt
                 )));
             }
+            place.push(1 + p * nl + li);
             add(
                 &mut sets,
                 (name.into(), format!("λ {lambda}"), r.weights, Some(r.kkt)),
             );
         }
     }
-    for f in st.filters(fps) {
-        let w = f.apply(&w0, &segs, st.solver)?;
+    for (fi, f) in st.filters(fps).into_iter().enumerate() {
+        let w = f.apply(w0, &segs, st.solver)?;
+        place.push(1 + 3 * nl + fi);
         add(&mut sets, (f.series(), f.setting(), w, None));
     }
     if !sets.is_empty() {
         flush(&mut sets);
     }
-    Ok(rows)
+    let mut placed: Vec<(usize, SmoothRow)> = place.into_iter().zip(rows).collect();
+    placed.sort_by_key(|(i, _)| *i);
+    Ok(placed.into_iter().map(|(_, r)| r).collect())
 }
 
 /// One setting's sums over the frames: squared source error, squared target error

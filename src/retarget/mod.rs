@@ -399,7 +399,7 @@ fn retarget_impl(
         let sol = solve_batch(&s_r, &q_r, &SolveOptions::new(solver))?;
         let w = match smoothing {
             Some((sm, segs)) if sm.lambda > 0.0 => {
-                let r = crate::solve::temporal::smooth_from(&s_r, &q_r, sol, solver, sm, segs)?;
+                let r = crate::solve::temporal::smooth_from(&s_r, &q_r, &sol, solver, sm, segs)?;
                 unconverged += r.unconverged;
                 r.weights
             }

@@ -167,6 +167,15 @@ pub fn difference_bands(order: usize, t: usize) -> Vec<Vec<f64>> {
 /// apply it as a triangular solve with `L_{c,c}`, which they read anyway. For order 1 that
 /// leaves `n(n + 1)/2` values per frame instead of `2n²`: the substitutions and the
 /// factorisation are bound by memory traffic, not arithmetic, at these block sizes.
+///
+/// **Long segments** ([`WINDOW_FRAMES`] frames or more) keep `L` a window at a time: the
+/// factorisation keeps, of every block of [`WINDOW_BLOCK`] frames, only the `order` rows
+/// before it (a checkpoint), and a substitution recomputes each block's rows from its
+/// checkpoint when it reaches the block (forwards in order, backwards in reverse). The
+/// rows recomputed are the rows first computed, bit for bit (the same operations on the
+/// same inputs), so a solve gives the same numbers either way; the factor's memory no
+/// longer grows with the frames (222 values per frame at k = 12, order 2, was 1.8 kB per
+/// frame), and each solve costs one more pass of the factorisation.
 pub struct BandedSystem {
     t: usize,
     p: usize,
@@ -174,19 +183,80 @@ pub struct BandedSystem {
     free: Vec<usize>,
     /// `free[fstart[s]..fstart[s + 1]]` are frame `s`'s.
     fstart: Vec<usize>,
-    /// Start in `l` of `L_{s,s}` (packed lower triangle, row after row) at `off[s * (p + 1)]`
-    /// and of `L_{s,s−j}` (row-major, `n_s × n_{s−j}`) at `off[s * (p + 1) + j]`, `0 < j < p`.
+    /// Start (in the whole factor's layout) of `L_{s,s}` (packed lower triangle, row after
+    /// row) at `off[s * (p + 1)]` and of `L_{s,s−j}` (row-major, `n_s × n_{s−j}`) at
+    /// `off[s * (p + 1) + j]`, `0 < j < p`.
     off: Vec<usize>,
+    /// The whole factor's length.
+    total: usize,
+    /// The rows of frames `win`: entry `x` of the layout is `l[x − off[win.start·(p + 1)]]`.
     l: Vec<f64>,
+    win: Range<usize>,
     /// `1 / L_{s,s}[x, x]` of every free variable (compact order): substitution multiplies
     /// by it, keeping a division's latency off the recurrences' critical path.
     inv: Vec<f64>,
     /// `λ·band_p(s)`: the outermost block's scale at frame `s`.
     outer: Vec<f64>,
-    /// The mask it was factorised with (`fixed[s * k + i]`), for [`Self::factor_reusing`].
+    /// The mask it was factorised with (`fixed[s * k + i]`), for [`Self::factor_reusing`]
+    /// (empty when windowed: there is no whole factor to copy from).
     fixed: Vec<bool>,
     /// Block rows copied from the earlier factorisation instead of computed.
     copied: usize,
+    /// Windowed: what recomputing rows needs.
+    redo: Option<Box<Redo>>,
+}
+
+/// Segments (or halves of a two-ended factorisation) this long or longer keep their factor
+/// a window at a time (see [`BandedSystem`]).
+pub const WINDOW_FRAMES: usize = 1 << 16;
+
+/// Frames per block of a windowed factor.
+pub const WINDOW_BLOCK: usize = 1024;
+
+/// A windowed factor's inputs and checkpoints.
+struct Redo {
+    g: DMatrix<f64>,
+    lambda: f64,
+    bands: Vec<Vec<f64>>,
+    ridge: f64,
+    /// Rows `jB − p..jB` of every block `j ≥ 1` (B = [`WINDOW_BLOCK`]), block `j`'s at
+    /// `ck[at[j − 1]..]`.
+    ck: Vec<f64>,
+    at: Vec<usize>,
+    /// The other window buffer.
+    spare: Vec<f64>,
+    scratch: Scratch,
+}
+
+/// What computing a row of `L` reads.
+struct Inputs<'a> {
+    g: &'a DMatrix<f64>,
+    lambda: f64,
+    bands: &'a [Vec<f64>],
+    ridge: f64,
+    free: &'a [usize],
+    fstart: &'a [usize],
+    off: &'a [usize],
+    p: usize,
+}
+
+/// The row computation's work space.
+#[derive(Default)]
+struct Scratch {
+    tmp: Vec<f64>,
+    /// The outermost block of the current frame, computed but not stored.
+    edge: Vec<f64>,
+    lead: Vec<usize>,
+}
+
+impl Scratch {
+    fn new(k: usize) -> Scratch {
+        Scratch {
+            tmp: vec![0.0; k * k],
+            edge: vec![0.0; k * k],
+            lead: vec![0; k],
+        }
+    }
 }
 
 /// `a · b` over the shorter length, in four independent sums so the compiler can vectorise
@@ -256,6 +326,133 @@ fn solve_l(d: &[f64], inv: &[f64], u: &mut [f64]) {
     }
 }
 
+/// Computes frame `s`'s row of `L` into `l` — which holds the layout from offset `base` on,
+/// frames `s − p..s` included — and its reciprocal pivots into `inv` (every frame's).
+/// Stops at a pivot that is not positive, returning it.
+fn compute_row(
+    x: &Inputs,
+    s: usize,
+    l: &mut [f64],
+    base: usize,
+    inv: &mut [f64],
+    sc: &mut Scratch,
+) -> std::result::Result<(), f64> {
+    let (g, lambda, bands, p) = (x.g, x.lambda, x.bands, x.p);
+    let (free, fstart, off) = (x.free, x.fstart, x.off);
+    let n = |s: usize| fstart[s + 1] - fstart[s];
+    let Scratch { tmp, edge, lead } = sc;
+    let fs = &free[fstart[s]..fstart[s + 1]];
+    let ns = fs.len();
+    for j in (1..=p.min(s)).rev() {
+        let c = s - j;
+        let fc = &free[fstart[c]..fstart[c + 1]];
+        let nc = fc.len();
+        let m = &mut tmp[..ns * nc];
+        // A_{s,c} = λ·band_j(s)·I restricted to the free rows of s and columns of c.
+        m.fill(0.0);
+        let v = lambda * bands[j][s];
+        if v != 0.0 {
+            matches(fs, fc, |x, y| m[x * nc + y] = v);
+        }
+        // − Σ_{r = s−p}^{c−1} L_{s,r} L_{c,r}ᵀ (c − r < p: stored; s − r = p: `edge`).
+        for r in s.saturating_sub(p)..c {
+            let nr = n(r);
+            let ls = if s - r == p {
+                &edge[..ns * nr]
+            } else {
+                &l[off[s * (p + 1) + (s - r)] - base..][..ns * nr]
+            };
+            let lc = &l[off[c * (p + 1) + (c - r)] - base..][..nc * nr];
+            for x in 0..ns {
+                let row = &ls[x * nr..(x + 1) * nr];
+                for y in 0..nc {
+                    m[x * nc + y] -= dot(row, &lc[y * nr..(y + 1) * nr]);
+                }
+            }
+        }
+        // L_{s,c} = M L_{c,c}^{-T}: row x solves L_{c,c} zᵀ = M[x, :]ᵀ. A row's
+        // leading zeros stay zero (forward substitution), and for order 1 M is
+        // λ times a selection, so most of each row is skipped.
+        let d = &l[off[c * (p + 1)] - base..][..tri(nc)];
+        let ic = &inv[fstart[c]..fstart[c + 1]];
+        for x in 0..ns {
+            let row = &mut m[x * nc..(x + 1) * nc];
+            let Some(y0) = row.iter().position(|v| *v != 0.0) else {
+                continue;
+            };
+            for y in y0..nc {
+                let v = row[y] - dot(&row[y0..y], &d[tri(y) + y0..tri(y) + y]);
+                row[y] = v * ic[y];
+            }
+        }
+        if j == p {
+            edge[..ns * nc].copy_from_slice(m);
+        } else {
+            let o = off[s * (p + 1) + j] - base;
+            l[o..o + ns * nc].copy_from_slice(m);
+        }
+    }
+    // Diagonal: A_{s,s} − Σ_{r = s−p}^{s−1} L_{s,r} L_{s,r}ᵀ, then Cholesky.
+    let m = &mut tmp[..ns * ns];
+    let diag = lambda * bands[0][s] + x.ridge;
+    for x in 0..ns {
+        for y in 0..=x {
+            m[x * ns + y] = g[(fs[x], fs[y])] + if x == y { diag } else { 0.0 };
+        }
+    }
+    for r in s.saturating_sub(p)..s {
+        let nr = n(r);
+        let ls = if s - r == p {
+            &edge[..ns * nr]
+        } else {
+            &l[off[s * (p + 1) + (s - r)] - base..][..ns * nr]
+        };
+        // Leading zeros of each row (from the selection structure above).
+        for (x, z) in lead[..ns].iter_mut().enumerate() {
+            *z = ls[x * nr..(x + 1) * nr]
+                .iter()
+                .position(|v| *v != 0.0)
+                .unwrap_or(nr);
+        }
+        for x in 0..ns {
+            let rx = &ls[x * nr..(x + 1) * nr];
+            for y in 0..=x {
+                let z = lead[x].max(lead[y]);
+                if z < nr {
+                    m[x * ns + y] -= dot(&rx[z..], &ls[y * nr + z..(y + 1) * nr]);
+                }
+            }
+        }
+    }
+    let is = &mut inv[fstart[s]..fstart[s + 1]];
+    for x in 0..ns {
+        for y in 0..=x {
+            let v = m[x * ns + y] - dot(&m[x * ns..x * ns + y], &m[y * ns..y * ns + y]);
+            if x == y {
+                if !(v > 0.0 && v.is_finite()) {
+                    return Err(v);
+                }
+                m[x * ns + x] = v.sqrt();
+                is[x] = 1.0 / m[x * ns + x];
+            } else {
+                m[x * ns + y] = v * is[y];
+            }
+        }
+    }
+    let o = off[s * (p + 1)] - base;
+    for x in 0..ns {
+        l[o + tri(x)..o + tri(x) + x + 1].copy_from_slice(&m[x * ns..x * ns + x + 1]);
+    }
+    Ok(())
+}
+
+/// The error of a pivot `v` at frame `s` that is not positive.
+fn not_definite(s: usize, v: f64) -> Error {
+    Error::invalid(format!(
+        "temporal prior: the banded system is not positive definite at frame {s} (pivot {v:e})"
+    ))
+}
+
 impl BandedSystem {
     /// Factorises `H` with `fixed[s * k + i]` variables eliminated; `ridge` is added to the
     /// diagonal of the free variables. Errors if a pivot is not positive.
@@ -277,7 +474,8 @@ impl BandedSystem {
     /// resumes. The result is identical to [`Self::factor`]'s, not an approximation; the
     /// active-set iterations, whose masks change in fewer frames each time, get cheaper.
     /// `recycle`, a factorisation no longer needed, gives its storage (a fresh allocation
-    /// of the factor's size costs a page fault every 4 KB).
+    /// of the factor's size costs a page fault every 4 KB). A windowed factor (a segment
+    /// of [`WINDOW_FRAMES`] or more) copies nothing: it has no whole factor to copy from.
     pub fn factor_reusing(
         g: &DMatrix<f64>,
         lambda: f64,
@@ -287,9 +485,41 @@ impl BandedSystem {
         prev: Option<&BandedSystem>,
         recycle: Option<BandedSystem>,
     ) -> Result<BandedSystem> {
+        let windowed = bands[0].len() >= WINDOW_FRAMES;
+        Self::build(g, lambda, bands, fixed, ridge, prev, recycle, windowed)
+    }
+
+    /// [`Self::factor`], keeping `L` a window at a time whatever the segment's length (as
+    /// `factor` does from [`WINDOW_FRAMES`] frames on): the same solves in less memory.
+    pub fn factor_windowed(
+        g: &DMatrix<f64>,
+        lambda: f64,
+        bands: &[Vec<f64>],
+        fixed: &[bool],
+        ridge: f64,
+    ) -> Result<BandedSystem> {
+        Self::build(g, lambda, bands, fixed, ridge, None, None, true)
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn build(
+        g: &DMatrix<f64>,
+        lambda: f64,
+        bands: &[Vec<f64>],
+        fixed: &[bool],
+        ridge: f64,
+        prev: Option<&BandedSystem>,
+        recycle: Option<BandedSystem>,
+        windowed: bool,
+    ) -> Result<BandedSystem> {
         let k = g.nrows();
         let t = bands[0].len();
         let p = bands.len() - 1;
+        let windowed = windowed && p > 0;
+        // The old factor's storage, the rest of it dropped before anything is allocated.
+        let (mut l, mut inv, spare) = recycle
+            .map(|r| (r.l, r.inv, r.redo.map(|d| d.spare).unwrap_or_default()))
+            .unwrap_or_default();
         let mut free = Vec::with_capacity(fixed.len());
         let mut fstart = Vec::with_capacity(t + 1);
         for s in 0..t {
@@ -310,19 +540,55 @@ impl BandedSystem {
                 }
             }
         }
-        let (mut l, mut inv) = recycle.map(|r| (r.l, r.inv)).unwrap_or_default();
-        // Every entry is written below: no need to clear what is kept.
-        l.resize(total, 0.0);
-        l.truncate(total);
         inv.resize(free.len(), 0.0);
         inv.truncate(free.len());
         let outer: Vec<f64> = (0..t)
             .map(|s| if p > 0 { lambda * bands[p][s] } else { 0.0 })
             .collect();
-        let mut tmp = vec![0.0; k * k];
-        // The outermost block of the current frame, computed but not stored.
-        let mut edge = vec![0.0; k * k];
-        let mut lead = vec![0usize; k];
+        if windowed {
+            l.clear();
+            let mut sys = BandedSystem {
+                t,
+                p,
+                free,
+                fstart,
+                off,
+                total,
+                l,
+                win: 0..0,
+                inv,
+                outer,
+                fixed: Vec::new(),
+                copied: 0,
+                redo: Some(Box::new(Redo {
+                    g: g.clone(),
+                    lambda,
+                    bands: bands.to_vec(),
+                    ridge,
+                    ck: Vec::new(),
+                    at: Vec::new(),
+                    spare,
+                    scratch: Scratch::new(k),
+                })),
+            };
+            for a in (0..t).step_by(WINDOW_BLOCK) {
+                sys.load(a.saturating_sub(p), (a + WINDOW_BLOCK).min(t))
+                    .map_err(|(s, v)| not_definite(s, v))?;
+                if a > 0 {
+                    // The checkpoint: rows a − p..a, which the window now starts with.
+                    let len = sys.off[a * (p + 1)] - sys.off[(a - p) * (p + 1)];
+                    if let Some(redo) = sys.redo.as_mut() {
+                        redo.at.push(redo.ck.len());
+                        redo.ck.extend_from_slice(&sys.l[..len]);
+                    }
+                }
+            }
+            return Ok(sys);
+        }
+        // Every entry is written below: no need to clear what is kept.
+        l.resize(total, 0.0);
+        l.truncate(total);
+        let mut sc = Scratch::new(k);
         let prev = prev.filter(|o| o.t == t && o.p == p && o.fixed.len() == fixed.len());
         // same_mask[s]: frame s's mask is the old one; same_row[s]: so is its row of L.
         let same_mask: Vec<bool> = match prev {
@@ -344,8 +610,6 @@ impl BandedSystem {
             a..b
         };
         for s in 0..t {
-            let fs = &free[fstart[s]..fstart[s + 1]];
-            let ns = fs.len();
             let inputs_same = same_mask[s.saturating_sub(p)..=s].iter().all(|v| *v)
                 && same_row[s.saturating_sub(p)..s].iter().all(|v| *v);
             if let (Some(o), true) = (prev, inputs_same) {
@@ -357,108 +621,17 @@ impl BandedSystem {
                 copied += 1;
                 continue;
             }
-            for j in (1..=p.min(s)).rev() {
-                let c = s - j;
-                let fc = &free[fstart[c]..fstart[c + 1]];
-                let nc = fc.len();
-                let m = &mut tmp[..ns * nc];
-                // A_{s,c} = λ·band_j(s)·I restricted to the free rows of s and columns of c.
-                m.fill(0.0);
-                let v = lambda * bands[j][s];
-                if v != 0.0 {
-                    matches(fs, fc, |x, y| m[x * nc + y] = v);
-                }
-                // − Σ_{r = s−p}^{c−1} L_{s,r} L_{c,r}ᵀ (c − r < p: stored; s − r = p: `edge`).
-                for r in s.saturating_sub(p)..c {
-                    let nr = n(r);
-                    let ls = if s - r == p {
-                        &edge[..ns * nr]
-                    } else {
-                        &l[off[s * (p + 1) + (s - r)]..][..ns * nr]
-                    };
-                    let lc = &l[off[c * (p + 1) + (c - r)]..][..nc * nr];
-                    for x in 0..ns {
-                        let row = &ls[x * nr..(x + 1) * nr];
-                        for y in 0..nc {
-                            m[x * nc + y] -= dot(row, &lc[y * nr..(y + 1) * nr]);
-                        }
-                    }
-                }
-                // L_{s,c} = M L_{c,c}^{-T}: row x solves L_{c,c} zᵀ = M[x, :]ᵀ. A row's
-                // leading zeros stay zero (forward substitution), and for order 1 M is
-                // λ times a selection, so most of each row is skipped.
-                let d = &l[off[c * (p + 1)]..][..tri(nc)];
-                let ic = &inv[fstart[c]..fstart[c + 1]];
-                for x in 0..ns {
-                    let row = &mut m[x * nc..(x + 1) * nc];
-                    let Some(y0) = row.iter().position(|v| *v != 0.0) else {
-                        continue;
-                    };
-                    for y in y0..nc {
-                        let v = row[y] - dot(&row[y0..y], &d[tri(y) + y0..tri(y) + y]);
-                        row[y] = v * ic[y];
-                    }
-                }
-                if j == p {
-                    edge[..ns * nc].copy_from_slice(m);
-                } else {
-                    let o = off[s * (p + 1) + j];
-                    l[o..o + ns * nc].copy_from_slice(m);
-                }
-            }
-            // Diagonal: A_{s,s} − Σ_{r = s−p}^{s−1} L_{s,r} L_{s,r}ᵀ, then Cholesky.
-            let m = &mut tmp[..ns * ns];
-            let diag = lambda * bands[0][s] + ridge;
-            for x in 0..ns {
-                for y in 0..=x {
-                    m[x * ns + y] = g[(fs[x], fs[y])] + if x == y { diag } else { 0.0 };
-                }
-            }
-            for r in s.saturating_sub(p)..s {
-                let nr = n(r);
-                let ls = if s - r == p {
-                    &edge[..ns * nr]
-                } else {
-                    &l[off[s * (p + 1) + (s - r)]..][..ns * nr]
-                };
-                // Leading zeros of each row (from the selection structure above).
-                for (x, z) in lead[..ns].iter_mut().enumerate() {
-                    *z = ls[x * nr..(x + 1) * nr]
-                        .iter()
-                        .position(|v| *v != 0.0)
-                        .unwrap_or(nr);
-                }
-                for x in 0..ns {
-                    let rx = &ls[x * nr..(x + 1) * nr];
-                    for y in 0..=x {
-                        let z = lead[x].max(lead[y]);
-                        if z < nr {
-                            m[x * ns + y] -= dot(&rx[z..], &ls[y * nr + z..(y + 1) * nr]);
-                        }
-                    }
-                }
-            }
-            let is = &mut inv[fstart[s]..fstart[s + 1]];
-            for x in 0..ns {
-                for y in 0..=x {
-                    let v = m[x * ns + y] - dot(&m[x * ns..x * ns + y], &m[y * ns..y * ns + y]);
-                    if x == y {
-                        if !(v > 0.0 && v.is_finite()) {
-                            return Err(Error::invalid(format!(
-                                "temporal prior: the banded system is not positive definite at frame {s} (pivot {v:e})"
-                            )));
-                        }
-                        m[x * ns + x] = v.sqrt();
-                        is[x] = 1.0 / m[x * ns + x];
-                    } else {
-                        m[x * ns + y] = v * is[y];
-                    }
-                }
-            }
-            let o = off[s * (p + 1)];
-            for x in 0..ns {
-                l[o + tri(x)..o + tri(x) + x + 1].copy_from_slice(&m[x * ns..x * ns + x + 1]);
-            }
+            let x = Inputs {
+                g,
+                lambda,
+                bands,
+                ridge,
+                free: &free,
+                fstart: &fstart,
+                off: &off,
+                p,
+            };
+            compute_row(&x, s, &mut l, 0, &mut inv, &mut sc).map_err(|v| not_definite(s, v))?;
             if let (Some(o), true) = (prev, same_mask[s.saturating_sub(p)..=s].iter().all(|v| *v)) {
                 let old = &o.l[row_range(&o.off, s, o.l.len())];
                 let new = &l[row_range(&off, s, total)];
@@ -472,17 +645,104 @@ impl BandedSystem {
             free,
             fstart,
             off,
+            total,
             l,
+            win: 0..t,
             inv,
             outer,
             fixed: fixed.to_vec(),
             copied,
+            redo: None,
         })
+    }
+
+    /// Whether the factor is kept a window at a time (see [`BandedSystem`]).
+    pub fn is_windowed(&self) -> bool {
+        self.redo.is_some()
+    }
+
+    /// Values of `L` held now: the whole factor, or a windowed factor's window and
+    /// checkpoints.
+    pub fn stored_values(&self) -> usize {
+        self.l.len() + self.redo.as_ref().map_or(0, |r| r.ck.len())
+    }
+
+    /// Start of frame `s`'s row in the layout (`total` for `s = t`).
+    fn row_start(&self, s: usize) -> usize {
+        if s < self.t {
+            self.off[s * (self.p + 1)]
+        } else {
+            self.total
+        }
+    }
+
+    /// A windowed factor: makes the window frames `a..b`, taking each row from the current
+    /// window if it has it, else from a checkpoint, else computing it (in order, so a
+    /// computed row finds its `p` predecessors in the new window: `a` must be 0, a block's
+    /// start minus `p`, or inside the current window).
+    /// Stops at the first pivot that is not positive, returning its frame and value: only
+    /// the factorisation's own pass can meet one, since a row recomputed later is the row
+    /// computed (and checked) then.
+    fn load(&mut self, a: usize, b: usize) -> std::result::Result<(), (usize, f64)> {
+        if self.win.start <= a && b <= self.win.end {
+            return Ok(());
+        }
+        let p = self.p;
+        let base = self.row_start(a);
+        let len = self.row_start(b) - base;
+        let old = self.row_start(self.win.start);
+        let Some(redo) = self.redo.as_mut() else {
+            // A whole factor's window is every frame.
+            return Ok(());
+        };
+        let mut nl = std::mem::take(&mut redo.spare);
+        nl.clear();
+        nl.resize(len, 0.0);
+        let x = Inputs {
+            g: &redo.g,
+            lambda: redo.lambda,
+            bands: &redo.bands,
+            ridge: redo.ridge,
+            free: &self.free,
+            fstart: &self.fstart,
+            off: &self.off,
+            p,
+        };
+        let row = |s: usize| {
+            let a = x.off[s * (p + 1)];
+            let b = if s + 1 < self.t {
+                x.off[(s + 1) * (p + 1)]
+            } else {
+                self.total
+            };
+            a..b
+        };
+        for s in a..b {
+            let r = row(s);
+            let dst = r.start - base..r.end - base;
+            if self.win.contains(&s) {
+                nl[dst].copy_from_slice(&self.l[r.start - old..r.end - old]);
+                continue;
+            }
+            // Checkpoint j holds rows jB − p..jB.
+            let j = s / WINDOW_BLOCK + 1;
+            if s + p >= j * WINDOW_BLOCK && j <= redo.at.len() {
+                let c0 = row(j * WINDOW_BLOCK - p).start;
+                let src = redo.at[j - 1] + r.start - c0;
+                nl[dst].copy_from_slice(&redo.ck[src..src + r.len()]);
+                continue;
+            }
+            compute_row(&x, s, &mut nl, base, &mut self.inv, &mut redo.scratch)
+                .map_err(|v| (s, v))?;
+        }
+        redo.spare = std::mem::replace(&mut self.l, nl);
+        self.win = a..b;
+        Ok(())
     }
 
     /// Solves `H x = rhs` in place (`rhs` flat, frame after frame); the entries of fixed
     /// variables are left as they are (their rows are the identity).
-    pub fn solve(&self, rhs: &mut [f64]) {
+    pub fn solve(&mut self, rhs: &mut [f64]) {
         let k = rhs.len() / self.t.max(1);
         let mut y = self.gather(rhs, k);
         self.forward(&mut y, 0);
@@ -492,10 +752,16 @@ impl BandedSystem {
 
     /// The free entries of a flat vector (`k` values per frame), in compact order.
     fn gather(&self, rhs: &[f64], k: usize) -> Vec<f64> {
+        self.gather_map(rhs, k, |s| s)
+    }
+
+    /// [`Self::gather`] from a vector whose frame `frame(s)` is this system's frame `s`.
+    fn gather_map(&self, rhs: &[f64], k: usize, frame: impl Fn(usize) -> usize) -> Vec<f64> {
         let mut y = Vec::with_capacity(self.free.len());
         for s in 0..self.t {
+            let f = frame(s);
             for &i in &self.free[self.fstart[s]..self.fstart[s + 1]] {
-                y.push(rhs[s * k + i]);
+                y.push(rhs[f * k + i]);
             }
         }
         y
@@ -503,9 +769,15 @@ impl BandedSystem {
 
     /// Writes compact values back into the free entries of a flat vector.
     fn scatter(&self, y: &[f64], rhs: &mut [f64], k: usize) {
+        self.scatter_map(y, rhs, k, |s| s)
+    }
+
+    /// [`Self::scatter`] into a vector whose frame `frame(s)` is this system's frame `s`.
+    fn scatter_map(&self, y: &[f64], rhs: &mut [f64], k: usize, frame: impl Fn(usize) -> usize) {
         for s in 0..self.t {
+            let f = frame(s);
             for (c, &i) in (self.fstart[s]..self.fstart[s + 1]).zip(&self.free[self.fstart[s]..]) {
-                rhs[s * k + i] = y[c];
+                rhs[f * k + i] = y[c];
             }
         }
     }
@@ -515,30 +787,50 @@ impl BandedSystem {
         &self.free[self.fstart[s]..self.fstart[s + 1]]
     }
 
+    /// Index in `l` of the block at layout offset index `j` of frame `s`.
+    fn at(&self, s: usize, j: usize) -> usize {
+        self.off[s * (self.p + 1) + j] - self.row_start(self.win.start)
+    }
+
     /// `L_{s,s}` packed, and its reciprocal pivots.
     fn diag(&self, s: usize) -> (&[f64], &[f64]) {
         let ns = self.fstart[s + 1] - self.fstart[s];
         (
-            &self.l[self.off[s * (self.p + 1)]..][..tri(ns)],
+            &self.l[self.at(s, 0)..][..tri(ns)],
             &self.inv[self.fstart[s]..self.fstart[s + 1]],
         )
     }
 
     /// `y ← L⁻¹ y` on compact vectors, from frame `s0` on: `y` holds frames `s0..` only
     /// (compact index minus `fstart[s0]`) and is zero before them, as is the result.
-    fn forward(&self, y: &mut [f64], s0: usize) {
-        let (t, p, fs) = (self.t, self.p, &self.fstart);
+    fn forward(&mut self, y: &mut [f64], s0: usize) {
+        if self.redo.is_none() {
+            return self.forward_rows(y, s0, s0..self.t);
+        }
+        let p = self.p;
+        for a in (s0 / WINDOW_BLOCK * WINDOW_BLOCK..self.t).step_by(WINDOW_BLOCK) {
+            let b = (a + WINDOW_BLOCK).min(self.t);
+            // Cannot fail: these rows factorised once (see `load`).
+            let _ = self.load(a.saturating_sub(p), b);
+            self.forward_rows(y, s0, a.max(s0)..b);
+        }
+    }
+
+    /// [`Self::forward`]'s recurrence over frames `rows`, which the window holds with the
+    /// `p` frames before them.
+    fn forward_rows(&self, y: &mut [f64], s0: usize, rows: Range<usize>) {
+        let (p, fs) = (self.p, &self.fstart);
         let base = fs[s0];
         let n = |s: usize| fs[s + 1] - fs[s];
         let mut u: Vec<f64> = Vec::new();
-        for s in s0..t {
+        for s in rows {
             let ns = n(s);
             for r in s.saturating_sub(p).max(s0)..s {
                 let nr = n(r);
                 let (head, tail) = y.split_at_mut(fs[s] - base);
                 let yr = &head[fs[r] - base..fs[r] - base + nr];
                 if s - r < p {
-                    let a = &self.l[self.off[s * (p + 1) + (s - r)]..][..ns * nr];
+                    let a = &self.l[self.at(s, s - r)..][..ns * nr];
                     for x in 0..ns {
                         tail[x] -= dot(&a[x * nr..(x + 1) * nr], yr);
                     }
@@ -566,11 +858,28 @@ impl BandedSystem {
     }
 
     /// `y ← L⁻ᵀ y` on compact vectors (all frames).
-    fn backward(&self, y: &mut [f64]) {
+    fn backward(&mut self, y: &mut [f64]) {
+        if self.redo.is_none() {
+            return self.backward_rows(y, 0..self.t);
+        }
+        let (t, p) = (self.t, self.p);
+        let blocks = t.div_ceil(WINDOW_BLOCK);
+        for j in (0..blocks).rev() {
+            let a = j * WINDOW_BLOCK;
+            let b = (a + WINDOW_BLOCK).min(t);
+            // Cannot fail: these rows factorised once (see `load`).
+            let _ = self.load(a.saturating_sub(p), (b + p).min(t));
+            self.backward_rows(y, a..b);
+        }
+    }
+
+    /// [`Self::backward`]'s recurrence over frames `rows` (in reverse), which the window
+    /// holds with the `p` frames after them.
+    fn backward_rows(&self, y: &mut [f64], rows: Range<usize>) {
         let (t, p, fs) = (self.t, self.p, &self.fstart);
         let n = |s: usize| fs[s + 1] - fs[s];
         let mut u: Vec<f64> = Vec::new();
-        for s in (0..t).rev() {
+        for s in rows.rev() {
             let ns = n(s);
             for m in s + 1..(s + p + 1).min(t) {
                 let nm = n(m);
@@ -578,7 +887,7 @@ impl BandedSystem {
                 let ym = &tail[..nm];
                 let ys = &mut head[fs[s]..fs[s] + ns];
                 if m - s < p {
-                    let a = &self.l[self.off[m * (p + 1) + (m - s)]..][..nm * ns];
+                    let a = &self.l[self.at(m, m - s)..][..nm * ns];
                     for z in 0..nm {
                         let c = ym[z];
                         if c != 0.0 {
@@ -621,6 +930,8 @@ pub const SPLIT_FRAMES: usize = 4096;
 /// segments — from both ends at once, the two halves in parallel, meeting at a separator of
 /// `order` frames whose Schur complement is factorised densely ("burn at both ends").
 /// Exact either way: the two differ only by rounding.
+// One value per factorisation: the variants' sizes do not matter.
+#[allow(clippy::large_enum_variant)]
 pub enum SegmentSystem {
     /// One forward sweep.
     One(BandedSystem),
@@ -723,7 +1034,7 @@ impl SegmentSystem {
             || BandedSystem::factor_reusing(g, lambda, &bands_a, fixed_a, ridge, old_a, spare_a),
             || BandedSystem::factor_reusing(g, lambda, &bands_b, &fixed_b, ridge, old_b, spare_b),
         );
-        let (a, b) = (ra?, rb?);
+        let (mut a, mut b) = (ra?, rb?);
         let sep: Vec<usize> = (m * k..(m + p) * k).filter(|&v| !fixed[v]).collect();
         let ns = sep.len();
         // H's entry between frames r < c (c − r ≤ p) on one variable: λ·band[c − r][c].
@@ -813,8 +1124,16 @@ impl SegmentSystem {
         }
     }
 
+    /// Whether its factors are kept a window at a time (see [`BandedSystem`]).
+    pub fn is_windowed(&self) -> bool {
+        match self {
+            SegmentSystem::One(b) => b.is_windowed(),
+            SegmentSystem::Split(sp) => sp.a.is_windowed() || sp.b.is_windowed(),
+        }
+    }
+
     /// Solves `H x = rhs` in place, as [`BandedSystem::solve`].
-    pub fn solve(&self, rhs: &mut [f64]) {
+    pub fn solve(&mut self, rhs: &mut [f64]) {
         match self {
             SegmentSystem::One(b) => b.solve(rhs),
             SegmentSystem::Split(sp) => sp.solve(rhs),
@@ -823,15 +1142,15 @@ impl SegmentSystem {
 }
 
 impl Split {
-    fn solve(&self, rhs: &mut [f64]) {
+    fn solve(&mut self, rhs: &mut [f64]) {
         let (k, t, p, m) = (self.k, self.t, self.p, self.m);
         let nb = t - m - p;
-        let rhs_b: Vec<f64> = (0..nb)
-            .flat_map(|i| rhs[(t - 1 - i) * k..(t - i) * k].iter().copied())
-            .collect();
+        // b's frame i is frame t − 1 − i.
+        let rev = |i: usize| t - 1 - i;
         let mut ya = self.a.gather(&rhs[..m * k], k);
-        let mut yb = self.b.gather(&rhs_b, k);
-        rayon::join(|| self.a.forward(&mut ya, 0), || self.b.forward(&mut yb, 0));
+        let mut yb = self.b.gather_map(rhs, k, rev);
+        let (sa, sb) = (&mut self.a, &mut self.b);
+        rayon::join(|| sa.forward(&mut ya, 0), || sb.forward(&mut yb, 0));
         let (a0, b0) = (self.a.fstart[m - p], self.b.fstart[nb - p]);
         let xs = match &self.c {
             None => nalgebra::DVector::zeros(0),
@@ -858,13 +1177,10 @@ impl Split {
                 *v -= d;
             }
         }
-        rayon::join(|| self.a.backward(&mut ya), || self.b.backward(&mut yb));
+        let (sa, sb) = (&mut self.a, &mut self.b);
+        rayon::join(|| sa.backward(&mut ya), || sb.backward(&mut yb));
         self.a.scatter(&ya, &mut rhs[..m * k], k);
-        let mut back_b = rhs_b;
-        self.b.scatter(&yb, &mut back_b, k);
-        for i in 0..nb {
-            rhs[(t - 1 - i) * k..(t - i) * k].copy_from_slice(&back_b[i * k..(i + 1) * k]);
-        }
+        self.b.scatter_map(&yb, rhs, k, rev);
         for (&v, x) in self.sep.iter().zip(xs.iter()) {
             rhs[v] = *x;
         }
@@ -873,12 +1189,24 @@ impl Split {
 
 /// `H w` for one segment (`w` flat, frame after frame).
 fn hessian_times(g: &DMatrix<f64>, lambda: f64, bands: &[Vec<f64>], w: &[f64]) -> Vec<f64> {
+    let mut out = vec![0.0; w.len()];
+    hessian_times_into(g, lambda, bands, w, &mut out);
+    out
+}
+
+/// [`hessian_times`] into `out` (as long as `w`; every entry is written).
+fn hessian_times_into(
+    g: &DMatrix<f64>,
+    lambda: f64,
+    bands: &[Vec<f64>],
+    w: &[f64],
+    out: &mut [f64],
+) {
     let k = g.nrows();
     let t = bands[0].len();
     let p = bands.len() - 1;
-    let mut out = vec![0.0; w.len()];
     if k == 0 {
-        return out;
+        return;
     }
     // Row-wise, in chunks of frames run in parallel: frame s's entries are
     // G·w_s + Σ_{|j| ≤ p} λ·DᵀD[s, s + j]·w_{s+j}; G·W of a chunk as one matrix product
@@ -912,7 +1240,6 @@ fn hessian_times(g: &DMatrix<f64>, lambda: f64, bands: &[Vec<f64>], w: &[f64]) -
                 }
             }
         });
-    out
 }
 
 /// The KKT residual of the offline objective (halved: `½wᵀHw − bᵀw`) at `w` for one
@@ -983,7 +1310,7 @@ pub fn solve_smooth(
         )));
     }
     let plain = solve_batch(s, q, &SolveOptions::new(solver))?;
-    smooth_from(s, q, plain, solver, smoothing, segments)
+    smooth_from(s, q, &plain, solver, smoothing, segments)
 }
 
 /// [`solve_smooth`] from the plain per-frame solution already at hand (the starting point
@@ -991,7 +1318,7 @@ pub fn solve_smooth(
 pub fn smooth_from(
     s: &DMatrix<f64>,
     q: &DMatrix<f64>,
-    plain: super::Solution,
+    plain: &super::Solution,
     solver: Solver,
     smoothing: &Smoothing,
     segments: &[Range<usize>],
@@ -1006,7 +1333,7 @@ pub fn smooth_from(
     }
     if smoothing.lambda == 0.0 {
         return Ok(Smoothed {
-            weights: plain.weights,
+            weights: plain.weights.clone(),
             iterations: plain.iterations,
             kkt: 0.0,
             unconverged: plain.unconverged,
@@ -1032,19 +1359,25 @@ fn offline(
     segments: &[Range<usize>],
 ) -> Result<Smoothed> {
     let k = g.nrows();
+    // A segment's frames are contiguous columns (column-major storage): no copies.
+    fn cols<'a>(m: &'a DMatrix<f64>, r: &Range<usize>) -> &'a [f64] {
+        &m.as_slice()[r.start * m.nrows()..r.end * m.nrows()]
+    }
     let parts: Vec<Result<SegmentResult>> = segments
         .par_iter()
-        .map(|r| {
-            let bs: Vec<f64> = b.columns(r.start, r.len()).iter().copied().collect();
-            let w0: Vec<f64> = start.columns(r.start, r.len()).iter().copied().collect();
-            segment(g, &bs, &w0, solver, sm)
-        })
+        .map(|r| segment(g, cols(b, r), cols(start, r), solver, sm))
         .collect();
-    let mut weights = DMatrix::zeros(k, b.ncols());
+    // One segment: its weights become the matrix instead of being copied into one.
+    let one = segments.len() == 1;
+    let mut weights = DMatrix::zeros(k, if one { 0 } else { b.ncols() });
     let (mut iterations, mut kkt, mut unconverged) = (0u64, 0.0f64, 0usize);
     for (r, part) in segments.iter().zip(parts) {
         let (w, it, res, ok) = part?;
-        weights.columns_mut(r.start, r.len()).copy_from_slice(&w);
+        if one {
+            weights = DMatrix::from_vec(k, b.ncols(), w);
+        } else {
+            weights.columns_mut(r.start, r.len()).copy_from_slice(&w);
+        }
         iterations += it;
         kkt = kkt.max(res);
         unconverged += usize::from(!ok);
@@ -1087,7 +1420,7 @@ fn segment(
     let spare: std::cell::RefCell<Option<SegmentSystem>> = std::cell::RefCell::new(None);
     // `values`: the fixed variables' values (None: all 0, as NNLS fixes them).
     let solve_with = |fixed: &[bool], values: Option<&[f64]>| -> Result<Vec<f64>> {
-        let sys = SegmentSystem::factor_reusing(
+        let mut sys = SegmentSystem::factor_reusing(
             g,
             sm.lambda,
             &bands,
@@ -1113,7 +1446,12 @@ fn segment(
             }
         }
         sys.solve(&mut rhs);
-        *spare.borrow_mut() = cache.borrow_mut().replace(sys);
+        if sys.is_windowed() {
+            // Nothing to copy from a windowed factor: keep only its storage.
+            *spare.borrow_mut() = Some(sys);
+        } else {
+            *spare.borrow_mut() = cache.borrow_mut().replace(sys);
+        }
         if let Some(v) = values {
             for ((r, f), x) in rhs.iter_mut().zip(fixed).zip(v) {
                 if *f {
@@ -1162,6 +1500,9 @@ fn segment(
                     .map(|&u| if u { upper } else { 0.0 })
                     .collect()
             });
+            // Neither the gradient nor the old point is needed by the solve.
+            drop(grad);
+            drop(std::mem::take(&mut w));
             w = solve_with(&fixed, values.as_deref())?;
             prev = Some((at_lower, at_upper));
         }
@@ -1227,54 +1568,63 @@ fn projected_newton(
 ) -> Result<(Vec<f64>, u64)> {
     let k = g.nrows();
     let n = b.len();
-    // diag H, for the scaled step of the binding variables.
-    let hdiag: Vec<f64> = (0..n)
-        .map(|i| g[(i % k, i % k)] + sm.lambda * bands[0][i / k] + ridge)
-        .map(|d| d.max(f64::MIN_POSITIVE))
-        .collect();
-    let hmax = hdiag.iter().fold(0.0f64, |m, v| m.max(*v));
+    // diag H, for the scaled step of the binding variables (computed where needed: a
+    // long segment holds as few frames-long vectors as it can).
+    let hdiag =
+        |i: usize| (g[(i % k, i % k)] + sm.lambda * bands[0][i / k] + ridge).max(f64::MIN_POSITIVE);
+    let hmax = (0..n).map(hdiag).fold(0.0f64, |m, v| m.max(v));
     let project = |v: f64| v.clamp(0.0, upper);
     let mut w: Vec<f64> = w0.iter().map(|v| project(*v)).collect();
     let mut hw = hessian_times(g, sm.lambda, bands, &w);
+    let mut grad = vec![0.0; n];
+    let mut binding = vec![false; n];
     for it in 1..=NEWTON_ITERATIONS {
         if kkt_residual(g, sm.lambda, sm.order, b, &w, solver) < KKT_TOLERANCE {
             return Ok((w, it as u64 - 1));
         }
-        let grad: Vec<f64> = hw.iter().zip(b).map(|(x, y)| x - y).collect();
+        for ((x, h), y) in grad.iter_mut().zip(&hw).zip(b) {
+            *x = h - y;
+        }
         // ε: the size of a projected gradient step, capped (Bertsekas' ε_k).
         let step = (0..n)
             .map(|i| (w[i] - project(w[i] - grad[i] / hmax)).abs())
             .fold(0.0f64, f64::max);
         let eps = step.min(1e-3);
-        let binding: Vec<bool> = (0..n)
-            .map(|i| (w[i] <= eps && grad[i] > 0.0) || (w[i] >= upper - eps && grad[i] < 0.0))
+        for (i, v) in binding.iter_mut().enumerate() {
+            *v = (w[i] <= eps && grad[i] > 0.0) || (w[i] >= upper - eps && grad[i] < 0.0);
+        }
+        let mut d: Vec<f64> = (0..n)
+            .map(|i| if binding[i] { 0.0 } else { -grad[i] })
             .collect();
-        let sys = SegmentSystem::factor(
+        // The factor lives for the solve only.
+        SegmentSystem::factor(
             g,
             sm.lambda,
             bands,
             &binding,
             ridge,
             n / k.max(1) >= SPLIT_FRAMES,
-        )?;
-        let mut d: Vec<f64> = (0..n)
-            .map(|i| if binding[i] { 0.0 } else { -grad[i] })
-            .collect();
-        sys.solve(&mut d);
+        )?
+        .solve(&mut d);
         for i in 0..n {
             if binding[i] {
-                d[i] = -grad[i] / hdiag[i];
+                d[i] = -grad[i] / hdiag(i);
             }
         }
         // Armijo along the projection arc (σ = 1e-4, halving).
         let mut alpha = 1.0;
-        let mut accepted = None;
+        let mut accepted = false;
+        let mut trial = vec![0.0; n];
+        let mut delta = vec![0.0; n];
+        let mut hdelta = vec![0.0; n];
         for _ in 0..60 {
-            let trial: Vec<f64> = (0..n).map(|i| project(w[i] + alpha * d[i])).collect();
+            for i in 0..n {
+                trial[i] = project(w[i] + alpha * d[i]);
+                delta[i] = trial[i] - w[i];
+            }
             // The decrease from the step Δ itself, −gᵀΔ − ½ΔᵀHΔ: no cancellation between
             // two nearly equal objective values near the optimum.
-            let delta: Vec<f64> = trial.iter().zip(&w).map(|(a, c)| a - c).collect();
-            let hdelta = hessian_times(g, sm.lambda, bands, &delta);
+            hessian_times_into(g, sm.lambda, bands, &delta, &mut hdelta);
             let decrease = -(0..n)
                 .map(|i| grad[i] * delta[i] + 0.5 * delta[i] * hdelta[i])
                 .sum::<f64>();
@@ -1288,19 +1638,20 @@ fn projected_newton(
                 })
                 .sum();
             if decrease >= 1e-4 * predicted {
-                let htrial: Vec<f64> = hw.iter().zip(&hdelta).map(|(a, c)| a + c).collect();
-                accepted = Some((trial, htrial));
+                accepted = true;
                 break;
             }
             alpha *= 0.5;
         }
-        let Some((trial, htrial)) = accepted else {
+        if !accepted {
             // No decrease left at working precision.
             return Ok((w, it as u64));
-        };
+        }
         let moved = trial.iter().zip(&w).any(|(a, c)| a != c);
         w = trial;
-        hw = htrial;
+        for (a, c) in hw.iter_mut().zip(&hdelta) {
+            *a += c;
+        }
         if !moved {
             return Ok((w, it as u64));
         }

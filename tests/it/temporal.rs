@@ -400,8 +400,8 @@ proptest! {
         let bands = difference_bands(order, t);
         let fixed: Vec<bool> = (0..t * k).map(|i| fixed_bits[i % fixed_bits.len()] && i % 3 == 0).collect();
         let rhs: Vec<f64> = (0..t * k).map(|i| seed[(i * 7) % seed.len()] * 3.0).collect();
-        let one = SegmentSystem::factor(&g, lambda, &bands, &fixed, 1e-12, false).unwrap();
-        let two = SegmentSystem::factor(&g, lambda, &bands, &fixed, 1e-12, true).unwrap();
+        let mut one = SegmentSystem::factor(&g, lambda, &bands, &fixed, 1e-12, false).unwrap();
+        let mut two = SegmentSystem::factor(&g, lambda, &bands, &fixed, 1e-12, true).unwrap();
         prop_assert!(matches!(two, SegmentSystem::Split(_)) || t < 4 * order + 4);
         let (mut x1, mut x2) = (rhs.clone(), rhs.clone());
         one.solve(&mut x1);
@@ -461,7 +461,7 @@ proptest! {
         }
         let rhs: Vec<f64> = (0..n).map(|i| seed[(i * 7) % seed.len()] * 3.0).collect();
         let want = h.clone().lu().solve(&DVector::from_column_slice(&rhs)).unwrap();
-        let sys = SegmentSystem::factor(&g, lambda, &bands, &fixed, ridge, false).unwrap();
+        let mut sys = SegmentSystem::factor(&g, lambda, &bands, &fixed, ridge, false).unwrap();
         let mut got = rhs.clone();
         sys.solve(&mut got);
         let scale = want.iter().fold(1.0f64, |m, v| m.max(v.abs()));
@@ -499,8 +499,8 @@ proptest! {
         }
         let old = SegmentSystem::factor(&g, lambda, &bands, &first, 1e-12, split).unwrap();
         let spare = SegmentSystem::factor(&g, lambda, &bands, &second, 1e-12, split).unwrap();
-        let fresh = SegmentSystem::factor(&g, lambda, &bands, &second, 1e-12, split).unwrap();
-        let reused = SegmentSystem::factor_reusing(
+        let mut fresh = SegmentSystem::factor(&g, lambda, &bands, &second, 1e-12, split).unwrap();
+        let mut reused = SegmentSystem::factor_reusing(
             &g, lambda, &bands, &second, 1e-12, split, Some(&old), Some(spare),
         )
         .unwrap();
@@ -537,7 +537,7 @@ fn an_incompatible_earlier_factorisation_is_not_reused() {
     let g = s.transpose() * &s;
     let (t, k) = (12, 3);
     let fixed: Vec<bool> = (0..t * k).map(|i| i % 4 == 0).collect();
-    let fresh =
+    let mut fresh =
         SegmentSystem::factor(&g, 5.0, &difference_bands(1, t), &fixed, 1e-12, false).unwrap();
     let rhs: Vec<f64> = (0..t * k).map(|i| seed[i % seed.len()]).collect();
     let mut want = rhs.clone();
@@ -547,7 +547,7 @@ fn an_incompatible_earlier_factorisation_is_not_reused() {
         let old =
             SegmentSystem::factor(&g, 5.0, &difference_bands(order, ot), &ofixed, 1e-12, false)
                 .unwrap();
-        let re = SegmentSystem::factor_reusing(
+        let mut re = SegmentSystem::factor_reusing(
             &g,
             5.0,
             &difference_bands(1, t),
@@ -655,4 +655,102 @@ fn an_indefinite_banded_system_is_refused() {
         .err()
         .expect("a NaN system factorised");
     assert!(e.to_string().contains("at frame 0 (pivot NaN)"), "{e}");
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(24))]
+    /// A factor kept a window at a time (long segments) solves bit for bit as the whole
+    /// factor does — every recomputed row is the row first computed — at lengths on and
+    /// around the block boundaries, with any variables fixed; it holds a window and its
+    /// checkpoints, not the factor; and it refuses what the whole one refuses.
+    #[test]
+    fn a_windowed_factor_solves_bit_for_bit_as_the_whole_one(
+        seed in prop::collection::vec(-1.0f64..1.0, 40),
+        k in 1usize..5,
+        t in prop::sample::select(vec![1usize, 2, 3, 5, 1023, 1024, 1025, 1026, 2048, 2050, 3100]),
+        lambda in prop::sample::select(vec![0.05, 2.0, 300.0, 1e5]),
+        order in 1usize..3,
+        fixed_bits in prop::collection::vec(any::<bool>(), 97),
+    ) {
+        use keyshape_lab::solve::temporal::{difference_bands, BandedSystem, WINDOW_BLOCK};
+        let (s, _) = problem(8, k, 2, &seed, false);
+        let g = s.transpose() * &s;
+        let bands = difference_bands(order, t);
+        let fixed: Vec<bool> = (0..t * k).map(|i| fixed_bits[i % fixed_bits.len()] && i % 3 == 0).collect();
+        let rhs: Vec<f64> = (0..t * k).map(|i| seed[(i * 7) % seed.len()] * 3.0).collect();
+        let mut whole = BandedSystem::factor(&g, lambda, &bands, &fixed, 1e-12).unwrap();
+        let mut win = BandedSystem::factor_windowed(&g, lambda, &bands, &fixed, 1e-12).unwrap();
+        prop_assert!(!whole.is_windowed() && win.is_windowed());
+        let (mut x1, mut x2) = (rhs.clone(), rhs.clone());
+        whole.solve(&mut x1);
+        win.solve(&mut x2);
+        prop_assert!(x1.iter().zip(&x2).all(|(a, b)| a.to_bits() == b.to_bits()));
+        // Again: the second solve starts from the window the first left.
+        let mut x3 = rhs.clone();
+        win.solve(&mut x3);
+        prop_assert!(x2.iter().zip(&x3).all(|(a, b)| a.to_bits() == b.to_bits()));
+        // The window (at most a block and 2·order rows) and one checkpoint per block.
+        let row = k * (k + 1) / 2 + (order - 1) * k * k;
+        let bound = (WINDOW_BLOCK + 2 * order) * row + t.div_ceil(WINDOW_BLOCK) * order * row;
+        prop_assert!(win.stored_values() <= bound, "{} > {bound}", win.stored_values());
+        if t > 3 * WINDOW_BLOCK {
+            prop_assert!(win.stored_values() < whole.stored_values() / 2);
+        }
+    }
+}
+
+/// A windowed factorisation reports a failed pivot at the frame the whole one does.
+#[test]
+fn a_windowed_factor_refuses_what_the_whole_one_refuses() {
+    use keyshape_lab::solve::temporal::{difference_bands, BandedSystem};
+    // G = 0 and no ridge: H = λ·DᵀD is singular (constant weights are its null space),
+    // and the last pivot of a chain is the one that reaches zero.
+    let g = DMatrix::<f64>::zeros(1, 1);
+    for t in [5, 1500, 2048] {
+        let bands = difference_bands(1, t);
+        let fixed = vec![false; t];
+        let a = BandedSystem::factor(&g, 1.0, &bands, &fixed, 0.0)
+            .err()
+            .map(|e| e.to_string());
+        let b = BandedSystem::factor_windowed(&g, 1.0, &bands, &fixed, 0.0)
+            .err()
+            .map(|e| e.to_string());
+        assert!(a.is_some(), "{t} frames factorised");
+        assert_eq!(a, b);
+    }
+}
+
+/// The whole offline path on a segment long enough to be two-ended with windowed halves
+/// (132,000 frames): the solution meets the KKT conditions, written out here frame by
+/// frame, as a short segment's does.
+#[test]
+fn a_segment_long_enough_to_be_windowed_meets_the_kkt_conditions() {
+    use keyshape_lab::solve::temporal::WINDOW_FRAMES;
+    let seed: Vec<f64> = (0..40)
+        .map(|i| ((i * 37 % 17) as f64 / 8.5) - 1.0)
+        .collect();
+    let t = 132_000;
+    assert!((t - 2) / 2 >= WINDOW_FRAMES, "the halves must be windowed");
+    let (s, q) = problem(8, 3, t, &seed, false);
+    for (order, lambda, solver) in [(1, 100.0, Solver::Ls), (2, 1e4, Solver::Nnls)] {
+        let r = solve_smooth(
+            &s,
+            &q,
+            solver,
+            &sm(lambda, order, SmoothMode::Offline),
+            &[0..t],
+        )
+        .unwrap();
+        assert_eq!(r.unconverged, 0);
+        let g = gradient(&s, &q, &r.weights, lambda, order);
+        let scale = 2.0
+            * ((s.transpose() * &q).amax()
+                + (s.transpose() * &s).amax().max(16.0 * lambda) * r.weights.amax());
+        let v = kkt(&g, &r.weights, solver, scale.max(1.0));
+        assert!(
+            v < 1e-8,
+            "order {order} {solver:?}: KKT {v:e} (library says {:e})",
+            r.kkt
+        );
+    }
 }

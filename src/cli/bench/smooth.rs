@@ -101,7 +101,7 @@ pub fn run(a: &SmoothBenchArgs) -> Result<()> {
                 // The whole smoothed solve, its per-frame start included.
                 let (secs, r) = time(reps, || {
                     let start = solve_batch(&s, &q, &SolveOptions::new(solver))?;
-                    smooth_from(&s, &q, start, solver, &sm, &segs)
+                    smooth_from(&s, &q, &start, solver, &sm, &segs)
                 });
                 let r = r?;
                 outln!(
