@@ -517,18 +517,23 @@ impl BandedSystem {
         let p = bands.len() - 1;
         let windowed = windowed && p > 0;
         // The old factor's storage, the rest of it dropped before anything is allocated.
-        let (mut l, mut inv, spare) = recycle
-            .map(|r| (r.l, r.inv, r.redo.map(|d| d.spare).unwrap_or_default()))
-            .unwrap_or_default();
-        let mut free = Vec::with_capacity(fixed.len());
-        let mut fstart = Vec::with_capacity(t + 1);
+        // Every allocation is reused from `recycle`, and its memory with it: a long
+        // segment's iterations then take no new frames-long blocks from the allocator.
+        let (mut l, mut inv, mut free, mut fstart, mut off, mut outer, mut fixed_copy, redo) =
+            match recycle {
+                Some(r) => (r.l, r.inv, r.free, r.fstart, r.off, r.outer, r.fixed, r.redo),
+                None => Default::default(),
+            };
+        free.clear();
+        fstart.clear();
         for s in 0..t {
             fstart.push(free.len());
             free.extend((0..k).filter(|&i| !fixed[s * k + i]));
         }
         fstart.push(free.len());
         let n = |s: usize| fstart[s + 1] - fstart[s];
-        let mut off = vec![0usize; t * (p + 1)];
+        off.clear();
+        off.resize(t * (p + 1), 0);
         let mut total = 0;
         for s in 0..t {
             off[s * (p + 1)] = total;
@@ -542,11 +547,36 @@ impl BandedSystem {
         }
         inv.resize(free.len(), 0.0);
         inv.truncate(free.len());
-        let outer: Vec<f64> = (0..t)
-            .map(|s| if p > 0 { lambda * bands[p][s] } else { 0.0 })
-            .collect();
+        outer.clear();
+        outer.extend((0..t).map(|s| if p > 0 { lambda * bands[p][s] } else { 0.0 }));
         if windowed {
             l.clear();
+            let mut redo = redo.unwrap_or_else(|| {
+                Box::new(Redo {
+                    g: g.clone(),
+                    lambda,
+                    bands: Vec::new(),
+                    ridge,
+                    ck: Vec::new(),
+                    at: Vec::new(),
+                    spare: Vec::new(),
+                    scratch: Scratch::new(k),
+                })
+            });
+            redo.g.clone_from(g);
+            redo.lambda = lambda;
+            redo.ridge = ridge;
+            redo.bands.truncate(bands.len());
+            for (d, b) in redo.bands.iter_mut().zip(bands) {
+                d.clear();
+                d.extend_from_slice(b);
+            }
+            for b in &bands[redo.bands.len()..] {
+                redo.bands.push(b.clone());
+            }
+            redo.ck.clear();
+            redo.at.clear();
+            redo.scratch = Scratch::new(k);
             let mut sys = BandedSystem {
                 t,
                 p,
@@ -560,16 +590,7 @@ impl BandedSystem {
                 outer,
                 fixed: Vec::new(),
                 copied: 0,
-                redo: Some(Box::new(Redo {
-                    g: g.clone(),
-                    lambda,
-                    bands: bands.to_vec(),
-                    ridge,
-                    ck: Vec::new(),
-                    at: Vec::new(),
-                    spare,
-                    scratch: Scratch::new(k),
-                })),
+                redo: Some(redo),
             };
             for a in (0..t).step_by(WINDOW_BLOCK) {
                 sys.load(a.saturating_sub(p), (a + WINDOW_BLOCK).min(t))
@@ -650,7 +671,11 @@ impl BandedSystem {
             win: 0..t,
             inv,
             outer,
-            fixed: fixed.to_vec(),
+            fixed: {
+                fixed_copy.clear();
+                fixed_copy.extend_from_slice(fixed);
+                fixed_copy
+            },
             copied,
             redo: None,
         })
@@ -1576,64 +1601,67 @@ fn projected_newton(
     let project = |v: f64| v.clamp(0.0, upper);
     let mut w: Vec<f64> = w0.iter().map(|v| project(*v)).collect();
     let mut hw = hessian_times(g, sm.lambda, bands, &w);
-    let mut grad = vec![0.0; n];
+    // The gradient is `hw − b`, taken entry by entry where it is used (one vector fewer);
+    // the trial point is `project(w + α d)`, recomputed when accepted (bit for bit the
+    // same). The working vectors and the factor's storage are reused from step to step.
+    let grad = |hw: &[f64], i: usize| hw[i] - b[i];
     let mut binding = vec![false; n];
+    let mut d = vec![0.0; n];
+    let mut delta = vec![0.0; n];
+    let mut hdelta = vec![0.0; n];
+    let mut spare: Option<SegmentSystem> = None;
     for it in 1..=NEWTON_ITERATIONS {
         if kkt_residual(g, sm.lambda, sm.order, b, &w, solver) < KKT_TOLERANCE {
             return Ok((w, it as u64 - 1));
         }
-        for ((x, h), y) in grad.iter_mut().zip(&hw).zip(b) {
-            *x = h - y;
-        }
         // ε: the size of a projected gradient step, capped (Bertsekas' ε_k).
         let step = (0..n)
-            .map(|i| (w[i] - project(w[i] - grad[i] / hmax)).abs())
+            .map(|i| (w[i] - project(w[i] - grad(&hw, i) / hmax)).abs())
             .fold(0.0f64, f64::max);
         let eps = step.min(1e-3);
         for (i, v) in binding.iter_mut().enumerate() {
-            *v = (w[i] <= eps && grad[i] > 0.0) || (w[i] >= upper - eps && grad[i] < 0.0);
+            let gi = grad(&hw, i);
+            *v = (w[i] <= eps && gi > 0.0) || (w[i] >= upper - eps && gi < 0.0);
         }
-        let mut d: Vec<f64> = (0..n)
-            .map(|i| if binding[i] { 0.0 } else { -grad[i] })
-            .collect();
-        // The factor lives for the solve only.
-        SegmentSystem::factor(
+        for i in 0..n {
+            d[i] = if binding[i] { 0.0 } else { -grad(&hw, i) };
+        }
+        let mut sys = SegmentSystem::factor_reusing(
             g,
             sm.lambda,
             bands,
             &binding,
             ridge,
             n / k.max(1) >= SPLIT_FRAMES,
-        )?
-        .solve(&mut d);
+            None,
+            spare.take(),
+        )?;
+        sys.solve(&mut d);
+        spare = Some(sys);
         for i in 0..n {
             if binding[i] {
-                d[i] = -grad[i] / hdiag(i);
+                d[i] = -grad(&hw, i) / hdiag(i);
             }
         }
         // Armijo along the projection arc (σ = 1e-4, halving).
         let mut alpha = 1.0;
         let mut accepted = false;
-        let mut trial = vec![0.0; n];
-        let mut delta = vec![0.0; n];
-        let mut hdelta = vec![0.0; n];
         for _ in 0..60 {
             for i in 0..n {
-                trial[i] = project(w[i] + alpha * d[i]);
-                delta[i] = trial[i] - w[i];
+                delta[i] = project(w[i] + alpha * d[i]) - w[i];
             }
             // The decrease from the step Δ itself, −gᵀΔ − ½ΔᵀHΔ: no cancellation between
             // two nearly equal objective values near the optimum.
             hessian_times_into(g, sm.lambda, bands, &delta, &mut hdelta);
             let decrease = -(0..n)
-                .map(|i| grad[i] * delta[i] + 0.5 * delta[i] * hdelta[i])
+                .map(|i| grad(&hw, i) * delta[i] + 0.5 * delta[i] * hdelta[i])
                 .sum::<f64>();
             let predicted: f64 = (0..n)
                 .map(|i| {
                     if binding[i] {
-                        -grad[i] * delta[i]
+                        -grad(&hw, i) * delta[i]
                     } else {
-                        -alpha * grad[i] * d[i]
+                        -alpha * grad(&hw, i) * d[i]
                     }
                 })
                 .sum();
@@ -1647,8 +1675,12 @@ fn projected_newton(
             // No decrease left at working precision.
             return Ok((w, it as u64));
         }
-        let moved = trial.iter().zip(&w).any(|(a, c)| a != c);
-        w = trial;
+        let mut moved = false;
+        for i in 0..n {
+            let v = project(w[i] + alpha * d[i]);
+            moved |= v != w[i];
+            w[i] = v;
+        }
         for (a, c) in hw.iter_mut().zip(&hdelta) {
             *a += c;
         }

@@ -302,3 +302,103 @@ fn the_lawson_hanson_step_back_reaches_the_exact_optimum() {
         assert!((t[i] - w).abs() < 1e-12, "textbook w{i} = {}", t[i]);
     }
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+    /// The one-sided Jacobi SVD is an SVD: it recomposes the matrix, U's columns of nonzero
+    /// singular values and V's columns are orthonormal, and the singular values, descending,
+    /// are the square roots of the eigenvalues of AᵀA (nalgebra's symmetric eigensolver,
+    /// an independent route). Recomposition alone does not tell a rotation-free "SVD"
+    /// (normalised columns) from a real one; orthogonality does.
+    #[test]
+    fn the_jacobi_svd_is_an_svd(
+        n in 1usize..14,
+        k in 1usize..6,
+        vals in prop::collection::vec(-4.0f64..4.0, 80),
+        dup in any::<bool>(),
+    ) {
+        use keyshape_lab::solve::jacobi::svd;
+        let mut a = DMatrix::from_fn(n, k, |i, j| vals[(i * 7 + j * 13) % vals.len()] + if i == j { 0.5 } else { 0.0 });
+        if dup && k > 1 {
+            let c = a.column(0).clone_owned();
+            a.set_column(k - 1, &c);
+        }
+        let d = svd(&a);
+        let scale = a.amax().max(1.0);
+        let back = &d.u * DMatrix::from_diagonal(&DVector::from_vec(d.s.clone())) * d.v.transpose();
+        prop_assert!((&back - &a).amax() <= 1e-12 * scale);
+        prop_assert!((d.v.transpose() * &d.v - DMatrix::identity(k, k)).amax() <= 1e-12);
+        prop_assert!(d.s.windows(2).all(|w| w[0] >= w[1]));
+        let smax = d.s[0];
+        let live: Vec<usize> = (0..k).filter(|&i| d.s[i] > 1e-10 * smax.max(1e-300)).collect();
+        for &i in &live {
+            for &j in &live {
+                let dot = d.u.column(i).dot(&d.u.column(j));
+                prop_assert!((dot - f64::from(u8::from(i == j))).abs() <= 1e-10, "uᵢ·uⱼ = {dot} ({i}, {j})");
+            }
+        }
+        let mut eig: Vec<f64> = nalgebra::SymmetricEigen::new(a.transpose() * &a).eigenvalues.iter().map(|l| l.max(0.0).sqrt()).collect();
+        eig.sort_by(|x, y| y.total_cmp(x));
+        for i in 0..k {
+            prop_assert!((eig[i] - d.s[i]).abs() <= 1e-7 * smax.max(1.0), "σ{i}: {} vs {}", d.s[i], eig[i]);
+        }
+    }
+}
+
+/// The LS pseudo-inverse's rank, condition number and null directions, against values
+/// known by construction: S = U diag(σ) Vᵀ with chosen σ, one of them far below the
+/// cutoff; the Gram route (`gram_pseudo_inverse`) gives the same `S⁺S⁺ᵀ`; an all-zero
+/// matrix has rank 0 and an infinite (not NaN) condition number.
+#[test]
+fn pseudo_inverses_know_rank_condition_and_null_directions() {
+    // Orthonormal U (5 × 3) and V (3 × 3) from QR of fixed matrices.
+    let u = DMatrix::from_row_slice(5, 3, &[1.0, 2.0, 0.5, -1.0, 0.3, 2.0, 0.7, -0.4, 1.1, 0.2, 1.5, -0.9, -0.6, 0.8, 0.4])
+        .qr()
+        .q();
+    let v = DMatrix::from_row_slice(3, 3, &[0.3, -1.2, 0.8, 1.1, 0.4, -0.5, -0.2, 0.9, 1.3]).qr().q();
+    let build = |s: [f64; 3]| &u * DMatrix::from_diagonal(&DVector::from_row_slice(&s)) * v.transpose();
+    let full = build([4.0, 2.0, 0.5]);
+    let p = lstsq::pseudo_inverse(&full, None).unwrap();
+    assert_eq!(p.rank, 3);
+    assert!((p.condition - 8.0).abs() < 1e-9, "condition {}", p.condition);
+    assert!((&p.pinv * &full - DMatrix::identity(3, 3)).amax() < 1e-12);
+    // σ₃ = 1e-20: far below the cutoff, but positive: it must not be inverted.
+    let thin = build([4.0, 2.0, 1e-20]);
+    let p = lstsq::pseudo_inverse(&thin, None).unwrap();
+    assert_eq!(p.rank, 2);
+    let want = v.columns(0, 2) * DMatrix::from_diagonal(&DVector::from_row_slice(&[0.25, 0.5])) * u.columns(0, 2).transpose();
+    assert!((&p.pinv - &want).amax() < 1e-12, "pinv off by {}", (&p.pinv - &want).amax());
+    // Through the Gram matrix: G⁺ = S⁺ S⁺ᵀ, with the same null direction dropped.
+    for s in [&full, &thin] {
+        let g = s.transpose() * s;
+        let p = lstsq::pseudo_inverse(s, None).unwrap().pinv;
+        let want = &p * p.transpose();
+        let got = lstsq::gram_pseudo_inverse(&g, None);
+        assert!((&got - &want).amax() < 1e-9 * want.amax(), "G⁺ off by {}", (&got - &want).amax());
+    }
+    // A Gram matrix with an eigenvalue 1e-30 (positive, below the cutoff) and one 1e-3 λmax
+    // (above it): exactly the one is dropped.
+    let g = &v * DMatrix::from_diagonal(&DVector::from_row_slice(&[1.0, 1e-3, 1e-30])) * v.transpose();
+    let got = lstsq::gram_pseudo_inverse(&g, None);
+    let want = v.columns(0, 2) * DMatrix::from_diagonal(&DVector::from_row_slice(&[1.0, 1e3])) * v.columns(0, 2).transpose();
+    assert!((&got - &want).amax() < 1e-6, "G⁺ off by {}", (&got - &want).amax());
+    let z = lstsq::pseudo_inverse(&DMatrix::zeros(4, 2), None).unwrap();
+    assert_eq!(z.rank, 0);
+    assert_eq!(z.condition, f64::INFINITY);
+    assert_eq!(z.pinv, DMatrix::zeros(2, 4));
+}
+
+/// The chunked parallel normal-equation solve equals the one-matrix solve, for frame
+/// counts below, on and across the chunk size (the last chunk partial).
+#[test]
+fn the_batch_normal_equations_equal_the_whole_matrix_solve() {
+    use keyshape_lab::solve::CHUNK;
+    let s = DMatrix::from_fn(9, 4, |i, j| ((i * 5 + j * 3) % 7) as f64 - 3.0 + if i == j { 4.0 } else { 0.0 });
+    for t in [1, CHUNK - 1, CHUNK, CHUNK + 1, 3 * CHUNK + 17] {
+        let q = DMatrix::from_fn(9, t, |i, f| ((i * 11 + f * 7) % 13) as f64 * 0.5 - 3.0);
+        let a = lstsq::normal_equations(&s, &q).unwrap();
+        let b = lstsq::normal_equations_batch(&s, &q).unwrap();
+        assert_eq!(a.shape(), b.shape());
+        assert!((&a - &b).amax() < 1e-12, "{t} frames: off by {}", (&a - &b).amax());
+    }
+}
