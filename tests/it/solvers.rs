@@ -402,3 +402,48 @@ fn the_batch_normal_equations_equal_the_whole_matrix_solve() {
         assert!((&a - &b).amax() < 1e-12, "{t} frames: off by {}", (&a - &b).amax());
     }
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(300))]
+    /// The textbook NNLS is itself an NNLS solver, checked on its own (the tests that use it
+    /// as an oracle only ask that the batch solver be no worse): every frame meets the KKT
+    /// conditions to its own stopping tolerance, and its objective is the brute-force
+    /// optimum over all active sets.
+    #[test]
+    fn the_textbook_nnls_meets_kkt_and_the_brute_force_optimum((s, q) in problem(6)) {
+        for j in 0..q.ncols() {
+            let qj = column(&q, j);
+            let w = textbook::nnls(&s, &qj);
+            let v = kkt_violation(&s, &qj, &w, f64::INFINITY);
+            prop_assert!(v < 1e-10, "frame {j}: KKT violation {v:e}");
+            let best = brute_force(&s, &qj, f64::INFINITY);
+            let ours = objective(&s, &qj, &w);
+            prop_assert!((ours - best).abs() <= 1e-10 * qj.norm_squared().max(1.0), "frame {j}: {ours} vs brute force {best}");
+        }
+    }
+}
+
+/// The textbook NNLS on the two hand-made problems whose Lawson–Hanson path must step back
+/// (one weight, then two going negative in a full step): exact optima in fractions.
+#[test]
+fn the_textbook_nnls_steps_back_to_the_exact_optima() {
+    let s = DMatrix::from_row_slice(3, 3, &[-1.0, -3.0, 1.0, -2.0, 1.0, -1.0, 2.0, 0.0, 1.0]);
+    let q = DVector::from_column_slice(&[-1.0, -1.0, 3.0]);
+    let s4 = DMatrix::from_row_slice(
+        4,
+        4,
+        &[
+            3.0, 3.0, 2.0, -2.0, 0.0, 1.0, -1.0, 1.0, -2.0, 0.0, -3.0, 1.0, -1.0, 3.0, -3.0, -2.0,
+        ],
+    );
+    let q4 = DVector::from_column_slice(&[2.0, 2.0, 3.0, -1.0]);
+    for (s, q, want) in [
+        (&s, &q, vec![0.0, 9.0 / 7.0, 19.0 / 7.0]),
+        (&s4, &q4, vec![81.0 / 238.0, 440.0 / 357.0, 0.0, 664.0 / 357.0]),
+    ] {
+        let w = textbook::nnls(s, q);
+        for (i, x) in want.iter().enumerate() {
+            assert!((w[i] - x).abs() < 1e-13, "w{i} = {}, expected {x}", w[i]);
+        }
+    }
+}
