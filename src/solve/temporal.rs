@@ -204,6 +204,8 @@ pub struct BandedSystem {
     copied: usize,
     /// Windowed: what recomputing rows needs.
     redo: Option<Box<Redo>>,
+    /// The substitutions' work vector, kept between solves.
+    y: Vec<f64>,
 }
 
 /// Segments (or halves of a two-ended factorisation) this long or longer keep their factor
@@ -519,9 +521,9 @@ impl BandedSystem {
         // The old factor's storage, the rest of it dropped before anything is allocated.
         // Every allocation is reused from `recycle`, and its memory with it: a long
         // segment's iterations then take no new frames-long blocks from the allocator.
-        let (mut l, mut inv, mut free, mut fstart, mut off, mut outer, mut fixed_copy, redo) =
+        let (mut l, mut inv, mut free, mut fstart, mut off, mut outer, mut fixed_copy, redo, y) =
             match recycle {
-                Some(r) => (r.l, r.inv, r.free, r.fstart, r.off, r.outer, r.fixed, r.redo),
+                Some(r) => (r.l, r.inv, r.free, r.fstart, r.off, r.outer, r.fixed, r.redo, r.y),
                 None => Default::default(),
             };
         free.clear();
@@ -591,6 +593,7 @@ impl BandedSystem {
                 fixed: Vec::new(),
                 copied: 0,
                 redo: Some(redo),
+                y,
             };
             for a in (0..t).step_by(WINDOW_BLOCK) {
                 sys.load(a.saturating_sub(p), (a + WINDOW_BLOCK).min(t))
@@ -678,6 +681,7 @@ impl BandedSystem {
             },
             copied,
             redo: None,
+            y,
         })
     }
 
@@ -769,27 +773,25 @@ impl BandedSystem {
     /// variables are left as they are (their rows are the identity).
     pub fn solve(&mut self, rhs: &mut [f64]) {
         let k = rhs.len() / self.t.max(1);
-        let mut y = self.gather(rhs, k);
+        let mut y = std::mem::take(&mut self.y);
+        self.gather_into(rhs, k, |s| s, &mut y);
         self.forward(&mut y, 0);
         self.backward(&mut y);
         self.scatter(&y, rhs, k);
+        self.y = y;
     }
 
-    /// The free entries of a flat vector (`k` values per frame), in compact order.
-    fn gather(&self, rhs: &[f64], k: usize) -> Vec<f64> {
-        self.gather_map(rhs, k, |s| s)
-    }
 
-    /// [`Self::gather`] from a vector whose frame `frame(s)` is this system's frame `s`.
-    fn gather_map(&self, rhs: &[f64], k: usize, frame: impl Fn(usize) -> usize) -> Vec<f64> {
-        let mut y = Vec::with_capacity(self.free.len());
+    /// [`Self::gather`] from a vector whose frame `frame(s)` is this system's frame `s`, into
+    /// `y` (its storage reused).
+    fn gather_into(&self, rhs: &[f64], k: usize, frame: impl Fn(usize) -> usize, y: &mut Vec<f64>) {
+        y.clear();
         for s in 0..self.t {
             let f = frame(s);
             for &i in &self.free[self.fstart[s]..self.fstart[s + 1]] {
                 y.push(rhs[f * k + i]);
             }
         }
-        y
     }
 
     /// Writes compact values back into the free entries of a flat vector.
@@ -1172,8 +1174,10 @@ impl Split {
         let nb = t - m - p;
         // b's frame i is frame t − 1 − i.
         let rev = |i: usize| t - 1 - i;
-        let mut ya = self.a.gather(&rhs[..m * k], k);
-        let mut yb = self.b.gather_map(rhs, k, rev);
+        let mut ya = std::mem::take(&mut self.a.y);
+        let mut yb = std::mem::take(&mut self.b.y);
+        self.a.gather_into(&rhs[..m * k], k, |s| s, &mut ya);
+        self.b.gather_into(rhs, k, rev, &mut yb);
         let (sa, sb) = (&mut self.a, &mut self.b);
         rayon::join(|| sa.forward(&mut ya, 0), || sb.forward(&mut yb, 0));
         let (a0, b0) = (self.a.fstart[m - p], self.b.fstart[nb - p]);
@@ -1206,6 +1210,7 @@ impl Split {
         rayon::join(|| sa.backward(&mut ya), || sb.backward(&mut yb));
         self.a.scatter(&ya, &mut rhs[..m * k], k);
         self.b.scatter_map(&yb, rhs, k, rev);
+        (self.a.y, self.b.y) = (ya, yb);
         for (&v, x) in self.sep.iter().zip(xs.iter()) {
             rhs[v] = *x;
         }
@@ -1282,7 +1287,27 @@ pub fn kkt_residual(
     let k = g.nrows();
     let t = b.len() / k.max(1);
     let bands = difference_bands(order, t);
-    let hw = hessian_times(g, lambda, &bands, w);
+    let mut hw = vec![0.0; w.len()];
+    kkt_with(g, lambda, order, &bands, b, w, solver, &mut hw)
+}
+
+/// [`kkt_residual`] with the segment's bands at hand and `hw` as scratch (as long as `w`).
+#[allow(clippy::too_many_arguments)]
+fn kkt_with(
+    g: &DMatrix<f64>,
+    lambda: f64,
+    order: usize,
+    bands: &[Vec<f64>],
+    b: &[f64],
+    w: &[f64],
+    solver: Solver,
+    hw: &mut [f64],
+) -> f64 {
+    let k = g.nrows();
+    if k == 0 {
+        hw.fill(0.0);
+    }
+    hessian_times_into(g, lambda, bands, w, hw);
     let upper = if solver == Solver::Bounded {
         1.0
     } else {
@@ -1611,7 +1636,8 @@ fn projected_newton(
     let mut hdelta = vec![0.0; n];
     let mut spare: Option<SegmentSystem> = None;
     for it in 1..=NEWTON_ITERATIONS {
-        if kkt_residual(g, sm.lambda, sm.order, b, &w, solver) < KKT_TOLERANCE {
+        // `hdelta` is free here: the KKT check's scratch.
+        if kkt_with(g, sm.lambda, sm.order, bands, b, &w, solver, &mut hdelta) < KKT_TOLERANCE {
             return Ok((w, it as u64 - 1));
         }
         // ε: the size of a projected gradient step, capped (Bertsekas' ε_k).
