@@ -523,7 +523,9 @@ impl BandedSystem {
         // segment's iterations then take no new frames-long blocks from the allocator.
         let (mut l, mut inv, mut free, mut fstart, mut off, mut outer, mut fixed_copy, redo, y) =
             match recycle {
-                Some(r) => (r.l, r.inv, r.free, r.fstart, r.off, r.outer, r.fixed, r.redo, r.y),
+                Some(r) => (
+                    r.l, r.inv, r.free, r.fstart, r.off, r.outer, r.fixed, r.redo, r.y,
+                ),
                 None => Default::default(),
             };
         free.clear();
@@ -780,7 +782,6 @@ impl BandedSystem {
         self.scatter(&y, rhs, k);
         self.y = y;
     }
-
 
     /// [`Self::gather`] from a vector whose frame `frame(s)` is this system's frame `s`, into
     /// `y` (its storage reused).

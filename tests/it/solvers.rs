@@ -316,15 +316,17 @@ proptest! {
         k in 1usize..6,
         vals in prop::collection::vec(-4.0f64..4.0, 80),
         dup in any::<bool>(),
+        size in prop::sample::select(vec![1e-10, 1.0, 1e10]),
     ) {
         use keyshape_lab::solve::jacobi::svd;
-        let mut a = DMatrix::from_fn(n, k, |i, j| vals[(i * 7 + j * 13) % vals.len()] + if i == j { 0.5 } else { 0.0 });
+        // Far from unit scale too: the rotations' stopping test must be relative.
+        let mut a = DMatrix::from_fn(n, k, |i, j| size * (vals[(i * 7 + j * 13) % vals.len()] + if i == j { 0.5 } else { 0.0 }));
         if dup && k > 1 {
             let c = a.column(0).clone_owned();
             a.set_column(k - 1, &c);
         }
         let d = svd(&a);
-        let scale = a.amax().max(1.0);
+        let scale = a.amax().max(1e-300);
         let back = &d.u * DMatrix::from_diagonal(&DVector::from_vec(d.s.clone())) * d.v.transpose();
         prop_assert!((&back - &a).amax() <= 1e-12 * scale);
         prop_assert!((d.v.transpose() * &d.v - DMatrix::identity(k, k)).amax() <= 1e-12);
@@ -340,7 +342,7 @@ proptest! {
         let mut eig: Vec<f64> = nalgebra::SymmetricEigen::new(a.transpose() * &a).eigenvalues.iter().map(|l| l.max(0.0).sqrt()).collect();
         eig.sort_by(|x, y| y.total_cmp(x));
         for i in 0..k {
-            prop_assert!((eig[i] - d.s[i]).abs() <= 1e-7 * smax.max(1.0), "σ{i}: {} vs {}", d.s[i], eig[i]);
+            prop_assert!((eig[i] - d.s[i]).abs() <= 1e-7 * smax.max(size), "σ{i}: {} vs {}", d.s[i], eig[i]);
         }
     }
 }
@@ -352,36 +354,66 @@ proptest! {
 #[test]
 fn pseudo_inverses_know_rank_condition_and_null_directions() {
     // Orthonormal U (5 × 3) and V (3 × 3) from QR of fixed matrices.
-    let u = DMatrix::from_row_slice(5, 3, &[1.0, 2.0, 0.5, -1.0, 0.3, 2.0, 0.7, -0.4, 1.1, 0.2, 1.5, -0.9, -0.6, 0.8, 0.4])
+    let u = DMatrix::from_row_slice(
+        5,
+        3,
+        &[
+            1.0, 2.0, 0.5, -1.0, 0.3, 2.0, 0.7, -0.4, 1.1, 0.2, 1.5, -0.9, -0.6, 0.8, 0.4,
+        ],
+    )
+    .qr()
+    .q();
+    let v = DMatrix::from_row_slice(3, 3, &[0.3, -1.2, 0.8, 1.1, 0.4, -0.5, -0.2, 0.9, 1.3])
         .qr()
         .q();
-    let v = DMatrix::from_row_slice(3, 3, &[0.3, -1.2, 0.8, 1.1, 0.4, -0.5, -0.2, 0.9, 1.3]).qr().q();
-    let build = |s: [f64; 3]| &u * DMatrix::from_diagonal(&DVector::from_row_slice(&s)) * v.transpose();
+    let build =
+        |s: [f64; 3]| &u * DMatrix::from_diagonal(&DVector::from_row_slice(&s)) * v.transpose();
     let full = build([4.0, 2.0, 0.5]);
     let p = lstsq::pseudo_inverse(&full, None).unwrap();
     assert_eq!(p.rank, 3);
-    assert!((p.condition - 8.0).abs() < 1e-9, "condition {}", p.condition);
+    assert!(
+        (p.condition - 8.0).abs() < 1e-9,
+        "condition {}",
+        p.condition
+    );
     assert!((&p.pinv * &full - DMatrix::identity(3, 3)).amax() < 1e-12);
     // σ₃ = 1e-20: far below the cutoff, but positive: it must not be inverted.
     let thin = build([4.0, 2.0, 1e-20]);
     let p = lstsq::pseudo_inverse(&thin, None).unwrap();
     assert_eq!(p.rank, 2);
-    let want = v.columns(0, 2) * DMatrix::from_diagonal(&DVector::from_row_slice(&[0.25, 0.5])) * u.columns(0, 2).transpose();
-    assert!((&p.pinv - &want).amax() < 1e-12, "pinv off by {}", (&p.pinv - &want).amax());
+    let want = v.columns(0, 2)
+        * DMatrix::from_diagonal(&DVector::from_row_slice(&[0.25, 0.5]))
+        * u.columns(0, 2).transpose();
+    assert!(
+        (&p.pinv - &want).amax() < 1e-12,
+        "pinv off by {}",
+        (&p.pinv - &want).amax()
+    );
     // Through the Gram matrix: G⁺ = S⁺ S⁺ᵀ, with the same null direction dropped.
     for s in [&full, &thin] {
         let g = s.transpose() * s;
         let p = lstsq::pseudo_inverse(s, None).unwrap().pinv;
         let want = &p * p.transpose();
         let got = lstsq::gram_pseudo_inverse(&g, None);
-        assert!((&got - &want).amax() < 1e-9 * want.amax(), "G⁺ off by {}", (&got - &want).amax());
+        assert!(
+            (&got - &want).amax() < 1e-9 * want.amax(),
+            "G⁺ off by {}",
+            (&got - &want).amax()
+        );
     }
     // A Gram matrix with an eigenvalue 1e-30 (positive, below the cutoff) and one 1e-3 λmax
     // (above it): exactly the one is dropped.
-    let g = &v * DMatrix::from_diagonal(&DVector::from_row_slice(&[1.0, 1e-3, 1e-30])) * v.transpose();
+    let g =
+        &v * DMatrix::from_diagonal(&DVector::from_row_slice(&[1.0, 1e-3, 1e-30])) * v.transpose();
     let got = lstsq::gram_pseudo_inverse(&g, None);
-    let want = v.columns(0, 2) * DMatrix::from_diagonal(&DVector::from_row_slice(&[1.0, 1e3])) * v.columns(0, 2).transpose();
-    assert!((&got - &want).amax() < 1e-6, "G⁺ off by {}", (&got - &want).amax());
+    let want = v.columns(0, 2)
+        * DMatrix::from_diagonal(&DVector::from_row_slice(&[1.0, 1e3]))
+        * v.columns(0, 2).transpose();
+    assert!(
+        (&got - &want).amax() < 1e-6,
+        "G⁺ off by {}",
+        (&got - &want).amax()
+    );
     let z = lstsq::pseudo_inverse(&DMatrix::zeros(4, 2), None).unwrap();
     assert_eq!(z.rank, 0);
     assert_eq!(z.condition, f64::INFINITY);
@@ -393,13 +425,19 @@ fn pseudo_inverses_know_rank_condition_and_null_directions() {
 #[test]
 fn the_batch_normal_equations_equal_the_whole_matrix_solve() {
     use keyshape_lab::solve::CHUNK;
-    let s = DMatrix::from_fn(9, 4, |i, j| ((i * 5 + j * 3) % 7) as f64 - 3.0 + if i == j { 4.0 } else { 0.0 });
+    let s = DMatrix::from_fn(9, 4, |i, j| {
+        ((i * 5 + j * 3) % 7) as f64 - 3.0 + if i == j { 4.0 } else { 0.0 }
+    });
     for t in [1, CHUNK - 1, CHUNK, CHUNK + 1, 3 * CHUNK + 17] {
         let q = DMatrix::from_fn(9, t, |i, f| ((i * 11 + f * 7) % 13) as f64 * 0.5 - 3.0);
         let a = lstsq::normal_equations(&s, &q).unwrap();
         let b = lstsq::normal_equations_batch(&s, &q).unwrap();
         assert_eq!(a.shape(), b.shape());
-        assert!((&a - &b).amax() < 1e-12, "{t} frames: off by {}", (&a - &b).amax());
+        assert!(
+            (&a - &b).amax() < 1e-12,
+            "{t} frames: off by {}",
+            (&a - &b).amax()
+        );
     }
 }
 
@@ -439,11 +477,51 @@ fn the_textbook_nnls_steps_back_to_the_exact_optima() {
     let q4 = DVector::from_column_slice(&[2.0, 2.0, 3.0, -1.0]);
     for (s, q, want) in [
         (&s, &q, vec![0.0, 9.0 / 7.0, 19.0 / 7.0]),
-        (&s4, &q4, vec![81.0 / 238.0, 440.0 / 357.0, 0.0, 664.0 / 357.0]),
+        (
+            &s4,
+            &q4,
+            vec![81.0 / 238.0, 440.0 / 357.0, 0.0, 664.0 / 357.0],
+        ),
     ] {
         let w = textbook::nnls(s, q);
         for (i, x) in want.iter().enumerate() {
             assert!((w[i] - x).abs() < 1e-13, "w{i} = {}, expected {x}", w[i]);
         }
     }
+}
+
+/// `gram_pseudo_inverse`'s cutoff is relative to the largest eigenvalue: on a diagonal Gram
+/// matrix (exact eigenvalues) far from unit scale, an eigenvalue 1e-18 of the largest is
+/// dropped and one 1e-6 of it kept, whatever the scale.
+#[test]
+fn the_gram_pseudo_inverse_cutoff_is_relative_to_the_largest_eigenvalue() {
+    for scale in [1e-6, 1.0, 1e6] {
+        let g = DMatrix::from_diagonal(&DVector::from_row_slice(&[
+            scale,
+            1e-6 * scale,
+            1e-18 * scale,
+        ]));
+        let got = lstsq::gram_pseudo_inverse(&g, None);
+        let want =
+            DMatrix::from_diagonal(&DVector::from_row_slice(&[1.0 / scale, 1e6 / scale, 0.0]));
+        assert!(
+            (&got - &want).amax() <= 1e-9 * want.amax(),
+            "scale {scale}: {got}"
+        );
+    }
+}
+
+/// `gram_pseudo_inverse` with a caller's `rcond` cuts at `rcond²·λmax` (the Gram matrix
+/// squares the condition number), and a zero Gram matrix has a zero pseudo-inverse.
+#[test]
+fn the_gram_pseudo_inverse_takes_rcond_squared_and_maps_zero_to_zero() {
+    let g = DMatrix::from_diagonal(&DVector::from_row_slice(&[1.0, 1e-5, 1e-7]));
+    // rcond 1e-3: cut 1e-6, so 1e-5 is kept and 1e-7 dropped.
+    let got = lstsq::gram_pseudo_inverse(&g, Some(1e-3));
+    let want = DMatrix::from_diagonal(&DVector::from_row_slice(&[1.0, 1e5, 0.0]));
+    assert!((&got - &want).amax() <= 1e-9 * want.amax(), "{got}");
+    assert_eq!(
+        lstsq::gram_pseudo_inverse(&DMatrix::zeros(3, 3), None),
+        DMatrix::zeros(3, 3)
+    );
 }
