@@ -754,3 +754,24 @@ fn a_segment_long_enough_to_be_windowed_meets_the_kkt_conditions() {
         );
     }
 }
+
+/// What a windowed factor holds, exactly: after a solve (which ends on the first block),
+/// the rows of frames 0..B + p and, per block after the first, a checkpoint of p rows; with
+/// nothing fixed every row of frame s ≥ p holds `k(k+1)/2 + (p − 1)k²` values.
+#[test]
+fn a_windowed_factor_holds_one_window_and_its_checkpoints() {
+    use keyshape_lab::solve::temporal::{difference_bands, BandedSystem, WINDOW_BLOCK};
+    let (k, t) = (3, 3 * WINDOW_BLOCK + 28);
+    let g = DMatrix::from_fn(k, k, |i, j| if i == j { 2.0 } else { 0.3 });
+    for p in [1usize, 2] {
+        let bands = difference_bands(p, t);
+        let fixed = vec![false; t * k];
+        let mut sys = BandedSystem::factor_windowed(&g, 5.0, &bands, &fixed, 1e-12).unwrap();
+        let mut rhs = vec![1.0; t * k];
+        sys.solve(&mut rhs);
+        let row = |s: usize| k * (k + 1) / 2 + if s >= 1 && p == 2 { k * k } else { 0 };
+        let window: usize = (0..WINDOW_BLOCK + p).map(row).sum();
+        let checkpoints = (t.div_ceil(WINDOW_BLOCK) - 1) * p * row(p);
+        assert_eq!(sys.stored_values(), window + checkpoints, "order {p}");
+    }
+}
