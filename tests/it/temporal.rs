@@ -767,11 +767,15 @@ fn a_windowed_factor_holds_one_window_and_its_checkpoints() {
         let bands = difference_bands(p, t);
         let fixed = vec![false; t * k];
         let mut sys = BandedSystem::factor_windowed(&g, 5.0, &bands, &fixed, 1e-12).unwrap();
+        let row = |s: usize| k * (k + 1) / 2 + if s >= 1 && p == 2 { k * k } else { 0 };
+        let checkpoints = (t.div_ceil(WINDOW_BLOCK) - 1) * p * row(p);
+        // After the factorisation: the last block and the p rows before it.
+        let last = (t - 1) / WINDOW_BLOCK * WINDOW_BLOCK;
+        let window: usize = (last - p..t).map(row).sum();
+        assert_eq!(sys.stored_values(), window + checkpoints, "order {p}, factorised");
         let mut rhs = vec![1.0; t * k];
         sys.solve(&mut rhs);
-        let row = |s: usize| k * (k + 1) / 2 + if s >= 1 && p == 2 { k * k } else { 0 };
         let window: usize = (0..WINDOW_BLOCK + p).map(row).sum();
-        let checkpoints = (t.div_ceil(WINDOW_BLOCK) - 1) * p * row(p);
-        assert_eq!(sys.stored_values(), window + checkpoints, "order {p}");
+        assert_eq!(sys.stored_values(), window + checkpoints, "order {p}, solved");
     }
 }
