@@ -772,10 +772,18 @@ fn a_windowed_factor_holds_one_window_and_its_checkpoints() {
         // After the factorisation: the last block and the p rows before it.
         let last = (t - 1) / WINDOW_BLOCK * WINDOW_BLOCK;
         let window: usize = (last - p..t).map(row).sum();
-        assert_eq!(sys.stored_values(), window + checkpoints, "order {p}, factorised");
+        assert_eq!(
+            sys.stored_values(),
+            window + checkpoints,
+            "order {p}, factorised"
+        );
         let mut rhs = vec![1.0; t * k];
         sys.solve(&mut rhs);
         let window: usize = (0..WINDOW_BLOCK + p).map(row).sum();
-        assert_eq!(sys.stored_values(), window + checkpoints, "order {p}, solved");
+        assert_eq!(
+            sys.stored_values(),
+            window + checkpoints,
+            "order {p}, solved"
+        );
     }
 }
