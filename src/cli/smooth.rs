@@ -81,7 +81,10 @@ pub fn run(a: &SmoothArgs) -> Result<()> {
         let (seq, prep) = a.input.prepare()?;
         (Some(seq), prep)
     } else {
-        (None, a.input.prepare_only()?)
+        let mut prep = a.input.prepare_only()?;
+        // The removed head motion is not part of the study (five values a frame).
+        prep.head = None;
+        (None, prep)
     };
     let rows = smoothing_study_in_place(raw.as_ref(), &mut prep, &st, &Default::default())?;
     let seq = raw.as_ref().unwrap_or(&prep.seq);

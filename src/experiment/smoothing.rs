@@ -406,10 +406,11 @@ fn study_with_keys(
     let b = g.apply_all(&s);
     let plain = solve_batch(&s, q, &SolveOptions::new(st.solver))?;
     let w0 = &plain.weights;
-    // The settings' weights (keys × frames each) are kept until they add up to a quarter
-    // of the coordinates' size, then their errors are measured in one pass over the frames
-    // and the weights dropped.
-    let budget = (q.len() / 4).max(1);
+    // The settings' weights (keys × frames each) are kept until they add up to half the
+    // coordinates' size, then their errors are measured in one pass over the frames and
+    // the weights dropped; an offline solve, the study's largest working set, runs with
+    // none kept (what it would share the peak with is measured first).
+    let budget = (q.len() / 2).max(1);
     let lowpass = Lowpass::new(st.clean_sigma);
     let frames = q.ncols();
     let rms = |sq: f64| (sq / (frames * points).max(1) as f64).sqrt();
@@ -435,12 +436,8 @@ fn study_with_keys(
             });
         }
     };
-    let mut add = |sets: &mut Vec<(String, String, DMatrix<f64>, Option<f64>)>,
-                   set: (String, String, DMatrix<f64>, Option<f64>)| {
-        sets.push(set);
-        if sets.iter().map(|x| x.2.len()).sum::<usize>() >= budget {
-            flush(sets);
-        }
+    let full = |sets: &[(String, String, DMatrix<f64>, Option<f64>)]| {
+        sets.iter().map(|x| x.2.len()).sum::<usize>() >= budget
     };
     // The settings in the report's order: none, the prior offline order 1, order 2,
     // causal, the filters. The order-2 solves, which need the most memory, run first,
@@ -456,7 +453,10 @@ fn study_with_keys(
     for p in [1, 0, 2] {
         if p == 0 {
             place.push(0);
-            add(&mut sets, ("none".into(), "λ 0".into(), w0.clone(), None));
+            sets.push(("none".into(), "λ 0".into(), w0.clone(), None));
+            if full(&sets) {
+                flush(&mut sets);
+            }
         }
         let (mode, order, name) = priors[p];
         for (li, &lambda) in st.lambdas.iter().enumerate() {
@@ -465,6 +465,9 @@ fn study_with_keys(
                 order,
                 mode,
             };
+            if mode == SmoothMode::Offline && !sets.is_empty() {
+                flush(&mut sets);
+            }
             let r = smooth_from(&s, q, &plain, st.solver, &sm, &segs)?;
             if r.unconverged > 0 {
                 return Err(Error::invalid(format!(
@@ -473,16 +476,19 @@ fn study_with_keys(
                 )));
             }
             place.push(1 + p * nl + li);
-            add(
-                &mut sets,
-                (name.into(), format!("λ {lambda}"), r.weights, Some(r.kkt)),
-            );
+            sets.push((name.into(), format!("λ {lambda}"), r.weights, Some(r.kkt)));
+            if full(&sets) {
+                flush(&mut sets);
+            }
         }
     }
     for (fi, f) in st.filters(fps).into_iter().enumerate() {
         let w = f.apply(w0, &segs, st.solver)?;
         place.push(1 + 3 * nl + fi);
-        add(&mut sets, (f.series(), f.setting(), w, None));
+        sets.push((f.series(), f.setting(), w, None));
+        if full(&sets) {
+            flush(&mut sets);
+        }
     }
     if !sets.is_empty() {
         flush(&mut sets);

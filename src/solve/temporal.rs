@@ -179,8 +179,9 @@ pub fn difference_bands(order: usize, t: usize) -> Vec<Vec<f64>> {
 pub struct BandedSystem {
     t: usize,
     p: usize,
-    /// Free variable indices (within a frame) of every frame, concatenated.
-    free: Vec<usize>,
+    /// Free variable indices (within a frame) of every frame, concatenated (`u32`: a
+    /// frames-long list, and no G has 2³² rows).
+    free: Vec<u32>,
     /// `free[fstart[s]..fstart[s + 1]]` are frame `s`'s.
     fstart: Vec<usize>,
     /// Start (in the whole factor's layout) of `L_{s,s}` (packed lower triangle, row after
@@ -236,7 +237,7 @@ struct Inputs<'a> {
     lambda: f64,
     bands: &'a [Vec<f64>],
     ridge: f64,
-    free: &'a [usize],
+    free: &'a [u32],
     fstart: &'a [usize],
     off: &'a [usize],
     p: usize,
@@ -293,7 +294,7 @@ fn tri(n: usize) -> usize {
 }
 
 /// Calls `f(x, y)` for every pair with `a[x] == b[y]` (both sorted ascending).
-fn matches(a: &[usize], b: &[usize], mut f: impl FnMut(usize, usize)) {
+fn matches(a: &[u32], b: &[u32], mut f: impl FnMut(usize, usize)) {
     let (mut x, mut y) = (0, 0);
     while x < a.len() && y < b.len() {
         match a[x].cmp(&b[y]) {
@@ -399,7 +400,7 @@ fn compute_row(
     let diag = lambda * bands[0][s] + x.ridge;
     for x in 0..ns {
         for y in 0..=x {
-            m[x * ns + y] = g[(fs[x], fs[y])] + if x == y { diag } else { 0.0 };
+            m[x * ns + y] = g[(fs[x] as usize, fs[y] as usize)] + if x == y { diag } else { 0.0 };
         }
     }
     for r in s.saturating_sub(p)..s {
@@ -532,7 +533,7 @@ impl BandedSystem {
         fstart.clear();
         for s in 0..t {
             fstart.push(free.len());
-            free.extend((0..k).filter(|&i| !fixed[s * k + i]));
+            free.extend((0..k).filter(|&i| !fixed[s * k + i]).map(|i| i as u32));
         }
         fstart.push(free.len());
         let n = |s: usize| fstart[s + 1] - fstart[s];
@@ -790,7 +791,7 @@ impl BandedSystem {
         for s in 0..self.t {
             let f = frame(s);
             for &i in &self.free[self.fstart[s]..self.fstart[s + 1]] {
-                y.push(rhs[f * k + i]);
+                y.push(rhs[f * k + i as usize]);
             }
         }
     }
@@ -805,13 +806,13 @@ impl BandedSystem {
         for s in 0..self.t {
             let f = frame(s);
             for (c, &i) in (self.fstart[s]..self.fstart[s + 1]).zip(&self.free[self.fstart[s]..]) {
-                rhs[f * k + i] = y[c];
+                rhs[f * k + i as usize] = y[c];
             }
         }
     }
 
     /// Frame `s`'s free variable indices.
-    fn free_of(&self, s: usize) -> &[usize] {
+    fn free_of(&self, s: usize) -> &[u32] {
         &self.free[self.fstart[s]..self.fstart[s + 1]]
     }
 
@@ -1081,7 +1082,7 @@ impl SegmentSystem {
                 if s - r <= p {
                     if let Some(x) = a.free[a.fstart[r]..a.fstart[r + 1]]
                         .iter()
-                        .position(|&f| f == i)
+                        .position(|&f| f as usize == i)
                     {
                         col[a.fstart[r] - a.fstart[a0] + x] = coupling(r, s);
                     }
@@ -1095,7 +1096,7 @@ impl SegmentSystem {
                 if orig - s <= p {
                     if let Some(x) = b.free[b.fstart[ib]..b.fstart[ib + 1]]
                         .iter()
-                        .position(|&f| f == i)
+                        .position(|&f| f as usize == i)
                     {
                         col[b.fstart[ib] - b.fstart[b0] + x] = coupling(s, orig);
                     }
@@ -1273,6 +1274,51 @@ fn hessian_times_into(
         });
 }
 
+/// `vᵀ H v` for one segment, with `v`'s entries given by `v(i)` (flat index, frame after
+/// frame) and never stored: a chunk of frames at a time, in parallel, the chunks' sums
+/// added in order (the same figure on any number of threads).
+fn hessian_quadratic(
+    g: &DMatrix<f64>,
+    lambda: f64,
+    bands: &[Vec<f64>],
+    v: impl Fn(usize) -> f64 + Sync,
+) -> f64 {
+    let k = g.nrows();
+    let t = bands[0].len();
+    let p = bands.len() - 1;
+    if k == 0 {
+        return 0.0;
+    }
+    const CHUNK: usize = 2048;
+    let parts: Vec<f64> = (0..t.div_ceil(CHUNK))
+        .into_par_iter()
+        .map(|ci| {
+            let s0 = ci * CHUNK;
+            let s1 = (s0 + CHUNK).min(t);
+            // The chunk's frames and the `p` before them.
+            let f0 = s0.saturating_sub(p);
+            let vals: Vec<f64> = (f0 * k..s1 * k).map(&v).collect();
+            let at = |s: usize| &vals[(s - f0) * k..(s - f0 + 1) * k];
+            let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
+            let mut gv = vec![0.0; k];
+            let mut acc = 0.0;
+            for s in s0..s1 {
+                let vs = at(s);
+                for (i, o) in gv.iter_mut().enumerate() {
+                    *o = (0..k).map(|j| g[(i, j)] * vs[j]).sum();
+                }
+                let mut band = bands[0][s] * dot(vs, vs);
+                for j in 1..=p.min(s) {
+                    band += 2.0 * bands[j][s] * dot(vs, at(s - j));
+                }
+                acc += dot(vs, &gv) + lambda * band;
+            }
+            acc
+        })
+        .collect();
+    parts.iter().sum()
+}
+
 /// The KKT residual of the offline objective (halved: `½wᵀHw − bᵀw`) at `w` for one
 /// segment, relative: the largest violation — |gradient| of a variable inside its bounds,
 /// the wrong-signed gradient of one at a bound, or the distance outside the bounds — over
@@ -1304,11 +1350,24 @@ fn kkt_with(
     solver: Solver,
     hw: &mut [f64],
 ) -> f64 {
-    let k = g.nrows();
-    if k == 0 {
+    if g.nrows() == 0 {
         hw.fill(0.0);
     }
     hessian_times_into(g, lambda, bands, w, hw);
+    kkt_from(g, lambda, order, b, w, hw, solver)
+}
+
+/// [`kkt_residual`] with `H w` at hand.
+fn kkt_from(
+    g: &DMatrix<f64>,
+    lambda: f64,
+    order: usize,
+    b: &[f64],
+    w: &[f64],
+    hw: &[f64],
+    solver: Solver,
+) -> f64 {
+    let k = g.nrows();
     let upper = if solver == Solver::Bounded {
         1.0
     } else {
@@ -1569,7 +1628,16 @@ fn segment(
     } else {
         iterations += PDAS_ITERATIONS as u64;
     }
-    let (w, it) = projected_newton(g, sm, &bands, b, w0, upper, ridge, solver)?;
+    // Projected Newton factorises into the storage the active-set steps leave (one
+    // system held at a time, not three); their last factor has no rows it could copy.
+    {
+        let cached = cache.borrow_mut().take();
+        let mut spare = spare.borrow_mut();
+        if spare.is_none() {
+            *spare = cached;
+        }
+    }
+    let (w, it) = projected_newton(g, sm, &bands, b, w0, upper, ridge, solver, &spare)?;
     iterations += it;
     let res = kkt_residual(g, sm.lambda, sm.order, b, &w, solver);
     if res < KKT_TOLERANCE {
@@ -1616,6 +1684,7 @@ fn projected_newton(
     upper: f64,
     ridge: f64,
     solver: Solver,
+    recycle: &std::cell::RefCell<Option<SegmentSystem>>,
 ) -> Result<(Vec<f64>, u64)> {
     let k = g.nrows();
     let n = b.len();
@@ -1626,19 +1695,18 @@ fn projected_newton(
     let hmax = (0..n).map(hdiag).fold(0.0f64, |m, v| m.max(v));
     let project = |v: f64| v.clamp(0.0, upper);
     let mut w: Vec<f64> = w0.iter().map(|v| project(*v)).collect();
-    let mut hw = hessian_times(g, sm.lambda, bands, &w);
-    // The gradient is `hw − b`, taken entry by entry where it is used (one vector fewer);
-    // the trial point is `project(w + α d)`, recomputed when accepted (bit for bit the
-    // same). The working vectors and the factor's storage are reused from step to step.
+    // Three frames-long vectors (w, `hw = H w`, d) and the binding mask: `H w` is taken
+    // afresh at every step (the KKT check reads it too), the gradient `hw − b` entry by
+    // entry where it is used, and the line search's step Δ = project(w + αd) − w entry by
+    // entry too (it needs only gᵀΔ and ΔᵀHΔ). The factor's storage is reused from step to
+    // step.
     let grad = |hw: &[f64], i: usize| hw[i] - b[i];
+    let mut hw = vec![0.0; n];
     let mut binding = vec![false; n];
     let mut d = vec![0.0; n];
-    let mut delta = vec![0.0; n];
-    let mut hdelta = vec![0.0; n];
-    let mut spare: Option<SegmentSystem> = None;
     for it in 1..=NEWTON_ITERATIONS {
-        // `hdelta` is free here: the KKT check's scratch.
-        if kkt_with(g, sm.lambda, sm.order, bands, b, &w, solver, &mut hdelta) < KKT_TOLERANCE {
+        hessian_times_into(g, sm.lambda, bands, &w, &mut hw);
+        if kkt_from(g, sm.lambda, sm.order, b, &w, &hw, solver) < KKT_TOLERANCE {
             return Ok((w, it as u64 - 1));
         }
         // ε: the size of a projected gradient step, capped (Bertsekas' ε_k).
@@ -1661,10 +1729,10 @@ fn projected_newton(
             ridge,
             n / k.max(1) >= SPLIT_FRAMES,
             None,
-            spare.take(),
+            recycle.borrow_mut().take(),
         )?;
         sys.solve(&mut d);
-        spare = Some(sys);
+        *recycle.borrow_mut() = Some(sys);
         for i in 0..n {
             if binding[i] {
                 d[i] = -grad(&hw, i) / hdiag(i);
@@ -1674,19 +1742,15 @@ fn projected_newton(
         let mut alpha = 1.0;
         let mut accepted = false;
         for _ in 0..60 {
-            for i in 0..n {
-                delta[i] = project(w[i] + alpha * d[i]) - w[i];
-            }
+            let delta = |i: usize| project(w[i] + alpha * d[i]) - w[i];
             // The decrease from the step Δ itself, −gᵀΔ − ½ΔᵀHΔ: no cancellation between
             // two nearly equal objective values near the optimum.
-            hessian_times_into(g, sm.lambda, bands, &delta, &mut hdelta);
-            let decrease = -(0..n)
-                .map(|i| grad(&hw, i) * delta[i] + 0.5 * delta[i] * hdelta[i])
-                .sum::<f64>();
+            let decrease = -(0..n).map(|i| grad(&hw, i) * delta(i)).sum::<f64>()
+                - 0.5 * hessian_quadratic(g, sm.lambda, bands, delta);
             let predicted: f64 = (0..n)
                 .map(|i| {
                     if binding[i] {
-                        -grad(&hw, i) * delta[i]
+                        -grad(&hw, i) * delta(i)
                     } else {
                         -alpha * grad(&hw, i) * d[i]
                     }
@@ -1707,9 +1771,6 @@ fn projected_newton(
             let v = project(w[i] + alpha * d[i]);
             moved |= v != w[i];
             w[i] = v;
-        }
-        for (a, c) in hw.iter_mut().zip(&hdelta) {
-            *a += c;
         }
         if !moved {
             return Ok((w, it as u64));
@@ -1904,4 +1965,65 @@ fn causal(
         unconverged,
         segments: segments.to_vec(),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `vᵀHv` without `Hv`: the dense `H = I ⊗ G + λ DᵀD ⊗ I` built entry by entry is the
+    /// oracle, on lengths that end inside, on and just past a chunk, for both orders.
+    #[test]
+    fn the_quadratic_form_is_v_h_v() {
+        let k = 3;
+        let g = DMatrix::from_row_slice(3, 3, &[4.0, 1.0, -0.5, 1.0, 3.0, 0.25, -0.5, 0.25, 2.0]);
+        for order in [1, 2] {
+            for t in [1, 2, 5, 2047, 2048, 2049, 4100] {
+                let bands = difference_bands(order, t);
+                let lambda = 7.5;
+                let v: Vec<f64> = (0..t * k)
+                    .map(|i| ((i * 37 + 11) % 23) as f64 / 7.0 - 1.5)
+                    .collect();
+                let got = hessian_quadratic(&g, lambda, &bands, |i| v[i]);
+                let hv = hessian_times(&g, lambda, &bands, &v);
+                let via_product: f64 = v.iter().zip(&hv).map(|(a, b)| a * b).sum();
+                assert!(
+                    (got - via_product).abs() <= 1e-12 * via_product.abs(),
+                    "order {order}, {t} frames: {got} vs {via_product}"
+                );
+                if t <= 5 {
+                    // Dense: DᵀD from the difference operator itself.
+                    let rows = t.saturating_sub(order);
+                    let mut dm = DMatrix::<f64>::zeros(rows, t);
+                    for r in 0..rows {
+                        let c: &[f64] = if order == 1 {
+                            &[-1.0, 1.0]
+                        } else {
+                            &[1.0, -2.0, 1.0]
+                        };
+                        for (j, x) in c.iter().enumerate() {
+                            dm[(r, r + j)] = *x;
+                        }
+                    }
+                    let dtd = dm.transpose() * &dm;
+                    let mut dense = 0.0;
+                    for s in 0..t {
+                        for u in 0..t {
+                            for i in 0..k {
+                                for j in 0..k {
+                                    let h = if s == u { g[(i, j)] } else { 0.0 }
+                                        + if i == j { lambda * dtd[(s, u)] } else { 0.0 };
+                                    dense += v[s * k + i] * h * v[u * k + j];
+                                }
+                            }
+                        }
+                    }
+                    assert!(
+                        (got - dense).abs() <= 1e-12 * dense.abs().max(1.0),
+                        "order {order}, {t} frames: {got} vs dense {dense}"
+                    );
+                }
+            }
+        }
+    }
 }

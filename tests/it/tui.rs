@@ -267,7 +267,7 @@ fn the_binary_runs_in_tmux() {
         c.keys.iter().map(|&k| c.frames[k].to_string()).collect()
     };
     let mut got = std::collections::BTreeSet::new();
-    for _ in 0..100 {
+    for _ in 0..300 {
         let screen = capture();
         let panel: Vec<String> = screen
             .lines()
