@@ -406,11 +406,17 @@ fn study_with_keys(
     let b = g.apply_all(&s);
     let plain = solve_batch(&s, q, &SolveOptions::new(st.solver))?;
     let w0 = &plain.weights;
-    // The settings' weights (keys × frames each) are kept until they add up to half the
-    // coordinates' size, then their errors are measured in one pass over the frames and
-    // the weights dropped; an offline solve, the study's largest working set, runs with
-    // none kept (what it would share the peak with is measured first).
-    let budget = (q.len() / 2).max(1);
+    // The settings' weights (keys × frames each) are kept until they add up to a quarter
+    // of the coordinates' size, or to an offline solve's own working set (about six
+    // keys × frames vectors) if that is larger, then their errors are measured in one
+    // pass over the frames and the weights dropped. An offline solve starts with no more
+    // kept than fits beside its working set in that budget (at 68 points: none), so the
+    // settings waiting to be measured never add to the solves' peak.
+    let solve_set = 6 * s.ncols() * q.ncols();
+    let budget = (q.len() / 4).max(solve_set).max(1);
+    let held = |sets: &[(String, String, DMatrix<f64>, Option<f64>)]| {
+        sets.iter().map(|x| x.2.len()).sum::<usize>()
+    };
     let lowpass = Lowpass::new(st.clean_sigma);
     let frames = q.ncols();
     let rms = |sq: f64| (sq / (frames * points).max(1) as f64).sqrt();
@@ -436,9 +442,7 @@ fn study_with_keys(
             });
         }
     };
-    let full = |sets: &[(String, String, DMatrix<f64>, Option<f64>)]| {
-        sets.iter().map(|x| x.2.len()).sum::<usize>() >= budget
-    };
+    let full = |sets: &[(String, String, DMatrix<f64>, Option<f64>)]| held(sets) >= budget;
     // The settings in the report's order: none, the prior offline order 1, order 2,
     // causal, the filters. The order-2 solves, which need the most memory, run first,
     // while no other setting's weights are held; the rows are put back in order at the end
@@ -465,7 +469,7 @@ fn study_with_keys(
                 order,
                 mode,
             };
-            if mode == SmoothMode::Offline && !sets.is_empty() {
+            if mode == SmoothMode::Offline && held(&sets) + solve_set > budget {
                 flush(&mut sets);
             }
             let r = smooth_from(&s, q, &plain, st.solver, &sm, &segs)?;
