@@ -273,7 +273,10 @@ fn the_binary_runs_in_tmux() {
             .lines()
             .skip_while(|l| !l.contains("key frames:"))
             .skip(1)
-            .take_while(|l| !l.contains('└'))
+            // The panel's rows are the lines where it meets the panel on its left
+            // ("││"); its bottom border does not. (Not "up to the first '└'": the
+            // E(k) plot's axis corner can share a line with the last row.)
+            .take_while(|l| l.contains("││"))
             .filter_map(|l| {
                 l.rsplit_once("││")
                     .map(|(_, r)| r.trim_end_matches('│').to_string())
