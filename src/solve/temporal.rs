@@ -1971,6 +1971,52 @@ fn causal(
 mod tests {
     use super::*;
 
+    /// Projected Newton reaches the KKT conditions by itself (the offline path lets the
+    /// active-set steps finish from its point, which would hide a projected Newton that
+    /// stalls), on an order-2 NNLS and a bounded problem with many weights at their bounds.
+    #[test]
+    fn projected_newton_alone_reaches_the_kkt_conditions() {
+        let k = 3;
+        let s = DMatrix::from_fn(8, k, |i, j| {
+            ((i * 5 + j * 3) % 7) as f64 / 3.0 + (i == j) as u8 as f64
+        });
+        let g = s.tr_mul(&s);
+        for (solver, upper) in [(Solver::Nnls, f64::INFINITY), (Solver::Bounded, 1.0)] {
+            for lambda in [10.0, 1e4] {
+                let t = 300;
+                let bands = difference_bands(2, t);
+                // Targets that swing through zero and past one: bounds bind on long runs.
+                let q = DMatrix::from_fn(8, t, |i, f| {
+                    let x = f as f64 / 20.0;
+                    (x + i as f64).sin() * 3.0 + 0.4 * ((f * 7 + i) % 5) as f64 - 0.8
+                });
+                let b: Vec<f64> = s.tr_mul(&q).as_slice().to_vec();
+                let w0 = vec![0.5; t * k];
+                let sm = Smoothing {
+                    lambda,
+                    order: 2,
+                    mode: SmoothMode::Offline,
+                };
+                let gmax = (0..k).map(|i| g[(i, i)]).fold(0.0f64, f64::max);
+                let ridge = 1e-12 * (gmax + lambda * 16.0);
+                let spare = std::cell::RefCell::new(None);
+                let (w, it) =
+                    projected_newton(&g, &sm, &bands, &b, &w0, upper, ridge, solver, &spare)
+                        .unwrap();
+                let res = kkt_residual(&g, lambda, 2, &b, &w, solver);
+                assert!(
+                    res < KKT_TOLERANCE && it < NEWTON_ITERATIONS as u64,
+                    "{solver:?} λ {lambda}: KKT residual {res:e} after {it} iterations"
+                );
+                let at_bounds = w.iter().filter(|&&v| v == 0.0 || v == upper).count();
+                assert!(
+                    at_bounds > t / 10,
+                    "{solver:?} λ {lambda}: only {at_bounds} at bounds"
+                );
+            }
+        }
+    }
+
     /// `vᵀHv` without `Hv`: the dense `H = I ⊗ G + λ DᵀD ⊗ I` built entry by entry is the
     /// oracle, on lengths that end inside, on and just past a chunk, for both orders.
     #[test]
