@@ -387,15 +387,36 @@ pub fn write_outcome(o: &Outcome, dir: &Path) -> Result<Vec<PathBuf>> {
     if !o.rig_peer.is_empty() {
         let csv = dir.join("rig_vs_input_scores.csv");
         write_atomic(&csv, |w| {
-            writeln!(w, "identity,clip,shape,r")?;
+            writeln!(w, "identity,neutral,clip,shape,r")?;
             for r in &o.rig_peer {
                 writeln!(
                     w,
-                    "{},{},{},{}",
+                    "{},{},{},{},{}",
                     r.identity,
+                    r.neutral,
                     r.clip,
                     r.shape,
                     r.r.map_or(String::new(), fmt_num)
+                )?;
+            }
+            Ok(())
+        })?;
+        files.push(csv);
+    }
+    if !o.rig_peer_summary.is_empty() {
+        let csv = dir.join("rig_vs_input_summary.csv");
+        write_atomic(&csv, |w| {
+            writeln!(w, "setting,shapes,mean_r,median_r,clip_median_mean_r,rms")?;
+            for r in &o.rig_peer_summary {
+                writeln!(
+                    w,
+                    "\"{}\",{},{},{},{},{}",
+                    r.setting,
+                    r.shapes,
+                    fmt_num(r.mean_r),
+                    fmt_num(r.median_r),
+                    r.clip_mean_r.map_or(String::new(), fmt_num),
+                    r.rms.map_or(String::new(), fmt_num)
                 )?;
             }
             Ok(())
@@ -432,6 +453,7 @@ pub fn write_outcome(o: &Outcome, dir: &Path) -> Result<Vec<PathBuf>> {
         "alignment": o.map.as_ref().map(|m| m.alignment.clone()),
         "rig_recovery": (!o.rig_recovery.is_empty()).then_some(&o.rig_recovery),
         "rig_vs_input_scores": (!o.rig_peer.is_empty()).then_some(&o.rig_peer),
+        "rig_vs_input_summary": (!o.rig_peer_summary.is_empty()).then_some(&o.rig_peer_summary),
         "normalisation_extremes": o.map.as_ref().map(|m| m.extremes.clone()),
         "paper002_features": (o.orthogonality.is_some() || o.map.is_some())
             .then_some("shape only: landmark tracks, no texture (the paper's appearance models had both)"),

@@ -39,10 +39,12 @@ pub struct RigArgs {
     /// bounded (0 ≤ w ≤ 1, as rigs expect), nnls (w ≥ 0) or ls (unconstrained).
     #[arg(long, default_value = "bounded", value_parser = parse_solver)]
     solver: Solver,
-    /// The person's neutral face: `auto` (the frame whose first-pass weights sum lowest)
-    /// or a frame number of the file; refused with --identity none, which uses none.
-    /// [default: auto].
-    #[arg(long, value_name = "auto|FRAME")]
+    /// The person's neutral face: `auto` (of up to 48 evenly spaced candidate frames, the
+    /// one whose identity best explains the performance: the lowest landmark error of a
+    /// solve of up to 160 evenly spaced frames from it), `least-active` (the frame whose
+    /// weights sum lowest in a first pass with the rig as it is) or a frame number of the
+    /// file; refused with --identity none, which uses none. [default: auto].
+    #[arg(long, value_name = "auto|least-active|FRAME")]
     neutral: Option<String>,
     /// How the person's face differs from the rig's: `offset` (the neutral frame's 2-D
     /// residual, lifted into the rig at that frame's head pose, moves the rig's neutral
@@ -51,8 +53,9 @@ pub struct RigArgs {
     #[arg(long, default_value = "offset", value_parser = parse_identity)]
     identity: Identity,
     /// `track`: one identity for the whole file; `clip`: each clip of the file (py-feat's
-    /// `clip` column) is a person of its own, with its clip's least active frame as neutral
-    /// (for files whose clips are different people; needs --neutral auto).
+    /// `clip` column) is a person of its own, with its own neutral frame chosen within the
+    /// clip (for files whose clips are different people; needs --neutral auto or
+    /// least-active).
     /// [default: track].
     #[arg(long, value_name = "clip|track", value_parser = ["clip", "track"])]
     identity_per: Option<String>,
@@ -68,6 +71,14 @@ pub struct RigArgs {
     /// [default: off, the same as 0].
     #[arg(long, value_name = "LAMBDA", allow_negative_numbers = true)]
     smooth: Option<f64>,
+    /// Weight of a group of landmarks' squared error in the fit, as `GROUP=W` (W ≥ 0;
+    /// repeatable, later ones win): GROUP is jaw (0–16, the face contour), brows (17–26),
+    /// nose (27–35), eyes (36–47), lips (48–59, outer), mouth (60–67, inner) or a landmark
+    /// number. `jaw=0.1` trusts the contour less: a 2-D tracker's contour points slide
+    /// along the silhouette as the head turns, and the rig's jaw line is not the person's
+    /// [default: every landmark 1].
+    #[arg(long, value_name = "GROUP=W", allow_negative_numbers = true)]
+    landmark_weight: Vec<String>,
     /// Write the weights here: `frame` and one column per rig shape, named as the rig names
     /// them [default: stdout].
     #[arg(long, short)]
@@ -174,9 +185,10 @@ pub fn run(a: &RigArgs) -> Result<()> {
     let rig = Rig::from_parts(&mesh.positions, &morph, &marks)?;
     let neutral = match a.neutral.as_deref().map(str::trim) {
         None | Some("auto") => Neutral::Auto,
+        Some("least-active") => Neutral::LeastActive,
         Some(f) => {
             let frame: i64 = f.parse().map_err(|_| {
-                anyhow::anyhow!("--neutral: '{f}' is neither auto nor a frame number")
+                anyhow::anyhow!("--neutral: '{f}' is neither auto, least-active nor a frame number")
             })?;
             Neutral::Column(seq.column_of_frame(frame)?)
         }
@@ -187,6 +199,7 @@ pub fn run(a: &RigArgs) -> Result<()> {
         neutral,
         min_determination: a.min_determination,
         smooth: a.smooth.unwrap_or(0.0),
+        landmark_weights: keyshape_lab::rig::landmark_weights(&a.landmark_weight)?,
         ..Default::default()
     };
     let per_clip = match a.identity_per.as_deref() {
@@ -194,8 +207,8 @@ pub fn run(a: &RigArgs) -> Result<()> {
             if seq.segments.is_none() {
                 anyhow::bail!("--identity-per clip: {name} labels no clips");
             }
-            if !matches!(neutral, Neutral::Auto) {
-                anyhow::bail!("--identity-per clip needs --neutral auto: an explicit neutral frame is one identity for the whole track");
+            if matches!(neutral, Neutral::Column(_)) {
+                anyhow::bail!("--identity-per clip needs --neutral auto or least-active: an explicit neutral frame is one identity for the whole track");
             }
             if a.identity == Identity::None {
                 anyhow::bail!("--identity-per does not apply with --identity none");

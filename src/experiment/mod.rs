@@ -74,6 +74,8 @@ pub struct Outcome {
     pub rig_recovery: Vec<crate::rig::study::RecoveryRow>,
     /// The rig study's agreement with the input's own scores.
     pub rig_peer: Vec<crate::rig::study::PeerRow>,
+    /// Study (ii)'s summary per setting, with the calibrated references.
+    pub rig_peer_summary: Vec<crate::rig::study::PeerSummary>,
 }
 
 /// Runs a spec whose relative paths are relative to `base` (one `input`; a corpus runs
@@ -221,7 +223,7 @@ pub(crate) fn analyse(
     };
     timings.push(("smooth".to_string(), t.elapsed().as_secs_f64()));
     let t = Instant::now();
-    let (rig_recovery, rig_peer) = match &spec.rig {
+    let (rig_recovery, (rig_peer, rig_peer_summary)) = match &spec.rig {
         Some(st) => {
             let rig = crate::rig::Rig::read_ict(&crate::io::shared_data("ict_facekit_face")?)?;
             let rec = crate::rig::study::recovery(&rig, st)?;
@@ -261,11 +263,11 @@ pub(crate) fn analyse(
                     seq.segments.as_deref(),
                 )?
             } else {
-                Vec::new()
+                (Vec::new(), Vec::new())
             };
             (rec, peer)
         }
-        None => (Vec::new(), Vec::new()),
+        None => (Vec::new(), (Vec::new(), Vec::new())),
     };
     timings.push(("rig".to_string(), t.elapsed().as_secs_f64()));
     Ok(Outcome {
@@ -286,5 +288,6 @@ pub(crate) fn analyse(
         smoothing,
         rig_recovery,
         rig_peer,
+        rig_peer_summary,
     })
 }

@@ -253,11 +253,61 @@ impl Identity {
     }
 }
 
+/// The iBUG-68 landmark groups `--landmark-weight` names, with their landmark ranges.
+pub const LANDMARK_GROUPS: [(&str, Range<usize>); 6] = [
+    ("jaw", 0..17),
+    ("brows", 17..27),
+    ("nose", 27..36),
+    ("eyes", 36..48),
+    ("lips", 48..60),
+    ("mouth", 60..68),
+];
+
+/// Per-landmark weights from `GROUP=W` settings (GROUP a name of [`LANDMARK_GROUPS`] or a
+/// landmark number 0–67; later settings win over earlier ones); unnamed landmarks weigh 1.
+pub fn landmark_weights<S: AsRef<str>>(settings: &[S]) -> Result<[f64; LANDMARKS]> {
+    let mut lw = [1.0; LANDMARKS];
+    for s in settings {
+        let s = s.as_ref();
+        let (group, w) = s.split_once('=').ok_or_else(|| {
+            Error::invalid(format!(
+                "landmark weight '{s}': expected GROUP=W (GROUP one of jaw, brows, nose, eyes, lips, mouth or a landmark number)"
+            ))
+        })?;
+        let (group, w) = (group.trim(), w.trim());
+        let w: f64 = w
+            .parse()
+            .ok()
+            .filter(|v: &f64| v.is_finite() && *v >= 0.0)
+            .ok_or_else(|| {
+                Error::invalid(format!(
+                    "landmark weight '{s}': the weight must be a finite number ≥ 0, not '{w}'"
+                ))
+            })?;
+        let range = match LANDMARK_GROUPS.iter().find(|(n, _)| *n == group) {
+            Some((_, r)) => r.clone(),
+            None => match group.parse::<usize>() {
+                Ok(i) if i < LANDMARKS => i..i + 1,
+                _ => {
+                    return Err(Error::invalid(format!(
+                        "landmark weight '{s}': '{group}' is not a group (jaw, brows, nose, eyes, lips, mouth) or a landmark number 0–67"
+                    )))
+                }
+            },
+        };
+        lw[range].iter_mut().for_each(|v| *v = w);
+    }
+    Ok(lw)
+}
+
 /// Which frame is the person's neutral.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Neutral {
-    /// The frame whose first-pass weights sum lowest.
+    /// The frame whose identity best explains the performance (lowest landmark error of a
+    /// solve from it; see [`NEUTRAL_CANDIDATES`]).
     Auto,
+    /// The frame whose first-pass weights (the rig as it is, every shape free) sum lowest.
+    LeastActive,
     /// This column of the track.
     Column(usize),
 }
@@ -281,6 +331,9 @@ pub struct RigOptions {
     /// minimises its landmark error plus `λ‖w − w_prev‖²`, `w_prev` the previous frame's
     /// weights (not across clips); 0 is off.
     pub smooth: f64,
+    /// Per landmark (iBUG order), the weight of its squared error in the fit (≥ 0; all 1 is
+    /// the plain least-squares fit). The camera's starting fit ignores them.
+    pub landmark_weights: [f64; LANDMARKS],
 }
 
 impl Default for RigOptions {
@@ -292,6 +345,7 @@ impl Default for RigOptions {
             min_determination: 0.02,
             max_steps: 50,
             smooth: 0.0,
+            landmark_weights: [1.0; LANDMARKS],
         }
     }
 }
@@ -337,10 +391,13 @@ struct Blocks {
     g: [Vec<f64>; 6],
     /// Flat deltas, k × (68·3), row-major.
     d: Vec<f64>,
+    /// Per landmark, the weight of its squared error.
+    lw: Vec<f64>,
 }
 
 impl Blocks {
-    fn new(deltas: &[Vec<[f64; 3]>]) -> Blocks {
+    /// `lw`: per landmark, the weight of its squared error.
+    fn new(deltas: &[Vec<[f64; 3]>], lw: &[f64]) -> Blocks {
         let k = deltas.len();
         let n = deltas.first().map_or(0, Vec::len);
         let mut d = vec![0.0; k * n * 3];
@@ -354,8 +411,8 @@ impl Blocks {
             for p in 0..k {
                 for q in 0..k {
                     let mut v = 0.0;
-                    for i in 0..n {
-                        v += d[p * n * 3 + i * 3 + a] * d[q * n * 3 + i * 3 + b];
+                    for (i, wi) in lw.iter().enumerate().take(n) {
+                        v += wi * d[p * n * 3 + i * 3 + a] * d[q * n * 3 + i * 3 + b];
                     }
                     m[p * k + q] = v;
                 }
@@ -377,10 +434,11 @@ impl Blocks {
                 sym(1, 2),
             ],
             d,
+            lw: lw.to_vec(),
         }
     }
 
-    /// `AᵀA` for camera `c`: `s² Σ M_ab G^{ab}` with `M = R₂ᵀ R₂`.
+    /// `AᵀWA` for camera `c`: `s² Σ M_ab G^{ab}` with `M = R₂ᵀ R₂`.
     fn gram(&self, c: &Camera, out: &mut [f64]) {
         let r = &c.r;
         let m = |a: usize, b: usize| r[(0, a)] * r[(0, b)] + r[(1, a)] * r[(1, b)];
@@ -398,14 +456,14 @@ impl Blocks {
         }
     }
 
-    /// `Aᵀr` for camera `c` and per-landmark image residuals `res` (y up).
+    /// `AᵀWr` for camera `c` and per-landmark image residuals `res` (y up).
     fn rhs(&self, c: &Camera, res: &[[f64; 2]], out: &mut [f64]) {
         let n = res.len();
         let r = &c.r;
         let mut v = vec![0.0; n * 3];
         for (i, e) in res.iter().enumerate() {
             for a in 0..3 {
-                v[i * 3 + a] = c.s * (r[(0, a)] * e[0] + r[(1, a)] * e[1]);
+                v[i * 3 + a] = self.lw[i] * c.s * (r[(0, a)] * e[0] + r[(1, a)] * e[1]);
             }
         }
         for (p, o) in out.iter_mut().enumerate().take(self.k) {
@@ -441,12 +499,18 @@ struct FrameSolver<'a> {
 }
 
 impl<'a> FrameSolver<'a> {
-    fn new(rig: &'a Rig, free: Vec<usize>, solver: Solver, max_steps: usize) -> Self {
+    fn new(
+        rig: &'a Rig,
+        free: Vec<usize>,
+        solver: Solver,
+        max_steps: usize,
+        lw: &[f64; LANDMARKS],
+    ) -> Self {
         let sub: Vec<Vec<[f64; 3]>> = free.iter().map(|&s| rig.deltas[s].clone()).collect();
         let m = free.len();
         FrameSolver {
             rig,
-            blocks: Blocks::new(&sub),
+            blocks: Blocks::new(&sub, lw),
             free,
             solver,
             max_steps,
@@ -467,20 +531,27 @@ impl<'a> FrameSolver<'a> {
         w
     }
 
-    /// The squared landmark error of the current weights under `cam`.
-    fn sq_error(&self, cam: &Camera, u: &[[f64; 2]]) -> f64 {
+    /// The squared landmark error of the current weights under `cam`, each landmark's
+    /// term weighted by `lw` (all 1: the plain error).
+    fn sq_error_with(&self, cam: &Camera, u: &[[f64; 2]], lw: &[f64]) -> f64 {
         let posed = self.rig.posed(&self.full_weights());
         posed
             .iter()
             .zip(u)
-            .map(|(p, q)| {
+            .zip(lw)
+            .map(|((p, q), wi)| {
                 let e = cam.project(p);
-                (e[0] - q[0]).powi(2) + (e[1] - q[1]).powi(2)
+                wi * ((e[0] - q[0]).powi(2) + (e[1] - q[1]).powi(2))
             })
             .sum()
     }
 
-    /// What the steps minimise: the squared landmark error plus the prior's term.
+    /// The plain squared landmark error (what is reported).
+    fn sq_error(&self, cam: &Camera, u: &[[f64; 2]]) -> f64 {
+        self.sq_error_with(cam, u, &[1.0; LANDMARKS])
+    }
+
+    /// What the steps minimise: the weighted squared landmark error plus the prior's term.
     fn objective(&self, cam: &Camera, u: &[[f64; 2]]) -> f64 {
         let prior = match &self.prev {
             Some(p) if self.lambda > 0.0 => {
@@ -494,7 +565,7 @@ impl<'a> FrameSolver<'a> {
             }
             _ => 0.0,
         };
-        self.sq_error(cam, u) + prior
+        self.sq_error_with(cam, u, &self.blocks.lw) + prior
     }
 
     /// One Gauss–Newton step of camera and weights together, linearised at the current
@@ -558,6 +629,16 @@ impl<'a> FrameSolver<'a> {
                 .map(|(x, y)| x * y)
                 .sum();
             rhs[i] = res[i / 2][i % 2] + aw;
+        }
+        // The landmark weights: every row of landmark i scaled by √wᵢ (the weights' Gram
+        // `self.blocks.gram` has them already).
+        for i in 0..2 * n {
+            let sw = self.blocks.lw[i / 2].sqrt();
+            if sw != 1.0 {
+                rhs[i] *= sw;
+                jc[i].iter_mut().for_each(|v| *v *= sw);
+                a[i * m..(i + 1) * m].iter_mut().for_each(|v| *v *= sw);
+            }
         }
         let mut hcc = nalgebra::Matrix6::<f64>::zeros();
         let mut bc = nalgebra::Vector6::<f64>::zeros();
@@ -661,6 +742,7 @@ impl<'a> FrameSolver<'a> {
                 b[i] += self.lambda * p[i];
             }
         }
+
         match self.solver {
             Solver::Ls => {
                 if solve_spd(&mut g, m, &mut b) {
@@ -733,13 +815,23 @@ impl<'a> FrameSolver<'a> {
 /// determination is then `1 / (Gₖₖ (G⁻¹)ₖₖ)` against every taken shape but itself (for a
 /// frozen shape: against all taken shapes).
 pub fn identifiability(rig: &Rig, cam: &Camera, min_det: f64) -> Vec<ShapeReport> {
+    identifiability_weighted(rig, cam, min_det, &[1.0; LANDMARKS])
+}
+
+/// [`identifiability`] with each landmark's squared motion weighted by `lw` (as the solve
+/// weights its error): image motion is then the weighted RMS.
+pub fn identifiability_weighted(
+    rig: &Rig,
+    cam: &Camera,
+    min_det: f64,
+    lw: &[f64; LANDMARKS],
+) -> Vec<ShapeReport> {
     let k = rig.k();
-    let blocks = Blocks::new(&rig.deltas);
+    let blocks = Blocks::new(&rig.deltas, lw);
     let mut g = vec![0.0; k * k];
     blocks.gram(cam, &mut g);
-    let motion: Vec<f64> = (0..k)
-        .map(|i| (g[i * k + i] / LANDMARKS as f64).sqrt())
-        .collect();
+    let total: f64 = lw.iter().sum();
+    let motion: Vec<f64> = (0..k).map(|i| (g[i * k + i] / total).sqrt()).collect();
     // Pivoted Cholesky: `l` holds the taken shapes' columns of the factor.
     let mut resid: Vec<f64> = (0..k).map(|i| g[i * k + i]).collect();
     let mut taken: Vec<usize> = Vec::new();
@@ -837,6 +929,22 @@ pub fn solve_rig(
             opts.smooth
         )));
     }
+    if let Some((i, w)) = opts
+        .landmark_weights
+        .iter()
+        .enumerate()
+        .find(|(_, w)| !(w.is_finite() && **w >= 0.0))
+    {
+        return Err(Error::invalid(format!(
+            "landmark {i}'s weight must be a finite number ≥ 0, not {w}"
+        )));
+    }
+    let weighted = opts.landmark_weights.iter().filter(|w| **w > 0.0).count();
+    if weighted < 4 {
+        return Err(Error::invalid(format!(
+            "the landmark weights leave {weighted} landmarks with weight > 0; the head pose needs at least 4"
+        )));
+    }
     let whole = std::iter::once(0..track.ncols()).collect::<Vec<_>>();
     let clips: &[Range<usize>] = if clips.is_empty() { &whole[..] } else { clips };
     if clips.iter().any(|c| c.end > track.ncols() || c.is_empty())
@@ -857,9 +965,19 @@ pub fn solve_rig(
         }
     }
     let all: Vec<usize> = (0..rig.k()).collect();
-    // Pass 1: the rig as it is, every shape free, to find each clip's neutral frame.
-    let first = run(rig, track, &[(0..track.ncols(), rig.clone())], all, opts)?;
-    let least_active = |c: &Range<usize>| {
+    // Pass 1 (without an identity, or to find the least active frames): the rig as it is,
+    // every shape free.
+    let first = match (opts.identity, opts.neutral) {
+        (Identity::None, _) | (_, Neutral::LeastActive) => Some(run(
+            rig,
+            track,
+            &[(0..track.ncols(), rig.clone())],
+            all,
+            opts,
+        )?),
+        _ => None,
+    };
+    let least_active = |c: &Range<usize>, first: &RigSolve| {
         c.clone()
             .min_by(|&a, &b| {
                 let s = |f: usize| first.weights.column(f).sum();
@@ -868,17 +986,20 @@ pub fn solve_rig(
             .unwrap_or(c.start)
     };
     let (people, neutrals): (Vec<(Range<usize>, Rig)>, Vec<usize>) =
-        match (opts.identity, opts.neutral) {
-            (Identity::None, _) => (vec![(0..track.ncols(), rig.clone())], Vec::new()),
-            (id, Neutral::Column(n)) => (
+        match (opts.identity, opts.neutral, &first) {
+            (Identity::None, _, _) => (vec![(0..track.ncols(), rig.clone())], Vec::new()),
+            (id, Neutral::Column(n), _) => (
                 vec![(0..track.ncols(), person_rig(rig, track, n, id)?)],
                 vec![n],
             ),
-            (id, Neutral::Auto) => {
+            (id, auto, first) => {
                 let mut people = Vec::new();
                 let mut neutrals = Vec::new();
                 for c in clips {
-                    let n = least_active(c);
+                    let n = match first {
+                        Some(first) if auto == Neutral::LeastActive => least_active(c, first),
+                        _ => best_explaining(rig, track, c.clone(), opts)?,
+                    };
                     people.push((c.clone(), person_rig(rig, track, n, id)?));
                     neutrals.push(n);
                 }
@@ -887,16 +1008,90 @@ pub fn solve_rig(
         };
     // Identifiability at the first clip's neutral view (the rig and the view decide it,
     // not the person); the frozen shapes are the same in every clip.
-    let cam_n = match neutrals.first() {
-        Some(&n) => fit_camera(&people[0].1.neutral, &frame_points(track, n))?,
-        None => first.cameras[0],
+    let cam_n = match (neutrals.first(), &first) {
+        (Some(&n), _) => fit_camera(&people[0].1.neutral, &frame_points(track, n))?,
+        (None, Some(first)) => first.cameras[0],
+        (None, None) => fit_camera(&rig.neutral, &frame_points(track, 0))?,
     };
-    let shapes = identifiability(&people[0].1, &cam_n, opts.min_determination);
+    let shapes = identifiability_weighted(
+        &people[0].1,
+        &cam_n,
+        opts.min_determination,
+        &opts.landmark_weights,
+    );
     let free: Vec<usize> = (0..rig.k()).filter(|&s| !shapes[s].frozen).collect();
     let mut out = run(rig, track, &people, free, opts)?;
     out.shapes = shapes;
     out.neutrals = neutrals;
     Ok(out)
+}
+
+/// Neutral candidates tried per clip by [`Neutral::Auto`] (all frames of shorter clips).
+pub const NEUTRAL_CANDIDATES: usize = 48;
+/// Frames of a clip each candidate is scored on (all frames of shorter clips).
+pub const NEUTRAL_SCORED_FRAMES: usize = 160;
+
+/// `count` evenly spaced members of `r` (all of them when it has no more), in order.
+fn evenly_spaced(r: Range<usize>, count: usize) -> Vec<usize> {
+    let len = r.len();
+    if len <= count {
+        return r.collect();
+    }
+    (0..count)
+        .map(|i| r.start + (i * (len - 1) + (count - 1) / 2) / (count - 1))
+        .collect()
+}
+
+/// The frame of `clip` whose identity best explains the clip ([`Neutral::Auto`]): for each
+/// of up to [`NEUTRAL_CANDIDATES`] evenly spaced candidates, the person's rig from that
+/// frame, its identifiability, and a solve (no temporal prior) of up to
+/// [`NEUTRAL_SCORED_FRAMES`] evenly spaced frames; the candidate with the lowest total
+/// (weighted) squared landmark error wins, ties to the earlier frame. A neutral face is one
+/// from which the rest of the performance is reached with the weights inside their bounds;
+/// a frame that already holds an expression (raised brows, say) leaves every frame with
+/// less of it unexplained.
+fn best_explaining(
+    rig: &Rig,
+    track: &DMatrix<f64>,
+    clip: Range<usize>,
+    opts: &RigOptions,
+) -> Result<usize> {
+    use rayon::prelude::*;
+    let candidates = evenly_spaced(clip.clone(), NEUTRAL_CANDIDATES);
+    let scored = evenly_spaced(clip, NEUTRAL_SCORED_FRAMES);
+    let scores: Vec<(usize, f64)> = candidates
+        .par_iter()
+        .map(|&n| -> Result<(usize, f64)> {
+            let person = person_rig(rig, track, n, opts.identity)?;
+            let cam = fit_camera(&person.neutral, &frame_points(track, n))?;
+            let shapes = identifiability_weighted(
+                &person,
+                &cam,
+                opts.min_determination,
+                &opts.landmark_weights,
+            );
+            let free: Vec<usize> = (0..rig.k()).filter(|&s| !shapes[s].frozen).collect();
+            let mut fs = FrameSolver::new(
+                &person,
+                free,
+                opts.solver,
+                opts.max_steps.max(1),
+                &opts.landmark_weights,
+            );
+            let mut total = 0.0;
+            for &f in &scored {
+                let u = frame_points(track, f);
+                fs.solve(&u)?;
+                let cam = fs.cam.unwrap_or(cam);
+                total += fs.sq_error_with(&cam, &u, &opts.landmark_weights);
+            }
+            Ok((n, total))
+        })
+        .collect::<Result<_>>()?;
+    Ok(scores
+        .iter()
+        .min_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)))
+        .map_or(candidates[0], |s| s.0))
 }
 
 /// The person's rig from the neutral frame `n`.
@@ -971,7 +1166,13 @@ fn run(
     let (mut cameras, mut rms, mut steps) = (Vec::new(), Vec::new(), Vec::new());
     let mut unconverged = 0;
     for (clip, person) in people {
-        let mut fs = FrameSolver::new(person, free.clone(), opts.solver, opts.max_steps.max(1));
+        let mut fs = FrameSolver::new(
+            person,
+            free.clone(),
+            opts.solver,
+            opts.max_steps.max(1),
+            &opts.landmark_weights,
+        );
         fs.lambda = opts.smooth;
         for f in clip.clone() {
             let u = frame_points(track, f);
@@ -1003,4 +1204,30 @@ fn run(
         shapes: Vec::new(),
         neutrals: Vec::new(),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::evenly_spaced;
+
+    #[test]
+    fn evenly_spaced_candidates_keep_both_ends_and_never_repeat() {
+        assert_eq!(evenly_spaced(5..9, 48), vec![5, 6, 7, 8]);
+        assert_eq!(evenly_spaced(0..0, 3), Vec::<usize>::new());
+        for (r, count) in [
+            (0..477, 48),
+            (100..1000, 48),
+            (3..53, 49),
+            (0..100_000, 160),
+        ] {
+            let v = evenly_spaced(r.clone(), count);
+            assert_eq!(v.len(), count);
+            assert_eq!((v[0], v[count - 1]), (r.start, r.end - 1));
+            assert!(v.windows(2).all(|w| w[0] < w[1]), "{v:?}");
+            // Gaps differ by at most one frame.
+            let gaps: Vec<usize> = v.windows(2).map(|w| w[1] - w[0]).collect();
+            let (lo, hi) = (gaps.iter().min().unwrap(), gaps.iter().max().unwrap());
+            assert!(hi - lo <= 1, "{gaps:?}");
+        }
+    }
 }
