@@ -10,6 +10,11 @@ Prints, per weights file, the pooled Pearson r of every shape py-feat scores (bl
 either side is constant), and the median over shapes; then per clip the median r. With
 several files, also the median over the shapes no file holds constant (a fixed set, so that
 settings which freeze more shapes are not credited for dropping badly solved ones).
+Last, per file, the summary `kslab run experiments/rig_recovery_news.toml` writes to
+`rig_vs_input_summary.csv`, over a set fixed by py-feat's data alone: the scores whose
+standard deviation over the 477 frames is at least 0.02 and that a 68-point track can see
+(eye gaze left out): the mean and median pooled r (a shape held constant counts 0) and the
+median over clips of the clip's mean r.
 Analysis only: kslab does not need Python.
 """
 import csv
@@ -97,6 +102,50 @@ def main():
         print(f"## fixed set: the {len(common)} shapes no file holds constant ({', '.join(sorted(common))})")
         for path, rs in pooled.items():
             print(f"{path}: median r {median([rs[n] for n in common]):.3f}")
+    moved = [n for n in ref_names
+             if not n.startswith(("eyeLook", "x_", "y_")) and std([float(r[n]) for r in news]) >= 0.02]
+    print(f"## the {len(moved)} shapes py-feat moves (sd ≥ 0.02) and 68 points can see: {', '.join(moved)}")
+    print("| file | mean r | median r | median over clips of the clip's mean r |")
+    print("| --- | --- | --- | --- |")
+    clips = sorted({r['clip'] for r in news}, key=int)
+    for path in sys.argv[1:]:
+        series = read_series(path)
+        peer = {n: [float(r[n]) for r in news] for n in moved}
+        rs = [pearson(series[n], peer[n]) if n in series else None for n in moved]
+        rs = [0.0 if r is None else r for r in rs]
+        per = []
+        for c in clips:
+            idx = [i for i, r in enumerate(news) if r["clip"] == c]
+            v = []
+            for n in moved:
+                b = [peer[n][i] for i in idx]
+                if all(x == b[0] for x in b):
+                    continue
+                a = [series[n][i] for i in idx] if n in series else None
+                r = pearson(a, b) if a is not None else None
+                v.append(0.0 if r is None else r)
+            if v:
+                per.append(sum(v) / len(v))
+        print(f"| {path} | {sum(rs) / len(rs):.3f} | {median(rs):.3f} | {median(per):.3f} |")
+
+
+def std(v):
+    m = sum(v) / len(v)
+    return math.sqrt(sum((x - m) ** 2 for x in v) / len(v))
+
+
+def read_series(path):
+    w = read(path)
+    cols = {}
+    for name in w[0]:
+        if name == "frame":
+            continue
+        cols.setdefault(arkit(name).replace("_", ""), []).append(name)
+    for merged in ("browInnerUp", "cheekPuff"):
+        halves = cols.pop(merged + "Left", []) + cols.pop(merged + "Right", [])
+        if halves:
+            cols[merged] = halves
+    return {k: [sum(float(r[c]) for c in v) / len(v) for r in w] for k, v in cols.items()}
 
 
 if __name__ == "__main__":

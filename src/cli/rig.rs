@@ -41,7 +41,7 @@ pub struct RigArgs {
     solver: Solver,
     /// The person's neutral face: `auto` (of up to 48 evenly spaced candidate frames, the
     /// one whose identity best explains the performance: the lowest landmark error of a
-    /// solve of up to 160 evenly spaced frames from it), `least-active` (the frame whose
+    /// solve of up to 64 evenly spaced frames from it), `least-active` (the frame whose
     /// weights sum lowest in a first pass with the rig as it is) or a frame number of the
     /// file; refused with --identity none, which uses none. [default: auto].
     #[arg(long, value_name = "auto|least-active|FRAME")]
@@ -287,7 +287,15 @@ pub fn run(a: &RigArgs) -> Result<()> {
             "solver": a.solver.name(),
             "identity": a.identity.name(),
             "identity_per": if per_clip { "clip" } else { "track" },
+            "neutral": match (a.identity, neutral) {
+                (Identity::None, _) => None,
+                (_, Neutral::Auto) => Some("auto".to_string()),
+                (_, Neutral::LeastActive) => Some("least-active".to_string()),
+                (_, Neutral::Column(c)) => Some(seq.frames[c].to_string()),
+            },
             "neutral_frames": neutral_frames,
+            "landmark_weights": opts.landmark_weights.to_vec(),
+            "smooth": opts.smooth,
             "mean_rms": mean_rms,
             "unconverged": r.unconverged,
             "mean_steps": r.steps.iter().map(|&x| f64::from(x)).sum::<f64>() / r.steps.len() as f64,

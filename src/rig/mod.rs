@@ -1029,7 +1029,7 @@ pub fn solve_rig(
 /// Neutral candidates tried per clip by [`Neutral::Auto`] (all frames of shorter clips).
 pub const NEUTRAL_CANDIDATES: usize = 48;
 /// Frames of a clip each candidate is scored on (all frames of shorter clips).
-pub const NEUTRAL_SCORED_FRAMES: usize = 160;
+pub const NEUTRAL_SCORED_FRAMES: usize = 64;
 
 /// `count` evenly spaced members of `r` (all of them when it has no more), in order.
 fn evenly_spaced(r: Range<usize>, count: usize) -> Vec<usize> {

@@ -1,10 +1,11 @@
 //! `kslab bench rig`: frames per second of the rig solve (camera and 55 ICT shapes per
-//! frame, both passes) on one core.
+//! frame) on one core: the whole solve (the neutral frame's search, then the frames), and
+//! the frames alone (the neutral given).
 
 use anyhow::Result;
 use clap::Args;
 use keyshape_lab::io::{read_sequence, shared_data, ReadOptions};
-use keyshape_lab::rig::{solve_rig, Identity, Rig, RigOptions};
+use keyshape_lab::rig::{solve_rig, Identity, Neutral, Rig, RigOptions};
 use keyshape_lab::solve::Solver;
 use nalgebra::DMatrix;
 use std::time::Instant;
@@ -34,8 +35,13 @@ pub fn run(a: &RigBenchArgs) -> Result<()> {
         rig.k(),
         a.repeats.max(1)
     );
-    outln!("| solver | identity | frames/s | mean steps/frame | RMS px |");
-    outln!("| --- | --- | --- | --- | --- |");
+    outln!(
+        "| solver | identity | frames/s, whole solve | frames/s, neutral given | neutral search (s) | mean steps/frame | RMS px |"
+    );
+    outln!("| --- | --- | --- | --- | --- | --- | --- |");
+    // One thread: the frames are sequential (each warm-starts from the previous one); the
+    // neutral search would use every core.
+    let single = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
     for (solver, identity) in [
         (Solver::Bounded, Identity::Offset),
         (Solver::Bounded, Identity::Rbf),
@@ -47,22 +53,36 @@ pub fn run(a: &RigBenchArgs) -> Result<()> {
             identity,
             ..Default::default()
         };
-        let mut best = f64::INFINITY;
-        let mut last = None;
-        for _ in 0..a.repeats.max(1) {
-            let t = Instant::now();
-            let r = solve_rig(&rig, &track, &[], &opts)?;
-            best = best.min(t.elapsed().as_secs_f64());
-            last = Some(r);
-        }
-        let r = last.ok_or_else(|| anyhow::anyhow!("no run"))?;
+        let time = |opts: &RigOptions| -> Result<(f64, keyshape_lab::rig::RigSolve)> {
+            let mut best = f64::INFINITY;
+            let mut last = None;
+            for _ in 0..a.repeats.max(1) {
+                let t = Instant::now();
+                let r = single.install(|| solve_rig(&rig, &track, &[], opts))?;
+                best = best.min(t.elapsed().as_secs_f64());
+                last = Some(r);
+            }
+            Ok((best, last.ok_or_else(|| anyhow::anyhow!("no run"))?))
+        };
+        let (whole, r) = time(&opts)?;
+        let given = RigOptions {
+            neutral: Neutral::Column(r.neutrals[0]),
+            ..opts
+        };
+        let (frames_only, r2) = time(&given)?;
+        anyhow::ensure!(
+            r2.weights == r.weights,
+            "the solve from the neutral it found differs from the whole solve"
+        );
         let steps = r.steps.iter().map(|&s| f64::from(s)).sum::<f64>() / r.steps.len() as f64;
         let rms = r.rms.iter().sum::<f64>() / r.rms.len() as f64;
         outln!(
-            "| {} | {} | {:.0} | {:.1} | {:.3} |",
+            "| {} | {} | {:.0} | {:.0} | {:.2} | {:.1} | {:.3} |",
             solver.name(),
             identity.name(),
-            track.ncols() as f64 / best,
+            track.ncols() as f64 / whole,
+            track.ncols() as f64 / frames_only,
+            (whole - frames_only).max(0.0),
             steps,
             rms
         );
