@@ -437,4 +437,27 @@ fn person_mismatch_is_the_gap_to_a_transform_trained_on_each_person() {
     );
     // Measured on this sample (kslab transfer --json): clip 8's neutral lands 0.64 cm off.
     assert!((r.neutral_error - 0.6415456950357211).abs() < 1e-6, "{r:?}");
+    // Counts that disagree with the frames are refused, each on its own.
+    let short_frames = &seq.frames[1..];
+    let short_segments = &seg[1..];
+    for (frames, segments) in [(short_frames, &seg[..]), (&seq.frames[..], short_segments)] {
+        let e = person_mismatch(&tr, &seq.coords, frames, segments).unwrap_err();
+        assert!(e.to_string().contains("differ in count"), "{e}");
+    }
+}
+
+/// `all_frames` is `frames` over every column, and each is `frame` of that column.
+#[test]
+fn all_frames_deforms_every_frame_as_frame_does() {
+    let (t, seq) = news_transfer(None);
+    let cols = [0usize, 57, 200, 476];
+    let sub = seq.coords.select_columns(&cols);
+    let all = t.all_frames(&sub);
+    assert_eq!(all.len(), cols.len());
+    assert_eq!(all, t.frames(&sub, 0..cols.len()));
+    for (k, &c) in cols.iter().enumerate() {
+        assert_eq!(all[k], t.frame(seq.coords.column(c).as_slice()));
+        assert_eq!(all[k].len(), t.mesh.positions.len());
+    }
+    assert_ne!(all[0], all[2], "frame 200 should move the mesh");
 }
