@@ -394,10 +394,15 @@ fn write_pngs(dir: &std::path::Path, seq: &Sequence, rig: &Rig, r: &RigSolve) ->
     );
     for f in 0..n {
         let w: Vec<f64> = r.weights.column(f).iter().copied().collect();
-        for (i, p) in rig.posed(&w).iter().enumerate() {
+        // Left: what was fitted (the person's rig under the frame's camera); right: the
+        // rig itself posed by the weights (what the exports drive).
+        let person = r.person_of(f).unwrap_or(rig);
+        for (i, p) in person.posed(&w).iter().enumerate() {
             let u = r.cameras[f].project(p);
             fitted[(2 * i, f)] = u[0];
             fitted[(2 * i + 1, f)] = -u[1];
+        }
+        for (i, p) in rig.posed(&w).iter().enumerate() {
             front[(2 * i, f)] = p[0];
             front[(2 * i + 1, f)] = -p[1];
         }
@@ -420,7 +425,7 @@ fn write_pngs(dir: &std::path::Path, seq: &Sequence, rig: &Rig, r: &RigSolve) ->
                         dashed: false,
                     },
                     Layer {
-                        name: "posed rig, fitted head pose",
+                        name: "fitted: the person's rig, posed, head pose",
                         shape: col(&fitted, f),
                         dims: 2,
                         polylines: &lines,
@@ -431,7 +436,7 @@ fn write_pngs(dir: &std::path::Path, seq: &Sequence, rig: &Rig, r: &RigSolve) ->
                 bounds: tb,
             },
             Panel {
-                title: "posed rig, front view".into(),
+                title: "the rig posed by the weights, front view".into(),
                 layers: vec![Layer {
                     name: "rig landmarks",
                     shape: col(&front, f),

@@ -382,6 +382,19 @@ pub struct RigSolve {
     /// The neutral column of each clip's identity (empty with `Identity::None`; one with
     /// an explicit neutral).
     pub neutrals: Vec<usize>,
+    /// The rig each range of frames was solved with: the person's (the rig with the
+    /// identity applied), or the rig itself with `Identity::None`.
+    pub people: Vec<(Range<usize>, Rig)>,
+}
+
+impl RigSolve {
+    /// The rig frame `f` was solved with (see [`RigSolve::people`]).
+    pub fn person_of(&self, f: usize) -> Option<&Rig> {
+        self.people
+            .iter()
+            .find(|(r, _)| r.contains(&f))
+            .map(|(_, p)| p)
+    }
 }
 
 /// The per-frame Gram blocks `Σᵢ D_{k,i,a} D_{l,i,b}` of a rig, reused by every frame.
@@ -1023,6 +1036,7 @@ pub fn solve_rig(
     let mut out = run(rig, track, &people, free, opts)?;
     out.shapes = shapes;
     out.neutrals = neutrals;
+    out.people = people;
     Ok(out)
 }
 
@@ -1203,6 +1217,7 @@ fn run(
         unconverged,
         shapes: Vec::new(),
         neutrals: Vec::new(),
+        people: Vec::new(),
     })
 }
 

@@ -55,7 +55,10 @@ pub fn rig_view(seq: &Sequence, rig: &Rig) -> Result<RigView> {
         let t: Vec<[f64; 2]> = (0..LANDMARKS)
             .map(|i| [seq.coords[(2 * i, f)], -seq.coords[(2 * i + 1, f)]])
             .collect();
-        let p: Vec<[f64; 2]> = rig
+        // What was fitted: the person's rig (the identity applied) under the frame's camera.
+        let p: Vec<[f64; 2]> = r
+            .person_of(f)
+            .unwrap_or(rig)
             .posed(&w)
             .iter()
             .map(|x| r.cameras[f].project(x))
