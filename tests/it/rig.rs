@@ -296,6 +296,67 @@ fn a_landmark_of_weight_zero_is_ignored_and_exact_fits_stay_exact() {
     assert!(e.contains("3 landmarks"), "{e}");
 }
 
+/// What the pictures and the lab draw as "fitted" is what was fitted: the person's rig of
+/// each frame (`person_of`), posed by the frame's weights under its camera, misses the
+/// track by exactly the RMS the solve reports — for one identity and for one per clip.
+#[test]
+fn the_person_rig_of_each_frame_reproduces_the_reported_error() {
+    let rig = ict();
+    let seq = keyshape_lab::io::read_sequence(
+        &shared("pyfeat_samples/news_sample_compact.csv"),
+        &Default::default(),
+    )
+    .unwrap();
+    let clips: Vec<std::ops::Range<usize>> = {
+        let seg = seq.segments.as_ref().unwrap();
+        let mut v: Vec<std::ops::Range<usize>> = Vec::new();
+        for (f, s) in seg.iter().enumerate() {
+            match v.last_mut() {
+                Some(r) if seg[r.start] == *s => r.end = f + 1,
+                _ => v.push(f..f + 1),
+            }
+        }
+        v
+    };
+    for per_clip in [false, true] {
+        let r = solve_rig(
+            &rig,
+            &seq.coords,
+            if per_clip { &clips[..] } else { &[] },
+            &RigOptions::default(),
+        )
+        .unwrap();
+        assert_eq!(r.people.len(), if per_clip { clips.len() } else { 1 });
+        let mut generic_gap = 0.0;
+        for f in 0..seq.n_frames() {
+            let w: Vec<f64> = r.weights.column(f).iter().copied().collect();
+            let rms = |m: &Rig| {
+                let e: f64 = m
+                    .posed(&w)
+                    .iter()
+                    .enumerate()
+                    .map(|(i, p)| {
+                        let u = r.cameras[f].project(p);
+                        (u[0] - seq.coords[(2 * i, f)]).powi(2)
+                            + (-u[1] - seq.coords[(2 * i + 1, f)]).powi(2)
+                    })
+                    .sum();
+                (e / 68.0).sqrt()
+            };
+            let got = rms(r.person_of(f).unwrap());
+            assert!(
+                (got - r.rms[f]).abs() < 1e-9,
+                "frame {f}: {got} vs {}",
+                r.rms[f]
+            );
+            generic_gap += rms(&rig) / seq.n_frames() as f64;
+        }
+        // The rig without the identity misses by far more (what the pictures drew before).
+        let mean = r.rms.iter().sum::<f64>() / r.rms.len() as f64;
+        assert!(generic_gap > 2.0 * mean, "{generic_gap} vs {mean}");
+    }
+}
+
 /// The calibrated reference's regression: on outputs that are exactly affine in the
 /// features, a whisper of ridge predicts every held-out group exactly; a huge ridge
 /// predicts the other groups' mean.
