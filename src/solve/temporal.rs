@@ -2017,6 +2017,45 @@ mod tests {
         }
     }
 
+    /// Projected Newton counts the steps it took: with the optimum strictly inside the box
+    /// no variable binds, so one Newton step lands on it (1 step), and a start on it takes
+    /// none (0), for both orders and both constrained solvers.
+    #[test]
+    fn projected_newton_counts_one_step_to_an_interior_optimum() {
+        let k = 2;
+        let g = DMatrix::from_row_slice(2, 2, &[3.0, 0.5, 0.5, 2.0]);
+        for order in [1, 2] {
+            for (solver, upper) in [(Solver::Nnls, f64::INFINITY), (Solver::Bounded, 1.0)] {
+                let t = 40;
+                let bands = difference_bands(order, t);
+                let lambda = 5.0;
+                let truth: Vec<f64> = (0..t * k)
+                    .map(|i| 0.5 + 0.3 * ((i as f64) * 0.7).sin())
+                    .collect();
+                let b = hessian_times(&g, lambda, &bands, &truth);
+                let sm = Smoothing {
+                    lambda,
+                    order,
+                    mode: SmoothMode::Offline,
+                };
+                let spare = std::cell::RefCell::new(None);
+                let run = |w0: &[f64]| {
+                    projected_newton(&g, &sm, &bands, &b, w0, upper, 0.0, solver, &spare).unwrap()
+                };
+                let (w, it) = run(&vec![0.5; t * k]);
+                let err = w
+                    .iter()
+                    .zip(&truth)
+                    .map(|(a, b)| (a - b).abs())
+                    .fold(0.0, f64::max);
+                assert!(err < 1e-9, "order {order} {solver:?}: off by {err}");
+                assert_eq!(it, 1, "order {order} {solver:?}");
+                let (_, it) = run(&truth);
+                assert_eq!(it, 0, "order {order} {solver:?}: from the optimum");
+            }
+        }
+    }
+
     /// `vᵀHv` without `Hv`: the dense `H = I ⊗ G + λ DᵀD ⊗ I` built entry by entry is the
     /// oracle, on lengths that end inside, on and just past a chunk, for both orders.
     #[test]
