@@ -607,12 +607,59 @@ fn bad_rigs_and_tracks_are_refused_with_the_file_and_nothing_is_written() {
         .to_string();
     let w = d.path().join("w.csv");
     let ws = w.display().to_string();
+    // Each reader error of the shape tables names its line and column.
+    let edit = |name: &str, file: &'static str, from: &'static str, to: &'static str| {
+        make(name, &move |dir| {
+            let p = dir.join(file);
+            let t = std::fs::read_to_string(&p).unwrap();
+            assert!(t.contains(from), "{file} lacks {from}");
+            std::fs::write(&p, t.replacen(from, to, 1)).unwrap();
+        })
+    };
+    let id_text = edit(
+        "id_text",
+        "expressions.csv",
+        "\n1,browDown_R,",
+        "\nx,browDown_R,",
+    );
+    let id_order = edit(
+        "id_order",
+        "expressions.csv",
+        "\n1,browDown_R,",
+        "\n7,browDown_R,",
+    );
+    let fields = edit("fields", "expressions.csv", "\n2,", "\n2\n3,");
+    let dx_text = edit("dx_text", "expression_deltas.csv", "0,9,0.024,", "0,9,abc,");
+    let vertex_text = edit(
+        "vertex_text",
+        "expression_deltas.csv",
+        "0,9,0.024,",
+        "0,q,0.024,",
+    );
+    let vertex_far = edit(
+        "vertex_far",
+        "expression_deltas.csv",
+        "0,9,0.024,",
+        "0,99999,0.024,",
+    );
     for (rig, needle) in [
         (
             &far,
             "landmarks_multipie68.csv:7:2: landmark 5 names vertex 99999",
         ),
         (&nan, "expression_deltas.csv:3:3: offset is not finite"),
+        (&id_text, "expressions.csv:3:1: shape id is not a number"),
+        (
+            &id_order,
+            "expressions.csv:3:1: shape ids must run 0, 1, …; found 7",
+        ),
+        (&fields, "expressions.csv:4:0: CSV error: record 3 (line: 4"),
+        (&dx_text, "expression_deltas.csv:3:3: not a number: 'abc'"),
+        (&vertex_text, "expression_deltas.csv:3:2: not an index: 'q'"),
+        (
+            &vertex_far,
+            "expression_deltas.csv:3:1: shape 0 / vertex 99999 out of range",
+        ),
     ] {
         let r = kslab(&[
             "rig",
