@@ -791,3 +791,48 @@ fn block_wise_pca_refuses_what_it_cannot_fit_and_fits_its_edges() {
         assert_eq!(blocks.mean, whole.mean);
     }
 }
+
+/// A glTF export carries only the shapes the performance uses: a shape whose weights are
+/// all 0 is left out (and so is one only ever negative, which blends as 0), and each used
+/// shape's sparse offsets land on their vertices, zero elsewhere.
+#[test]
+fn used_dense_keeps_the_shapes_with_a_positive_weight() {
+    use keyshape_lab::cosker::morph::MorphTargets;
+    let t = MorphTargets {
+        names: vec!["a".into(), "b".into(), "c".into(), "d".into()],
+        deltas: vec![
+            vec![(0, [1.0, 0.0, 0.0])],
+            vec![(2, [0.0, 2.0, 0.0]), (4, [0.0, 0.0, 3.0])],
+            vec![(1, [5.0, 5.0, 5.0])],
+            vec![(3, [1.0, 1.0, 1.0])],
+        ],
+    };
+    let w = nalgebra::DMatrix::from_row_slice(
+        4,
+        3,
+        &[0.0, 0.0, 0.0, 0.0, 0.5, 0.0, -0.2, -1.0, 0.0, 0.0, 0.0, 1.0],
+    );
+    let (dense, used) = t.used_dense(&w, 5);
+    let names: Vec<&str> = dense.iter().map(|d| d.0.as_str()).collect();
+    assert_eq!(names, ["b", "d"]);
+    assert_eq!(used.nrows(), 2);
+    assert_eq!(
+        used.row(0).iter().copied().collect::<Vec<_>>(),
+        [0.0, 0.5, 0.0]
+    );
+    assert_eq!(
+        used.row(1).iter().copied().collect::<Vec<_>>(),
+        [0.0, 0.0, 1.0]
+    );
+    assert_eq!(
+        dense[0].1,
+        vec![
+            [0.0; 3],
+            [0.0; 3],
+            [0.0, 2.0, 0.0],
+            [0.0; 3],
+            [0.0, 0.0, 3.0]
+        ]
+    );
+    assert_eq!(dense[1].1[3], [1.0, 1.0, 1.0]);
+}
