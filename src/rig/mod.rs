@@ -1073,7 +1073,7 @@ fn best_explaining(
     use rayon::prelude::*;
     let candidates = evenly_spaced(clip.clone(), NEUTRAL_CANDIDATES);
     let scored = evenly_spaced(clip, NEUTRAL_SCORED_FRAMES);
-    let scores: Vec<(usize, f64)> = candidates
+    let scores: Vec<Result<(usize, f64)>> = candidates
         .par_iter()
         .map(|&n| -> Result<(usize, f64)> {
             let person = person_rig(rig, track, n, opts.identity)?;
@@ -1101,11 +1101,22 @@ fn best_explaining(
             }
             Ok((n, total))
         })
-        .collect::<Result<_>>()?;
-    Ok(scores
+        .collect();
+    // A candidate that cannot be a neutral (its solve fails) is passed over; the search
+    // fails only when every candidate does, with the first one's error.
+    let best = scores
         .iter()
+        .filter_map(|s| s.as_ref().ok())
+        .filter(|s| !s.1.is_nan())
         .min_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)))
-        .map_or(candidates[0], |s| s.0))
+        .map(|s| s.0);
+    match best {
+        Some(n) => Ok(n),
+        None => match scores.into_iter().find_map(|s| s.err()) {
+            Some(e) => Err(e),
+            None => Ok(candidates[0]),
+        },
+    }
 }
 
 /// The person's rig from the neutral frame `n`.
