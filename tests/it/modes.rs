@@ -836,3 +836,55 @@ fn used_dense_keeps_the_shapes_with_a_positive_weight() {
     );
     assert_eq!(dense[1].1[3], [1.0, 1.0, 1.0]);
 }
+
+/// Eq. 8's weights from action trajectories: `clamp(Σ gain · max(0, a(t)), 0, 1)`, by hand
+/// on gains that are not 1 and two actions sharing a shape; an unknown name is an error.
+#[test]
+fn morph_mapping_weights_are_clamped_gain_sums_of_the_positive_trajectory() {
+    use keyshape_lab::cosker::morph::{MorphMapping, MorphTargets};
+    let t = MorphTargets {
+        names: vec!["a".into(), "b".into()],
+        deltas: vec![Vec::new(), Vec::new()],
+    };
+    let mapping: MorphMapping = serde_json::from_str(
+        r#"{"actions": {"up": [["a", 0.5], ["b", 2.0]], "down": [["b", 0.25]]}}"#,
+    )
+    .unwrap();
+    let names = vec!["up".to_string(), "down".to_string()];
+    let traj = nalgebra::DMatrix::from_row_slice(2, 4, &[-0.5, 0.3, 0.8, 0.1, 0.4, 0.4, -1.0, 0.8]);
+    let w = mapping.weights(&t, &names, &traj).unwrap();
+    let want = [
+        [0.0, 0.15, 0.4, 0.05],
+        [0.1, (2.0 * 0.3 + 0.25 * 0.4f64).min(1.0), 1.0, 0.2 + 0.2],
+    ];
+    for s in 0..2 {
+        for f in 0..4 {
+            assert!(
+                (w[(s, f)] - want[s][f]).abs() < 1e-12,
+                "shape {s} frame {f}: {}",
+                w[(s, f)]
+            );
+        }
+    }
+    let bad: MorphMapping = serde_json::from_str(r#"{"actions": {"up": [["zz", 1.0]]}}"#).unwrap();
+    let e = bad.weights(&t, &names, &traj).unwrap_err().to_string();
+    assert!(e.contains("'zz'"), "{e}");
+    let bad: MorphMapping =
+        serde_json::from_str(r#"{"actions": {"sideways": [["a", 1.0]]}}"#).unwrap();
+    let e = bad.weights(&t, &names, &traj).unwrap_err().to_string();
+    assert!(e.contains("'sideways'") && e.contains("up, down"), "{e}");
+}
+
+/// The normalisation's name is the one its option and the experiment files spell.
+#[test]
+fn normalisation_names_are_the_spelling_the_options_read() {
+    use keyshape_lab::cosker::trajectory::Normalisation;
+    for n in [Normalisation::TwoSided, Normalisation::OneSided] {
+        let spelled = serde_json::to_string(&n).unwrap();
+        assert_eq!(spelled, format!("\"{}\"", n.name()));
+        let back: Normalisation = serde_json::from_str(&spelled).unwrap();
+        assert_eq!(back, n);
+    }
+    assert_eq!(Normalisation::TwoSided.name(), "two-sided");
+    assert_eq!(Normalisation::OneSided.name(), "one-sided");
+}
