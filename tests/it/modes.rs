@@ -487,6 +487,18 @@ fn person(
         normalisation,
     )
     .unwrap();
+    // Each action sits on the mode its region-only offset from the mean projects onto most,
+    // with that projection's sign (brute force over the modes).
+    let vs = action_vectors(&prep.seq.coords, &prep.seq.frames, 2, &regions, &acts).unwrap();
+    for ((name, mode, sign), v) in m.actions.iter().zip(&vs) {
+        let c = m.pca.components.tr_mul(&(v - &m.pca.mean));
+        let best = (0..c.len())
+            .max_by(|&a, &b| c[a].abs().total_cmp(&c[b].abs()))
+            .unwrap();
+        assert_eq!((*mode, *sign), (best, c[best].signum()), "{rel}: {name}");
+    }
+    // Both extremes of every mode straddle 0 (lower < 0 < upper), as the scale needs.
+    assert!(m.lower.iter().all(|v| *v < 0.0) && m.upper.iter().all(|v| *v > 0.0));
     (m, prep.seq.coords)
 }
 
@@ -546,8 +558,43 @@ fn trajectories_are_normalised_and_map_between_people() {
     let al = ModeAlignment::by_actions(&src, &tgt);
     al.check(&src, &tgt).unwrap();
     let mut s: Vec<usize> = al.pairs.iter().map(|p| p.source_mode).collect();
+    s.sort_unstable();
     s.dedup();
     assert_eq!(s.len(), al.pairs.len());
+    // By hand: the source's actions in order, each source mode by its first action, paired
+    // with the target's action of that name, flipped where the two signs differ.
+    let mut want: Vec<(usize, usize, bool, String)> = Vec::new();
+    for (name, sm, ss) in &src.actions {
+        if want.iter().any(|w| w.0 == *sm) {
+            continue;
+        }
+        if let Some((_, tm, ts)) = tgt.actions.iter().find(|a| &a.0 == name) {
+            want.push((*sm, *tm, ss != ts, name.clone()));
+        }
+    }
+    let got: Vec<(usize, usize, bool, String)> = al
+        .pairs
+        .iter()
+        .map(|p| (p.source_mode, p.target_mode, p.flip, p.action.clone()))
+        .collect();
+    assert_eq!(got, want);
+    assert!(got.len() >= 3, "{got:?}");
+    // A flipped pair drives the target as the unflipped one driven by the negated trajectory.
+    let flip = |f: bool| ModeAlignment {
+        pairs: vec![ModePair {
+            source_mode: 0,
+            target_mode: 1,
+            flip: f,
+            action: String::new(),
+        }],
+    };
+    let neg = -traj.clone();
+    let (a, b) = (
+        synthesise(&tgt, &flip(true), &traj),
+        synthesise(&tgt, &flip(false), &neg),
+    );
+    assert!((&a - &b).amax() < 1e-12);
+    assert!((&a - synthesise(&tgt, &flip(false), &traj)).amax() > 1e-3);
     // Where a source extreme lands: two-sided on the target's own extreme of that side;
     // one-sided by the closed form (s / max|s|) · max|t|.
     let ex = extremes(&src, &tgt, &al);
