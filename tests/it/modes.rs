@@ -611,8 +611,10 @@ fn trajectories_are_normalised_and_map_between_people() {
         let s = if r.side == "+" { shi } else { slo };
         let t = if sign * s > 0.0 { thi } else { tlo };
         assert_eq!(r.two_sided, t);
+        assert_eq!((r.source_extreme, r.target_extreme), (s, t));
         let one = sign * s / shi.max(-slo) * thi.max(-tlo);
         assert!((r.one_sided - one).abs() < 1e-12 * one.abs());
+        assert!((r.ratio - one / t).abs() < 1e-12 * (one / t).abs());
     }
     let bad = ModeAlignment {
         pairs: vec![ModePair {
