@@ -668,3 +668,23 @@ fn residuals_past_the_first_chunk_are_each_frames_own() {
         assert!((got[f] - want).abs() <= 1e-12 * want.max(1.0), "frame {f}");
     }
 }
+
+/// `apply_all` maps every column as `apply` does, and an empty matrix (no points, or no
+/// frames) maps to an empty one of the same shape.
+#[test]
+fn rbf_apply_all_is_apply_per_column_and_takes_empty_matrices() {
+    use keyshape_lab::retarget::rbf::Rbf;
+    let src = [0.0, 0.0, 1.0, 0.0, 0.0, 1.0, 1.0, 1.0];
+    let dst = [0.0, 0.0, 2.0, 0.1, 0.1, 2.0, 2.2, 2.1];
+    let f = Rbf::fit(&src, &dst, 2).unwrap();
+    let shapes = nalgebra::DMatrix::from_fn(6, 3, |i, c| (i as f64 * 0.3 + c as f64) % 1.3);
+    let all = f.apply_all(&shapes);
+    for c in 0..3 {
+        let one = f.apply(shapes.column(c).as_slice());
+        assert_eq!(all.column(c).as_slice(), &one[..]);
+    }
+    for (rows, cols) in [(0, 4), (6, 0), (0, 0)] {
+        let e = f.apply_all(&nalgebra::DMatrix::zeros(rows, cols));
+        assert_eq!(e.shape(), (rows, cols));
+    }
+}
