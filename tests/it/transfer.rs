@@ -368,6 +368,23 @@ fn painted_weights_override_the_automatic_ones() {
     .unwrap();
     let e = t.skin.paint(&p, &names).unwrap_err().to_string();
     assert!(e.contains("no feature named 'nose_wing'"), "{e}");
+    // A negative weight, and a vertex past the mesh, are refused and change nothing.
+    let before = t.skin.influences.clone();
+    for (text, needle) in [
+        (
+            r#"{"weights": [{"vertex": 7, "feature": "chin", "weight": -0.5}]}"#,
+            "vertex 7: weight must be ≥ 0, got -0.5",
+        ),
+        (
+            r#"{"weights": [{"vertex": 99999, "feature": "chin", "weight": 1}]}"#,
+            "vertex 99999 is not in the mesh",
+        ),
+    ] {
+        std::fs::write(&p, text).unwrap();
+        let e = t.skin.paint(&p, &names).unwrap_err().to_string();
+        assert!(e.contains(needle), "{e}");
+        assert_eq!(t.skin.influences, before);
+    }
 }
 
 /// One transform trained on one person, driving others (the news sample's 20 clips): the
