@@ -368,6 +368,18 @@ fn painted_weights_override_the_automatic_ones() {
     .unwrap();
     let e = t.skin.paint(&p, &names).unwrap_err().to_string();
     assert!(e.contains("no feature named 'nose_wing'"), "{e}");
+    // Painted all 0, a vertex has no influence left: it stays where it is (no 0/0).
+    std::fs::write(
+        &p,
+        r#"{"weights": [{"vertex": 9, "feature": "chin", "weight": 0}]}"#,
+    )
+    .unwrap();
+    t.skin.paint(&p, &names).unwrap();
+    assert!(
+        t.skin.influences[9].is_empty(),
+        "{:?}",
+        t.skin.influences[9]
+    );
     // A negative weight, and a vertex past the mesh, are refused and change nothing.
     let before = t.skin.influences.clone();
     for (text, needle) in [
