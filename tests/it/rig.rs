@@ -628,7 +628,7 @@ fn bad_rigs_and_tracks_are_refused_with_the_file_and_nothing_is_written() {
         "\n1,browDown_R,",
         "\n7,browDown_R,",
     );
-    let fields = edit("fields", "expressions.csv", "\n2,", "\n2\n3,");
+    let fields = edit("fields", "expressions.csv", "\n4,", "\n4\n5,");
     let dx_text = edit("dx_text", "expression_deltas.csv", "0,9,0.024,", "0,9,abc,");
     let vertex_text = edit(
         "vertex_text",
@@ -653,7 +653,7 @@ fn bad_rigs_and_tracks_are_refused_with_the_file_and_nothing_is_written() {
             &id_order,
             "expressions.csv:3:1: shape ids must run 0, 1, …; found 7",
         ),
-        (&fields, "expressions.csv:4:0: CSV error: record 3 (line: 4"),
+        (&fields, "expressions.csv:6:0: CSV error: record 5 (line: 6"),
         (&dx_text, "expression_deltas.csv:3:3: not a number: 'abc'"),
         (&vertex_text, "expression_deltas.csv:3:2: not an index: 'q'"),
         (
