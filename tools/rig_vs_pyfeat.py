@@ -63,19 +63,9 @@ def main():
     ref_names = [c for c in news[0] if c[0].islower() and c not in ("clip", "frame")]
     pooled = {}
     for path in sys.argv[1:]:
-        w = read(path)
-        assert len(w) == len(news), f"{path}: {len(w)} rows, the news sample has {len(news)}"
-        cols = {}
-        for name in w[0]:
-            if name == "frame":
-                continue
-            cols.setdefault(arkit(name).replace("_", ""), []).append(name)
-        # browInnerUp_L/_R → browInnerUpLeft/Right; py-feat has browInnerUp, cheekPuff.
-        for merged in ("browInnerUp", "cheekPuff"):
-            halves = cols.pop(merged + "Left", []) + cols.pop(merged + "Right", [])
-            if halves:
-                cols[merged] = halves
-        series = {k: [sum(float(r[c]) for c in v) / len(v) for r in w] for k, v in cols.items()}
+        series = read_series(path)
+        rows = len(next(iter(series.values())))
+        assert rows == len(news), f"{path}: {rows} rows, the news sample has {len(news)}"
         rs = {}
         for name in ref_names:
             if name in series:
@@ -135,6 +125,8 @@ def std(v):
 
 
 def read_series(path):
+    """Per py-feat column name, the mean of the weights file's rig shapes of that name
+    (browInnerUp_L/_R → browInnerUp; py-feat has one browInnerUp and one cheekPuff)."""
     w = read(path)
     cols = {}
     for name in w[0]:
