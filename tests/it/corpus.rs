@@ -40,11 +40,14 @@ strip = 0
     spec
 }
 
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("kslab-corpus-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+/// A scratch directory, removed when the returned guard drops (also when the test fails).
+fn tmp(name: &str) -> (tempfile::TempDir, PathBuf) {
+    let dir = tempfile::Builder::new()
+        .prefix(&format!("kslab-corpus-{name}-"))
+        .tempdir()
+        .unwrap();
+    let d = dir.path().to_path_buf();
+    (dir, d)
 }
 
 fn run_ok(args: &[&str]) {
@@ -100,7 +103,7 @@ fn assert_same_report(a: &Path, b: &Path) {
 
 #[test]
 fn shards_merged_in_any_order_give_exactly_the_unsharded_report() {
-    let d = tmp("merge");
+    let (_scratch, d) = tmp("merge");
     let spec = small_corpus(&d, 7);
     let s = spec.to_str().unwrap();
     let full = d.join("full");
@@ -169,12 +172,11 @@ fn shards_merged_in_any_order_give_exactly_the_unsharded_report() {
     args.extend(["--out".into(), out.display().to_string()]);
     run_ok(&args.iter().map(String::as_str).collect::<Vec<_>>());
     assert_same_report(&full, &out);
-    let _ = std::fs::remove_dir_all(&d);
 }
 
 #[test]
 fn merge_refuses_a_missing_or_repeated_shard_and_shards_of_other_experiments() {
-    let d = tmp("refuse");
+    let (_scratch, d) = tmp("refuse");
     let spec = small_corpus(&d, 7);
     let other = small_corpus(&d.join("other"), 8);
     let p = |x: &Path| x.display().to_string();
@@ -239,12 +241,11 @@ fn merge_refuses_a_missing_or_repeated_shard_and_shards_of_other_experiments() {
     let r = kslab(&["merge", &s(0), &s(1), &s(2), "--out", &out]);
     assert_eq!(r.code, 1);
     assert!(r.stderr.contains("s2/partial.json:1:"), "{}", r.stderr);
-    let _ = std::fs::remove_dir_all(&d);
 }
 
 #[test]
 fn the_aggregates_match_a_brute_force_count_over_the_per_sequence_curves() {
-    let d = tmp("oracle");
+    let (_scratch, d) = tmp("oracle");
     let spec = small_corpus(&d, 7);
     let full = d.join("full");
     run_ok(&[
@@ -378,7 +379,6 @@ fn the_aggregates_match_a_brute_force_count_over_the_per_sequence_curves() {
         assert!(r["mean_k"].parse::<f64>().unwrap() > 6.0, "{r:?}");
         assert_eq!(r["compared_with"], "");
     }
-    let _ = std::fs::remove_dir_all(&d);
 }
 
 #[test]
@@ -541,7 +541,7 @@ fn corpus_spec_mistakes_are_refused_with_the_key_that_is_wrong() {
         assert!(e.starts_with("t.toml:"), "{e}");
     }
     // Globs that match nothing, files named twice, list files with a bad line.
-    let d = tmp("spec");
+    let (_scratch, d) = tmp("spec");
     let write = |name: &str, text: &str| {
         let p = d.join(name);
         std::fs::write(&p, text).unwrap();
@@ -623,7 +623,6 @@ fn corpus_spec_mistakes_are_refused_with_the_key_that_is_wrong() {
         "title = \"t\"\ninputs = [\"{a}\"]\nsplit_clips = true\nmethods = [\"spread\"]\n"
     ));
     assert!(e.contains("no file of the corpus has a clip column"), "{e}");
-    let _ = std::fs::remove_dir_all(&d);
 }
 
 #[test]
@@ -674,7 +673,7 @@ fn shard_options_are_checked_and_read_from_the_schedulers() {
         .contains("give --shard i/n"));
 
     // Through the binary: --shard on one input, and --shard auto without a scheduler.
-    let d = tmp("shardcli");
+    let (_scratch, d) = tmp("shardcli");
     let one = d.join("one.toml");
     std::fs::write(
         &one,
@@ -707,7 +706,6 @@ fn shard_options_are_checked_and_read_from_the_schedulers() {
     assert_eq!(out.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&out.stderr).contains("no scheduler variables"));
     assert!(!d.join("o").exists());
-    let _ = std::fs::remove_dir_all(&d);
 }
 
 /// Needs a running Slurm: `bash deploy/slurm/local_cluster.sh` (root; `.ci/run` does it and
@@ -720,7 +718,7 @@ fn a_study_run_as_a_real_slurm_array_merges_into_the_unsharded_report() {
         status.as_ref().is_ok_and(|o| o.status.success()),
         "Slurm is not up: run `bash deploy/slurm/local_cluster.sh`"
     );
-    let d = tmp("slurm");
+    let (_scratch, d) = tmp("slurm");
     let spec = small_corpus(&d, 7);
     let full = d.join("full");
     run_ok(&[
@@ -755,7 +753,6 @@ fn a_study_run_as_a_real_slurm_array_merges_into_the_unsharded_report() {
         assert_eq!(p["shard"]["count"], 3);
     }
     assert_same_report(&full, &study.join("merged"));
-    let _ = std::fs::remove_dir_all(&d);
 }
 
 /// Needs `kubernetes-validate` (PyPI; `.ci/run` installs it and runs the ignored tests).

@@ -417,6 +417,27 @@ fn intensity_centring_and_spread_follow_their_definitions() {
     let sp = spread(&[4.0, f64::NAN, 1.0, 3.0, 2.0]);
     assert_eq!((sp.median, sp.q1, sp.q3, sp.clips), (2.5, 1.75, 3.25, 4));
     assert!(spread(&[f64::NAN]).median.is_nan());
+    // One defined clip: every quartile is that clip (no neighbour to interpolate toward).
+    let one = spread(&[f64::NAN, 0.3]);
+    assert_eq!((one.median, one.q1, one.q3, one.clips), (0.3, 0.3, 0.3, 1));
+}
+
+/// What a settings file leaves out is the paper's set-up, the same as `Default` (K = 10,
+/// degree 5, threshold 0.4, clip-mean centring, the 1–14 split).
+#[test]
+fn study_settings_left_out_of_a_file_are_the_defaults() {
+    use keyshape_lab::cosker::intensity::{Centring, Evaluation, StudySettings};
+    for text in ["{}", r#"{"threshold": 0.5}"#] {
+        let st: StudySettings = serde_json::from_str(text).unwrap();
+        assert_eq!((st.k, st.degree), (10, 5), "{text}");
+        assert_eq!((st.centring, st.evaluation), (Centring::ClipMean, Evaluation::Split));
+        assert_eq!((st.train_clips, st.neutral_frames), (None, None));
+    }
+    let st: StudySettings = serde_json::from_str("{}").unwrap();
+    let d = StudySettings::default();
+    assert_eq!((st.k, st.degree, st.threshold), (d.k, d.degree, d.threshold));
+    assert_eq!(st.threshold, 0.4);
+    assert_eq!(d.train_range(), (1, 14));
 }
 
 #[test]
