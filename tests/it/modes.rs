@@ -727,6 +727,84 @@ fn morph_gltf_passes_the_khronos_validator() {
     crate::common::assert_valid_gltf(&glb);
 }
 
+/// `cover` gives each point no region names to the cover region of its nearest named
+/// cover point (brute force on the news sample's mean shape), and leaves the points another
+/// region names alone; a region naming a point past the shape is an error, not a panic.
+#[test]
+fn cover_fills_only_the_unnamed_points_with_their_nearest_cover_region() {
+    use keyshape_lab::io::{read_sequence, ReadOptions};
+    let seq = read_sequence(
+        &shared("pyfeat_samples/news_sample_compact.csv"),
+        &ReadOptions::default(),
+    )
+    .unwrap();
+    let layout = Layout::ibug68();
+    let r: ModeRegions = serde_json::from_str(
+        r#"{"layout": "ibug68",
+            "regions": {"upper": ["left_eyebrow", "right_eyebrow"], "lower": ["jaw"],
+                        "mouth": ["lips"]},
+            "cover": ["upper", "lower"]}"#,
+    )
+    .unwrap();
+    let w = r
+        .weights(&layout, &seq.coords, 2, &opts(Boundary::Disjoint, 0.0))
+        .unwrap();
+    let by = |name: &str| &w.iter().find(|g| g.name == name).unwrap().weights;
+    let mean = seq.coords.column_mean();
+    let d2 = |a: usize, b: usize| {
+        (mean[2 * a] - mean[2 * b]).powi(2) + (mean[2 * a + 1] - mean[2 * b + 1]).powi(2)
+    };
+    let (brows, jaw, lips) = (17..=26, 0..=16, 48..=67);
+    let mut joined = [0usize; 2];
+    for p in 0..68 {
+        let (up, low, mouth) = (by("upper")[p], by("lower")[p], by("mouth")[p]);
+        if lips.contains(&p) {
+            assert_eq!((up, low, mouth), (0.0, 0.0, 1.0), "lip point {p}");
+        } else if brows.contains(&p) {
+            assert_eq!((up, low), (1.0, 0.0), "brow point {p}");
+        } else if jaw.contains(&p) {
+            assert_eq!((up, low), (0.0, 1.0), "jaw point {p}");
+        } else {
+            // Nose and eyes: the region of the nearest brow or jaw point.
+            let nearest = (0..=26).min_by(|&a, &b| d2(p, a).total_cmp(&d2(p, b))).unwrap();
+            let want = if brows.contains(&nearest) { (1.0, 0.0) } else { (0.0, 1.0) };
+            assert_eq!((up, low), want, "point {p}, nearest cover point {nearest}");
+            joined[usize::from(low == 1.0)] += 1;
+        }
+    }
+    assert!(joined[0] > 0 && joined[1] > 0, "{joined:?}");
+    // 67 points against the 68-point layout: point 67 (a lip) lies past the shape.
+    let short = seq.coords.rows(0, 134).into_owned();
+    let all: ModeRegions = serde_json::from_str(
+        r#"{"layout": "ibug68", "regions": {"face": ["lips"], "brows": ["left_eyebrow"]},
+            "cover": ["face", "brows"]}"#,
+    )
+    .unwrap();
+    let e = all
+        .weights(&layout, &short, 2, &RegionOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("region point 67 is beyond the shape's 67 points"), "{e}");
+}
+
+/// The blend radius's unit: the RMS distance of a shape's points from their centroid, by
+/// hand in 2-D and 3-D, unchanged by a translation, 0 for no points.
+#[test]
+fn shape_size_is_the_rms_distance_from_the_centroid() {
+    let square = [0.0, 0.0, 2.0, 0.0, 0.0, 2.0, 2.0, 2.0];
+    assert!((shape_size(&square, 2) - 2f64.sqrt()).abs() < 1e-15);
+    // Centroid (1, 0, 2); squared distances 5, 8, 17: RMS sqrt(30 / 3).
+    let tri = [0.0, 0.0, 0.0, 3.0, 0.0, 0.0, 0.0, 0.0, 6.0];
+    assert!((shape_size(&tri, 3) - 10f64.sqrt()).abs() < 1e-15);
+    let moved: Vec<f64> = tri
+        .iter()
+        .enumerate()
+        .map(|(i, v)| v + [7.0, -3.0, 0.5][i % 3])
+        .collect();
+    assert!((shape_size(&moved, 3) - 10f64.sqrt()).abs() < 1e-14);
+    assert_eq!(shape_size(&[], 2), 0.0);
+}
+
 #[test]
 fn empty_or_unknown_regions_are_explained() {
     let layout = Layout::mediapipe468();
@@ -957,4 +1035,14 @@ fn normalisation_names_are_the_spelling_the_options_read() {
     }
     assert_eq!(Normalisation::TwoSided.name(), "two-sided");
     assert_eq!(Normalisation::OneSided.name(), "one-sided");
+    // Region boundaries (reported by `kslab modes --json`) and the study's centrings.
+    for b in [Boundary::Blended, Boundary::Disjoint] {
+        assert_eq!(serde_json::to_string(&b).unwrap(), format!("\"{}\"", b.name()));
+    }
+    assert_eq!(Boundary::Blended.name(), "blended");
+    assert_eq!(Boundary::Disjoint.name(), "disjoint");
+    use keyshape_lab::cosker::intensity::Centring;
+    for c in [Centring::ClipMean, Centring::Causal, Centring::Neutral] {
+        assert_eq!(serde_json::to_string(&c).unwrap(), format!("\"{}\"", c.name()));
+    }
 }
