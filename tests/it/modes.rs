@@ -278,6 +278,34 @@ fn table_2_on_d6_is_a_measurement_with_blended_regions() {
         }
     }
     assert!(cross > 0);
+    // Two actions are a table (the 9-action table's corner); one is refused, as are 0 modes.
+    let mut two = actions.clone();
+    two.actions.truncate(2);
+    let st2 = orthogonality_study(&prep.seq.coords, &prep.seq.frames, 2, &regions, &two, 10)
+        .unwrap();
+    assert_eq!(st2.action_model.shape(), (2, 2));
+    assert_eq!(st2.action_model, blended.action_model.view((0, 0), (2, 2)));
+    assert_eq!(st2.plain, blended.plain.view((0, 0), (2, 2)));
+    let mut one = two.clone();
+    one.actions.truncate(1);
+    let e = orthogonality_study(&prep.seq.coords, &prep.seq.frames, 2, &regions, &one, 10)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("needs at least two actions"), "{e}");
+    let e = orthogonality_study(&prep.seq.coords, &prep.seq.frames, 2, &regions, &two, 0)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("at least 1 mode"), "{e}");
+    // The summary the report gives: the mean of the 36 pairs above the diagonal.
+    let mut upper = Vec::new();
+    for i in 0..9 {
+        for j in i + 1..9 {
+            upper.push(blended.action_model[(i, j)]);
+        }
+    }
+    let want = upper.iter().sum::<f64>() / 36.0;
+    let got = keyshape_lab::cosker::modes::OrthogonalityStudy::mean_upper(&blended.action_model);
+    assert!((got - want).abs() < 1e-15, "{got} vs {want}");
     // Bad labels are explained.
     let mut bad = actions.clone();
     bad.actions[0].region = "cheeks".into();
@@ -803,6 +831,26 @@ fn shape_size_is_the_rms_distance_from_the_centroid() {
         .collect();
     assert!((shape_size(&moved, 3) - 10f64.sqrt()).abs() < 1e-14);
     assert_eq!(shape_size(&[], 2), 0.0);
+}
+
+/// The mean of a table's upper triangle by hand (diagonal and lower triangle ignored), 0
+/// without pairs; Eq. (9) is 0 when either vector is zero (not 0/0).
+#[test]
+fn mean_upper_and_eq9_of_a_zero_vector_by_hand() {
+    use keyshape_lab::cosker::modes::OrthogonalityStudy;
+    let m = nalgebra::DMatrix::from_row_slice(
+        3,
+        3,
+        &[9.0, 0.2, 0.4, -7.0, 9.0, 0.9, 5.0, 3.0, 9.0],
+    );
+    assert!((OrthogonalityStudy::mean_upper(&m) - 0.5).abs() < 1e-15);
+    assert_eq!(OrthogonalityStudy::mean_upper(&nalgebra::DMatrix::from_element(1, 1, 4.0)), 0.0);
+    assert_eq!(OrthogonalityStudy::mean_upper(&nalgebra::DMatrix::zeros(0, 0)), 0.0);
+    let z = DVector::zeros(3);
+    let v = DVector::from_vec(vec![1.0, 2.0, 3.0]);
+    assert_eq!(orthogonality(&z, &v), 0.0);
+    assert_eq!(orthogonality(&v, &z), 0.0);
+    assert_eq!(orthogonality(&z, &z), 0.0);
 }
 
 #[test]
