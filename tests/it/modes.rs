@@ -281,8 +281,8 @@ fn table_2_on_d6_is_a_measurement_with_blended_regions() {
     // Two actions are a table (the 9-action table's corner); one is refused, as are 0 modes.
     let mut two = actions.clone();
     two.actions.truncate(2);
-    let st2 = orthogonality_study(&prep.seq.coords, &prep.seq.frames, 2, &regions, &two, 10)
-        .unwrap();
+    let st2 =
+        orthogonality_study(&prep.seq.coords, &prep.seq.frames, 2, &regions, &two, 10).unwrap();
     assert_eq!(st2.action_model.shape(), (2, 2));
     assert_eq!(st2.action_model, blended.action_model.view((0, 0), (2, 2)));
     assert_eq!(st2.plain, blended.plain.view((0, 0), (2, 2)));
@@ -458,12 +458,18 @@ fn study_settings_left_out_of_a_file_are_the_defaults() {
     for text in ["{}", r#"{"threshold": 0.5}"#] {
         let st: StudySettings = serde_json::from_str(text).unwrap();
         assert_eq!((st.k, st.degree), (10, 5), "{text}");
-        assert_eq!((st.centring, st.evaluation), (Centring::ClipMean, Evaluation::Split));
+        assert_eq!(
+            (st.centring, st.evaluation),
+            (Centring::ClipMean, Evaluation::Split)
+        );
         assert_eq!((st.train_clips, st.neutral_frames), (None, None));
     }
     let st: StudySettings = serde_json::from_str("{}").unwrap();
     let d = StudySettings::default();
-    assert_eq!((st.k, st.degree, st.threshold), (d.k, d.degree, d.threshold));
+    assert_eq!(
+        (st.k, st.degree, st.threshold),
+        (d.k, d.degree, d.threshold)
+    );
     assert_eq!(st.threshold, 0.4);
     assert_eq!(d.train_range(), (1, 14));
 }
@@ -794,8 +800,14 @@ fn cover_fills_only_the_unnamed_points_with_their_nearest_cover_region() {
             assert_eq!((up, low), (0.0, 1.0), "jaw point {p}");
         } else {
             // Nose and eyes: the region of the nearest brow or jaw point.
-            let nearest = (0..=26).min_by(|&a, &b| d2(p, a).total_cmp(&d2(p, b))).unwrap();
-            let want = if brows.contains(&nearest) { (1.0, 0.0) } else { (0.0, 1.0) };
+            let nearest = (0..=26)
+                .min_by(|&a, &b| d2(p, a).total_cmp(&d2(p, b)))
+                .unwrap();
+            let want = if brows.contains(&nearest) {
+                (1.0, 0.0)
+            } else {
+                (0.0, 1.0)
+            };
             assert_eq!((up, low), want, "point {p}, nearest cover point {nearest}");
             joined[usize::from(low == 1.0)] += 1;
         }
@@ -812,7 +824,10 @@ fn cover_fills_only_the_unnamed_points_with_their_nearest_cover_region() {
         .weights(&layout, &short, 2, &RegionOptions::default())
         .unwrap_err()
         .to_string();
-    assert!(e.contains("region point 67 is beyond the shape's 67 points"), "{e}");
+    assert!(
+        e.contains("region point 67 is beyond the shape's 67 points"),
+        "{e}"
+    );
 }
 
 /// The blend radius's unit: the RMS distance of a shape's points from their centroid, by
@@ -838,14 +853,17 @@ fn shape_size_is_the_rms_distance_from_the_centroid() {
 #[test]
 fn mean_upper_and_eq9_of_a_zero_vector_by_hand() {
     use keyshape_lab::cosker::modes::OrthogonalityStudy;
-    let m = nalgebra::DMatrix::from_row_slice(
-        3,
-        3,
-        &[9.0, 0.2, 0.4, -7.0, 9.0, 0.9, 5.0, 3.0, 9.0],
-    );
+    let m =
+        nalgebra::DMatrix::from_row_slice(3, 3, &[9.0, 0.2, 0.4, -7.0, 9.0, 0.9, 5.0, 3.0, 9.0]);
     assert!((OrthogonalityStudy::mean_upper(&m) - 0.5).abs() < 1e-15);
-    assert_eq!(OrthogonalityStudy::mean_upper(&nalgebra::DMatrix::from_element(1, 1, 4.0)), 0.0);
-    assert_eq!(OrthogonalityStudy::mean_upper(&nalgebra::DMatrix::zeros(0, 0)), 0.0);
+    assert_eq!(
+        OrthogonalityStudy::mean_upper(&nalgebra::DMatrix::from_element(1, 1, 4.0)),
+        0.0
+    );
+    assert_eq!(
+        OrthogonalityStudy::mean_upper(&nalgebra::DMatrix::zeros(0, 0)),
+        0.0
+    );
     let z = DVector::zeros(3);
     let v = DVector::from_vec(vec![1.0, 2.0, 3.0]);
     assert_eq!(orthogonality(&z, &v), 0.0);
@@ -1085,12 +1103,18 @@ fn normalisation_names_are_the_spelling_the_options_read() {
     assert_eq!(Normalisation::OneSided.name(), "one-sided");
     // Region boundaries (reported by `kslab modes --json`) and the study's centrings.
     for b in [Boundary::Blended, Boundary::Disjoint] {
-        assert_eq!(serde_json::to_string(&b).unwrap(), format!("\"{}\"", b.name()));
+        assert_eq!(
+            serde_json::to_string(&b).unwrap(),
+            format!("\"{}\"", b.name())
+        );
     }
     assert_eq!(Boundary::Blended.name(), "blended");
     assert_eq!(Boundary::Disjoint.name(), "disjoint");
     use keyshape_lab::cosker::intensity::Centring;
     for c in [Centring::ClipMean, Centring::Causal, Centring::Neutral] {
-        assert_eq!(serde_json::to_string(&c).unwrap(), format!("\"{}\"", c.name()));
+        assert_eq!(
+            serde_json::to_string(&c).unwrap(),
+            format!("\"{}\"", c.name())
+        );
     }
 }

@@ -676,7 +676,11 @@ fn intensity_study_ties_thresholds_and_undefined_clips() {
             // Ties (smile = brow raise = 0.7) on frames 0, 4, 8, …, brow raise exactly at
             // the threshold (0.4) on frames 2, 6, 10, … (the sample keeps every other frame).
             2 => {
-                let (smile, brow) = if frame % 4 == 0 { ("0.7", "0.7") } else { ("0", "0.4") };
+                let (smile, brow) = if frame % 4 == 0 {
+                    ("0.7", "0.7")
+                } else {
+                    ("0", "0.4")
+                };
                 for c in ["mouthSmileLeft", "mouthSmileRight"] {
                     set(col, r, c, smile);
                 }
@@ -708,12 +712,21 @@ fn intensity_study_ties_thresholds_and_undefined_clips() {
     for (name, _) in STUDY_ACTIONS {
         let c7 = row(name, 7);
         assert_eq!(c7.frames, 2);
-        assert!(c7.raw.is_nan() && c7.median3.is_nan() && c7.smoothed.is_nan(), "{c7:?}");
+        assert!(
+            c7.raw.is_nan() && c7.median3.is_nan() && c7.smoothed.is_nan(),
+            "{c7:?}"
+        );
     }
     let blink13 = row("blink", 13);
-    assert!(blink13.raw.is_nan() && blink13.smoothed.is_nan(), "{blink13:?}");
+    assert!(
+        blink13.raw.is_nan() && blink13.smoothed.is_nan(),
+        "{blink13:?}"
+    );
     let smile13 = row("smile", 13);
-    assert!(smile13.raw.is_finite() && smile13.smoothed.is_finite(), "{smile13:?}");
+    assert!(
+        smile13.raw.is_finite() && smile13.smoothed.is_finite(),
+        "{smile13:?}"
+    );
     // Undefined clips are left out of the spread: 20 clips, clip 7 never defined, clip 13's
     // blink neither.
     let blink = r.actions.iter().find(|a| a.action == "blink").unwrap();
