@@ -9,7 +9,8 @@ use spade::{DelaunayTriangulation, HasPosition, Point2, Triangulation};
 /// a hull edge are convex combinations of its two ends and are left out; hull corners
 /// closer together than 1e-9 of the projection's extent count once; frames with identical
 /// projections count once (the lowest frame index is reported); when every projection is
-/// collinear the hull is the two ends of the line.
+/// collinear, or so nearly that fewer than three corners are strict within those
+/// tolerances, the hull is the two ends of the line: the end farther from frame 0 second.
 #[derive(Debug, Clone, Copy)]
 pub struct Hull;
 
@@ -76,7 +77,14 @@ impl Heuristic for Hull {
                     (v.data().frame, (v.position().x, v.position().y))
                 })
                 .collect();
-            corners(&ring, extent)
+            let c = corners(&ring, extent);
+            // Within tolerance of a line (a triangle 1e-12 of the extent thick has no strict
+            // corner): the line's ends, as for an exact line, never an empty selection.
+            if c.len() < 3 {
+                line_ends(an, &pt)
+            } else {
+                c
+            }
         };
         Ok(Selection::frames(columns))
     }
@@ -109,6 +117,7 @@ fn dist2(a: (f64, f64), b: (f64, f64)) -> f64 {
 }
 
 /// Strict corners of a hull ring: drops near-duplicate neighbours and collinear points.
+/// Fewer than three points left have no strict corner: the result is then empty.
 fn corners(ring: &[(usize, (f64, f64))], extent: f64) -> Vec<usize> {
     let mut pts: Vec<(usize, (f64, f64))> = Vec::with_capacity(ring.len());
     for &v in ring {
@@ -123,9 +132,6 @@ fn corners(ring: &[(usize, (f64, f64))], extent: f64) -> Vec<usize> {
         pts.pop();
     }
     let m = pts.len();
-    if m < 3 {
-        return pts.iter().map(|v| v.0).collect();
-    }
     (0..m)
         .filter(|&i| {
             let (a, b, c) = (pts[(i + m - 1) % m].1, pts[i].1, pts[(i + 1) % m].1);

@@ -498,3 +498,249 @@ fn bench_kmeans_compares_the_seedings_on_a_real_track() {
     assert_eq!(r.code, 1);
     assert!(r.stderr.contains("at least two seeds"), "{}", r.stderr);
 }
+
+/// An analysis whose first two principal coordinates are set by hand to `pts` (the hull
+/// reads only the projection), so the hull's cases can be built exactly.
+fn with_projection(pts: &[(f64, f64)]) -> Analysis {
+    let n = pts.len();
+    let q = DMatrix::from_fn(6, n, |i, t| ((i * 7 + t * 3) % 11) as f64 + t as f64);
+    let mut an = Analysis::new(q, 3).unwrap();
+    an.proj = DMatrix::from_fn(2, n, |r, t| if r == 0 { pts[t].0 } else { pts[t].1 });
+    an
+}
+
+fn hull_of(pts: &[(f64, f64)]) -> keyshape_lab::error::Result<Vec<usize>> {
+    Method::Hull
+        .heuristic(&KeyOptions::default())
+        .select(&with_projection(pts), 0)
+        .map(|s| s.columns)
+}
+
+fn sorted(mut v: Vec<usize>) -> Vec<usize> {
+    v.sort_unstable();
+    v
+}
+
+#[test]
+fn hull_keeps_strict_corners_only_of_an_axis_aligned_rectangle() {
+    // Corners 0–3; 4 and 5 on edges, 6 inside. Axis-aligned neighbours differ on one
+    // coordinate only, so a distance that multiplies the two differences would merge them.
+    let pts = [
+        (-10.0, -1.0),
+        (10.0, -1.0),
+        (10.0, 1.0),
+        (-10.0, 1.0),
+        (0.0, -1.0),
+        (10.0, 0.5),
+        (1.0, 0.0),
+    ];
+    assert_eq!(sorted(hull_of(&pts).unwrap()), vec![0, 1, 2, 3]);
+    // The same transposed: the long side on the other axis.
+    let t: Vec<(f64, f64)> = pts.iter().map(|&(x, y)| (y, x)).collect();
+    assert_eq!(sorted(hull_of(&t).unwrap()), vec![0, 1, 2, 3]);
+    // A triangle is its three corners.
+    assert_eq!(
+        sorted(hull_of(&[(0.0, 0.0), (4.0, 0.0), (1.0, 3.0)]).unwrap()),
+        vec![0, 1, 2]
+    );
+}
+
+#[test]
+fn hull_merges_corners_closer_than_1e_9_of_the_extent_and_no_others() {
+    // A 20 × 2 rectangle (extent 20, so corners closer than 2e-8 count once) with corner c
+    // doubled by a point just outside it, diagonally: both are corners of the exact hull.
+    // The extent is the larger side, whichever axis it lies on; the doubled corner is
+    // tried at each of the four corners (so once where the hull's ring starts and ends).
+    let rect: [(f64, f64); 4] = [(-10.0, -1.0), (10.0, -1.0), (10.0, 1.0), (-10.0, 1.0)];
+    for transpose in [false, true] {
+        for c in 0..4 {
+            for (delta, merged) in [(0.7e-8, true), (2e-8, false)] {
+                let (sx, sy) = (rect[c].0.signum(), rect[c].1.signum());
+                // Out along x, in along y: a corner of its own, 1.41 δ from corner c.
+                let extra = (rect[c].0 + sx * delta, rect[c].1 - sy * delta);
+                let mut pts: Vec<(f64, f64)> = rect.to_vec();
+                pts.push(extra);
+                if transpose {
+                    pts = pts.iter().map(|&(x, y)| (y, x)).collect();
+                }
+                let got = sorted(hull_of(&pts).unwrap());
+                let at = format!("δ = {delta}, corner {c}, transposed {transpose}: {got:?}");
+                if merged {
+                    // One of the pair, whichever the ring meets first, and the other three.
+                    assert_eq!(got.len(), 4, "{at}");
+                    assert!((0..4).filter(|&i| i != c).all(|i| got.contains(&i)), "{at}");
+                } else {
+                    assert_eq!(got, vec![0, 1, 2, 3, 4], "{at}");
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn hull_of_a_thin_triangle_within_tolerance_of_a_line_is_the_lines_two_ends() {
+    // The apex is 1e-13 of the extent off the base: within the collinearity tolerance, so
+    // no corner is strict. The hull is then the two ends of the line, as for an exact line.
+    let pts = [(0.0, 0.0), (3.0, 1e-12), (10.0, 0.0), (6.0, 0.0)];
+    assert_eq!(sorted(hull_of(&pts).unwrap()), vec![0, 2]);
+    // Corners merged down to two (the apex within 1e-9 of the extent of a base end).
+    let pts = [(0.0, 0.0), (10.0, 0.0), (10.0 - 1e-9, 1e-9)];
+    assert_eq!(sorted(hull_of(&pts).unwrap()), vec![0, 1]);
+}
+
+#[test]
+fn hull_of_an_exact_line_reports_the_end_near_frame_0_then_the_far_end() {
+    // Exactly collinear on a tilted line y = 3 − 2x (small integers: spade's exact
+    // predicates see a line). Frame 0 (x = −1) is inside the segment; frame 1 (x = 5) is
+    // farther from it than frame 3 (x = −4), so the ends come as [3, 1]: the end farther
+    // from frame 0 last, and of its duplicates (frames 1 and 5) the lowest.
+    let line = |x: f64| (x, 3.0 - 2.0 * x);
+    let pts = [
+        line(-1.0),
+        line(5.0),
+        line(2.0),
+        line(-4.0),
+        line(0.0),
+        line(5.0),
+    ];
+    assert_eq!(hull_of(&pts).unwrap(), vec![3, 1]);
+    // Frame 0 at an end: it is reported first, the far end (the lowest of its duplicates) second.
+    let pts = [line(-4.0), line(5.0), line(2.0), line(-1.0), line(5.0)];
+    assert_eq!(hull_of(&pts).unwrap(), vec![0, 1]);
+    // Mirrored (x → −x): frame 1 (x = −5) is the far end again.
+    let pts = [line(1.0), line(-5.0), line(-2.0), line(4.0), line(0.0)];
+    assert_eq!(hull_of(&pts).unwrap(), vec![3, 1]);
+    // Two frames only.
+    assert_eq!(hull_of(&[line(2.0), line(-3.0)]).unwrap(), vec![0, 1]);
+}
+
+#[test]
+fn hull_refuses_a_sequence_whose_frames_project_to_one_point() {
+    for p in [(0.0, 0.0), (2.5, -1.0)] {
+        let e = hull_of(&[p, p, p]).unwrap_err().to_string();
+        assert!(e.contains("every frame projects to the same point"), "{e}");
+    }
+}
+
+/// The builtin sequence's lips, aligned: the analysis the error-curve tests sweep.
+fn builtin_lips() -> Analysis {
+    let seq = keyshape_lab::io::builtin_sequence().unwrap();
+    let prep = keyshape_lab::decompose::prepare(
+        &seq,
+        &keyshape_lab::decompose::PrepareOptions {
+            points: Some("lips".into()),
+            align: true,
+        },
+    )
+    .unwrap();
+    Analysis::new(prep.seq.coords, prep.seq.points).unwrap()
+}
+
+#[test]
+fn sweep_refuses_an_empty_k_range_and_sweeps_a_single_k() {
+    use keyshape_lab::keyshapes::curves::sweep;
+    let an = builtin_lips();
+    let opts = KeyOptions::default();
+    let run = |ks| sweep(&an, &[Method::Spread], ks, &[Solver::Ls], &opts, &|_, _| {});
+    for (ks, lo, hi) in [(0..=3, 0, 3), (4..=3, 4, 3), (0..=0, 0, 0)] {
+        let e = run(ks).unwrap_err().to_string();
+        assert!(
+            e.contains(&format!("k range {lo}..{hi} is empty or starts at 0")),
+            "{e}"
+        );
+    }
+    let rows = run(3..=3).unwrap();
+    assert_eq!(rows.len(), 1);
+    assert_eq!((rows[0].method.as_str(), rows[0].k), ("spread", 3));
+    let direct = an.error(&rows[0].keys, Solver::Ls).unwrap();
+    assert_eq!(rows[0].total_sq_error, direct);
+}
+
+#[test]
+fn sweep_ticks_once_per_curve_with_the_count_of_curves() {
+    use keyshape_lab::keyshapes::curves::sweep;
+    let an = builtin_lips();
+    let ticks = std::sync::Mutex::new(Vec::new());
+    let methods = [Method::Spread, Method::Hull, Method::Greedy];
+    let solvers = [Solver::Ls, Solver::Nnls];
+    let rows = sweep(
+        &an,
+        &methods,
+        2..=4,
+        &solvers,
+        &KeyOptions::default(),
+        &|done, total| ticks.lock().unwrap().push((done, total)),
+    )
+    .unwrap();
+    let mut t = ticks.into_inner().unwrap();
+    t.sort_unstable();
+    let want: Vec<(usize, usize)> = (1..=6).map(|d| (d, 6)).collect();
+    assert_eq!(t, want);
+    // Rows by solver, then method, k ascending; hull one row at its own k.
+    let got: Vec<(String, String, usize)> = rows
+        .iter()
+        .map(|r| (r.solver.clone(), r.method.clone(), r.k))
+        .collect();
+    let hull_k = Method::Hull
+        .heuristic(&KeyOptions::default())
+        .select(&an, 0)
+        .unwrap()
+        .columns
+        .len();
+    let mut want = Vec::new();
+    for s in ["ls", "nnls"] {
+        for (m, ks) in [
+            ("spread", 2..=4),
+            ("hull", hull_k..=hull_k),
+            ("greedy", 2..=4),
+        ] {
+            want.extend(ks.map(|k| (s.to_string(), m.to_string(), k)));
+        }
+    }
+    assert_eq!(got, want);
+}
+
+#[test]
+fn sweep_random_averages_its_seeded_draws_and_reports_the_first_draws_keys() {
+    use keyshape_lab::keyshapes::curves::{sweep, RANDOM_DRAWS};
+    let an = builtin_lips();
+    let opts = KeyOptions {
+        seed: 11,
+        ..KeyOptions::default()
+    };
+    let rows = sweep(
+        &an,
+        &[Method::Random],
+        3..=5,
+        &[Solver::Nnls],
+        &opts,
+        &|_, _| {},
+    )
+    .unwrap();
+    assert_eq!(rows.len(), 3);
+    for r in &rows {
+        let draw = |d: u64| {
+            let o = KeyOptions {
+                seed: 11 + d,
+                ..opts
+            };
+            Method::Random
+                .heuristic(&o)
+                .select(&an, r.k)
+                .unwrap()
+                .columns
+        };
+        assert_eq!(r.keys, draw(0), "k = {}", r.k);
+        assert_ne!(draw(0), draw(RANDOM_DRAWS - 1), "k = {}", r.k);
+        let mean = (0..RANDOM_DRAWS)
+            .map(|d| an.error(&draw(d), Solver::Nnls).unwrap())
+            .sum::<f64>()
+            / RANDOM_DRAWS as f64;
+        assert!(
+            (r.total_sq_error - mean).abs() <= 1e-12 * mean,
+            "k = {}",
+            r.k
+        );
+        assert!((r.rms - an.rms(mean)).abs() <= 1e-12 * r.rms, "k = {}", r.k);
+    }
+}
