@@ -334,14 +334,26 @@ impl Analysis {
             .get_or_init(|| self.coords.transpose() * &self.coords))
     }
 
-    /// `G = SᵀS` and `B = SᵀQ` for key columns `keys`.
-    fn products(&self, keys: &[usize]) -> Result<(DMatrix<f64>, DMatrix<f64>)> {
+    /// Refuses an empty key set (its "error" would be ‖Q‖², a point at k = 0 on a curve) and
+    /// key columns out of range.
+    fn check_keys(&self, keys: &[usize]) -> Result<()> {
+        if keys.is_empty() {
+            return Err(Error::invalid(
+                "no key shapes: Eq. (5) needs at least one key column",
+            ));
+        }
         if let Some(&bad) = keys.iter().find(|&&c| c >= self.frames()) {
             return Err(Error::invalid(format!(
                 "key column {bad} out of range (0..{})",
                 self.frames()
             )));
         }
+        Ok(())
+    }
+
+    /// `G = SᵀS` and `B = SᵀQ` for key columns `keys`.
+    fn products(&self, keys: &[usize]) -> Result<(DMatrix<f64>, DMatrix<f64>)> {
+        self.check_keys(keys)?;
         if self.frames() <= GRAM_LIMIT {
             let k = self.frame_gram()?;
             let b = k.select_rows(keys);
@@ -359,12 +371,7 @@ impl Analysis {
         if self.frames() <= GRAM_LIMIT {
             return self.weights_and_error(keys, solver).map(|(_, e)| e);
         }
-        if let Some(&bad) = keys.iter().find(|&&c| c >= self.frames()) {
-            return Err(Error::invalid(format!(
-                "key column {bad} out of range (0..{})",
-                self.frames()
-            )));
-        }
+        self.check_keys(keys)?;
         let s = self.coords.select_columns(keys);
         let st = s.transpose();
         self.error_in_blocks(

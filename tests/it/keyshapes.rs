@@ -744,3 +744,33 @@ fn sweep_random_averages_its_seeded_draws_and_reports_the_first_draws_keys() {
         assert!((r.rms - an.rms(mean)).abs() <= 1e-12 * r.rms, "k = {}", r.k);
     }
 }
+
+#[test]
+fn eq5_refuses_no_keys_and_keys_out_of_range_on_both_paths() {
+    use keyshape_lab::keyshapes::{Selection, GRAM_LIMIT};
+    // Short (the frames' Gram matrix) and long (block-wise products) tracks.
+    for frames in [40, GRAM_LIMIT + 1] {
+        let q = DMatrix::from_fn(8, frames, |i, t| ((i * 13 + t * 7) % 17) as f64 + i as f64);
+        let an = Analysis::new(q, 4).unwrap();
+        for s in Solver::ALL {
+            let e = an.error(&[], s).unwrap_err().to_string();
+            assert!(e.contains("no key shapes"), "{frames} frames, {s}: {e}");
+            let e = an.weights_and_error(&[], s).unwrap_err().to_string();
+            assert!(e.contains("no key shapes"), "{e}");
+            let e = an
+                .selection_error(&Selection::frames(vec![]), s)
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains("no key shapes"), "{e}");
+            let want = format!("key column {frames} out of range (0..{frames})");
+            for keys in [vec![frames], vec![0, frames, 1]] {
+                let e = an.error(&keys, s).unwrap_err().to_string();
+                assert!(e.contains(&want), "{frames} frames, {s}: {e}");
+                let e = an.weights_and_error(&keys, s).unwrap_err().to_string();
+                assert!(e.contains(&want), "{e}");
+            }
+            // The last frame is in range.
+            assert!(an.error(&[frames - 1], s).unwrap() > 0.0);
+        }
+    }
+}
