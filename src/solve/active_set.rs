@@ -97,10 +97,12 @@ pub struct Workspace {
     /// Nonzero weights (gradient scratch).
     nz: Vec<usize>,
     excluded: Vec<bool>,
+    /// Outer iterations a frame may take before it is reported unconverged.
+    cap: u32,
 }
 
 impl Workspace {
-    /// Scratch for k key shapes.
+    /// Scratch for k key shapes, with the default iteration cap `3k + 20`.
     pub fn new(k: usize) -> Workspace {
         Workspace {
             a: vec![0.0; k * k],
@@ -112,7 +114,16 @@ impl Workspace {
             in_free: vec![false; k],
             nz: Vec::with_capacity(k),
             excluded: vec![false; k],
+            cap: 3 * k as u32 + 20,
         }
+    }
+
+    /// Sets the outer-iteration cap per frame (the default is `3k + 20`, which no problem
+    /// met so far reaches): a frame stopped by it keeps feasible weights and reports
+    /// `converged: false`.
+    pub fn with_cap(mut self, cap: u32) -> Workspace {
+        self.cap = cap;
+        self
     }
 }
 
@@ -148,12 +159,9 @@ pub fn solve_frame(
     if state.iter().any(|s| *s != Bound::Lower) {
         inner(gram, b, w, state, ws, None);
     }
-    let cap = 3 * k as u32 + 20;
+    let cap = ws.cap;
     let mut report = FrameReport::default();
     loop {
-        if report.iterations >= cap {
-            return report;
-        }
         gradient(gram, b, w, state, ws);
         let mut pick = None;
         let mut best = tol;
@@ -172,6 +180,10 @@ pub fn solve_frame(
             report.converged = true;
             return report;
         };
+        // Optimality first: a frame that is optimal after exactly `cap` steps converged.
+        if report.iterations >= cap {
+            return report;
+        }
         report.iterations += 1;
         let from = state[j];
         state[j] = Bound::Free;

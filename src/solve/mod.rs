@@ -78,6 +78,9 @@ pub struct SolveOptions {
     pub rcond: Option<f64>,
     /// Active-set only: start each frame from the previous frame's active set.
     pub warm_start: bool,
+    /// Active-set only: outer iterations a frame may take (default `3k + 20`); frames
+    /// stopped by it are counted in [`Solution::unconverged`].
+    pub max_iterations: Option<u32>,
 }
 
 impl SolveOptions {
@@ -87,6 +90,7 @@ impl SolveOptions {
             solver,
             rcond: None,
             warm_start: true,
+            max_iterations: None,
         }
     }
 }
@@ -141,7 +145,8 @@ pub fn solve_batch(s: &DMatrix<f64>, q: &DMatrix<f64>, opts: &SolveOptions) -> R
             } else {
                 1.0
             };
-            let (w, unconverged, iterations) = active_set_batch(s, q, upper, opts.warm_start);
+            let (w, unconverged, iterations) =
+                active_set_batch(s, q, upper, opts.warm_start, opts.max_iterations);
             sol.weights = w;
             sol.unconverged = unconverged;
             sol.iterations = iterations;
@@ -174,17 +179,20 @@ pub fn chunked_product(a: &DMatrix<f64>, q: &DMatrix<f64>) -> DMatrix<f64> {
 }
 
 /// Batch active-set solve; returns (weights, unconverged, iterations). `Sᵀq` is formed per
-/// chunk of frames as a blocked GEMM.
+/// chunk of frames as a blocked GEMM. `cap`: outer iterations per frame (`None`: `3k + 20`).
 pub fn active_set_batch(
     s: &DMatrix<f64>,
     q: &DMatrix<f64>,
     upper: f64,
     warm: bool,
+    cap: Option<u32>,
 ) -> (DMatrix<f64>, usize, u64) {
     let gram = Gram::new(s, upper);
     // Sᵀ once: `st * q` runs as a blocked GEMM, `s.tr_mul(q)` as column dot products.
     let st = s.transpose();
-    chunked_active_set(&gram, q.ncols(), warm, |start, m| &st * q.columns(start, m))
+    chunked_active_set(&gram, q.ncols(), warm, cap, |start, m| {
+        &st * q.columns(start, m)
+    })
 }
 
 /// Batch active-set solve from a precomputed Gram form: `gram` from `G = SᵀS` and
@@ -195,7 +203,7 @@ pub fn active_set_from_gram(
     b: &DMatrix<f64>,
     warm: bool,
 ) -> (DMatrix<f64>, usize, u64) {
-    chunked_active_set(gram, b.ncols(), warm, |start, m| {
+    chunked_active_set(gram, b.ncols(), warm, None, |start, m| {
         b.columns(start, m).clone_owned()
     })
 }
@@ -206,6 +214,7 @@ fn chunked_active_set<F>(
     gram: &Gram,
     frames: usize,
     warm: bool,
+    cap: Option<u32>,
     rhs: F,
 ) -> (DMatrix<f64>, usize, u64)
 where
@@ -221,6 +230,9 @@ where
             let m = dst.len() / k;
             let b = rhs(c * CHUNK, m);
             let mut ws = Workspace::new(k);
+            if let Some(c) = cap {
+                ws = ws.with_cap(c);
+            }
             let mut state = vec![Bound::Lower; k];
             let mut w = vec![0.0; k];
             let (mut bad, mut iters) = (0usize, 0u64);

@@ -794,6 +794,47 @@ fn batch_iteration_counts_are_the_per_frame_reports_summed() {
     }
 }
 
+/// The active-set iteration cap, forced: with S = I and q = (1, 2, 3) Lawson–Hanson frees
+/// the largest gradient first, one variable a step, so the frame needs exactly 3 steps;
+/// (5, 0, 0) needs 1 and (−1, −1, −1) none. Over 600 frames (three parallel chunks) a
+/// cap below 3 leaves every (1, 2, 3) frame unconverged, with the feasible partial answer
+/// of its first steps, and the batch counts them; a cap of exactly 3 converges.
+#[test]
+fn the_iteration_cap_stops_frames_feasibly_and_the_batch_counts_them() {
+    use keyshape_lab::solve::solve_batch;
+    let s = DMatrix::<f64>::identity(3, 3);
+    let kinds = [[1.0, 2.0, 3.0], [5.0, 0.0, 0.0], [-1.0, -1.0, -1.0]];
+    let q = DMatrix::from_fn(3, 600, |i, j| kinds[j % 3][i]);
+    let solve = |cap: Option<u32>, warm: bool| {
+        let mut o = SolveOptions::new(Solver::Nnls);
+        o.max_iterations = cap;
+        o.warm_start = warm;
+        solve_batch(&s, &q, &o).unwrap()
+    };
+    let partial = [[0.0, 0.0, 3.0], [0.0, 2.0, 3.0], [1.0, 2.0, 3.0]];
+    for (cap, unconverged, iterations, w0) in [
+        (Some(0), 400, 0, [0.0, 0.0, 0.0]),
+        (Some(1), 200, 400, partial[0]),
+        (Some(2), 200, 600, partial[1]),
+        (Some(3), 0, 800, partial[2]),
+        (None, 0, 800, partial[2]),
+    ] {
+        let sol = solve(cap, false);
+        assert_eq!(sol.unconverged, unconverged, "cap {cap:?}");
+        assert_eq!(sol.iterations, iterations, "cap {cap:?}");
+        for f in 0..600 {
+            let want = match f % 3 {
+                0 => w0,
+                1 if cap == Some(0) => [0.0; 3],
+                1 => [5.0, 0.0, 0.0],
+                _ => [0.0; 3],
+            };
+            let got: Vec<f64> = sol.weights.column(f).iter().copied().collect();
+            assert_eq!(got, want, "cap {cap:?} frame {f}");
+        }
+    }
+}
+
 /// `residuals` over more frames than one parallel chunk (600 > 256) equals each frame's
 /// ‖q − S w‖² computed column by column.
 #[test]
