@@ -777,3 +777,77 @@ fn eq5_refuses_no_keys_and_keys_out_of_range_on_both_paths() {
         }
     }
 }
+
+/// Greedy against brute force on 30 real frames (the built-in lips, every fifth frame):
+/// at each step every remaining frame is tried as the next key and Eq. (5) computed
+/// directly. Least squares and the constrained solvers with `shortlist = 0` must take the
+/// best of all; with a shortlist of 3 the constrained greedy must take the best of the 3
+/// frames whose one-variable gain — `Σ_t max_{a ∈ [0, u]} 2a⟨r_t, q_c⟩ − a²‖q_c‖²` with
+/// `r_t` the frame's residual under the keys so far, computed here from the coordinates —
+/// is largest.
+#[test]
+fn greedy_takes_the_brute_force_best_frame_at_each_step_and_ranks_its_shortlist_by_the_bound() {
+    use keyshape_lab::keyshapes::greedy_gram;
+    let full = builtin_lips();
+    let cols: Vec<usize> = (0..full.frames()).step_by(5).take(30).collect();
+    let an = Analysis::new(full.coords.select_columns(&cols), full.points).unwrap();
+    let q = &an.coords;
+    let n = an.frames();
+    for solver in Solver::ALL {
+        for shortlist in [0usize, 3] {
+            if solver == Solver::Ls && shortlist == 3 {
+                continue; // LS ranks by its exact gain: no shortlist.
+            }
+            let (keys, errs) = greedy_gram(&an, 5, solver, shortlist).unwrap();
+            for j in 0..5 {
+                let before = &keys[..j];
+                let trial = |c: usize| {
+                    let mut k = before.to_vec();
+                    k.push(c);
+                    an.error(&k, solver).unwrap()
+                };
+                let mut pool: Vec<usize> = (0..n).filter(|c| !before.contains(c)).collect();
+                if shortlist > 0 {
+                    let upper = if solver == Solver::Bounded {
+                        1.0
+                    } else {
+                        f64::INFINITY
+                    };
+                    // Residuals under the keys so far (the frames themselves before any).
+                    let r = if j == 0 {
+                        q.clone()
+                    } else {
+                        let (w, _) = an.weights_and_error(before, solver).unwrap();
+                        q - q.select_columns(before) * &w
+                    };
+                    let bound = |c: usize| {
+                        let qc = q.column(c);
+                        let qq = qc.norm_squared();
+                        (0..n)
+                            .map(|t| {
+                                let rc = qc.dot(&r.column(t));
+                                let a = (rc / qq).clamp(0.0, upper);
+                                2.0 * a * rc - a * a * qq
+                            })
+                            .sum::<f64>()
+                    };
+                    pool.sort_by(|&a, &b| bound(b).total_cmp(&bound(a)).then(a.cmp(&b)));
+                    pool.truncate(shortlist);
+                }
+                let best = pool.iter().map(|&c| trial(c)).fold(f64::INFINITY, f64::min);
+                let got = trial(keys[j]);
+                assert!(
+                    pool.contains(&keys[j]),
+                    "{solver} shortlist {shortlist} step {j}: {} not in {pool:?}",
+                    keys[j]
+                );
+                assert!(
+                    got <= best * (1.0 + 1e-9),
+                    "{solver} shortlist {shortlist} step {j}: took {} ({got}), best {best}",
+                    keys[j]
+                );
+                assert!((errs[j] - got).abs() <= 1e-9 * got, "{solver} step {j}");
+            }
+        }
+    }
+}
