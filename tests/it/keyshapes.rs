@@ -614,6 +614,22 @@ fn hull_of_an_exact_line_reports_the_end_near_frame_0_then_the_far_end() {
     assert_eq!(hull_of(&[line(2.0), line(-3.0)]).unwrap(), vec![0, 1]);
 }
 
+/// Lines parallel to an axis, away from the origin, with the far end on the negative side
+/// of frame 0: the ends are ordered by the direction from frame 0 to the far end (a sum
+/// where a difference belongs flips it, since both coordinates are positive; a vertical line
+/// has no x-extent, so a quotient by it is 0/0), and the far end comes second.
+#[test]
+fn hull_of_an_axis_parallel_line_orders_its_ends_by_the_direction_to_the_far_end() {
+    let at = [10.0, 9.5, 8.0, 10.5, 9.0];
+    let horizontal: Vec<(f64, f64)> = at.iter().map(|&x| (x, 4.0)).collect();
+    assert_eq!(hull_of(&horizontal).unwrap(), vec![3, 2]);
+    let vertical: Vec<(f64, f64)> = at.iter().map(|&y| (4.0, y)).collect();
+    assert_eq!(hull_of(&vertical).unwrap(), vec![3, 2]);
+    // On the axes themselves (no offset) and far end on the positive side.
+    let up: Vec<(f64, f64)> = at.iter().map(|&y| (0.0, 20.0 - y)).collect();
+    assert_eq!(hull_of(&up).unwrap(), vec![3, 2]);
+}
+
 #[test]
 fn hull_refuses_a_sequence_whose_frames_project_to_one_point() {
     for p in [(0.0, 0.0), (2.5, -1.0)] {
