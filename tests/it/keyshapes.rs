@@ -577,6 +577,28 @@ fn hull_merges_corners_closer_than_1e_9_of_the_extent_and_no_others() {
     }
 }
 
+/// Exactly at the tolerance the corners merge: a square of side 5·10⁹ (tolerance
+/// 1e-9 · 5e9 = 5.0 exactly in f64; large enough sides that both corners of the pair are
+/// strict) with a second corner (−3, −4) — 5.0 exactly — from corner 1.
+#[test]
+fn hull_merges_corners_exactly_at_the_tolerance() {
+    let side = 5e9;
+    let pts = [
+        (0.0, 0.0),
+        (side, 0.0),
+        (side, side - 4.0),
+        (0.0, side - 4.0),
+        (side - 3.0, -4.0),
+    ];
+    let got = sorted(hull_of(&pts).unwrap());
+    assert_eq!(got.len(), 4, "{got:?}");
+    assert!([0, 2, 3].iter().all(|i| got.contains(i)), "{got:?}");
+    // Twice as far (10 apart; the extent grows by 4, the tolerance to 5.000000004): both.
+    let mut far = pts;
+    far[4] = (side - 6.0, -8.0);
+    assert_eq!(sorted(hull_of(&far).unwrap()), vec![0, 1, 2, 3, 4]);
+}
+
 #[test]
 fn hull_of_a_thin_triangle_within_tolerance_of_a_line_is_the_lines_two_ends() {
     // The apex is 1e-13 of the extent off the base: within the collinearity tolerance, so
