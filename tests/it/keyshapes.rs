@@ -599,6 +599,52 @@ fn hull_merges_corners_exactly_at_the_tolerance() {
     assert_eq!(sorted(hull_of(&far).unwrap()), vec![0, 1, 2, 3, 4]);
 }
 
+/// A square turned 45° with a frame on the middle of each edge and one inside: the four
+/// corners only. Tilted edges matter: on an axis-aligned hull one of the cross product's
+/// two terms is always zero, so a sign slip between them goes unseen.
+#[test]
+fn hull_of_a_tilted_square_drops_the_frames_on_its_edges() {
+    let pts = [
+        (0.0, -10.0),
+        (10.0, 0.0),
+        (0.0, 10.0),
+        (-10.0, 0.0),
+        (5.0, -5.0),
+        (5.0, 5.0),
+        (-5.0, 5.0),
+        (-5.0, -5.0),
+        (0.0, 0.0),
+    ];
+    assert_eq!(sorted(hull_of(&pts).unwrap()), vec![0, 1, 2, 3]);
+}
+
+/// A turn exactly at the collinearity tolerance is not a corner: extent 10⁶ (tolerance
+/// 1e-12 · 1e6 · 1e6 = 1.0 exactly) and frame 1 turning the hull by a cross product of
+/// exactly 1 between its ring neighbours 0 and 2 (2 lies on the bottom edge).
+#[test]
+fn hull_drops_a_turn_exactly_at_the_collinearity_tolerance() {
+    let m = 1e6;
+    let pts = [
+        (0.0, 0.0),
+        (1.0, -1.0),
+        (2.0, -1.0),
+        (m, -1.0),
+        (m, m - 1.0),
+        (0.0, m - 1.0),
+    ];
+    assert_eq!(sorted(hull_of(&pts).unwrap()), vec![0, 3, 4, 5]);
+    // Twice the turn (frame 1 at (2, −2), the bottom edge at y = −2): a corner.
+    let pts = [
+        (0.0, 0.0),
+        (2.0, -2.0),
+        (4.0, -2.0),
+        (m, -2.0),
+        (m, m - 2.0),
+        (0.0, m - 2.0),
+    ];
+    assert_eq!(sorted(hull_of(&pts).unwrap()), vec![0, 1, 3, 4, 5]);
+}
+
 #[test]
 fn hull_of_a_thin_triangle_within_tolerance_of_a_line_is_the_lines_two_ends() {
     // The apex is 1e-13 of the extent off the base: within the collinearity tolerance, so
