@@ -935,3 +935,47 @@ fn greedy_takes_the_brute_force_best_frame_at_each_step_and_ranks_its_shortlist_
         }
     }
 }
+
+/// Five distinct frames spanning three dimensions (frames 3 and 4 are sums of the first
+/// three): least-squares greedy, on each path, takes three keys and then refuses a fourth by
+/// name rather than add a frame the keys already span. Under nnls and bounded weights a
+/// dependent frame is a real key (f0 = f3 − f1 needs a negative weight), so they go on to
+/// five keys, the error never rising — and for nnls falling at the fourth.
+#[test]
+fn greedy_least_squares_refuses_more_keys_than_the_frames_span() {
+    use keyshape_lab::keyshapes::{greedy_gram, greedy_ls_feature_space, greedy_subsampled};
+    let base = DMatrix::from_fn(8, 3, |i, j| ((i * 5 + j * 3) % 7) as f64 - 2.5 + j as f64);
+    let mut q = DMatrix::zeros(8, 5);
+    for j in 0..3 {
+        q.set_column(j, &base.column(j));
+    }
+    q.set_column(3, &(base.column(0) + base.column(1)));
+    q.set_column(4, &(base.column(1) + base.column(2) * 2.0));
+    let an = Analysis::new(q, 4).unwrap();
+    assert_eq!(an.distinct, 5);
+    let want = "greedy: only 3 linearly independent shapes, 4 asked for";
+    let check = |r: keyshape_lab::error::Result<(Vec<usize>, Vec<f64>)>, what: &str| {
+        let e = r.unwrap_err().to_string();
+        assert!(e.contains(want), "{what}: {e}");
+    };
+    let (keys, errs) = greedy_gram(&an, 3, Solver::Ls, 0).unwrap();
+    assert_eq!(keys.len(), 3);
+    assert!(errs[2] <= 1e-9 * errs[0], "{errs:?}");
+    check(greedy_gram(&an, 4, Solver::Ls, 0), "gram");
+    check(greedy_subsampled(&an, 4, Solver::Ls, 0, 5), "subsampled");
+    let (keys, errs) = greedy_ls_feature_space(&an, 3).unwrap();
+    assert_eq!(keys.len(), 3);
+    assert!(errs[2] <= 1e-9 * errs[0], "{errs:?}");
+    check(greedy_ls_feature_space(&an, 4), "feature space");
+    for solver in [Solver::Nnls, Solver::Bounded] {
+        let (keys, errs) = greedy_gram(&an, 5, solver, 0).unwrap();
+        assert_eq!(sorted(keys), vec![0, 1, 2, 3, 4], "{solver}");
+        assert!(
+            errs.windows(2).all(|w| w[1] <= w[0] * (1.0 + 1e-12)),
+            "{solver}: {errs:?}"
+        );
+        if solver == Solver::Nnls {
+            assert!(errs[3] < 0.5 * errs[2], "{errs:?}");
+        }
+    }
+}
