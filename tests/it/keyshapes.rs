@@ -979,3 +979,36 @@ fn greedy_least_squares_refuses_more_keys_than_the_frames_span() {
         }
     }
 }
+
+/// Identical frames tie exactly (the same bits in, the same gain and error out): greedy
+/// takes the earliest. The built-in lips' 30 frames with a copy of greedy's first choice
+/// appended, and a copy placed before it, under every solver.
+#[test]
+fn greedy_takes_the_earliest_of_identical_frames() {
+    use keyshape_lab::keyshapes::greedy_gram;
+    let full = builtin_lips();
+    let cols: Vec<usize> = (0..full.frames()).step_by(5).take(30).collect();
+    let q = full.coords.select_columns(&cols);
+    for solver in Solver::ALL {
+        let an = Analysis::new(q.clone(), full.points).unwrap();
+        let first = greedy_gram(&an, 1, solver, 0).unwrap().0[0];
+        // A copy after it: still `first`.
+        let mut after = q.clone().insert_column(30, 0.0);
+        after.set_column(30, &q.column(first));
+        let an = Analysis::new(after, full.points).unwrap();
+        assert_eq!(
+            greedy_gram(&an, 1, solver, 0).unwrap().0,
+            vec![first],
+            "{solver}"
+        );
+        // A copy in front of everything: the copy, frame 0.
+        let mut before = q.clone().insert_column(0, 0.0);
+        before.set_column(0, &q.column(first));
+        let an = Analysis::new(before, full.points).unwrap();
+        assert_eq!(
+            greedy_gram(&an, 1, solver, 0).unwrap().0,
+            vec![0],
+            "{solver}"
+        );
+    }
+}
