@@ -874,63 +874,71 @@ fn greedy_takes_the_brute_force_best_frame_at_each_step_and_ranks_its_shortlist_
     use keyshape_lab::keyshapes::greedy_gram;
     let full = builtin_lips();
     let cols: Vec<usize> = (0..full.frames()).step_by(5).take(30).collect();
-    let an = Analysis::new(full.coords.select_columns(&cols), full.points).unwrap();
-    let q = &an.coords;
-    let n = an.frames();
-    for solver in Solver::ALL {
-        for shortlist in [0usize, 3] {
-            if solver == Solver::Ls && shortlist == 3 {
-                continue; // LS ranks by its exact gain: no shortlist.
-            }
-            let (keys, errs) = greedy_gram(&an, 5, solver, shortlist).unwrap();
-            for j in 0..5 {
-                let before = &keys[..j];
-                let trial = |c: usize| {
-                    let mut k = before.to_vec();
-                    k.push(c);
-                    an.error(&k, solver).unwrap()
-                };
-                let mut pool: Vec<usize> = (0..n).filter(|c| !before.contains(c)).collect();
-                if shortlist > 0 {
-                    let upper = if solver == Solver::Bounded {
-                        1.0
-                    } else {
-                        f64::INFINITY
-                    };
-                    // Residuals under the keys so far (the frames themselves before any).
-                    let r = if j == 0 {
-                        q.clone()
-                    } else {
-                        let (w, _) = an.weights_and_error(before, solver).unwrap();
-                        q - q.select_columns(before) * &w
-                    };
-                    let bound = |c: usize| {
-                        let qc = q.column(c);
-                        let qq = qc.norm_squared();
-                        (0..n)
-                            .map(|t| {
-                                let rc = qc.dot(&r.column(t));
-                                let a = (rc / qq).clamp(0.0, upper);
-                                2.0 * a * rc - a * a * qq
-                            })
-                            .sum::<f64>()
-                    };
-                    pool.sort_by(|&a, &b| bound(b).total_cmp(&bound(a)).then(a.cmp(&b)));
-                    pool.truncate(shortlist);
+    // And the same frames scaled by 1–4, so weights above 1 matter: bounded's bound clips
+    // the one-variable gain where nnls's does not.
+    let mut scaled = full.coords.select_columns(&cols);
+    for (t, mut c) in scaled.column_iter_mut().enumerate() {
+        c *= 1.0 + (t % 4) as f64;
+    }
+    for q in [full.coords.select_columns(&cols), scaled] {
+        let an = Analysis::new(q, full.points).unwrap();
+        let q = &an.coords;
+        let n = an.frames();
+        for solver in Solver::ALL {
+            for shortlist in [0usize, 1, 3] {
+                if solver == Solver::Ls && shortlist > 0 {
+                    continue; // LS ranks by its exact gain: no shortlist.
                 }
-                let best = pool.iter().map(|&c| trial(c)).fold(f64::INFINITY, f64::min);
-                let got = trial(keys[j]);
-                assert!(
-                    pool.contains(&keys[j]),
-                    "{solver} shortlist {shortlist} step {j}: {} not in {pool:?}",
-                    keys[j]
-                );
-                assert!(
-                    got <= best * (1.0 + 1e-9),
-                    "{solver} shortlist {shortlist} step {j}: took {} ({got}), best {best}",
-                    keys[j]
-                );
-                assert!((errs[j] - got).abs() <= 1e-9 * got, "{solver} step {j}");
+                let (keys, errs) = greedy_gram(&an, 5, solver, shortlist).unwrap();
+                for j in 0..5 {
+                    let before = &keys[..j];
+                    let trial = |c: usize| {
+                        let mut k = before.to_vec();
+                        k.push(c);
+                        an.error(&k, solver).unwrap()
+                    };
+                    let mut pool: Vec<usize> = (0..n).filter(|c| !before.contains(c)).collect();
+                    if shortlist > 0 {
+                        let upper = if solver == Solver::Bounded {
+                            1.0
+                        } else {
+                            f64::INFINITY
+                        };
+                        // Residuals under the keys so far (the frames themselves before any).
+                        let r = if j == 0 {
+                            q.clone()
+                        } else {
+                            let (w, _) = an.weights_and_error(before, solver).unwrap();
+                            q - q.select_columns(before) * &w
+                        };
+                        let bound = |c: usize| {
+                            let qc = q.column(c);
+                            let qq = qc.norm_squared();
+                            (0..n)
+                                .map(|t| {
+                                    let rc = qc.dot(&r.column(t));
+                                    let a = (rc / qq).clamp(0.0, upper);
+                                    2.0 * a * rc - a * a * qq
+                                })
+                                .sum::<f64>()
+                        };
+                        pool.sort_by(|&a, &b| bound(b).total_cmp(&bound(a)).then(a.cmp(&b)));
+                        pool.truncate(shortlist);
+                    }
+                    let best = pool.iter().map(|&c| trial(c)).fold(f64::INFINITY, f64::min);
+                    let got = trial(keys[j]);
+                    assert!(
+                        pool.contains(&keys[j]),
+                        "{solver} shortlist {shortlist} step {j}: {} not in {pool:?}",
+                        keys[j]
+                    );
+                    assert!(
+                        got <= best * (1.0 + 1e-9),
+                        "{solver} shortlist {shortlist} step {j}: took {} ({got}), best {best}",
+                        keys[j]
+                    );
+                    assert!((errs[j] - got).abs() <= 1e-9 * got, "{solver} step {j}");
+                }
             }
         }
     }
@@ -1010,5 +1018,80 @@ fn greedy_takes_the_earliest_of_identical_frames() {
             vec![0],
             "{solver}"
         );
+    }
+}
+
+/// Once the keys reconstruct every frame, each further key ties at zero error; the
+/// constrained greedy must still add a frame it has not taken. Frames (10, 0), (30, 0),
+/// (0, 10), (10, 0.1) (two points, second at the origin): nnls takes (10, 0) and (0, 10),
+/// bounded (weights ≤ 1) (30, 0) and (0, 10); either pair spans every frame within its
+/// bounds, and then it must add one of the other two.
+#[test]
+fn constrained_greedy_never_takes_a_key_twice_when_every_step_ties() {
+    use keyshape_lab::keyshapes::greedy_gram;
+    let f = [(10.0, 0.0), (30.0, 0.0), (0.0, 10.0), (10.0, 0.1)];
+    let q = DMatrix::from_fn(4, 4, |i, t| match i {
+        0 => f[t].0,
+        1 => f[t].1,
+        _ => 0.0,
+    });
+    let an = Analysis::new(q, 2).unwrap();
+    for solver in [Solver::Nnls, Solver::Bounded] {
+        for shortlist in [0, 2, 8] {
+            for kmax in [3, 4] {
+                let (keys, errs) = greedy_gram(&an, kmax, solver, shortlist).unwrap();
+                let first = if solver == Solver::Nnls { 0 } else { 1 };
+                let at = format!("{solver} {shortlist}: {keys:?} {errs:?}");
+                assert_eq!(&keys[..2], &[first, 2], "{at}");
+                assert_eq!(errs[1], 0.0, "{at}");
+                let mut d = keys.clone();
+                d.sort_unstable();
+                d.dedup();
+                assert_eq!(d.len(), kmax, "{solver} {shortlist}: {keys:?} {errs:?}");
+            }
+        }
+    }
+}
+
+/// A frame 10⁻⁷ the size of the others (`‖q‖² ≤ 1e-12 · max ‖q‖²`) counts as zero: every
+/// solver's greedy takes the two real frames and refuses a third.
+#[test]
+fn greedy_treats_a_numerically_zero_frame_as_no_shape() {
+    use keyshape_lab::keyshapes::greedy_gram;
+    let q = DMatrix::from_row_slice(3, 3, &[10.0, 0.0, 0.0, 0.0, 10.0, 0.0, 0.0, 0.0, 1e-6]);
+    let an = Analysis::new(q, 1).unwrap();
+    assert_eq!(an.distinct, 3);
+    for solver in Solver::ALL {
+        let (keys, _) = greedy_gram(&an, 2, solver, 0).unwrap();
+        assert_eq!(sorted(keys), vec![0, 1], "{solver}");
+        let e = greedy_gram(&an, 3, solver, 0).unwrap_err().to_string();
+        assert!(
+            e.contains("greedy: only 2 linearly independent shapes, 3 asked for"),
+            "{solver}: {e}"
+        );
+    }
+}
+
+/// The shortlist's one-variable bound clips the weight to the solver's bound. Frames
+/// (1, 0), (10, 0.5), (10, −0.5): with a shortlist of one, nnls (no upper bound) ranks the
+/// small frame on the frames' mean direction first, and it is the best nnls key; bounded
+/// (weights ≤ 1) cannot scale it up to the large frames and ranks a large frame first —
+/// again the best key under its bound.
+#[test]
+fn the_shortlist_bound_clips_to_each_solvers_bound() {
+    use keyshape_lab::keyshapes::greedy_gram;
+    let f = [(1.0, 0.0), (10.0, 0.5), (10.0, -0.5)];
+    let q = DMatrix::from_fn(3, 3, |i, t| match i {
+        0 => f[t].0,
+        1 => f[t].1,
+        _ => 0.0,
+    });
+    let an = Analysis::new(q, 1).unwrap();
+    for (solver, want) in [(Solver::Nnls, 0), (Solver::Bounded, 1)] {
+        let (keys, _) = greedy_gram(&an, 1, solver, 1).unwrap();
+        assert_eq!(keys, vec![want], "{solver}");
+        // The brute-force best single key agrees.
+        let e: Vec<f64> = (0..3).map(|c| an.error(&[c], solver).unwrap()).collect();
+        assert!(e.iter().all(|&x| e[want] <= x), "{solver}: {e:?}");
     }
 }
