@@ -1070,6 +1070,47 @@ fn greedy_treats_a_numerically_zero_frame_as_no_shape() {
             "{solver}: {e}"
         );
     }
+    // The feature-space path (long tracks' least squares) draws the same line.
+    use keyshape_lab::keyshapes::greedy_ls_feature_space;
+    let (keys, _) = greedy_ls_feature_space(&an, 2).unwrap();
+    assert_eq!(sorted(keys), vec![0, 1]);
+    let e = greedy_ls_feature_space(&an, 3).unwrap_err().to_string();
+    assert!(
+        e.contains("only 2 linearly independent shapes, 3 asked for"),
+        "{e}"
+    );
+}
+
+/// Past the Gram limit `greedy_path` takes least squares to the feature-space greedy and
+/// nnls/bounded to the subsample (at the limit's size); up to it, the Gram-matrix greedy.
+#[test]
+fn greedy_path_dispatches_on_the_gram_limit_and_the_solver() {
+    use keyshape_lab::keyshapes::{
+        greedy_gram, greedy_ls_feature_space, greedy_subsampled, GRAM_LIMIT,
+    };
+    let q = |n: usize| {
+        DMatrix::from_fn(6, n, |i, t| {
+            let a = (t as f64 * 0.01).sin();
+            let b = (t as f64 * 0.037).cos();
+            [1.0, a, 1.0 + b, 0.5 * a * b, 2.0 - a, b][i] + 0.1 * i as f64
+        })
+    };
+    let long = Analysis::new(q(GRAM_LIMIT + 1), 3).unwrap();
+    let short = Analysis::new(q(300), 3).unwrap();
+    for solver in Solver::ALL {
+        let got = greedy_path(&long, 4, solver, 8).unwrap();
+        let want = if solver == Solver::Ls {
+            greedy_ls_feature_space(&long, 4).unwrap()
+        } else {
+            greedy_subsampled(&long, 4, solver, 8, GRAM_LIMIT).unwrap()
+        };
+        assert_eq!(got, want, "{solver}");
+        assert_eq!(
+            greedy_path(&short, 4, solver, 8).unwrap(),
+            greedy_gram(&short, 4, solver, 8).unwrap(),
+            "{solver}"
+        );
+    }
 }
 
 /// The shortlist's one-variable bound clips the weight to the solver's bound. Frames
