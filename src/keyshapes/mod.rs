@@ -264,6 +264,11 @@ pub struct Analysis {
     pub distinct: usize,
     /// `‖q_t‖²` per frame.
     pub sq_norms: Vec<f64>,
+    /// Outer-iteration cap per frame of the nnls/bounded solves behind every error and
+    /// weight this analysis computes (`None`: the solver's default `3k + 20`, which no
+    /// problem met so far reaches). A frame stopped by it makes the error an error, never a
+    /// wrong point on a curve.
+    pub max_iterations: Option<u32>,
     gram: OnceLock<DMatrix<f64>>,
 }
 
@@ -297,6 +302,7 @@ impl Analysis {
             pca,
             proj,
             sq_norms,
+            max_iterations: None,
             gram: OnceLock::new(),
         })
     }
@@ -407,7 +413,8 @@ impl Analysis {
             let w = match (&pinv, &gram) {
                 (Some(p), _) => p * &bb,
                 (None, Some(gr)) => {
-                    let (w, unconverged, _) = active_set_from_gram(gr, &bb, true);
+                    let (w, unconverged, _) =
+                        active_set_from_gram(gr, &bb, true, self.max_iterations);
                     bad += unconverged;
                     w
                 }
@@ -493,8 +500,12 @@ impl Analysis {
                 } else {
                     1.0
                 };
-                let (w, unconverged, _) =
-                    active_set_from_gram(&Gram::from_matrix(g, upper), b, true);
+                let (w, unconverged, _) = active_set_from_gram(
+                    &Gram::from_matrix(g, upper),
+                    b,
+                    true,
+                    self.max_iterations,
+                );
                 // An unconverged frame would put a wrong point on an error curve.
                 if unconverged > 0 {
                     return Err(Error::invalid(format!(

@@ -197,13 +197,16 @@ pub fn active_set_batch(
 
 /// Batch active-set solve from a precomputed Gram form: `gram` from `G = SᵀS` and
 /// `b = Sᵀq` (k × frames) — for callers that already hold inner products, such as key-shape
-/// searches working from the frames' Gram matrix `QᵀQ`.
+/// searches working from the frames' Gram matrix `QᵀQ`. `cap` is the outer-iteration cap
+/// per frame (`None`: the default `3k + 20`); returns the weights, the frames it stopped
+/// and the total iterations.
 pub fn active_set_from_gram(
     gram: &Gram,
     b: &DMatrix<f64>,
     warm: bool,
+    cap: Option<u32>,
 ) -> (DMatrix<f64>, usize, u64) {
-    chunked_active_set(gram, b.ncols(), warm, None, |start, m| {
+    chunked_active_set(gram, b.ncols(), warm, cap, |start, m| {
         b.columns(start, m).clone_owned()
     })
 }

@@ -216,7 +216,14 @@ fn kmeans_mean_keys_are_the_clusters_mean_shapes() {
         assert_eq!(Method::parse(&m.name()).unwrap(), m);
         assert_eq!(m.name(), format!("kmeans{pcs}-mean"));
     }
-    for bad in ["spread-mean", "hull-mean", "kmeans0-mean", "kmeans-means"] {
+    for bad in [
+        "spread-mean",
+        "hull-mean",
+        "greedy-mean",
+        "random-mean",
+        "kmeans0-mean",
+        "kmeans-means",
+    ] {
         assert!(Method::parse(bad).is_err(), "{bad}");
     }
     assert_eq!(
@@ -468,6 +475,89 @@ fn long_sequences_evaluate_errors_without_the_frames_gram_matrix() {
             (e - direct).abs() < 1e-8 * direct.max(1.0),
             "{solver}: {e} vs {direct}"
         );
+    }
+}
+
+/// The frames' Gram matrix is formed up to the limit inclusive (run 16: `>` → `>=` in
+/// `frame_gram` refused it at exactly `GRAM_LIMIT` frames, where `error` still asks for it).
+#[test]
+fn the_frames_gram_matrix_is_formed_at_exactly_the_limit() {
+    use keyshape_lab::keyshapes::GRAM_LIMIT;
+    let coords = DMatrix::from_fn(4, GRAM_LIMIT, |i, t| ((t * (i + 2)) % 13) as f64 + i as f64);
+    let an = Analysis::new(coords.clone(), 2).unwrap();
+    let g = an.frame_gram().unwrap();
+    assert_eq!(g.shape(), (GRAM_LIMIT, GRAM_LIMIT));
+    assert_eq!(g[(7, 11)], coords.column(7).dot(&coords.column(11)));
+    let e = an.error(&[0, 1, 2], Solver::Nnls).unwrap();
+    assert!(e.is_finite() && e > 0.0);
+}
+
+/// Frames an nnls/bounded solve stops at its iteration cap make the Eq. 5 error an error
+/// naming how many, on every path: key frames from the frames' Gram matrix, key frames past
+/// the Gram limit (block by block), and cluster mean shapes on both sides of the limit.
+/// Every frame here is a positive vector and every key shape too, so from w = 0 each frame
+/// needs at least one step: a cap of 0 stops them all; least squares has no cap; the
+/// default cap converges (run 16: the counts `bad += n` → `*=`/`-=`, `bad > 0` → `<` and
+/// `unconverged > 0` → `<` all survived, since no test could reach the cap).
+#[test]
+fn an_iteration_cap_makes_the_error_an_error_that_counts_the_stopped_frames() {
+    use keyshape_lab::keyshapes::{Selection, GRAM_LIMIT};
+    for frames in [40, GRAM_LIMIT + 5] {
+        let coords = DMatrix::from_fn(6, frames, |i, t| {
+            1.0 + ((t * (i + 3)) % 17) as f64 * 0.1 + i as f64
+        });
+        let mut an = Analysis::new(coords.clone(), 3).unwrap();
+        let keys = [0usize, 5, 11];
+        let means = Selection {
+            columns: keys.to_vec(),
+            centres: None,
+            shapes: Some(coords.select_columns(&[1, 2])),
+            sizes: Some(vec![frames / 2, frames - frames / 2]),
+        };
+        let free = an.error(&keys, Solver::Nnls).unwrap();
+        an.max_iterations = Some(0);
+        for solver in [Solver::Nnls, Solver::Bounded] {
+            let msg = an.error(&keys, solver).unwrap_err().to_string();
+            let want = format!("{solver} did not converge on {frames} frames (iteration cap) for key columns [0, 5, 11]");
+            assert!(msg.contains(&want), "{frames} frames: {msg}");
+            let msg = an.selection_error(&means, solver).unwrap_err().to_string();
+            let want = format!("{solver} did not converge on {frames} frames (iteration cap) for the cluster mean shapes");
+            assert!(msg.contains(&want), "{frames} frames: {msg}");
+            if frames <= GRAM_LIMIT {
+                assert!(an.weights_and_error(&keys, solver).is_err());
+            }
+        }
+        assert!(an.error(&keys, Solver::Ls).is_ok());
+        an.max_iterations = Some(20);
+        assert_eq!(an.error(&keys, Solver::Nnls).unwrap(), free);
+    }
+}
+
+/// Cluster mean shapes with the wrong number of values are refused on both sides of the
+/// Gram limit, never multiplied (run 16: the guard of the block-wise path, widened by
+/// `&&` → `||`, `==` → `!=` or `true`, sent them into a dimension mismatch).
+#[test]
+fn mean_shapes_of_the_wrong_size_are_refused_on_every_path() {
+    use keyshape_lab::keyshapes::{Selection, GRAM_LIMIT};
+    for frames in [40, GRAM_LIMIT + 5] {
+        let coords = DMatrix::from_fn(6, frames, |i, t| {
+            ((t * (i + 3)) % 17) as f64 * 0.1 + i as f64
+        });
+        let an = Analysis::new(coords, 3).unwrap();
+        let sel = Selection {
+            columns: vec![0, 1],
+            centres: None,
+            shapes: Some(DMatrix::from_element(4, 2, 1.0)),
+            sizes: Some(vec![1, frames - 1]),
+        };
+        for solver in Solver::ALL {
+            let msg = an.selection_error(&sel, solver).unwrap_err().to_string();
+            assert!(
+                msg.contains("key shapes have 4 values, the frames 6"),
+                "{msg}"
+            );
+            assert!(an.selection_weights_and_error(&sel, solver).is_err());
+        }
     }
 }
 
