@@ -148,6 +148,27 @@ fn ls_on_duplicate_key_shapes_gives_finite_split_weights() {
     assert!((sol.weights[(1, 0)] - 1.0).abs() < 1e-10);
 }
 
+/// With a key shape repeated, nnls and bounded put its weight on the earlier copy: of equal
+/// gradients the first is freed, and the copy's gradient is then zero (run 16: the pick's
+/// `v > best` → `>=` freed the later copy instead: the same fit, other weights).
+#[test]
+fn a_repeated_key_shape_takes_its_weight_on_the_earlier_copy() {
+    let base = DVector::from_vec(vec![1.0, 2.0, 3.0, 4.0, 5.0, 7.0]);
+    let other = DVector::from_vec(vec![0.0, 1.0, 0.0, 1.0, 0.0, 1.0]);
+    let s = DMatrix::from_columns(&[base.clone(), other.clone(), base.clone()]);
+    let q = DMatrix::from_columns(&[&base * 0.5 + &other * 0.3]);
+    for solver in [Solver::Nnls, Solver::Bounded] {
+        for warm in [false, true] {
+            let mut opts = SolveOptions::new(solver);
+            opts.warm_start = warm;
+            let w = solve_batch(&s, &q, &opts).unwrap().weights;
+            assert!((w[(0, 0)] - 0.5).abs() < 1e-12, "{solver}: {w}");
+            assert!((w[(1, 0)] - 0.3).abs() < 1e-12, "{solver}: {w}");
+            assert_eq!(w[(2, 0)], 0.0, "{solver}: {w}");
+        }
+    }
+}
+
 #[test]
 fn near_duplicate_key_shapes_keep_nnls_weights_bounded() {
     let base = DVector::from_fn(20, |i, _| (i as f64 * 0.7).sin() + 3.0);
