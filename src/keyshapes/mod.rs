@@ -264,10 +264,11 @@ pub struct Analysis {
     pub distinct: usize,
     /// `‖q_t‖²` per frame.
     pub sq_norms: Vec<f64>,
-    /// Outer-iteration cap per frame of the nnls/bounded solves behind every error and
-    /// weight this analysis computes (`None`: the solver's default `3k + 20`, which no
-    /// problem met so far reaches). A frame stopped by it makes the error an error, never a
-    /// wrong point on a curve.
+    /// Outer-iteration cap per frame of the nnls/bounded solves behind `error`,
+    /// `weights_and_error`, the `selection_*` methods and what is built on them (the error
+    /// curves, greedy selection); `None`: the solver's default `3k + 20`, which no problem
+    /// met so far reaches. A frame stopped by it makes the error an error, never a wrong
+    /// point on a curve.
     pub max_iterations: Option<u32>,
     gram: OnceLock<DMatrix<f64>>,
 }
