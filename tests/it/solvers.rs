@@ -546,3 +546,85 @@ fn the_gram_pseudo_inverse_takes_rcond_squared_and_maps_zero_to_zero() {
         DMatrix::zeros(3, 3)
     );
 }
+
+/// The active-set solver's box is `0 ≤ w ≤ u` for any `u` the caller gives `Gram` (the
+/// binary uses 1 and ∞ only). With `u` = 2.5 and 0.4 the weights at the upper bound enter
+/// the free variables' right-hand side as `G_FU · u` (run 17: `· u` → `/ u` survived every
+/// test, because at `u = 1` the two are the same); each frame must reach the brute-force
+/// optimum and the KKT conditions, with some weight at `u`.
+#[test]
+fn the_active_set_solves_a_box_other_than_the_unit_box() {
+    use keyshape_lab::solve::active_set::{solve_frame, Bound, Gram, Workspace};
+    let s = DMatrix::from_fn(7, 4, |r, c| {
+        ((r * 5 + c * 3) as f64 * 0.9).sin() + 0.2 * c as f64
+    });
+    for upper in [2.5, 0.4] {
+        let gram = Gram::new(&s, upper);
+        let mut at_upper = 0;
+        for (f, target) in [
+            [3.0, -1.0, 1.0, 0.5],
+            [1.5, 2.0, -0.5, 4.0],
+            [-2.0, 5.0, 0.3, 0.2],
+            [0.1, 0.2, 0.3, 9.0],
+        ]
+        .iter()
+        .enumerate()
+        {
+            let wt = DVector::from_iterator(4, target.iter().map(|v| v * upper));
+            let q = &s * wt + DVector::from_fn(7, |r, _| 0.05 * (r as f64 - 3.0));
+            let b = s.tr_mul(&q);
+            let (mut ws, mut state, mut w) =
+                (Workspace::new(4), vec![Bound::Lower; 4], vec![0.0; 4]);
+            let rep = solve_frame(&gram, b.as_slice(), &mut w, &mut state, &mut ws);
+            assert!(rep.converged, "u = {upper}, frame {f}");
+            let w = DVector::from_vec(w);
+            at_upper += w.iter().filter(|&&v| v == upper).count();
+            let best = brute_force(&s, &q, upper);
+            let ours = objective(&s, &q, &w);
+            assert!(
+                (ours - best).abs() <= 1e-10 * best.max(1.0),
+                "u = {upper}, frame {f}: objective {ours} vs brute force {best}, w = {w}"
+            );
+            assert!(kkt_violation(&s, &q, &w, upper) < 1e-12, "u = {upper}: {w}");
+        }
+        assert!(
+            at_upper >= 3,
+            "u = {upper}: only {at_upper} weights at the bound"
+        );
+    }
+}
+
+/// A free set whose Gram block is singular (a key shape repeated, both copies free from the
+/// caller's warm start) goes to the ridge fallback of the sub-solve: `G_FF + 1e-12·max(diag)`
+/// solved densely, which fits exactly and splits the repeated shape's weight between its
+/// copies (about equally: the minimum-norm optimum, up to rounding). Three free variables, so the dense system is 3 × 3 (run 17:
+/// every mutant of the fallback's assembly survived, because no test reached it).
+#[test]
+fn a_singular_free_set_is_solved_through_the_ridge() {
+    use keyshape_lab::solve::active_set::{solve_frame, Bound, Gram, Workspace};
+    let a = DVector::from_vec(vec![1.0, 2.0, 3.0, 4.0, 5.0, 7.0, 2.5]);
+    let c = DVector::from_vec(vec![0.5, -1.0, 0.0, 2.0, 1.0, -0.5, 3.0]);
+    let s = DMatrix::from_columns(&[a.clone(), a.clone(), c.clone()]);
+    let q = &a * 2.0 + &c * 3.0;
+    let b = s.tr_mul(&q);
+    for upper in [f64::INFINITY, 10.0] {
+        let gram = Gram::new(&s, upper);
+        let mut ws = Workspace::new(3);
+        let mut state = vec![Bound::Free; 3];
+        let mut w = vec![0.1, 0.2, 0.3];
+        let rep = solve_frame(&gram, b.as_slice(), &mut w, &mut state, &mut ws);
+        assert!(rep.converged, "u = {upper}");
+        assert_eq!(state, vec![Bound::Free; 3], "u = {upper}: {w:?}");
+        // The fit is exact and the copies share the weight 2; how it splits is left to
+        // rounding in the null direction (the ridge's condition number is about 1e12, so
+        // about 1e-4), but neither copy takes it all.
+        assert!((w[0] + w[1] - 2.0).abs() < 1e-9, "u = {upper}: w = {w:?}");
+        assert!((w[2] - 3.0).abs() < 1e-9, "u = {upper}: w = {w:?}");
+        assert!((w[0] - 1.0).abs() < 1e-3, "u = {upper}: w = {w:?}");
+        let fit = objective(&s, &q, &DVector::from_vec(w.clone()));
+        assert!(
+            fit < 1e-16 * q.norm_squared(),
+            "u = {upper}: residual² {fit}"
+        );
+    }
+}
