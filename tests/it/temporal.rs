@@ -787,3 +787,75 @@ fn a_windowed_factor_holds_one_window_and_its_checkpoints() {
         );
     }
 }
+
+/// `kkt_residual` is the worst violation of the KKT conditions of `½wᵀHw − bᵀw` over the
+/// box, `H = I ⊗ G + λ·DᵀD ⊗ I` built densely here, relative to `max|b| + max(H_ii) ·
+/// max|w|` with `max(H_ii)` bounded by `max G_ii + 4λ` (order 1) or `+ 16λ` (order 2). Run
+/// 17: returning 0 survived every test, because each solve it checks converges anyway and
+/// the tests compute their own KKT conditions; a point off the optimum must be reported.
+#[test]
+fn the_kkt_residual_is_the_worst_violation_of_a_point_off_the_optimum() {
+    use keyshape_lab::solve::temporal::kkt_residual;
+    let g = DMatrix::from_row_slice(2, 2, &[2.0, 0.5, 0.5, 1.0]);
+    let (k, t, lambda) = (2, 4, 0.75);
+    let b = [1.0, -2.0, 0.5, 3.0, -1.5, 0.25, 2.0, 1.0];
+    for order in [1, 2] {
+        // Dense D (rows: differences of `order` consecutive frames) and H.
+        let coef: &[f64] = if order == 1 {
+            &[-1.0, 1.0]
+        } else {
+            &[1.0, -2.0, 1.0]
+        };
+        let mut d = DMatrix::zeros(t - order, t);
+        for r in 0..t - order {
+            for (a, c) in coef.iter().enumerate() {
+                d[(r, r + a)] = *c;
+            }
+        }
+        let h = DMatrix::identity(t, t).kronecker(&g)
+            + (d.transpose() * &d * lambda).kronecker(&DMatrix::<f64>::identity(k, k));
+        let hmax = 2.0 + lambda * if order == 1 { 4.0 } else { 16.0 };
+        for (solver, w) in [
+            (Solver::Ls, [0.3, -0.2, 0.1, 0.9, 0.0, 0.4, -0.6, 0.2]),
+            // At 0 with the gradient pointing in (no violation) or out; inside; one
+            // negative (infeasible: its distance to the box times max H_ii).
+            (Solver::Nnls, [0.0, 0.0, 0.5, 1.5, 0.0, 0.2, 0.7, -0.05]),
+            // At the upper bound 1 with the gradient pushing up (fine) or down.
+            (Solver::Bounded, [1.0, 0.0, 1.0, 0.5, 0.0, 1.0, 0.3, 1.0]),
+        ] {
+            let wv = DVector::from_row_slice(&w);
+            let grad = &h * &wv - DVector::from_row_slice(&b);
+            let upper = if solver == Solver::Bounded {
+                1.0
+            } else {
+                f64::INFINITY
+            };
+            let mut worst = 0.0f64;
+            for i in 0..w.len() {
+                let v = if solver == Solver::Ls {
+                    grad[i].abs()
+                } else if w[i] < 0.0 {
+                    -w[i] * hmax
+                } else if w[i] == 0.0 {
+                    (-grad[i]).max(0.0)
+                } else if w[i] == upper {
+                    grad[i].max(0.0)
+                } else {
+                    grad[i].abs()
+                };
+                worst = worst.max(v);
+            }
+            let wmax = w.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            let want = worst / (3.0 + hmax * wmax);
+            let got = kkt_residual(&g, lambda, order, &b, &w, solver);
+            assert!(
+                want > 1e-3,
+                "order {order}, {solver}: the point must be off the optimum"
+            );
+            assert!(
+                (got - want).abs() <= 1e-14 * want,
+                "order {order}, {solver}: kkt_residual {got}, by hand {want}"
+            );
+        }
+    }
+}
