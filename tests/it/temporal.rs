@@ -856,6 +856,16 @@ fn the_kkt_residual_is_the_worst_violation_of_a_point_off_the_optimum() {
                 (got - want).abs() <= 1e-14 * want,
                 "order {order}, {solver}: kkt_residual {got}, by hand {want}"
             );
+            // Nothing to violate at b = 0, w = 0 (a zero scale is taken as 1, not 0/0).
+            let zero = kkt_residual(&g, lambda, order, &[0.0; 8], &[0.0; 8], solver);
+            assert_eq!(zero, 0.0, "order {order}, {solver}");
         }
     }
+    // A weight within 1e-12 · max(1, max|w|) of 0 counts as at 0: one variable, two frames,
+    // H = [[2, −1], [−1, 2]], w = (2, 1e-12), b = (4, −3): the gradient (−1e-12, 1) pushes
+    // the second weight onto its bound, which is no violation (measured from its distance
+    // 1e-12 as interior, it would be 1 / 14).
+    let one = DMatrix::from_element(1, 1, 1.0);
+    let near = kkt_residual(&one, 1.0, 1, &[4.0, -3.0], &[2.0, 1e-12], Solver::Nnls);
+    assert!(near < 1e-12, "kkt_residual {near}");
 }
