@@ -868,4 +868,12 @@ fn the_kkt_residual_is_the_worst_violation_of_a_point_off_the_optimum() {
     let one = DMatrix::from_element(1, 1, 1.0);
     let near = kkt_residual(&one, 1.0, 1, &[4.0, -3.0], &[2.0, 1e-12], Solver::Nnls);
     assert!(near < 1e-12, "kkt_residual {near}");
+    // Outside the box the violation is the distance to it times max H_ii (= 1 + 4λ = 5),
+    // whatever the gradient: w = (2, −0.5) has gradient (0.5, 0), so 0.5 · 5 / (4 + 5 · 2);
+    // bounded, w = (1.25, 0.5) with b = (4, −0.25) has gradient (−2, 0), so
+    // 0.25 · 5 / (4 + 5 · 1.25).
+    let out = kkt_residual(&one, 1.0, 1, &[4.0, -3.0], &[2.0, -0.5], Solver::Nnls);
+    assert!((out - 2.5 / 14.0).abs() < 1e-15, "kkt_residual {out}");
+    let over = kkt_residual(&one, 1.0, 1, &[4.0, -0.25], &[1.25, 0.5], Solver::Bounded);
+    assert!((over - 1.25 / 10.25).abs() < 1e-15, "kkt_residual {over}");
 }
