@@ -1402,6 +1402,31 @@ fn kkt_from(
     worst / scale
 }
 
+/// Segments must partition the frames in order: the first starts at 0, each next one where
+/// the one before ends, none empty, the last ends at `frames` (an overlap would solve a
+/// frame twice and leave another at zero).
+fn check_segments(segments: &[Range<usize>], frames: usize) -> Result<()> {
+    let mut end = 0;
+    for r in segments {
+        if r.start != end {
+            return Err(Error::invalid(format!(
+                "segments must cover the {frames} frames in order, one after another: \
+                 {r:?} follows frame {end}"
+            )));
+        }
+        if r.end <= r.start {
+            return Err(Error::invalid(format!("segment {r:?} holds no frames")));
+        }
+        end = r.end;
+    }
+    if end != frames {
+        return Err(Error::invalid(format!(
+            "segments cover {end} of {frames} frames"
+        )));
+    }
+    Ok(())
+}
+
 /// Solves with the temporal prior. `segments` split the frames (columns of `q`); λ = 0 is
 /// the plain per-frame solve exactly.
 pub fn solve_smooth(
@@ -1412,13 +1437,7 @@ pub fn solve_smooth(
     segments: &[Range<usize>],
 ) -> Result<Smoothed> {
     smoothing.check()?;
-    let frames = q.ncols();
-    let covered: usize = segments.iter().map(|r| r.len()).sum();
-    if covered != frames || segments.iter().any(|r| r.end > frames) {
-        return Err(Error::invalid(format!(
-            "segments cover {covered} of {frames} frames"
-        )));
-    }
+    check_segments(segments, q.ncols())?;
     let plain = solve_batch(s, q, &SolveOptions::new(solver))?;
     smooth_from(s, q, &plain, solver, smoothing, segments)
 }
@@ -1434,13 +1453,7 @@ pub fn smooth_from(
     segments: &[Range<usize>],
 ) -> Result<Smoothed> {
     smoothing.check()?;
-    let frames = q.ncols();
-    let covered: usize = segments.iter().map(|r| r.len()).sum();
-    if covered != frames || segments.iter().any(|r| r.end > frames) {
-        return Err(Error::invalid(format!(
-            "segments cover {covered} of {frames} frames"
-        )));
-    }
+    check_segments(segments, q.ncols())?;
     if smoothing.lambda == 0.0 {
         return Ok(Smoothed {
             weights: plain.weights.clone(),
