@@ -628,3 +628,34 @@ fn a_singular_free_set_is_solved_through_the_ridge() {
         );
     }
 }
+
+/// The ridge goes on every diagonal of the free block, including the last ones: here the
+/// repeated shape is the third and fourth of four free variables, so the block's null
+/// direction is (0, 0, 1, −1) and only a ridge on diagonals 2 and 3 makes it definite.
+/// Without it every ridge's Cholesky fails, the sub-solve returns zero, and Lawson–Hanson
+/// restarts from w = 0, where it frees one copy and leaves the other at its bound (run 17's
+/// `392:24`, the ridge's index `r·p + r` → `r·p − r`, which lands on diagonal 0 only
+/// when p = 4).
+#[test]
+fn the_ridge_reaches_the_last_diagonals_of_a_singular_free_set() {
+    use keyshape_lab::solve::active_set::{solve_frame, Bound, Gram, Workspace};
+    let a = DVector::from_vec(vec![1.0, 2.0, 3.0, 4.0, 5.0, 7.0, 2.5, -1.0]);
+    let c = DVector::from_vec(vec![0.5, -1.0, 0.0, 2.0, 1.0, -0.5, 3.0, 0.0]);
+    let d = DVector::from_vec(vec![0.0, 1.0, -2.0, 0.5, 0.0, 1.5, 1.0, 2.0]);
+    let s = DMatrix::from_columns(&[c.clone(), d.clone(), a.clone(), a.clone()]);
+    let q = &c * 1.5 + &d * 0.5 + &a * 2.0;
+    let b = s.tr_mul(&q);
+    for upper in [f64::INFINITY, 10.0] {
+        let gram = Gram::new(&s, upper);
+        let mut ws = Workspace::new(4);
+        let mut state = vec![Bound::Free; 4];
+        let mut w = vec![0.1, 0.2, 0.3, 0.4];
+        let rep = solve_frame(&gram, b.as_slice(), &mut w, &mut state, &mut ws);
+        assert!(rep.converged, "u = {upper}");
+        assert_eq!(state, vec![Bound::Free; 4], "u = {upper}: {w:?}");
+        assert!((w[0] - 1.5).abs() < 1e-9, "u = {upper}: w = {w:?}");
+        assert!((w[1] - 0.5).abs() < 1e-9, "u = {upper}: w = {w:?}");
+        assert!((w[2] + w[3] - 2.0).abs() < 1e-9, "u = {upper}: w = {w:?}");
+        assert!((w[2] - 1.0).abs() < 1e-3, "u = {upper}: w = {w:?}");
+    }
+}

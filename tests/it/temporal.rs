@@ -877,3 +877,130 @@ fn the_kkt_residual_is_the_worst_violation_of_a_point_off_the_optimum() {
     let over = kkt_residual(&one, 1.0, 1, &[4.0, -0.25], &[1.25, 0.5], Solver::Bounded);
     assert!((over - 1.25 / 10.25).abs() < 1e-15, "kkt_residual {over}");
 }
+
+/// One key shape `s = (1, 0)` (so G = 1) and λ = 0.5 over two frames: the Hessian of
+/// `½wᵀHw − bᵀw` is `[[1.5, −0.5], [−0.5, 1.5]]` and each case below is small enough to
+/// follow the primal–dual active set by hand from the per-frame solution. In each, the
+/// first step's active set is the optimal one, so the solve is one banded solve
+/// (`iterations == 1`) and the weights are exact. Projected Newton, the fallback, reaches
+/// the same optimum from the same start, so only the iteration count shows whether the
+/// active-set step itself works (run 18: every mutant of its gradient, its bound tests and
+/// its fixed-value right-hand side survived, masked by the fallback).
+fn one_shape_two_frames(b: [f64; 2]) -> (DMatrix<f64>, DMatrix<f64>) {
+    let s = DMatrix::from_column_slice(2, 1, &[1.0, 0.0]);
+    let q = DMatrix::from_column_slice(2, 2, &[b[0], 0.0, b[1], 0.0]);
+    (s, q)
+}
+
+#[test]
+fn the_active_set_finishes_a_hand_worked_segment_in_one_step() {
+    let smooth = sm(0.5, 1, SmoothMode::Offline);
+    // (solver, b, optimum). NNLS, b = (1, −1): frame 2 is held at 0 and frame 1 solves
+    // 1.5·w₁ = 1. Bounded, b = (3, 0.2): frame 1 at its bound 1, frame 2 free with
+    // 1.5·w₂ = 0.2 + 0.5·1. Bounded, b = (3, 3): both at 1 (every fixed value non-zero).
+    let cases = [
+        (Solver::Nnls, [1.0, -1.0], [2.0 / 3.0, 0.0]),
+        (Solver::Bounded, [3.0, 0.2], [1.0, 0.7 / 1.5]),
+        (Solver::Bounded, [3.0, 3.0], [1.0, 1.0]),
+    ];
+    for (solver, b, want) in cases {
+        let (s, q) = one_shape_two_frames(b);
+        let r = solve_smooth(&s, &q, solver, &smooth, &[0..2]).unwrap();
+        // 1e-11: the segment's ridge, 1e-12·(G + 4λ), shifts the free weight by ~1e-12.
+        for t in 0..2 {
+            assert!(
+                (r.weights[(0, t)] - want[t]).abs() < 1e-11,
+                "{solver:?} b = {b:?}: w = {}",
+                r.weights
+            );
+        }
+        assert_eq!(r.iterations, 1, "{solver:?} b = {b:?}");
+        assert_eq!(r.unconverged, 0, "{solver:?} b = {b:?}");
+        assert!(r.kkt < 1e-12, "{solver:?} b = {b:?}: kkt {}", r.kkt);
+    }
+    // Two such segments side by side: nothing couples them, and the counts add up.
+    let s = DMatrix::from_column_slice(2, 1, &[1.0, 0.0]);
+    let q = DMatrix::from_column_slice(2, 4, &[1.0, 0.0, -1.0, 0.0, 3.0, 0.0, 0.2, 0.0]);
+    let r = solve_smooth(&s, &q, Solver::Bounded, &smooth, &[0..2, 2..4]).unwrap();
+    let want = [2.0 / 3.0, 0.0, 1.0, 0.7 / 1.5];
+    for (t, w) in want.iter().enumerate() {
+        assert!((r.weights[(0, t)] - w).abs() < 1e-11, "w = {}", r.weights);
+    }
+    assert_eq!(r.iterations, 2);
+    assert_eq!(r.segments, vec![0..2, 2..4]);
+}
+
+/// Causal NNLS counts the active-set iterations of every frame and reports the worst
+/// per-frame KKT residual: with one key shape and every frame's target (and so its
+/// right-hand side `b_t + λ·prediction`) positive, each frame's solve from w = 0 frees the
+/// one weight, one iteration per frame, over both segments; and each frame's weight solves
+/// its own problem exactly, so the residual the library reports is rounding. Order 2
+/// predicts from two frames (`2w_{t−1} − w_{t−2}`), order 1 from one.
+#[test]
+fn causal_iterations_are_counted_per_frame_and_the_kkt_is_each_frames() {
+    let s = DMatrix::from_column_slice(2, 1, &[1.0, 0.0]);
+    let targets = [0.5, 0.6, 0.7, 0.65, 0.55];
+    let q = DMatrix::from_fn(2, 5, |i, j| if i == 0 { targets[j] } else { 0.0 });
+    for order in [1, 2] {
+        for solver in [Solver::Nnls, Solver::Bounded] {
+            let smooth = sm(0.5, order, SmoothMode::Causal);
+            let r = solve_smooth(&s, &q, solver, &smooth, &[0..3, 3..5]).unwrap();
+            assert_eq!(r.iterations, 5, "order {order} {solver:?}");
+            assert_eq!(r.unconverged, 0, "order {order} {solver:?}");
+            assert!(r.kkt < 1e-12, "order {order} {solver:?}: kkt {}", r.kkt);
+            // The same weights, checked by hand: frame t of a segment solves
+            // (1 + λ)·w = q_t + λ·prediction (the first frame: w = q_t).
+            for seg in [0..3, 3..5] {
+                let mut w: Vec<f64> = Vec::new();
+                for (i, col) in seg.clone().enumerate() {
+                    let x = match i {
+                        0 => targets[col],
+                        1 => (targets[col] + 0.5 * w[0]) / 1.5,
+                        _ if order == 1 => (targets[col] + 0.5 * w[i - 1]) / 1.5,
+                        _ => (targets[col] + 0.5 * (2.0 * w[i - 1] - w[i - 2])) / 1.5,
+                    };
+                    w.push(x);
+                    assert!(
+                        (r.weights[(0, col)] - x).abs() < 1e-12,
+                        "order {order} {solver:?} frame {col}: {} vs {x}",
+                        r.weights[(0, col)]
+                    );
+                }
+            }
+        }
+    }
+}
+
+/// Segments must partition the frames in order: too few frames covered is refused even
+/// when no segment runs past the end, and so are a gap, an overlap (which covers the right
+/// number of frames but solves one twice and another never) and an empty segment.
+#[test]
+fn segments_that_do_not_cover_the_frames_are_refused() {
+    use keyshape_lab::solve::temporal::smooth_from;
+    let (s, q) = one_shape_two_frames([1.0, 1.0]);
+    let q = DMatrix::from_fn(2, 4, |i, j| q[(i, j % 2)]);
+    let plain = solve_batch(&s, &q, &SolveOptions::new(Solver::Nnls)).unwrap();
+    let smooth = sm(0.5, 1, SmoothMode::Offline);
+    // (segments, what the error says). [0..2, 1..3] covers four frames' worth but solves
+    // frame 1 twice and frame 3 never.
+    let bad: [(&[std::ops::Range<usize>], &str); 6] = [
+        (&[0..3], "segments cover 3 of 4 frames"),
+        (&[0..2, 2..5], "segments cover 5 of 4 frames"),
+        (&[], "segments cover 0 of 4 frames"),
+        (&[0..2, 3..4], "3..4 follows frame 2"),
+        (&[0..1, 2..5], "2..5 follows frame 1"),
+        (&[0..2, 1..3], "1..3 follows frame 2"),
+    ];
+    for (segs, says) in bad {
+        let e = solve_smooth(&s, &q, Solver::Nnls, &smooth, segs).unwrap_err();
+        assert!(e.to_string().contains(says), "{segs:?}: {e}");
+        let e = smooth_from(&s, &q, &plain, Solver::Nnls, &smooth, segs).unwrap_err();
+        assert!(e.to_string().contains(says), "{segs:?}: {e}");
+    }
+    let e = solve_smooth(&s, &q, Solver::Nnls, &smooth, &[0..2, 2..2, 2..4]).unwrap_err();
+    assert!(
+        e.to_string().contains("segment 2..2 holds no frames"),
+        "{e}"
+    );
+    assert!(solve_smooth(&s, &q, Solver::Nnls, &smooth, &[0..2, 2..4]).is_ok());
+}
