@@ -2282,6 +2282,65 @@ mod tests {
         }
     }
 
+    /// The primal–dual active set by itself (projected Newton capped at 0 steps, so it
+    /// cannot rescue a wrong active-set point), on segments worked by hand — one key shape,
+    /// two frames, λ = 0.5, order 1, `H = [[1.5, −0.5], [−0.5, 1.5]]` — from starts off the
+    /// optimum; and on the 120-frame NNLS problem the active set finishes by itself.
+    #[test]
+    fn the_active_set_alone_finishes_from_any_start() {
+        let g = DMatrix::from_element(1, 1, 1.0);
+        let sm = Smoothing {
+            lambda: 0.5,
+            order: 1,
+            mode: SmoothMode::Offline,
+        };
+        let alone = Caps {
+            active_set: PDAS_ITERATIONS,
+            newton: 0,
+        };
+        // (solver, b, optimum). NNLS, b = (1, −1): frame 2 at 0, 1.5·w₁ = 1. Bounded,
+        // b = (3, 0.2): frame 1 at 1, 1.5·w₂ = 0.2 + 0.5·1. Bounded, b = (3, 3): both at 1.
+        // Bounded, b = (0.9, 0.3): both free, inside the box.
+        let cases = [
+            (Solver::Nnls, [1.0, -1.0], [2.0 / 3.0, 0.0]),
+            (Solver::Bounded, [3.0, 0.2], [1.0, 0.7 / 1.5]),
+            (Solver::Bounded, [3.0, 3.0], [1.0, 1.0]),
+            (Solver::Bounded, [0.9, 0.3], [0.75, 0.45]),
+        ];
+        for (solver, b, want) in cases {
+            for w0 in [[0.0, 0.0], [0.5, 0.5], [1.0, 0.0], [0.0, 1.0], [0.9, 0.1]] {
+                let (w, it, res, ok) = segment(&g, &b, &w0, solver, &sm, alone).unwrap();
+                let off = (0..2).map(|t| (w[t] - want[t]).abs()).fold(0.0, f64::max);
+                // 1e-11: the segment's ridge, 1e-12·(G + 4λ), shifts a free weight by ~1e-12.
+                assert!(
+                    off < 1e-11 && ok && res < 1e-12,
+                    "{solver:?} b = {b:?} from {w0:?}: w = {w:?}, KKT {res:e}"
+                );
+                assert!(
+                    (1..=3).contains(&it),
+                    "{solver:?} b = {b:?} from {w0:?}: {it} iterations"
+                );
+            }
+        }
+        let (g, b) = binding_problem(120);
+        let sm = Smoothing {
+            lambda: 1e4,
+            order: 2,
+            mode: SmoothMode::Offline,
+        };
+        let w0 = vec![0.5; b.len()];
+        let (w, it, res, ok) = segment(&g, &b, &w0, Solver::Nnls, &sm, alone).unwrap();
+        assert!(ok && res < KKT_TOLERANCE, "KKT {res:e} after {it}");
+        assert!(it < PDAS_ITERATIONS as u64);
+        let (wn, _) = newton_alone(&g, &b, &w0, Solver::Nnls, &sm, NEWTON_ITERATIONS);
+        let off = w
+            .iter()
+            .zip(&wn)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        assert!(off < 1e-6, "{off:e} from Newton's optimum");
+    }
+
     /// `vᵀHv` without `Hv`: the dense `H = I ⊗ G + λ DᵀD ⊗ I` built entry by entry is the
     /// oracle, on lengths that end inside, on and just past a chunk, for both orders.
     #[test]
