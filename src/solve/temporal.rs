@@ -2167,6 +2167,41 @@ mod tests {
         projected_newton(g, sm, &bands, b, w0, upper, ridge, solver, &spare, cap).unwrap()
     }
 
+    /// Projected Newton's binding set, worked by hand on one key shape, two frames, λ = 0.5,
+    /// order 1 (`H = [[1.5, −0.5], [−0.5, 1.5]]`): from a start on the optimal face, a
+    /// variable at a bound whose gradient pushes outwards binds, the other takes the Newton
+    /// step with it held, and the optimum is reached in exactly one step. Freeing the
+    /// binding variable instead sends the full Newton step out of the box, and its
+    /// projection is not the optimum (bounded: (1, 0.9); NNLS: no move at all).
+    #[test]
+    fn projected_newton_holds_a_variable_pushed_out_of_the_box_and_lands_in_one_step() {
+        let g = DMatrix::from_element(1, 1, 1.0);
+        let sm = Smoothing {
+            lambda: 0.5,
+            order: 1,
+            mode: SmoothMode::Offline,
+        };
+        // (solver, b, start, optimum). Bounded, b = (3, 0.2) from (1, 0): g = (−1.5, −0.7),
+        // frame 1 binds at 1, 1.5·w₂ = 0.2 + 0.5. Its mirror, b = (0.2, 3) from (0, 1).
+        // NNLS, b = (1, −1) from (0.5, 0): g = (−0.25, 0.75), frame 2 binds at 0,
+        // 1.5·w₁ = 1.
+        let cases = [
+            (Solver::Bounded, [3.0, 0.2], [1.0, 0.0], [1.0, 0.7 / 1.5]),
+            (Solver::Bounded, [0.2, 3.0], [0.0, 1.0], [0.7 / 1.5, 1.0]),
+            (Solver::Nnls, [1.0, -1.0], [0.5, 0.0], [2.0 / 3.0, 0.0]),
+        ];
+        for (solver, b, w0, want) in cases {
+            let (w, it) = newton_alone(&g, &b, &w0, solver, &sm, NEWTON_ITERATIONS);
+            let off = (0..2).map(|t| (w[t] - want[t]).abs()).fold(0.0, f64::max);
+            // 1e-11: the ridge, 1e-12·(G + 4λ), shifts a free weight by ~1e-12.
+            assert!(off < 1e-11, "{solver:?} b = {b:?}: w = {w:?}");
+            assert_eq!(it, 1, "{solver:?} b = {b:?}");
+            // The bound weight is exactly at its bound, not near it.
+            let bound = if solver == Solver::Nnls { 0.0 } else { 1.0 };
+            assert!(w.contains(&bound), "{solver:?} b = {b:?}: w = {w:?}");
+        }
+    }
+
     /// The offline fallback, stage by stage, with the caps cut so that each stage is the
     /// one that finishes (or none does): the active set from the per-frame start, projected
     /// Newton from the same start, the active set again from projected Newton's point. The
