@@ -422,24 +422,31 @@ proptest! {
     /// inside the band, and applies the outermost one as a triangular solve) solves the
     /// dense system: `H = I ⊗ G + λ·DᵀD ⊗ I + δI` with the fixed variables' rows and columns
     /// replaced by the identity, built entry by entry here and solved by nalgebra's LU.
+    /// Order 3 (a third difference, bands read off the dense `DᵀD`: `difference_bands`
+    /// makes only the prior's orders 1 and 2) is the only order with a stored block
+    /// strictly inside the band that a row's update reads (`L_{s,r}` with `1 < s − r < p`);
+    /// `BandedSystem::factor` is public and takes any bands.
     #[test]
     fn the_banded_factorisation_solves_the_dense_system(
         seed in prop::collection::vec(-1.0f64..1.0, 40),
         k in 1usize..5,
         t in 1usize..14,
         lambda in prop::sample::select(vec![0.05, 2.0, 300.0]),
-        order in 1usize..3,
+        order in 1usize..4,
         fixed_bits in prop::collection::vec(any::<bool>(), 70),
     ) {
         use keyshape_lab::solve::temporal::{difference_bands, SegmentSystem};
         let (s, _) = problem(8, k, 2, &seed, false);
         let g = s.transpose() * &s;
-        let bands = difference_bands(order, t);
         let ridge = 1e-12;
         let n = t * k;
         let fixed: Vec<bool> = (0..n).map(|i| fixed_bits[i % fixed_bits.len()]).collect();
         // D (rows of the difference operator) and DᵀD, densely.
-        let coef: &[f64] = if order == 1 { &[-1.0, 1.0] } else { &[1.0, -2.0, 1.0] };
+        let coef: &[f64] = match order {
+            1 => &[-1.0, 1.0],
+            2 => &[1.0, -2.0, 1.0],
+            _ => &[-1.0, 3.0, -3.0, 1.0],
+        };
         let mut dtd = DMatrix::<f64>::zeros(t, t);
         for r in 0..t.saturating_sub(order) {
             for (a, ca) in coef.iter().enumerate() {
@@ -448,6 +455,17 @@ proptest! {
                 }
             }
         }
+        // band[j][i] = DᵀD(i, i − j).
+        let read_off: Vec<Vec<f64>> = (0..=order)
+            .map(|j| (0..t).map(|i| if i >= j { dtd[(i, i - j)] } else { 0.0 }).collect())
+            .collect();
+        let bands = if order < 3 {
+            let bands = difference_bands(order, t);
+            prop_assert_eq!(&bands, &read_off);
+            bands
+        } else {
+            read_off
+        };
         let mut h = DMatrix::<f64>::zeros(n, n);
         for u in 0..n {
             for v in 0..n {
