@@ -2167,6 +2167,17 @@ mod tests {
         projected_newton(g, sm, &bands, b, w0, upper, ridge, solver, &spare, cap).unwrap()
     }
 
+    /// The hand-worked segment: one key shape (`G = 1`), λ = 0.5, order 1, so that two
+    /// frames give `H = [[1.5, −0.5], [−0.5, 1.5]]`.
+    fn two_frames_by_hand() -> (DMatrix<f64>, Smoothing) {
+        let sm = Smoothing {
+            lambda: 0.5,
+            order: 1,
+            mode: SmoothMode::Offline,
+        };
+        (DMatrix::from_element(1, 1, 1.0), sm)
+    }
+
     /// Projected Newton's binding set, worked by hand on one key shape, two frames, λ = 0.5,
     /// order 1 (`H = [[1.5, −0.5], [−0.5, 1.5]]`): from a start on the optimal face, a
     /// variable at a bound whose gradient pushes outwards binds, the other takes the Newton
@@ -2175,12 +2186,7 @@ mod tests {
     /// projection is not the optimum (bounded: (1, 0.9); NNLS: no move at all).
     #[test]
     fn projected_newton_holds_a_variable_pushed_out_of_the_box_and_lands_in_one_step() {
-        let g = DMatrix::from_element(1, 1, 1.0);
-        let sm = Smoothing {
-            lambda: 0.5,
-            order: 1,
-            mode: SmoothMode::Offline,
-        };
+        let (g, sm) = two_frames_by_hand();
         // (solver, b, start, optimum). Bounded, b = (3, 0.2) from (1, 0): g = (−1.5, −0.7),
         // frame 1 binds at 1, 1.5·w₂ = 0.2 + 0.5. Its mirror, b = (0.2, 3) from (0, 1).
         // NNLS, b = (1, −1) from (0.5, 0): g = (−0.25, 0.75), frame 2 binds at 0,
@@ -2324,12 +2330,7 @@ mod tests {
     /// optimum; and on the 120-frame NNLS problem the active set finishes by itself.
     #[test]
     fn the_active_set_alone_finishes_from_any_start() {
-        let g = DMatrix::from_element(1, 1, 1.0);
-        let sm = Smoothing {
-            lambda: 0.5,
-            order: 1,
-            mode: SmoothMode::Offline,
-        };
+        let (g, sm) = two_frames_by_hand();
         let alone = Caps {
             active_set: PDAS_ITERATIONS,
             newton: 0,
