@@ -420,7 +420,7 @@ proptest! {
     #![proptest_config(ProptestConfig::with_cases(64))]
     /// The banded factorisation (which stores only packed diagonal blocks and the blocks
     /// inside the band, and applies the outermost one as a triangular solve) solves the
-    /// dense system: `H = I ⊗ G + λ·DᵀD ⊗ I + δI` with the fixed variables' rows and columns
+    /// dense system: `H = I ⊗ G + λ·w·DᵀD ⊗ I + δI` (w a weight) with the fixed variables' rows and columns
     /// replaced by the identity, built entry by entry here and solved by nalgebra's LU.
     /// Order 3 (a third difference, bands read off the dense `DᵀD`: `difference_bands`
     /// makes only the prior's orders 1 and 2) is the only order with a stored block
@@ -433,6 +433,7 @@ proptest! {
         t in 1usize..14,
         lambda in prop::sample::select(vec![0.05, 2.0, 300.0]),
         order in 1usize..4,
+        weight in prop::sample::select(vec![1.0, 0.5, 3.0]),
         fixed_bits in prop::collection::vec(any::<bool>(), 70),
     ) {
         use keyshape_lab::solve::temporal::{difference_bands, SegmentSystem};
@@ -466,13 +467,17 @@ proptest! {
         } else {
             read_off
         };
+        // A weighted penalty `weight · DᵀD`: its outermost band is then not ±1, the only
+        // value a plain difference gives it (where `λ · band` and `λ / band` agree: run 25).
+        let bands: Vec<Vec<f64>> =
+            bands.iter().map(|b| b.iter().map(|v| v * weight).collect()).collect();
         let mut h = DMatrix::<f64>::zeros(n, n);
         for u in 0..n {
             for v in 0..n {
                 let (su, iu, sv, iv) = (u / k, u % k, v / k, v % k);
                 let mut e = if su == sv { g[(iu, iv)] } else { 0.0 };
                 if iu == iv {
-                    e += lambda * dtd[(su, sv)] + if u == v { ridge } else { 0.0 };
+                    e += lambda * weight * dtd[(su, sv)] + if u == v { ridge } else { 0.0 };
                 }
                 h[(u, v)] = if fixed[u] || fixed[v] { f64::from(u8::from(u == v)) } else { e };
             }
