@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Mutation testing of the numeric core (issue 12): one plausible bug at a time, the whole test
 # suite after each. Needs `cargo install cargo-mutants`. Usage:
-#   tools/mutants.sh                      # every file below (about 1,700 mutants: hours)
+#   tools/mutants.sh                      # every file below (3,583 mutants: ~12 hours on 2 cores)
 #   tools/mutants.sh -f src/decompose.rs  # just these files (replaces the list)
 #   tools/mutants.sh --shard 1/8          # one eighth of the full list, to spread over runs
 # Results go to mutants/mutants.out/ (caught.txt, missed.txt, timeout.txt, unviable.txt);
@@ -20,7 +20,7 @@ files=(
   src/keyshapes/hull.rs src/keyshapes/greedy.rs src/keyshapes/random.rs
   src/keyshapes/curves.rs
   src/cosker/modes.rs src/cosker/trajectory.rs src/cosker/morph.rs src/cosker/intensity.rs
-  src/retarget/rbf.rs src/transfer/mod.rs src/transfer/skin.rs
+  src/retarget/rbf.rs src/transfer/mod.rs src/transfer/skin.rs src/transfer/features.rs
 )
 args=()
 if [[ " $* " != *" -f "* && " $* " != *" --file "* ]]; then
