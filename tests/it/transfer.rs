@@ -490,3 +490,42 @@ fn all_frames_deforms_every_frame_as_frame_does() {
     }
     assert_ne!(all[0], all[2], "frame 200 should move the mesh");
 }
+
+/// A correspondence that does not fit the track and mesh names the built-in one that does,
+/// and only one that fits on all three counts: landmarks, layout and mesh. Run 26: the
+/// hint's filter was never checked — any of its conditions inverted, or an `&&` read as
+/// `||`, passed.
+#[test]
+fn a_misfit_correspondence_names_the_built_in_that_fits_all_three() {
+    use keyshape_lab::transfer::features::Features;
+    let all: Vec<(&str, Features)> = Features::BUILTIN
+        .iter()
+        .map(|b| (*b, Features::builtin(b).unwrap()))
+        .collect();
+    for (name, f) in &all {
+        let (layout, points) = (f.source_layout.as_str(), f.source_points);
+        let verts = f
+            .target_vertices
+            .expect("the built-ins name their mesh size");
+        for (other, g) in all.iter().filter(|(o, _)| o != name) {
+            let hint = |layout: &str, points: usize, verts: usize| {
+                let e = g
+                    .check_fits(other, Some(layout), points, verts)
+                    .unwrap_err();
+                e.to_string().rsplit(": ").next().unwrap().to_string()
+            };
+            assert_eq!(
+                hint(layout, points, verts),
+                format!("use --features {name}")
+            );
+            for (l, p, v) in [
+                (layout, points, verts + 1),
+                (layout, points + 1, verts),
+                ("another_layout", points, verts),
+            ] {
+                let h = hint(l, p, v);
+                assert!(h.starts_with("write a features file"), "{l} {p} {v}: {h}");
+            }
+        }
+    }
+}
