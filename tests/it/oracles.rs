@@ -8,6 +8,26 @@ use keyshape_lab::retarget::rbf::Rbf;
 use keyshape_lab::solve::{SolveOptions, Solver};
 use nalgebra::{DMatrix, DVector};
 
+/// A frame whose weights are finite but whose squared error overflows is refused, not
+/// reported with an infinite error: key (1, 0, 0, 0), frame 1e160 · (1, 0, 0, 1) — weight
+/// 1e160 (1 for bounded) but a residual of 1e160 on the last coordinate, squared past
+/// f64's range. Run 29: reading the check's `||` as `&&` (both non-finite) survived,
+/// because every test's overflow came from non-finite weights.
+#[test]
+fn an_error_that_overflows_with_finite_weights_is_refused() {
+    let q = DMatrix::from_column_slice(4, 2, &[1.0, 0.0, 0.0, 0.0, 1e160, 0.0, 0.0, 1e160]);
+    for solver in Solver::ALL {
+        let e = decompose(&q, 2, &[0], None, &SolveOptions::new(solver))
+            .err()
+            .unwrap_or_else(|| panic!("{solver}: an infinite error was accepted"))
+            .to_string();
+        assert!(
+            e.contains("non-finite weights or error at frame column 1"),
+            "{solver}: {e}"
+        );
+    }
+}
+
 /// Per-frame RMS is `sqrt(‖q − q̂‖² / points)` on a residual made by hand: two 2-D points,
 /// one key shape (1, 0, 0, 0); frame 1 is the key plus 3 on the last coordinate, so its
 /// residual is (0, 0, 0, 3) under every solver: RMS = sqrt(9 / 2) (not sqrt(9 / 4)).
