@@ -53,22 +53,7 @@ pub fn prepare_owned(seq: Sequence, opts: &PrepareOptions) -> Result<Prepared> {
     };
     let (base, head) = if opts.align {
         // Name the frame and file, not an internal column, when a shape cannot be aligned.
-        for (c, col) in seq.coords.column_iter().enumerate() {
-            let v = col.as_slice();
-            let d = seq.dims;
-            let same = v
-                .chunks(d)
-                .all(|p| p.iter().zip(&v[..d]).all(|(a, b)| a == b));
-            if same {
-                return Err(Error::file(
-                    &seq.source,
-                    format!(
-                        "frame {}: all {} points coincide, so the shape cannot be aligned (use --no-align, or drop the frame)",
-                        seq.frames[c], seq.points
-                    ),
-                ));
-            }
-        }
+        seq.check_geometry()?;
         let mut seq = seq;
         let coords = std::mem::replace(&mut seq.coords, DMatrix::zeros(0, 0));
         let al = procrustes_owned(coords, seq.dims)

@@ -174,7 +174,7 @@ pub fn write_smoothing(
 
 /// Writes everything into `dir` (created if missing); returns the files written.
 pub fn write_outcome(o: &Outcome, dir: &Path) -> Result<Vec<PathBuf>> {
-    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    crate::io::create_dir_all(dir)?;
     let mut files = Vec::new();
     let mut figures = Vec::new();
     if !o.rows.is_empty() {

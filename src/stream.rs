@@ -204,20 +204,11 @@ pub fn stream_solve(
                 }
                 continue;
             }
-            if opts.align {
-                let v = r.coords;
-                if v.chunks(dims)
-                    .all(|p| p.iter().zip(&v[..dims]).all(|(a, b)| a == b))
-                {
-                    return Err(Error::file(
-                        &src,
-                        format!(
-                            "frame {}: all {} points coincide, so the shape cannot be aligned (use --no-align, or drop the frame)",
-                            r.frame,
-                            v.len() / dims
-                        ),
-                    ));
-                }
+            if opts.align && crate::sequence::degenerate_shape(r.coords, dims) {
+                return Err(Error::file(
+                    &src,
+                    crate::sequence::degenerate_message(r.frame, r.coords.len() / dims),
+                ));
             }
             for (slot, k) in key_cols.iter_mut().zip(&opts.keys) {
                 if *k == r.frame {

@@ -269,7 +269,7 @@ fn side_by_side(
         render_panels(&panels, &format!("frame {}", prep.seq.frames[t]), 320)
     };
     if let Some(dir) = &a.png_dir {
-        std::fs::create_dir_all(dir).with_context(|| format!("{}", dir.display()))?;
+        keyshape_lab::io::create_dir_all(dir)?;
         for t in (0..shapes.ncols()).step_by(every) {
             progress.tick(t, shapes.ncols());
             save_png(
@@ -311,7 +311,7 @@ fn morph(
     let w = mapping.weights(&targets, names, traj)?;
     let n = w.ncols();
     if let Some(d) = &a.morph_obj_dir {
-        std::fs::create_dir_all(d).with_context(|| format!("{}", d.display()))?;
+        keyshape_lab::io::create_dir_all(d)?;
         let mut out = mesh.positions.clone();
         for t in (0..n).step_by(every) {
             progress.tick(t, n);
@@ -328,7 +328,7 @@ fn morph(
         }
     }
     if let Some(d) = &a.morph_png_dir {
-        std::fs::create_dir_all(d).with_context(|| format!("{}", d.display()))?;
+        keyshape_lab::io::create_dir_all(d)?;
         let mb = keyshape_lab::render::mesh::mesh_bounds(&mesh.positions);
         let mut out = mesh.positions.clone();
         for t in (0..n).step_by(every) {

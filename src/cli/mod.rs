@@ -6,7 +6,7 @@ macro_rules! outln {
     ($($t:tt)*) => {{
         use std::io::Write as _;
         writeln!(std::io::stdout().lock(), $($t)*)
-            .map_err(|e| anyhow::anyhow!("writing to standard output: {e}"))?;
+            .map_err(|e| anyhow::Error::new(e).context("writing to standard output"))?;
     }};
 }
 
@@ -41,7 +41,7 @@ macro_rules! out {
     ($($t:tt)*) => {{
         use std::io::Write as _;
         write!(std::io::stdout().lock(), $($t)*)
-            .map_err(|e| anyhow::anyhow!("writing to standard output: {e}"))?;
+            .map_err(|e| anyhow::Error::new(e).context("writing to standard output"))?;
     }};
 }
 
@@ -77,14 +77,11 @@ pub(crate) fn check_outputs(
     inputs: &[Option<&Path>],
 ) -> anyhow::Result<()> {
     let inputs: Vec<&Path> = inputs.iter().flatten().copied().collect();
-    let mut seen: Vec<&Path> = Vec::new();
-    for f in files.iter().flatten() {
+    let outputs: Vec<&Path> = files.iter().flatten().map(|f| f.as_path()).collect();
+    for f in &outputs {
         keyshape_lab::io::check_output(f, &inputs)?;
-        if seen.contains(&f.as_path()) && f.as_os_str() != "-" {
-            anyhow::bail!("{}: named as two outputs", f.display());
-        }
-        seen.push(f);
     }
+    keyshape_lab::io::atomic::check_distinct(&outputs)?;
     for d in dirs.iter().flatten() {
         keyshape_lab::io::check_output_dir(d)?;
     }
@@ -139,11 +136,31 @@ enum Command {
     Bench(bench::BenchArgs),
 }
 
+/// Did this error come from writing into a pipe whose reader has gone?
+fn broken_pipe(e: &anyhow::Error) -> bool {
+    e.chain().any(|c| {
+        c.downcast_ref::<std::io::Error>()
+            .is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe)
+            || matches!(
+                c.downcast_ref::<keyshape_lab::Error>(),
+                Some(keyshape_lab::Error::Io { err, .. }) if err.kind() == std::io::ErrorKind::BrokenPipe
+            )
+    })
+}
+
 /// Runs the CLI; errors print as `error: …` with exit code 1.
 pub fn main() -> ExitCode {
     let cli = Cli::parse();
     progress::set_quiet(cli.quiet);
-    let result = match cli.command.unwrap_or(Command::Tui(tui::TuiArgs::default())) {
+    let command = cli.command.unwrap_or(Command::Tui(tui::TuiArgs::default()));
+    // One output set per command: every file it writes is staged and renamed into place
+    // only when the whole command has succeeded. The lab stages each export on its own; the
+    // benchmarks write tracks that the processes they start must read at once.
+    let set = match command {
+        Command::Tui(_) | Command::Bench(_) => None,
+        _ => Some(keyshape_lab::io::OutputSet::begin()),
+    };
+    let result = match command {
         Command::Tui(a) => tui::run(&a),
         Command::Info(a) => info::run(&a),
         Command::Solve(a) => solve::run(&a),
@@ -161,8 +178,15 @@ pub fn main() -> ExitCode {
         Command::Merge(a) => run::merge(&a),
         Command::Bench(a) => bench::run(&a),
     };
+    let result = result.and_then(|()| match set {
+        Some(set) => set.commit().map(drop).map_err(anyhow::Error::from),
+        None => Ok(()),
+    });
     match result {
         Ok(()) => ExitCode::SUCCESS,
+        // A reader closed the pipe after output began (`kslab … | head`): a quiet stop, as
+        // a signal would have made it, but with the outputs of the set discarded.
+        Err(e) if broken_pipe(&e) => ExitCode::from(141),
         Err(e) => {
             eprintln!("error: {e:#}");
             ExitCode::FAILURE

@@ -544,7 +544,7 @@ fn pictures(
         render_frame(&shapes, &caption, 360)
     };
     if let Some(dir) = &a.png_dir {
-        std::fs::create_dir_all(dir).with_context(|| format!("{}", dir.display()))?;
+        keyshape_lab::io::create_dir_all(dir)?;
         progress.step("retarget: PNG frames");
         for t in 0..s.n_frames() {
             progress.tick(t, s.n_frames());

@@ -164,6 +164,7 @@ pub fn run(a: &RigArgs) -> Result<()> {
             seq.points
         ),
     };
+    seq.check_geometry()?;
     let dir = match &a.rig {
         Some(d) => d.clone(),
         None => shared_data("ict_facekit_face")?,
@@ -409,7 +410,7 @@ fn write_pngs(dir: &std::path::Path, seq: &Sequence, rig: &Rig, r: &RigSolve) ->
     }
     let tb = bounds_of(&[&seq.coords, &fitted], 2);
     let fb = bounds_of(&[&front], 2);
-    std::fs::create_dir_all(dir).with_context(|| format!("{}", dir.display()))?;
+    keyshape_lab::io::create_dir_all(dir)?;
     for f in 0..n {
         let [y, p, ro] = r.cameras[f].yaw_pitch_roll();
         let panels = [

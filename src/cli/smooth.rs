@@ -88,7 +88,7 @@ pub fn run(a: &SmoothArgs) -> Result<()> {
     };
     let rows = smoothing_study_in_place(raw.as_ref(), &mut prep, &st, &Default::default())?;
     let seq = raw.as_ref().unwrap_or(&prep.seq);
-    std::fs::create_dir_all(&a.out)?;
+    keyshape_lab::io::create_dir_all(&a.out)?;
     let title = format!(
         "{} {} k={} {}",
         seq.source,

@@ -115,7 +115,7 @@ pub fn run(a: &TransferArgs) -> Result<()> {
     }
     let every = a.every as usize;
     for dir in [&a.obj_dir, &a.png_dir].into_iter().flatten() {
-        std::fs::create_dir_all(dir).with_context(|| format!("{}", dir.display()))?;
+        keyshape_lab::io::create_dir_all(dir)?;
     }
     let marks: Vec<usize> = tr.features.features.iter().map(|f| f.target).collect();
     let lines = prep

@@ -897,7 +897,7 @@ pub fn run_shard(
 
 /// Writes a shard's partial report into `dir` (atomically).
 pub fn write_partial(p: &Partial, dir: &Path) -> Result<PathBuf> {
-    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    crate::io::create_dir_all(dir)?;
     let path = dir.join(PARTIAL_FILE);
     let text = serde_json::to_string_pretty(p)
         .map_err(|e| Error::invalid(format!("partial report: {e}")))?;

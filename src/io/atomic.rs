@@ -1,11 +1,18 @@
 //! Output that never loses data.
 //!
 //! - A regular file is written to a temporary file beside it and renamed over it, so a failed
-//!   run never leaves a half-written file and an old file survives a failure.
+//!   run never leaves a half-written file and an old file survives a failure. The temporary
+//!   is created exclusively under an unpredictable name (`O_EXCL`, never through a link a
+//!   third party planted), and the replaced file's permission bits carry over to the new one.
+//! - Inside an [`OutputSet`] (the command line opens one per command) every file is staged
+//!   and nothing is renamed until [`OutputSet::commit`]: a command that fails anywhere leaves
+//!   every output as it was before it started, and directories it made are removed again.
+//!   Two outputs of one set that are one file (however spelled: `./w.csv`, a symbolic or a
+//!   hard link) are refused.
 //! - A symbolic link is followed: the file it names is replaced (atomically, in *that* file's
 //!   directory); the link stays a link.
 //! - A special file (a device such as `/dev/null`, a FIFO) is written directly, never
-//!   replaced; `-` is standard output.
+//!   replaced; `-` is standard output, refused when standard output was closed.
 //! - A file this process has read as input is never written: every reader goes through
 //!   [`crate::io::read_text`], which records what it read, and [`write_atomic`] refuses a
 //!   destination that is the same file (same device and inode, or same canonical path).
@@ -180,13 +187,204 @@ pub fn check_output_dir(dir: &Path) -> Result<()> {
     }
 }
 
+/// What identifies an output: the file it finally names (links followed, the directory
+/// canonicalised) and, when it exists, its device and inode (which also catch hard links).
+#[derive(Debug, Clone)]
+struct OutputKey {
+    path: PathBuf,
+    id: Option<FileId>,
+}
+
+impl OutputKey {
+    fn of(target: &Path) -> OutputKey {
+        let dir = parent_dir(target);
+        let dir = std::fs::canonicalize(&dir).unwrap_or(dir);
+        let path = match target.file_name() {
+            Some(n) => dir.join(n),
+            None => target.to_path_buf(),
+        };
+        OutputKey {
+            path,
+            id: file_id(target),
+        }
+    }
+
+    fn same(&self, other: &OutputKey) -> bool {
+        self.path == other.path || (self.id.is_some() && self.id == other.id)
+    }
+}
+
+/// Errors when two of `paths` name one file, however spelled (`w.csv` and `./w.csv`, a
+/// symbolic or a hard link). `-` (standard output) is left to the caller.
+pub fn check_distinct(paths: &[&Path]) -> Result<()> {
+    let mut seen: Vec<(OutputKey, &Path)> = Vec::new();
+    for &p in paths {
+        if is_stdout(p) {
+            continue;
+        }
+        let key = OutputKey::of(&resolve_links(p)?);
+        if let Some((_, first)) = seen.iter().find(|(k, _)| k.same(&key)) {
+            return Err(two_outputs(first, p));
+        }
+        seen.push((key, p));
+    }
+    Ok(())
+}
+
+fn two_outputs(first: &Path, second: &Path) -> Error {
+    if first == second {
+        Error::file(second, "named as two outputs")
+    } else {
+        Error::file(
+            second,
+            format!(
+                "named as two outputs: this is the same file as {} (one output would overwrite the other)",
+                first.display()
+            ),
+        )
+    }
+}
+
+/// A file written but not yet in place.
+struct Staged {
+    tmp: tempfile::TempPath,
+    target: PathBuf,
+    shown: PathBuf,
+    key: OutputKey,
+}
+
+/// The outputs of the open set: staged files, and directories made for them.
+#[derive(Default)]
+struct Pending {
+    files: Vec<Staged>,
+    dirs: Vec<PathBuf>,
+}
+
+/// The open output set, if any.
+static SET: Mutex<Option<Pending>> = Mutex::new(None);
+
+fn with_set<T>(f: impl FnOnce(&mut Option<Pending>) -> T) -> T {
+    match SET.lock() {
+        Ok(mut g) => f(&mut g),
+        Err(poisoned) => f(&mut poisoned.into_inner()),
+    }
+}
+
+/// A command's outputs, made visible together: while it is open, [`write_atomic`] stages
+/// every regular file and [`create_dir_all`] records the directories it makes.
+/// [`OutputSet::commit`] renames the staged files into place; dropping the set without
+/// committing removes them and the directories, leaving every output as it was.
+///
+/// One set is open at a time; [`OutputSet::begin`] while one is open returns a set that
+/// leaves the work to the outer one.
+#[must_use = "an output set that is dropped discards what was written"]
+pub struct OutputSet {
+    owner: bool,
+}
+
+impl OutputSet {
+    /// Opens the set.
+    pub fn begin() -> OutputSet {
+        let owner = with_set(|s| {
+            if s.is_some() {
+                false
+            } else {
+                *s = Some(Pending::default());
+                true
+            }
+        });
+        OutputSet { owner }
+    }
+
+    /// Renames every staged file over its target and returns the targets as named by the
+    /// caller. On an error the files not yet renamed are removed.
+    pub fn commit(mut self) -> Result<Vec<PathBuf>> {
+        if !self.owner {
+            return Ok(Vec::new());
+        }
+        self.owner = false;
+        let pending = with_set(|s| s.take()).unwrap_or_default();
+        let mut done = Vec::with_capacity(pending.files.len());
+        for f in pending.files {
+            f.tmp
+                .persist(&f.target)
+                .map_err(|e| Error::io(&f.shown, e.error))?;
+            done.push(f.shown);
+        }
+        Ok(done)
+    }
+}
+
+impl Drop for OutputSet {
+    fn drop(&mut self) {
+        if !self.owner {
+            return;
+        }
+        if let Some(p) = with_set(|s| s.take()) {
+            drop(p.files); // each TempPath removes its file
+            for d in p.dirs.iter().rev() {
+                let _ = std::fs::remove_dir(d); // only if empty
+            }
+        }
+    }
+}
+
+/// `std::fs::create_dir_all` that records, inside an open [`OutputSet`], the directories it
+/// made, so that a failed command removes them again.
+pub fn create_dir_all(dir: &Path) -> Result<()> {
+    let mut missing = Vec::new();
+    let mut d = dir;
+    while !d.as_os_str().is_empty() && std::fs::symlink_metadata(d).is_err() {
+        missing.push(d.to_path_buf());
+        match d.parent() {
+            Some(p) => d = p,
+            None => break,
+        }
+    }
+    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    missing.reverse(); // outermost first
+    with_set(|s| {
+        if let Some(p) = s {
+            p.dirs.extend(missing);
+        }
+    });
+    Ok(())
+}
+
+/// Is standard output usable? A process started with it closed (`>&-`) has it reopened on
+/// `/dev/null` read-write by the Rust runtime, where every write would vanish; a shell's
+/// `> /dev/null` opens it write-only.
+fn stdout_closed() -> bool {
+    #[cfg(target_os = "linux")]
+    {
+        let null = std::fs::read_link("/proc/self/fd/1")
+            .map(|l| l == Path::new("/dev/null"))
+            .unwrap_or(false);
+        // SAFETY: fcntl(F_GETFL) on a descriptor only reads its flags; an invalid one
+        // returns -1.
+        let flags = unsafe { libc::fcntl(1, libc::F_GETFL) };
+        flags == -1 || (null && flags & libc::O_ACCMODE == libc::O_RDWR)
+    }
+    #[cfg(not(target_os = "linux"))]
+    {
+        false
+    }
+}
+
 /// Writes `path` through `fill`; on any error the temporary file is removed and `path` is
-/// left as it was. See the module notes for links, special files, `-` and inputs.
+/// left as it was. Inside an open [`OutputSet`] the file is only staged. See the module
+/// notes for links, special files, `-` and inputs.
 pub fn write_atomic<F>(path: &Path, fill: F) -> Result<()>
 where
     F: FnOnce(&mut dyn Write) -> std::io::Result<()>,
 {
     if is_stdout(path) {
+        if stdout_closed() {
+            return Err(Error::file(
+                "<standard output>",
+                "standard output is closed: the data would be lost (give a file)",
+            ));
+        }
         let mut out = std::io::stdout().lock();
         return fill(&mut out)
             .and_then(|()| out.flush())
@@ -194,7 +392,8 @@ where
     }
     let target = resolve_links(path)?;
     check_not_input(&target, &[])?;
-    if let Ok(m) = std::fs::metadata(&target) {
+    let old = std::fs::metadata(&target).ok();
+    if let Some(m) = &old {
         if m.is_dir() {
             return Err(Error::file(path, "is a directory; give a file name"));
         }
@@ -210,25 +409,79 @@ where
                 .map_err(|e| Error::io(path, e));
         }
     }
-    let dir = parent_dir(&target);
+    let key = OutputKey::of(&target);
+    let clash = with_set(|s| {
+        s.as_ref().and_then(|p| {
+            p.files
+                .iter()
+                .find(|f| f.key.same(&key))
+                .map(|f| f.shown.clone())
+        })
+    });
+    if let Some(first) = clash {
+        return Err(two_outputs(&first, path));
+    }
+    let tmp = stage(&target, old.as_ref(), fill).map_err(|e| Error::io(path, e))?;
+    let staged = Staged {
+        tmp,
+        target,
+        shown: path.to_path_buf(),
+        key,
+    };
+    let leftover = with_set(|s| match s {
+        Some(p) => {
+            p.files.push(staged);
+            None
+        }
+        None => Some(staged),
+    });
+    if let Some(f) = leftover {
+        f.tmp
+            .persist(&f.target)
+            .map_err(|e| Error::io(path, e.error))?;
+    }
+    Ok(())
+}
+
+/// Writes a new temporary file beside `target` through `fill` and syncs it. It takes the
+/// permission bits of the file it will replace (`old`), or those a new file would get.
+fn stage<F>(
+    target: &Path,
+    old: Option<&std::fs::Metadata>,
+    fill: F,
+) -> std::io::Result<tempfile::TempPath>
+where
+    F: FnOnce(&mut dyn Write) -> std::io::Result<()>,
+{
+    let dir = parent_dir(target);
     let name = target
         .file_name()
-        .ok_or_else(|| Error::invalid(format!("{}: not a file name", path.display())))?;
-    let tmp = dir.join(format!(
-        ".{}.tmp-{}",
-        name.to_string_lossy(),
-        std::process::id()
-    ));
-    let result = (|| -> std::io::Result<()> {
-        let file = std::fs::File::create(&tmp)?;
-        let mut w = BufWriter::new(file);
-        fill(&mut w)?;
-        let file = w.into_inner().map_err(|e| e.into_error())?;
-        file.sync_all()?;
-        std::fs::rename(&tmp, &target)
-    })();
-    result.map_err(|e| {
-        let _ = std::fs::remove_file(&tmp);
-        Error::io(path, e)
-    })
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let prefix = format!(".{name}.");
+    let mut b = tempfile::Builder::new();
+    b.prefix(&prefix).suffix(".tmp");
+    #[cfg(unix)]
+    let perm = {
+        use std::os::unix::fs::PermissionsExt;
+        // A new file: 0666 less the umask, as File::create makes it.
+        old.map(|m| m.permissions())
+            .unwrap_or_else(|| std::fs::Permissions::from_mode(0o666))
+    };
+    #[cfg(unix)]
+    b.permissions(perm.clone());
+    let file = b.tempfile_in(&dir)?;
+    #[cfg(unix)]
+    if old.is_some() {
+        // The exact bits of the replaced file, which the umask may have narrowed above.
+        file.as_file().set_permissions(perm)?;
+    }
+    #[cfg(not(unix))]
+    let _ = old;
+    let (file, tmp) = file.into_parts();
+    let mut w = BufWriter::new(file);
+    fill(&mut w)?;
+    let file = w.into_inner().map_err(|e| e.into_error())?;
+    file.sync_all()?;
+    Ok(tmp)
 }

@@ -10,7 +10,7 @@ mod pts;
 pub mod svg;
 pub mod table;
 
-pub use atomic::{check_output, check_output_dir, write_atomic};
+pub use atomic::{check_output, check_output_dir, create_dir_all, write_atomic, OutputSet};
 pub use builtin::{builtin_sequence, BUILTIN_NAME};
 
 use crate::error::{Error, Result};

@@ -16,7 +16,7 @@ fn iv(i: &Interval) -> String {
 /// Writes `corpus_*.csv`, `corpus_<solver>.png`, `corpus_retarget.png` and `report.json`
 /// into `dir`; returns the files written.
 pub fn write_corpus(o: &CorpusOutcome, dir: &Path) -> Result<Vec<PathBuf>> {
-    std::fs::create_dir_all(dir).map_err(|e| crate::error::Error::io(dir, e))?;
+    crate::io::create_dir_all(dir)?;
     let mut files = Vec::new();
     let mut put = |name: &str, fill: &dyn Fn(&mut dyn Write) -> std::io::Result<()>| {
         let p = dir.join(name);

@@ -102,6 +102,13 @@ pub fn fit_camera(x: &[[f64; 3]], u: &[[f64; 2]]) -> Result<Camera> {
         .try_inverse()
         .ok_or_else(|| Error::invalid("camera fit: the rig's landmarks are coplanar"))?;
     let a = ux * inv;
+    // A view with no extent (its points coincide, or lie so close that their squares
+    // underflow) has no camera; nalgebra's SVD would panic on what it gives.
+    if !(a.iter().all(|v| v.is_finite()) && a.norm() > 0.0) {
+        return Err(Error::invalid(
+            "camera fit: the image points have no extent (they coincide)",
+        ));
+    }
     let svd = a.svd(true, true);
     let (Some(uu), Some(vt)) = (svd.u, svd.v_t) else {
         return Err(Error::invalid("camera fit: SVD failed"));

@@ -930,6 +930,13 @@ pub fn solve_rig(
             (i % track.nrows()) / 2
         )));
     }
+    if let Some(c) = (0..track.ncols())
+        .find(|&c| crate::sequence::degenerate_shape(track.column(c).as_slice(), 2))
+    {
+        return Err(Error::invalid(format!(
+            "frame column {c}: all {LANDMARKS} landmarks coincide, so no camera can be fitted to it"
+        )));
+    }
     if !(opts.min_determination >= 0.0 && opts.min_determination < 1.0) {
         return Err(Error::invalid(format!(
             "the minimum determination must be in [0, 1), not {}",

@@ -97,6 +97,13 @@ pub struct Sequence {
     pub failed: Vec<i64>,
 }
 
+/// The message for a degenerate frame, the same from every path (see [`degenerate_shape`]).
+pub fn degenerate_message(frame: i64, points: usize) -> String {
+    format!(
+        "frame {frame}: all {points} points coincide, so no shape or camera can be fitted to it (drop the frame, or mark it untracked)"
+    )
+}
+
 /// The most coordinates one frame may hold (dims × points): far above any tracker's
 /// 468 × 3, low enough that sizes computed from it cannot overflow.
 pub const MAX_SHAPE_VALUES: usize = 1 << 24;
@@ -119,7 +126,53 @@ pub fn coord_problem(v: f64) -> Option<String> {
     }
 }
 
+/// Below this spread (the largest distance of a coordinate from its centroid) a shape has
+/// no size: squared distances underflow and no similarity or camera can be fitted to it.
+/// Real tracks (pixels, millimetres, normalised 0–1) spread over 1e-3 and more.
+pub const MIN_SPREAD: f64 = 1e-100;
+
+/// Is this flat shape (`dims` values per point) degenerate: all points at one place, up to
+/// rounding (a spread of at most 1e-12 of its distance from the origin) or absolutely (a
+/// spread below [`MIN_SPREAD`])? Such a frame is refused by every path that fits a shape or
+/// a camera to it (alignment, the rig's camera), through [`Sequence::check_geometry`].
+pub fn degenerate_shape(shape: &[f64], dims: usize) -> bool {
+    let n = shape.len() / dims.max(1);
+    if n == 0 {
+        return true;
+    }
+    let mut c = [0.0f64; 3];
+    for p in shape.chunks(dims) {
+        for (ci, v) in c.iter_mut().zip(p) {
+            *ci += v / n as f64;
+        }
+    }
+    let (mut spread, mut size) = (0.0f64, 0.0f64);
+    for p in shape.chunks(dims) {
+        for (ci, v) in c.iter().zip(p) {
+            spread = spread.max((v - ci).abs());
+            size = size.max(ci.abs());
+        }
+    }
+    !(spread >= MIN_SPREAD && spread > 1e-12 * size)
+}
+
 impl Sequence {
+    /// The geometry check: refuses a sequence with a frame whose points all coincide (see
+    /// [`degenerate_shape`]), naming the file and the frame. Every path that fits a shape or
+    /// a camera to each frame (`keys`, `solve`, `retarget`, `rig`, `map`, the lab …) runs it,
+    /// so a degenerate frame gets the same answer everywhere.
+    pub fn check_geometry(&self) -> Result<()> {
+        for (c, col) in self.coords.column_iter().enumerate() {
+            if degenerate_shape(col.as_slice(), self.dims) {
+                return Err(Error::file(
+                    &self.source,
+                    degenerate_message(self.frames[c], self.points),
+                ));
+            }
+        }
+        Ok(())
+    }
+
     /// Checks the invariants every reader promises: at least one valid frame, finite values,
     /// one frame number per column, side tables of matching length.
     pub fn validate(&self) -> Result<()> {

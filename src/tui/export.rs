@@ -9,13 +9,34 @@ use crate::keyshapes::Method;
 use crate::render::face::{bounds_of, col, render_frame, FrameShapes};
 use crate::render::save_png;
 use anyhow::{Context, Result};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
-/// Writes `weights.csv`, `view.png` and `experiment.toml` into `dir`; returns their paths.
+/// The folder for the next export in `base`: `kslab-export`, then `kslab-export-2`, `-3` …,
+/// the first that does not exist, so an export never replaces an earlier one.
+pub fn next_dir(base: &Path) -> PathBuf {
+    let first = base.join("kslab-export");
+    if std::fs::symlink_metadata(&first).is_err() {
+        return first;
+    }
+    (2u64..)
+        .map(|n| base.join(format!("kslab-export-{n}")))
+        .find(|d| std::fs::symlink_metadata(d).is_err())
+        .unwrap_or(first)
+}
+
+/// Writes `weights.csv`, `view.png` and `experiment.toml` into `dir`, all or none;
+/// returns their paths.
 pub fn export(s: &State, seq_path: &str, dir: &Path) -> Result<Vec<String>> {
+    let set = crate::io::OutputSet::begin();
+    let files = export_files(s, seq_path, dir)?;
+    set.commit()?;
+    Ok(files)
+}
+
+fn export_files(s: &State, seq_path: &str, dir: &Path) -> Result<Vec<String>> {
     let c = s.computed.as_ref().context("nothing computed yet")?;
     let v = c.views.first().context("no solver view")?;
-    std::fs::create_dir_all(dir).with_context(|| format!("{}", dir.display()))?;
+    crate::io::create_dir_all(dir)?;
     let csv = dir.join("weights.csv");
     let mean_keys = matches!(c.settings.method, Method::KMeans { mean: true, .. });
     // Head motion as `kslab retarget --head-motion` handles it: re-applied (pose columns in
@@ -160,4 +181,21 @@ pub fn export(s: &State, seq_path: &str, dir: &Path) -> Result<Vec<String>> {
         png.display().to_string(),
         toml.display().to_string(),
     ])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::next_dir;
+
+    #[test]
+    fn exports_are_numbered_and_never_replace_an_earlier_one() {
+        let d = tempfile::tempdir().unwrap();
+        assert_eq!(next_dir(d.path()), d.path().join("kslab-export"));
+        std::fs::create_dir(d.path().join("kslab-export")).unwrap();
+        assert_eq!(next_dir(d.path()), d.path().join("kslab-export-2"));
+        std::fs::create_dir(d.path().join("kslab-export-2")).unwrap();
+        // A file of that name counts as taken too.
+        std::fs::write(d.path().join("kslab-export-3"), "x").unwrap();
+        assert_eq!(next_dir(d.path()), d.path().join("kslab-export-4"));
+    }
 }

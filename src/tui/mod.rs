@@ -104,7 +104,8 @@ fn perform(s: &mut State, effects: Vec<Effect>, jobs: &Sender<compute::Job>, seq
                 let _ = jobs.send(compute::Job::Load(id, path));
             }
             Effect::Export => {
-                s.status = match export::export(s, seq_path, std::path::Path::new("kslab-export")) {
+                let dir = export::next_dir(std::path::Path::new("."));
+                s.status = match export::export(s, seq_path, &dir) {
                     Ok(files) => format!("exported {}", files.join(", ")),
                     Err(e) => format!("error: export failed: {e}"),
                 };

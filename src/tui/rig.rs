@@ -40,6 +40,7 @@ pub fn rig_view(seq: &Sequence, rig: &Rig) -> Result<RigView> {
     if seq.dims != 2 {
         return Err(Error::invalid("--rig needs a 2-D track"));
     }
+    seq.check_geometry()?;
     let r = solve_rig(rig, &seq.coords, &[], &RigOptions::default())?;
     let n = seq.n_frames();
     let (mut tracked, mut fitted, mut weights) = (Vec::new(), Vec::new(), Vec::new());

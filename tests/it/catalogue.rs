@@ -100,6 +100,10 @@ const CASES: &[Case] = &[
     Case { name: "png dir under a file", files: &[("f", "x")], args: &["retarget", "--points", "lips", "--k", "3", "--out", "{d}/w.csv", "--png-dir", "{d}/f/frames"], code: 1, needle: "cannot make this directory", absent: &["w.csv"] },
     Case { name: "two outputs, one path", files: &[], args: &["curves", "--methods", "spread", "--k", "2..3", "--out", "{d}/c", "--png", "{d}/c"], code: 1, needle: "named as two outputs", absent: &["c"] },
     Case { name: "a full device", files: &[], args: &["solve", "--keys", "3", "--out", "/dev/full"], code: 1, needle: "/dev/full: No space left on device", absent: &[] },
+    // ---- outputs as one set (issue 41) ----
+    Case { name: "two outputs, one file spelled two ways", files: &[], args: &["curves", "--methods", "spread", "--k", "2..3", "--out", "{d}/c.csv", "--png", "{d}/./c.csv"], code: 1, needle: "c.csv: named as two outputs", absent: &["c.csv"] },
+    Case { name: "rig: the Live Link file fails after the weights", files: &[], args: &["rig", "--out", "{d}/r.csv", "--livelink", "/dev/full"], code: 1, needle: "/dev/full: No space left on device", absent: &["r.csv"] },
+    Case { name: "a spec that would be its own report", files: &[("report.json", "title = \"x\"\ninput = \"builtin\"\nmethods = [\"spread\"]\nk = \"2..4\"\n")], args: &["run", "{d}/report.json", "--out", "{d}"], code: 1, needle: "refusing to write: this is the input file", absent: &["curves.csv"] },
 ];
 
 #[test]

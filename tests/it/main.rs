@@ -14,6 +14,7 @@ mod fuzz_smoke;
 mod keyshapes;
 mod modes;
 mod oracles;
+mod outputs;
 mod pca;
 mod readers;
 mod reference;

@@ -1,0 +1,332 @@
+//! Outputs as one set (issue 41, items 10, 14 and 16): a command's files appear together or
+//! not at all, two outputs that are one file are refused however spelled, temporaries are
+//! never opened through a planted link, a replaced file keeps its permission bits, a closed
+//! standard output is an error, and a degenerate frame is refused by every path that fits a
+//! shape or a camera.
+
+use crate::common::{kslab, shared};
+use std::path::Path;
+use std::process::{Command, Stdio};
+
+fn s(p: &Path) -> String {
+    p.display().to_string()
+}
+
+fn files_in(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .flatten()
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .collect();
+    v.sort();
+    v
+}
+
+/// A 68-point plain CSV of the first 30 frames of the OpenFace sample, frame 5 replaced by
+/// `bad(value index)`.
+fn track_with_bad_frame(dir: &Path, name: &str, bad: impl Fn(usize) -> String) -> String {
+    let text = std::fs::read_to_string(shared("pyfeat_samples/openface_test.csv")).unwrap();
+    let mut lines = text.lines();
+    let head: Vec<&str> = lines.next().unwrap().split(',').map(str::trim).collect();
+    let col = |n: &str| head.iter().position(|h| *h == n).unwrap();
+    let xy: Vec<(usize, usize)> = (0..68)
+        .map(|i| (col(&format!("x_{i}")), col(&format!("y_{i}"))))
+        .collect();
+    let mut out = String::from("frame");
+    for i in 0..68 {
+        out += &format!(",x{i},y{i}");
+    }
+    out.push('\n');
+    for (n, line) in lines.take(30).enumerate() {
+        let f: Vec<&str> = line.split(',').map(str::trim).collect();
+        out += &n.to_string();
+        for (i, &(x, y)) in xy.iter().enumerate() {
+            if n == 5 {
+                out += &format!(",{},{}", bad(2 * i), bad(2 * i + 1));
+            } else {
+                out += &format!(",{},{}", f[x], f[y]);
+            }
+        }
+        out.push('\n');
+    }
+    let p = dir.join(name);
+    std::fs::write(&p, out).unwrap();
+    s(&p)
+}
+
+#[cfg(unix)]
+#[test]
+fn a_link_planted_at_a_guessable_temporary_name_is_never_followed() {
+    // The old writer opened `.NAME.tmp-PID` with File::create, which follows a link: with
+    // a link planted there, another user could redirect the output onto any file.
+    let d = tempfile::tempdir().unwrap();
+    std::fs::write(d.path().join("victim.txt"), "secret\n").unwrap();
+    let script = format!(
+        "ln -s victim.txt .w2.csv.tmp-$$; exec {} solve --keys 3,50 --out w2.csv",
+        env!("CARGO_BIN_EXE_kslab")
+    );
+    let out = Command::new("bash")
+        .args(["-c", &script])
+        .current_dir(d.path())
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert_eq!(
+        std::fs::read_to_string(d.path().join("victim.txt")).unwrap(),
+        "secret\n"
+    );
+    let meta = std::fs::symlink_metadata(d.path().join("w2.csv")).unwrap();
+    assert!(meta.file_type().is_file(), "w2.csv must be a regular file");
+    let w = std::fs::read_to_string(d.path().join("w2.csv")).unwrap();
+    assert!(w.starts_with("frame,rms,w_3,w_50\n"), "{w}");
+}
+
+#[cfg(unix)]
+#[test]
+fn a_replaced_file_keeps_its_permission_bits_and_a_new_one_follows_the_umask() {
+    use std::os::unix::fs::PermissionsExt;
+    let d = tempfile::tempdir().unwrap();
+    let old = d.path().join("w.csv");
+    std::fs::write(&old, "old").unwrap();
+    std::fs::set_permissions(&old, std::fs::Permissions::from_mode(0o600)).unwrap();
+    let bin = env!("CARGO_BIN_EXE_kslab");
+    let script = format!(
+        "umask 022; {bin} solve --keys 3,50 --out w.csv --json > s.json && {bin} solve --keys 3 --out new.csv"
+    );
+    let out = Command::new("bash")
+        .args(["-c", &script])
+        .current_dir(d.path())
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let mode = |p: &str| {
+        std::fs::metadata(d.path().join(p))
+            .unwrap()
+            .permissions()
+            .mode()
+            & 0o7777
+    };
+    assert_eq!(mode("w.csv"), 0o600, "the replaced file keeps 0600");
+    assert_ne!(std::fs::read_to_string(&old).unwrap(), "old");
+    assert_eq!(
+        mode("new.csv"),
+        0o644,
+        "a new file is 0666 less the umask 022"
+    );
+    // Nothing but the outputs is left behind.
+    assert_eq!(files_in(d.path()), ["new.csv", "s.json", "w.csv"]);
+}
+
+#[test]
+fn two_outputs_that_are_one_file_are_refused_however_spelled() {
+    let d = tempfile::tempdir().unwrap();
+    let p = |n: &str| s(&d.path().join(n));
+    let dot = |n: &str| s(&d.path().join(".").join(n));
+    std::fs::write(d.path().join("keep.csv"), "keep").unwrap();
+    #[cfg(unix)]
+    {
+        std::os::unix::fs::symlink("keep.csv", d.path().join("link.csv")).unwrap();
+        std::fs::hard_link(d.path().join("keep.csv"), d.path().join("hard.csv")).unwrap();
+    }
+    let mut cases: Vec<Vec<String>> = vec![
+        vec![
+            "curves".into(),
+            "--methods".into(),
+            "spread".into(),
+            "--k".into(),
+            "2..3".into(),
+            "--out".into(),
+            p("c.csv"),
+            "--png".into(),
+            dot("c.csv"),
+        ],
+        vec![
+            "rig".into(),
+            "--out".into(),
+            p("r.csv"),
+            "--pose".into(),
+            dot("r.csv"),
+        ],
+        vec![
+            "rig".into(),
+            "--out".into(),
+            p("r.csv"),
+            "--livelink".into(),
+            dot("r.csv"),
+        ],
+        vec![
+            "retarget".into(),
+            "--points".into(),
+            "lips".into(),
+            "--k".into(),
+            "3".into(),
+            "--out".into(),
+            p("rt.csv"),
+            "--png".into(),
+            dot("rt.csv"),
+        ],
+    ];
+    #[cfg(unix)]
+    {
+        cases.push(vec![
+            "curves".into(),
+            "--methods".into(),
+            "spread".into(),
+            "--k".into(),
+            "2..3".into(),
+            "--out".into(),
+            p("keep.csv"),
+            "--png".into(),
+            p("link.csv"),
+        ]);
+        cases.push(vec![
+            "solve".into(),
+            "--keys".into(),
+            "3".into(),
+            "--out".into(),
+            p("keep.csv"),
+            "--png".into(),
+            p("hard.csv"),
+        ]);
+        cases.push(vec![
+            "rig".into(),
+            "--out".into(),
+            p("hard.csv"),
+            "--livelink".into(),
+            p("keep.csv"),
+        ]);
+    }
+    for args in &cases {
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        let r = kslab(&args);
+        assert_eq!(r.code, 1, "{args:?}: {}", r.stderr);
+        assert!(
+            r.stderr.contains("named as two outputs"),
+            "{args:?}: {}",
+            r.stderr
+        );
+        assert_eq!(
+            std::fs::read_to_string(d.path().join("keep.csv")).unwrap(),
+            "keep"
+        );
+    }
+    let mut left = files_in(d.path());
+    left.retain(|f| !["keep.csv", "link.csv", "hard.csv"].contains(&f.as_str()));
+    assert!(left.is_empty(), "left behind: {left:?}");
+}
+
+#[test]
+fn a_failed_command_leaves_every_output_as_it_was() {
+    let d = tempfile::tempdir().unwrap();
+    let r_csv = d.path().join("r.csv");
+    std::fs::write(&r_csv, "old").unwrap();
+    // The weights are written first, the Live Link file fails on a full device: the
+    // weights must not have replaced the old file, and the frame folder made for
+    // --png-dir must be gone again.
+    let r = kslab(&[
+        "rig",
+        "--out",
+        &s(&r_csv),
+        "--png-dir",
+        &s(&d.path().join("new/frames")),
+        "--livelink",
+        "/dev/full",
+    ]);
+    assert_eq!(r.code, 1, "{}", r.stderr);
+    assert!(r.stderr.contains("/dev/full"), "{}", r.stderr);
+    assert_eq!(std::fs::read_to_string(&r_csv).unwrap(), "old");
+    assert_eq!(files_in(d.path()), ["r.csv"]);
+
+    // A spec that is its own report (report.json in --out .) is refused before any of the
+    // curves or pictures appear.
+    let spec = d.path().join("report.json");
+    std::fs::write(
+        &spec,
+        "title = \"x\"\ninput = \"builtin\"\nmethods = [\"spread\"]\nk = \"2..4\"\n",
+    )
+    .unwrap();
+    let r = kslab(&["run", &s(&spec), "--out", &s(d.path())]);
+    assert_eq!(r.code, 1, "{}", r.stderr);
+    assert!(r.stderr.contains("refusing to write"), "{}", r.stderr);
+    assert_eq!(files_in(d.path()), ["r.csv", "report.json"]);
+}
+
+#[cfg(unix)]
+#[test]
+fn a_closed_standard_output_is_an_error_and_a_closed_pipe_a_quiet_stop() {
+    let bin = env!("CARGO_BIN_EXE_kslab");
+    // Closed before the command starts (`>&-`): the weights would vanish.
+    let out = Command::new("bash")
+        .args(["-c", &format!("exec {bin} solve --keys 3,50 --out - >&-")])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("standard output is closed"), "{err}");
+    // A reader that has gone (`| head` after it read enough): no message, not a success.
+    let mut child = Command::new(bin)
+        .args(["intensity", "--clips"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.is_empty(), "a closed pipe is a quiet stop: {err}");
+    assert_ne!(out.status.code(), Some(0));
+}
+
+#[test]
+fn a_degenerate_frame_is_refused_by_name_on_every_path_that_fits_it() {
+    let d = tempfile::tempdir().unwrap();
+    let zero = track_with_bad_frame(d.path(), "zero.csv", |_| "0".into());
+    let tiny = track_with_bad_frame(d.path(), "tiny.csv", |i| format!("{}", i as f64 * 1e-300));
+    let out = s(&d.path().join("w.csv"));
+    for file in [&zero, &tiny] {
+        for args in [
+            vec!["rig", file.as_str(), "--out", &out],
+            vec!["rig", file.as_str(), "--neutral", "0", "--out", &out],
+            vec!["solve", file.as_str(), "--keys", "0,3", "--out", &out],
+            vec!["keys", file.as_str(), "--method", "spread", "--k", "2"],
+            vec!["retarget", file.as_str(), "--k", "3", "--out", &out],
+        ] {
+            let r = kslab(&args);
+            assert_eq!(r.code, 1, "{args:?}: {}{}", r.stdout, r.stderr);
+            assert!(
+                r.stderr.contains("frame 5: all 68 points coincide"),
+                "{args:?}: {}",
+                r.stderr
+            );
+        }
+    }
+    assert!(!d.path().join("w.csv").exists());
+    // The lab's rig view (`kslab tui FILE --rig DIR` at start-up) and the library's rig
+    // solve refuse it too, instead of panicking in the camera's SVD.
+    let seq = keyshape_lab::io::read_sequence(Path::new(&tiny), &Default::default()).unwrap();
+    let rig = keyshape_lab::rig::Rig::read_ict(&shared("ict_facekit_face")).unwrap();
+    let e = keyshape_lab::tui::rig::rig_view(&seq, &rig)
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(e.contains("frame 5: all 68 points coincide"), "{e}");
+    let e = keyshape_lab::rig::solve_rig(&rig, &seq.coords, &[], &Default::default())
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(
+        e.contains("frame column 5: all 68 landmarks coincide"),
+        "{e}"
+    );
+    let pts = vec![[1e-300, 2e-300]; 68];
+    let e = keyshape_lab::rig::camera::fit_camera(&rig.neutral, &pts);
+    assert!(e.is_err());
+}
