@@ -941,7 +941,94 @@ pub fn read_partial(dir: &Path) -> Result<Partial> {
             ),
         ));
     }
+    check_partial(&p).map_err(|m| Error::file(&path, m))?;
     Ok(p)
+}
+
+/// The most shards of one run.
+pub const MAX_SHARDS: usize = 1_000_000;
+
+/// A partial report is an input like any other: its experiment passes the checks of an
+/// experiment file, its counts are bounded, and every value it carries is one a run can
+/// give (finite, in range, each curve point once).
+fn check_partial(p: &Partial) -> std::result::Result<(), String> {
+    if p.shard.count > MAX_SHARDS {
+        return Err(format!(
+            "shard count {} is beyond {MAX_SHARDS}",
+            p.shard.count
+        ));
+    }
+    p.spec
+        .check(&|_| false)
+        .map_err(|(key, msg)| format!("the experiment it carries: {key}: {msg}"))?;
+    if p.spec.inputs.is_none() {
+        return Err("the experiment it carries is not a corpus (no `inputs`)".into());
+    }
+    for r in &p.results {
+        let at = |what: &str, v: f64| {
+            format!(
+                "sequence {}: {what} {v:?} is not a value a run gives",
+                r.unit.name
+            )
+        };
+        let nonneg = |what: &str, v: f64| {
+            if v.is_finite() && v >= 0.0 {
+                Ok(())
+            } else {
+                Err(at(what, v))
+            }
+        };
+        let fraction = |what: &str, v: f64| {
+            if (0.0..=1.0).contains(&v) {
+                Ok(())
+            } else {
+                Err(at(what, v))
+            }
+        };
+        if r.frames == 0 || r.points == 0 {
+            return Err(format!(
+                "sequence {}: {} frames of {} points (a sequence has at least one of each)",
+                r.unit.name, r.frames, r.points
+            ));
+        }
+        if !(r.iod.is_finite() && r.iod > 0.0) {
+            return Err(at("inter-ocular distance", r.iod));
+        }
+        nonneg("seconds", r.seconds)?;
+        for (i, c) in r.curves.iter().enumerate() {
+            nonneg("rms", c.rms)?;
+            nonneg("total squared error", c.total_sq_error)?;
+            if c.k == 0 {
+                return Err(format!("sequence {}: a curve point at k = 0", r.unit.name));
+            }
+            if r.curves[..i]
+                .iter()
+                .any(|d| d.method == c.method && d.solver == c.solver && d.k == c.k)
+            {
+                return Err(format!(
+                    "sequence {}: the curve point {} {} k = {} appears twice",
+                    r.unit.name, c.method, c.solver, c.k
+                ));
+            }
+        }
+        for (i, t) in r.retarget.iter().enumerate() {
+            fraction("trace noise", t.trace_noise)?;
+            nonneg("source rms", t.source_rms)?;
+            nonneg("target rms", t.target_rms)?;
+            fraction("share of negative weights", t.negative_share)?;
+            nonneg("largest |w|", t.max_abs_weight)?;
+            if r.retarget[..i]
+                .iter()
+                .any(|d| d.solver == t.solver && d.trace_noise == t.trace_noise)
+            {
+                return Err(format!(
+                    "sequence {}: the retarget row {} at noise {} appears twice",
+                    r.unit.name, t.solver, t.trace_noise
+                ));
+            }
+        }
+    }
+    Ok(())
 }
 
 /// Combines the partial reports of every shard of one experiment into its outcome:
@@ -968,6 +1055,14 @@ pub fn merge(dirs: &[PathBuf]) -> Result<CorpusOutcome> {
             ))
         };
         if spec_json(p) != spec_json(first) {
+            if p.spec_file == first.spec_file {
+                return Err(Error::invalid(format!(
+                    "merge: {} and {} ran different versions of {} (was it edited between the runs?); merge the shards of one run",
+                    first_dir.display(),
+                    d.display(),
+                    p.spec_file
+                )));
+            }
             return Err(differs(
                 "experiments",
                 first.spec_file.clone(),
@@ -1009,14 +1104,25 @@ pub fn merge(dirs: &[PathBuf]) -> Result<CorpusOutcome> {
             .map(|u| &p.units[u])
             .collect();
         let got: Vec<&Unit> = p.results.iter().map(|r| &r.unit).collect();
-        if want != got {
+        if want.len() != got.len() {
             return Err(Error::file(
                 d,
                 format!(
-                    "shard {} holds {} results where its part of the corpus has {} sequences",
+                    "shard {} holds {} result{} where its part of the corpus has {} sequence{}",
                     p.shard,
                     got.len(),
-                    want.len()
+                    if got.len() == 1 { "" } else { "s" },
+                    want.len(),
+                    if want.len() == 1 { "" } else { "s" }
+                ),
+            ));
+        }
+        if let Some((w, g)) = want.iter().zip(&got).find(|(w, g)| w != g) {
+            return Err(Error::file(
+                d,
+                format!(
+                    "shard {} holds a result for '{}' where its part of the corpus has '{}' (in corpus order)",
+                    p.shard, g.name, w.name
                 ),
             ));
         }

@@ -252,32 +252,50 @@ impl Spec {
 
     /// Parses spec text (`path` only names the file in errors).
     pub fn from_str(path: &Path, text: &str) -> Result<Spec> {
-        let spec: Spec = toml::from_str(text).map_err(|e| {
-            let (line, col) = e.span().map_or((0, 0), |s| line_col(text, s.start));
-            Error::parse(path, line, col, e.message().to_string())
+        let spec: Spec = toml::from_str(text).map_err(|e| match e.span() {
+            Some(s) => {
+                let (line, col) = line_col(text, s.start);
+                Error::parse(path, line, col, e.message().to_string())
+            }
+            None => Error::file(path, e.message().to_string()),
         })?;
-        let at = |key: &str, msg: String| {
-            let (line, col) = find_key(text, key);
-            Error::parse(path, line, col, format!("{key}: {msg}"))
+        let at = |key: &str, msg: String| match find_key(text, key) {
+            Some((line, col)) => Error::parse(path, line, col, format!("{key}: {msg}")),
+            None => Error::file(path, format!("{key}: {msg}")),
         };
+        spec.check(&|key| top_level_key(text, key))
+            .map_err(|(key, msg)| at(key, msg))?;
+        Ok(spec)
+    }
+}
+
+impl Spec {
+    /// The checks beyond the file's syntax: what must hold together, counts within their
+    /// bounds, options that apply. `given(key)` tells whether a top-level key was written
+    /// in the file (an option that does not apply is refused only when given). The error
+    /// names the key and says what is wrong. Run on every spec read: an experiment file,
+    /// and the spec a partial report carries.
+    pub fn check(
+        &self,
+        given: &dyn Fn(&str) -> bool,
+    ) -> std::result::Result<(), (&'static str, String)> {
+        let spec = self;
         match (&spec.inputs, spec.input.is_empty()) {
             (None, true) => {
-                return Err(Error::parse(
-                    path,
-                    0,
-                    0,
-                    "input: missing: name the sequence (`input = \"file.csv\"` or \"builtin\"), or a corpus (`inputs = [\"tracks/*.csv\"]`)",
+                return Err((
+                    "input",
+                    "missing: name the sequence (`input = \"file.csv\"` or \"builtin\"), or a corpus (`inputs = [\"tracks/*.csv\"]`)".into(),
                 ))
             }
             (Some(_), false) => {
-                return Err(at(
+                return Err((
                     "inputs",
                     "give `input` (one sequence) or `inputs` (a corpus), not both".into(),
                 ))
             }
             (Some(list), true) => {
                 if list.is_empty() {
-                    return Err(at("inputs", "name at least one sequence".into()));
+                    return Err(("inputs", "name at least one sequence".into()));
                 }
                 let other = [
                     ("modes", spec.modes.is_some()),
@@ -287,30 +305,38 @@ impl Spec {
                     ("rig", spec.rig.is_some()),
                 ];
                 if let Some((name, _)) = other.iter().find(|o| o.1) {
-                    return Err(at(
+                    return Err((
                         "inputs",
                         format!("a corpus runs the error curves and [retarget] on each sequence; [{name}] works on one input (use `input`)"),
                     ));
                 }
                 if spec.compare_raw {
-                    return Err(at(
+                    return Err((
                         "compare_raw",
                         "a corpus aggregates the curves of one coordinate frame; run the raw curves as their own corpus (align = false)".into(),
                     ));
                 }
                 if spec.bootstrap == Some(0) {
-                    return Err(at("bootstrap", "needs at least 1 resample".into()));
+                    return Err(("bootstrap", "needs at least 1 resample".into()));
+                }
+                if let Some(b) = spec.bootstrap {
+                    if b > MAX_BOOTSTRAP {
+                        return Err((
+                            "bootstrap",
+                            format!("{b} resamples: give 1 to {MAX_BOOTSTRAP}"),
+                        ));
+                    }
                 }
             }
             (None, false) => {
                 if spec.split_clips {
-                    return Err(at(
+                    return Err((
                         "split_clips",
                         "splits the files of a corpus (`inputs`) into clips; with one `input` it has nothing to split".into(),
                     ));
                 }
                 if spec.bootstrap.is_some() {
-                    return Err(at(
+                    return Err((
                         "bootstrap",
                         "sets the resamples of a corpus' intervals (`inputs`); one `input` has none".into(),
                     ));
@@ -318,7 +344,7 @@ impl Spec {
             }
         }
         if spec.k.0 == 0 || spec.k.0 > spec.k.1 {
-            return Err(at(
+            return Err((
                 "k",
                 format!("range {}..{} is empty or starts at 0", spec.k.0, spec.k.1),
             ));
@@ -330,36 +356,84 @@ impl Spec {
             || spec.smooth.is_some()
             || spec.rig.is_some();
         if spec.methods.is_empty() && !studies {
-            return Err(at("methods", "name at least one method (or add a [retarget], [modes], [intensity], [map], [smooth] or [rig] table)".into()));
+            return Err(("methods", "name at least one method (or add a [retarget], [modes], [intensity], [map], [smooth] or [rig] table)".into()));
         }
         if spec.compare_raw && (!spec.align || spec.methods.is_empty()) {
-            return Err(at(
+            return Err((
                 "compare_raw",
                 "compares aligned with raw curves: it needs align = true and at least one method"
                     .into(),
             ));
         }
         if spec.solvers.is_empty() {
-            return Err(at("solvers", "name at least one solver".into()));
+            return Err(("solvers", "name at least one solver".into()));
+        }
+        if let Some(m) = repeated(&spec.methods, |m| m.name()) {
+            return Err(("methods", format!("{m} is listed twice")));
+        }
+        if let Some(sv) = repeated(&spec.solvers, |s| *s) {
+            return Err(("solvers", format!("{sv} is listed twice")));
+        }
+        // Options that cannot apply are refused, as on the command line.
+        let choosers = || {
+            spec.methods
+                .iter()
+                .chain(spec.retarget.as_ref().map(|r| &r.method))
+        };
+        if given("seed")
+            && spec.inputs.is_none()
+            && !choosers().any(|m| matches!(m, Method::KMeans { .. } | Method::Random))
+        {
+            return Err((
+                "seed",
+                "applies to kmeans and random (and a corpus' bootstrap) only".into(),
+            ));
+        }
+        if given("shortlist")
+            && !(spec.methods.contains(&Method::Greedy)
+                && spec.solvers.iter().any(|s| *s != Solver::Ls))
+        {
+            return Err((
+                "shortlist",
+                "applies to greedy with the nnls or bounded solver only".into(),
+            ));
         }
         if let Some(r) = &spec.retarget {
-            if r.solvers.is_empty()
-                || r.k == 0
-                || r.trace_noise.iter().any(|v| !(v.is_finite() && *v >= 0.0))
+            if r.solvers.is_empty() || r.k == 0 {
+                return Err(("retarget", "needs k ≥ 1 and at least one solver".into()));
+            }
+            if let Some(v) = r
+                .trace_noise
+                .iter()
+                .find(|v| !(v.is_finite() && (0.0..=1.0).contains(*v)))
             {
-                return Err(at(
-                    "retarget",
-                    "needs k ≥ 1, at least one solver, and trace_noise values ≥ 0".into(),
+                return Err((
+                    "trace_noise",
+                    format!("{v:?} is not a fraction of the inter-ocular distance in [0, 1]"),
                 ));
+            }
+            if let Some(sv) = repeated(&r.solvers, |s| *s) {
+                return Err(("retarget", format!("solver {sv} is listed twice")));
+            }
+        }
+        if let Some(r) = &spec.rig {
+            if !(1..=MAX_STUDY_FRAMES).contains(&r.frames) {
+                return Err((
+                    "frames",
+                    format!("{} frames: give 1 to {MAX_STUDY_FRAMES}", r.frames),
+                ));
+            }
+            if let Some(sv) = repeated(&r.solvers, |s| *s) {
+                return Err(("rig", format!("solver {sv} is listed twice")));
             }
         }
         if let Some(m) = &spec.modes {
             RegionOptions::from_user(m.boundary, m.blend_radius)
-                .map_err(|e| at("blend_radius", e.to_string()))?;
+                .map_err(|e| ("blend_radius", e.to_string()))?;
         }
         if let Some(m) = &spec.map {
             RegionOptions::from_user(m.boundary, m.blend_radius)
-                .map_err(|e| at("blend_radius", e.to_string()))?;
+                .map_err(|e| ("blend_radius", e.to_string()))?;
         }
         if let Some(i) = &spec.intensity {
             i.check().map_err(|e| {
@@ -370,16 +444,16 @@ impl Spec {
                 } else {
                     "neutral_frames"
                 };
-                at(key, e.to_string())
+                (key, e.to_string())
             })?;
         }
         if let Some(sm) = &spec.smooth {
-            sm.check(30.0).map_err(|e| at("smooth", e.to_string()))?;
+            sm.check(30.0).map_err(|e| ("smooth", e.to_string()))?;
         }
         if spec.dims != 2 && spec.dims != 3 {
-            return Err(at("dims", format!("must be 2 or 3, got {}", spec.dims)));
+            return Err(("dims", format!("must be 2 or 3, got {}", spec.dims)));
         }
-        Ok(spec)
+        Ok(())
     }
 }
 
@@ -391,15 +465,46 @@ fn line_col(text: &str, offset: usize) -> (u64, u64) {
     (line, col)
 }
 
-/// Line and column of `key = …` at the start of a line (0, 0 if absent).
-fn find_key(text: &str, key: &str) -> (u64, u64) {
+/// Line and column of `key = …` at the start of a line, or of a table header `[key]`
+/// (None if absent).
+fn find_key(text: &str, key: &str) -> Option<(u64, u64)> {
     for (i, l) in text.lines().enumerate() {
         let t = l.trim_start();
-        if t.strip_prefix(key)
-            .is_some_and(|r| r.trim_start().starts_with('='))
-        {
-            return (i as u64 + 1, (l.len() - t.len()) as u64 + 1);
+        let assigns = t
+            .strip_prefix(key)
+            .is_some_and(|r| r.trim_start().starts_with('='));
+        let header = t
+            .strip_prefix('[')
+            .and_then(|r| r.trim_start().strip_prefix(key))
+            .is_some_and(|r| r.trim_start().starts_with(']'));
+        if assigns || header {
+            return Some((i as u64 + 1, (l.len() - t.len()) as u64 + 1));
         }
     }
-    (0, 0)
+    None
+}
+
+/// Is `key = …` set at the top level (before the first table header)?
+fn top_level_key(text: &str, key: &str) -> bool {
+    text.lines()
+        .map(str::trim_start)
+        .take_while(|t| !t.starts_with('['))
+        .any(|t| {
+            t.strip_prefix(key)
+                .is_some_and(|r| r.trim_start().starts_with('='))
+        })
+}
+
+/// The most bootstrap resamples (ample for a 95 % interval; each one costs a pass over the
+/// corpus' sequences).
+pub const MAX_BOOTSTRAP: usize = 100_000;
+/// The most frames of a synthetic track in the `[rig]` study.
+pub const MAX_STUDY_FRAMES: usize = 1_000_000;
+
+/// The first entry of `list` that appears twice, by `name`.
+fn repeated<T, N: PartialEq>(list: &[T], name: impl Fn(&T) -> N) -> Option<N> {
+    list.iter()
+        .enumerate()
+        .find(|(i, a)| list[..*i].iter().any(|b| name(b) == name(a)))
+        .map(|(_, a)| name(a))
 }

@@ -927,3 +927,77 @@ fn aggregates_of_hand_made_results_with_ties_are_exact() {
     assert!((r.target_diff.mean + 0.7 / 3.0).abs() < 1e-15, "{r:?}");
     assert!((r.source_diff.mean + 0.4 / 3.0).abs() < 1e-15, "{r:?}");
 }
+
+/// A partial report is validated as an input (issue 41, items 11–12): a damaged value, an
+/// impossible count or a repeated curve point is refused by name, nothing is written.
+#[test]
+fn merge_refuses_a_partial_with_values_no_run_gives() {
+    let (_scratch, d) = tmp("values");
+    let spec = d.join("c.toml");
+    std::fs::write(
+        &spec,
+        format!(
+            "title = \"t\"\ninputs = [\"{}\"]\npoints = \"lips\"\nmethods = [\"spread\"]\nk = \"2..3\"\nbootstrap = 50\n",
+            shared("mediapipe_face_tracks/liveportrait_d6.csv").display()
+        ),
+    )
+    .unwrap();
+    let p = |x: &Path| x.display().to_string();
+    run_ok(&[
+        "run",
+        &p(&spec),
+        "--shard",
+        "0/1",
+        "--out",
+        &p(&d.join("s0")),
+    ]);
+    let good = std::fs::read_to_string(d.join("s0/partial.json")).unwrap();
+    let out = d.join("merged");
+    // The untouched partial merges.
+    run_ok(&["merge", &p(&d.join("s0")), "--out", &p(&out)]);
+    std::fs::remove_dir_all(&out).unwrap();
+    // The first `"name": "…"` of the partial with another value.
+    let field = |name: &str, v: &str| {
+        let key = format!("\"{name}\": \"");
+        let i = good.find(&key).unwrap() + key.len();
+        let j = i + good[i..].find('"').unwrap();
+        format!("{}{v}{}", &good[..i], &good[j..])
+    };
+    let second_k = good.replacen("\"k\": 3,", "\"k\": 2,", 1);
+    let cases: Vec<(String, &str)> = vec![
+        (field("rms", "NaN"), "rms NaN is not a value a run gives"),
+        (field("rms", "inf"), "rms inf is not a value a run gives"),
+        (field("rms", "1e999"), "rms inf is not a value a run gives"),
+        (field("rms", "-1"), "rms -1.0 is not a value a run gives"),
+        (
+            field("iod", "0"),
+            "inter-ocular distance 0.0 is not a value",
+        ),
+        (
+            good.replacen("\"frames\": 1008", "\"frames\": 0", 1),
+            "0 frames of 40 points",
+        ),
+        (second_k, "the curve point spread nnls k = 2 appears twice"),
+        (
+            good.replacen("\"count\": 1", "\"count\": 1152921504606846976", 1),
+            "shard count 1152921504606846976 is beyond",
+        ),
+        (
+            good.replacen("\"bootstrap\": 50", "\"bootstrap\": 2305843009213693952", 1),
+            "the experiment it carries: bootstrap: 2305843009213693952 resamples",
+        ),
+    ];
+    for (text, want) in cases {
+        assert_ne!(text, good, "the edit for '{want}' changed nothing");
+        std::fs::write(d.join("s0/partial.json"), &text).unwrap();
+        let r = kslab(&["merge", &p(&d.join("s0")), "--out", &p(&out)]);
+        assert_eq!(r.code, 1, "{want}: {}", r.stderr);
+        assert!(
+            r.stderr.contains(want),
+            "expected '{want}' in: {}",
+            r.stderr
+        );
+        assert!(r.stderr.contains("partial.json"), "{}", r.stderr);
+        assert!(!out.exists(), "a refused merge wrote {}", out.display());
+    }
+}
