@@ -8,6 +8,7 @@ use serde_json::json;
 
 /// Arguments of `kslab info`.
 #[derive(Debug, Args)]
+#[command(mut_arg("no_align", |a| a.hide(true)))]
 pub struct InfoArgs {
     #[command(flatten)]
     input: InputArgs,
@@ -55,6 +56,7 @@ pub fn run(a: &InfoArgs) -> Result<()> {
             "points": seq.points,
             "selected_points": selected,
             "dims": seq.dims,
+            "normalised": seq.is_normalised(),
             "layout": layout.as_ref().map(|l| l.name.clone()),
             "groups": layout.as_ref().map(|l| l.names()),
             "fps": seq.fps(),
@@ -75,8 +77,13 @@ pub fn run(a: &InfoArgs) -> Result<()> {
         format!("{} ({}{more})", seq.failed.len(), shown.join(", "))
     };
     outln!("failed frames  {failed}");
-    if let (Some(first), Some(last)) = (seq.frames.first(), seq.frames.last()) {
-        outln!("frame numbers  {first}..={last}");
+    if let (Some(first), Some(last)) = (seq.frames.iter().min(), seq.frames.iter().max()) {
+        let order = if seq.frames.windows(2).all(|w| w[0] < w[1]) {
+            ""
+        } else {
+            " (not in order in the file)"
+        };
+        outln!("frame numbers  {first}..={last}{order}");
     }
     outln!(
         "points         {}{}",
@@ -86,6 +93,9 @@ pub fn run(a: &InfoArgs) -> Result<()> {
             .unwrap_or_default()
     );
     outln!("dims           {}", seq.dims);
+    if seq.is_normalised() {
+        outln!("coordinates    normalised: every x and y in [0, 1] (MediaPipe's default; --image-size WxH for pixels)");
+    }
     match &layout {
         Some(l) => outln!(
             "layout         {} (groups: {})",

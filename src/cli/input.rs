@@ -27,10 +27,44 @@ pub struct InputArgs {
     /// Keep raw coordinates: do not remove 2-D head motion (alignment is on by default).
     #[arg(long)]
     pub no_align: bool,
+    /// The video's size in pixels, WIDTHxHEIGHT (e.g. 1280x720), for a track in normalised
+    /// coordinates (MediaPipe's default: every x and y in [0, 1]): x is scaled by WIDTH, y
+    /// (and z) as MediaPipe defines them, so that shapes keep their aspect and errors are
+    /// in pixels. Refused for a track in pixels. [default: the coordinates as read]
+    #[arg(long, value_name = "WxH", value_parser = parse_image_size)]
+    pub image_size: Option<(f64, f64)>,
 }
 
 fn parse_format(s: &str) -> Result<Format, String> {
     Format::parse(s).map_err(|e| e.to_string())
+}
+
+/// `WIDTHxHEIGHT` in pixels.
+pub fn parse_image_size(s: &str) -> Result<(f64, f64), String> {
+    let bad = || format!("'{s}' is not an image size: give WIDTHxHEIGHT in pixels, e.g. 1280x720");
+    let (w, h) = s.split_once(['x', 'X', '×']).ok_or_else(bad)?;
+    let w: f64 = w.trim().parse().map_err(|_| bad())?;
+    let h: f64 = h.trim().parse().map_err(|_| bad())?;
+    if !(w.is_finite() && w >= 1.0 && h.is_finite() && h >= 1.0) {
+        return Err(bad());
+    }
+    Ok((w, h))
+}
+
+/// Applies `--image-size` to a sequence just read, or says on standard error that its
+/// coordinates are normalised (MediaPipe's default) when none was given.
+pub fn apply_image_size(seq: &mut Sequence, size: Option<(f64, f64)>) -> Result<()> {
+    match size {
+        Some((w, h)) => seq
+            .scale_to_image(w, h)
+            .map_err(|e| anyhow::anyhow!("--image-size {w}x{h}: {e}"))?,
+        None if seq.is_normalised() => eprintln!(
+            "note: {}: every x and y lies in [0, 1]: normalised image coordinates (MediaPipe's default). Errors and distances are fractions of the image, and x and y are on different scales unless the video is square: give --image-size WIDTHxHEIGHT to work in pixels.",
+            seq.source
+        ),
+        None => {}
+    }
+    Ok(())
 }
 
 impl InputArgs {
@@ -40,7 +74,7 @@ impl InputArgs {
             format: self.format,
             dims: usize::from(self.dims),
         };
-        Ok(match &self.file {
+        let mut seq = match &self.file {
             Some(p) => read_sequence(p, &opts)?,
             None => {
                 if self.dims == 3 {
@@ -48,7 +82,9 @@ impl InputArgs {
                 }
                 builtin_sequence()?
             }
-        })
+        };
+        apply_image_size(&mut seq, self.image_size)?;
+        Ok(seq)
     }
 
     /// Reads and prepares, keeping only the prepared sequence: aligned in place, so a long

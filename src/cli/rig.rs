@@ -24,6 +24,11 @@ pub struct RigArgs {
     /// detected].
     #[arg(long, value_parser = parse_format)]
     format: Option<keyshape_lab::sequence::Format>,
+    /// The video's size in pixels, WIDTHxHEIGHT, for a track in normalised coordinates
+    /// (MediaPipe's default, every x and y in [0, 1]): the camera fit needs x and y on one
+    /// scale. Refused for a track in pixels. [default: the coordinates as read]
+    #[arg(long, value_name = "WxH", value_parser = super::input::parse_image_size)]
+    image_size: Option<(f64, f64)>,
     /// The rig: a folder in the ICT FaceKit layout (neutral_face.obj, expressions.csv,
     /// expression_deltas.csv, landmarks_multipie68.csv), or a glTF/GLB file whose first mesh
     /// with morph targets is the rig (with --rig-landmarks)
@@ -154,13 +159,17 @@ pub fn run(a: &RigArgs) -> Result<()> {
         )?,
         None => keyshape_lab::io::builtin_sequence()?,
     };
+    let mut seq = seq;
+    super::input::apply_image_size(&mut seq, a.image_size)?;
     // (A `match` on a moved value: the 468-point track is freed once its 68 points are
     // taken, instead of living on under a shadowed name.)
     let seq = match seq {
         seq if seq.points == keyshape_lab::rig::LANDMARKS => seq,
-        seq if seq.points == 468 => seq.select_points(&keyshape_lab::rig::mediapipe_to_ibug68()?)?,
+        seq if seq.points == 468 || seq.points == 478 => {
+            seq.select_points(&keyshape_lab::rig::mediapipe_to_ibug68()?)?
+        }
         seq => anyhow::bail!(
-            "{name}: kslab rig needs 68-point tracks in iBUG order or MediaPipe 468-point tracks; this one has {} points",
+            "{name}: kslab rig needs 68-point tracks in iBUG order or MediaPipe tracks (468 Face Mesh points, or Face Landmarker's 478 with irises); this one has {} points",
             seq.points
         ),
     };

@@ -82,10 +82,12 @@ pub fn run(a: &TransferArgs) -> Result<()> {
     let s = &prep.seq;
     let mesh = read_obj(&a.mesh)?;
     let layout = keyshape_lab::sequence::Layout::for_points(s.points);
+    // A 478-point Face Landmarker track takes the Face Mesh 468's correspondences: their
+    // points are its first 468.
     let features = Features::choose(
         &a.features,
-        layout.as_ref().map(|l| l.name.as_str()),
-        s.points,
+        layout.as_ref().map(|l| l.family()),
+        layout.as_ref().map_or(s.points, |l| l.family_points()),
         mesh.positions.len(),
     )?;
     let ncol = match a.neutral {

@@ -44,7 +44,7 @@ pub struct ModeRegions {
 impl ModeRegions {
     /// The built-in regions of a layout.
     pub fn builtin(layout: &Layout) -> Result<ModeRegions> {
-        let text = match layout.name.as_str() {
+        let text = match layout.family() {
             "mediapipe_face_mesh_468" => {
                 include_str!("../../assets/cosker/regions_mediapipe_face_mesh_468.json")
             }
@@ -65,7 +65,7 @@ impl ModeRegions {
 
     /// Point indices of each region (name order); unknown groups and empty regions are errors.
     pub fn points(&self, layout: &Layout) -> Result<Vec<(String, Vec<usize>)>> {
-        if self.layout != layout.name {
+        if self.layout != layout.family() {
             return Err(Error::invalid(format!(
                 "regions are for layout {}, the sequence is {}",
                 self.layout, layout.name

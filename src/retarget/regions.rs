@@ -39,7 +39,7 @@ pub struct Regions {
 impl Regions {
     /// The built-in regions of a layout.
     pub fn builtin(layout: &Layout) -> Result<Regions> {
-        let text = match layout.name.as_str() {
+        let text = match layout.family() {
             "mediapipe_face_mesh_468" => {
                 include_str!("../../assets/regions/mediapipe_face_mesh_468.json")
             }
@@ -83,7 +83,7 @@ pub fn plan(
     mean: &[f64],
     dims: usize,
 ) -> Result<RegionPlan> {
-    if regions.layout != layout.name {
+    if regions.layout != layout.family() {
         return Err(Error::invalid(format!(
             "regions are for layout {}, the sequence is {}",
             regions.layout, layout.name

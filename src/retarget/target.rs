@@ -166,7 +166,7 @@ const CARTOON: &str = include_str!("../../assets/targets/cartoon.json");
 pub fn iod(mean: &[f64], layout: &Layout) -> Result<f64> {
     let file: CartoonFile = serde_json::from_str(CARTOON)
         .map_err(|e| Error::invalid(format!("built-in cartoon: {e}")))?;
-    let [a, b] = *file.iod_points.get(&layout.name).ok_or_else(|| {
+    let [a, b] = *file.iod_points.get(layout.family()).ok_or_else(|| {
         Error::invalid(format!("no eye corners known for layout {}", layout.name))
     })?;
     Ok(((mean[2 * a] - mean[2 * b]).powi(2) + (mean[2 * a + 1] - mean[2 * b + 1]).powi(2)).sqrt())
@@ -183,7 +183,7 @@ pub fn cartoon_warp(mean: &[f64], layout: &Layout) -> Result<Rbf> {
     let file: CartoonFile = serde_json::from_str(CARTOON)
         .map_err(|e| Error::invalid(format!("built-in cartoon: {e}")))?;
     let pt = |i: usize| [mean[2 * i], mean[2 * i + 1]];
-    let [a, b] = *file.iod_points.get(&layout.name).ok_or_else(|| {
+    let [a, b] = *file.iod_points.get(layout.family()).ok_or_else(|| {
         Error::invalid(format!(
             "the built-in cartoon target has no rule for layout {}",
             layout.name

@@ -29,25 +29,7 @@ use std::path::Path;
 /// Landmarks per rig (iBUG / Multi-PIE 68, in that order).
 pub const LANDMARKS: usize = 68;
 
-const MEDIAPIPE_TO_IBUG: &str = include_str!("../../assets/features/mediapipe468_to_ibug68.json");
-
-/// For each iBUG-68 landmark, the MediaPipe Face Mesh landmark read in its place: derived by
-/// `tools/make_mediapipe_to_ibug68.py` from MediaPipe's canonical face aligned to the ICT
-/// neutral (see the file's description; a geometric derivation, not a published table).
-pub fn mediapipe_to_ibug68() -> Result<Vec<usize>> {
-    #[derive(serde::Deserialize)]
-    struct File {
-        mediapipe: Vec<usize>,
-    }
-    let f: File = serde_json::from_str(MEDIAPIPE_TO_IBUG)
-        .map_err(|e| Error::invalid(format!("built-in 468 → 68 correspondence: {e}")))?;
-    if f.mediapipe.len() != LANDMARKS || f.mediapipe.iter().any(|&i| i >= 468) {
-        return Err(Error::invalid(
-            "built-in 468 → 68 correspondence is malformed",
-        ));
-    }
-    Ok(f.mediapipe)
-}
+pub use crate::sequence::mediapipe_to_ibug68;
 
 /// A blendshape rig seen through its landmark vertices.
 #[derive(Debug, Clone)]

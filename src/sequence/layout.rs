@@ -1,14 +1,35 @@
 //! Landmark layouts: named groups of feature points with polylines for drawing.
 //!
-//! Two layouts are built in: MediaPipe Face Mesh 468 (index lists embedded from
+//! Three layouts are built in: MediaPipe Face Mesh 468 (index lists embedded from
 //! `assets/layout_mediapipe468.json`, derived from mediapipe 0.10.14's
-//! `face_mesh_connections.py`, Apache-2.0 — see `assets/NOTICE`) and iBUG 68.
+//! `face_mesh_connections.py`, Apache-2.0 — see `assets/NOTICE`), MediaPipe Face
+//! Landmarker 478 (the 468 and two irises of five points) and iBUG 68.
 
 use crate::error::{Error, Result};
 use serde::Deserialize;
 use std::collections::BTreeMap;
 
 const MEDIAPIPE_JSON: &str = include_str!("../../assets/layout_mediapipe468.json");
+
+const MEDIAPIPE_TO_IBUG: &str = include_str!("../../assets/features/mediapipe468_to_ibug68.json");
+
+/// For each iBUG-68 landmark, the MediaPipe Face Mesh landmark read in its place: derived by
+/// `tools/make_mediapipe_to_ibug68.py` from MediaPipe's canonical face aligned to the ICT
+/// neutral (see the file's description; a geometric derivation, not a published table).
+pub fn mediapipe_to_ibug68() -> Result<Vec<usize>> {
+    #[derive(serde::Deserialize)]
+    struct File {
+        mediapipe: Vec<usize>,
+    }
+    let f: File = serde_json::from_str(MEDIAPIPE_TO_IBUG)
+        .map_err(|e| Error::invalid(format!("built-in 468 → 68 correspondence: {e}")))?;
+    if f.mediapipe.len() != 68 || f.mediapipe.iter().any(|&i| i >= 468) {
+        return Err(Error::invalid(
+            "built-in 468 → 68 correspondence is malformed",
+        ));
+    }
+    Ok(f.mediapipe)
+}
 
 /// One named group of feature points.
 #[derive(Debug, Clone, PartialEq, Deserialize)]
@@ -29,10 +50,15 @@ pub struct Layout {
     pub points: usize,
     /// Groups by name.
     pub groups: BTreeMap<String, Group>,
+    /// The layout this one extends (name, points), whose points are this one's first ones:
+    /// regions, eye corners and correspondences made for it serve this one too.
+    #[serde(skip)]
+    pub extends: Option<(String, usize)>,
 }
 
 /// Group names that stand for several groups, on any layout that has the parts.
-const ALIASES: [(&str, &[&str]); 4] = [
+const ALIASES: [(&str, &[&str]); 5] = [
+    ("irises", &["left_iris", "right_iris"]),
     ("eyes", &["left_eye", "right_eye"]),
     ("brows", &["left_eyebrow", "right_eyebrow"]),
     ("eyebrows", &["left_eyebrow", "right_eyebrow"]),
@@ -49,8 +75,43 @@ impl Layout {
                 name: "mediapipe_face_mesh_468".into(),
                 points: 468,
                 groups: BTreeMap::new(),
+                extends: None,
             },
         }
+    }
+
+    /// MediaPipe Face Landmarker's 478 points (its default output): the Face Mesh 468 and
+    /// ten iris points, each iris a centre and four points around it — `right_iris`
+    /// 468–472 (centre 468), `left_iris` 473–477 (centre 473), left and right as the
+    /// subject's, as the eye groups are (`FACEMESH_LEFT_IRIS` = 474–477 in mediapipe's
+    /// `face_mesh_connections.py`).
+    pub fn mediapipe478() -> Layout {
+        let mut l = Layout::mediapipe468();
+        l.extends = Some((l.name.clone(), l.points));
+        l.name = "mediapipe_face_landmarker_478".into();
+        l.points = 478;
+        for (name, centre) in [("right_iris", 468usize), ("left_iris", 473)] {
+            let ring: Vec<usize> = (centre + 1..centre + 5).chain([centre + 1]).collect();
+            l.groups.insert(
+                name.into(),
+                Group {
+                    points: (centre..centre + 5).collect(),
+                    polylines: vec![ring],
+                },
+            );
+        }
+        l
+    }
+
+    /// The name of the layout this one extends, or its own: what regions, eye corners and
+    /// feature correspondences are keyed by.
+    pub fn family(&self) -> &str {
+        self.extends.as_ref().map_or(&self.name, |(n, _)| n)
+    }
+
+    /// The point count of [`Layout::family`].
+    pub fn family_points(&self) -> usize {
+        self.extends.as_ref().map_or(self.points, |(_, p)| *p)
     }
 
     /// The iBUG / Multi-PIE 68-point layout (0-based): jaw 0–16, brows 17–21 and 22–26
@@ -77,13 +138,16 @@ impl Layout {
             name: "ibug68".into(),
             points: 68,
             groups,
+            extends: None,
         }
     }
 
-    /// The built-in layout for a point count (468 → MediaPipe, 68 → iBUG), if any.
+    /// The built-in layout for a point count (468 → MediaPipe Face Mesh, 478 → MediaPipe
+    /// Face Landmarker with irises, 68 → iBUG), if any.
     pub fn for_points(points: usize) -> Option<Layout> {
         match points {
             468 => Some(Layout::mediapipe468()),
+            478 => Some(Layout::mediapipe478()),
             68 => Some(Layout::ibug68()),
             _ => None,
         }
@@ -161,6 +225,36 @@ mod tests {
             assert!(!grp.polylines.is_empty());
         }
         assert_eq!(l, Layout::mediapipe468());
+    }
+
+    #[test]
+    fn the_landmarker_layout_is_the_face_mesh_and_two_irises() {
+        let m = Layout::mediapipe468();
+        let l = Layout::for_points(478).unwrap();
+        assert_eq!(
+            (l.points, l.family(), l.family_points()),
+            (478, m.name.as_str(), 468)
+        );
+        assert_eq!(m.family(), m.name);
+        for (name, g) in &m.groups {
+            assert_eq!(l.groups.get(name), Some(g), "{name}");
+        }
+        assert_eq!(
+            l.select("right_iris").unwrap(),
+            (468..473).collect::<Vec<_>>()
+        );
+        assert_eq!(
+            l.select("left_iris").unwrap(),
+            (473..478).collect::<Vec<_>>()
+        );
+        assert_eq!(l.select("irises").unwrap(), (468..478).collect::<Vec<_>>());
+        // Each ring is closed around its centre, which it leaves out.
+        assert_eq!(
+            l.groups["left_iris"].polylines,
+            vec![vec![474, 475, 476, 477, 474]]
+        );
+        assert_eq!(l.select("all").unwrap().len(), 478);
+        assert!(m.select("irises").is_err());
     }
 
     #[test]

@@ -3,7 +3,7 @@
 mod layout;
 pub mod synthetic;
 
-pub use layout::{Group, Layout};
+pub use layout::{mediapipe_to_ibug68, Group, Layout};
 
 use crate::error::{Error, Result};
 use nalgebra::DMatrix;
@@ -168,6 +168,46 @@ impl Sequence {
                     &self.source,
                     degenerate_message(self.frames[c], self.points),
                 ));
+            }
+        }
+        Ok(())
+    }
+
+    /// Are these MediaPipe's normalised image coordinates (its default output): every x
+    /// and y within [0, 1]? (A pixel track of a face spans tens of pixels at least.)
+    pub fn is_normalised(&self) -> bool {
+        self.coords.ncols() > 0
+            && self.coords.column_iter().all(|c| {
+                c.as_slice()
+                    .chunks(self.dims)
+                    .all(|p| p[..2].iter().all(|v| (0.0..=1.0).contains(v)))
+            })
+    }
+
+    /// Turns normalised coordinates into pixels of a `width` × `height` image: x × width,
+    /// y × height and z × width (MediaPipe's z is relative depth on x's scale). Errors when
+    /// the coordinates are not normalised or a size is not a positive finite number.
+    pub fn scale_to_image(&mut self, width: f64, height: f64) -> Result<()> {
+        if !(width.is_finite() && width > 0.0 && height.is_finite() && height > 0.0) {
+            return Err(Error::invalid(format!(
+                "image size {width} × {height}: give positive sizes in pixels"
+            )));
+        }
+        if !self.is_normalised() {
+            let (lo, hi) = self.ranges()[0];
+            return Err(Error::file(
+                &self.source,
+                format!(
+                    "an image size applies to normalised coordinates (every x and y in [0, 1]); here x runs {lo} .. {hi}"
+                ),
+            ));
+        }
+        let scale = [width, height, width];
+        for mut c in self.coords.column_iter_mut() {
+            for p in c.as_mut_slice().chunks_mut(self.dims) {
+                for (v, s) in p.iter_mut().zip(scale) {
+                    *v *= s;
+                }
             }
         }
         Ok(())

@@ -46,8 +46,29 @@ pub struct Features {
 }
 
 impl Features {
-    /// A built-in correspondence: `mediapipe_to_canonical` or `ibug68_to_ict`.
+    /// A built-in correspondence: `mediapipe_to_canonical`, `ibug68_to_ict` or
+    /// `mediapipe_to_ict` (the latter made from `ibug68_to_ict` through the built-in
+    /// 468 → 68 correspondence that `kslab rig` reads MediaPipe tracks by).
     pub fn builtin(name: &str) -> Result<Features> {
+        if name == "mediapipe_to_ict" {
+            let mut f = Features::builtin("ibug68_to_ict")?;
+            let to68 = crate::sequence::mediapipe_to_ibug68()?;
+            for feat in &mut f.features {
+                feat.source = *to68.get(feat.source).ok_or_else(|| {
+                    Error::invalid(format!(
+                        "built-in features: iBUG landmark {} has no MediaPipe point",
+                        feat.source
+                    ))
+                })?;
+            }
+            f.description = format!(
+                "ibug68_to_ict read through the built-in MediaPipe 468 → iBUG 68 correspondence (assets/features/mediapipe468_to_ibug68.json, as kslab rig reads MediaPipe tracks). {}",
+                f.description
+            );
+            f.source_layout = "mediapipe_face_mesh_468".into();
+            f.source_points = 468;
+            return Ok(f);
+        }
         let text = match name {
             "mediapipe_to_canonical" => {
                 include_str!("../../assets/features/mediapipe_to_canonical.json")
@@ -55,7 +76,7 @@ impl Features {
             "ibug68_to_ict" => include_str!("../../assets/features/ibug68_to_ict.json"),
             other => {
                 return Err(Error::invalid(format!(
-                    "no built-in features '{other}' (mediapipe_to_canonical, ibug68_to_ict)"
+                    "no built-in features '{other}' (mediapipe_to_canonical, ibug68_to_ict, mediapipe_to_ict)"
                 )))
             }
         };
@@ -63,7 +84,11 @@ impl Features {
     }
 
     /// The names of the built-in correspondences.
-    pub const BUILTIN: [&'static str; 2] = ["mediapipe_to_canonical", "ibug68_to_ict"];
+    pub const BUILTIN: [&'static str; 3] = [
+        "mediapipe_to_canonical",
+        "ibug68_to_ict",
+        "mediapipe_to_ict",
+    ];
 
     /// One line saying what this correspondence fits.
     pub fn fits(&self) -> String {

@@ -30,10 +30,10 @@ pub struct RigView {
 pub fn rig_view(seq: &Sequence, rig: &Rig) -> Result<RigView> {
     let seq = match seq.points {
         LANDMARKS => seq.clone(),
-        468 => seq.select_points(&mediapipe_to_ibug68()?)?,
+        468 | 478 => seq.select_points(&mediapipe_to_ibug68()?)?,
         n => {
             return Err(Error::invalid(format!(
-                "--rig needs a 68-point or MediaPipe 468-point track, not {n} points"
+                "--rig needs a 68-point or MediaPipe (468 or 478-point) track, not {n} points"
             )))
         }
     };

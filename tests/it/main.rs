@@ -12,6 +12,7 @@ mod corpus;
 mod experiments;
 mod fuzz_smoke;
 mod keyshapes;
+mod mediapipe478;
 mod modes;
 mod oracles;
 mod outputs;

@@ -1,7 +1,6 @@
 //! `kslab bench nnls`: solver throughput on real tracks tiled to a large batch, measured in one
 //! run so the ratios in BENCHMARKS.md compare like with like.
 
-use crate::cli::input::InputArgs;
 use anyhow::Result;
 use clap::Args;
 use keyshape_lab::decompose::{prepare, PrepareOptions};
@@ -38,14 +37,7 @@ fn inputs(a: &NnlsArgs) -> Result<Vec<Sequence>> {
             .map(|f| Ok(read_sequence(f, &ReadOptions::default())?))
             .collect();
     }
-    let mut v = vec![InputArgs {
-        file: None,
-        format: None,
-        dims: 2,
-        points: None,
-        no_align: false,
-    }
-    .read()?];
+    let mut v = vec![keyshape_lab::io::builtin_sequence()?];
     match keyshape_lab::io::shared_data("pyfeat_samples/news_sample_compact.csv") {
         Ok(news) => v.push(read_sequence(&news, &ReadOptions::default())?),
         Err(e) => eprintln!("note: {e}; 68-point case skipped"),
