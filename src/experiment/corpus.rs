@@ -251,12 +251,28 @@ pub fn units(spec: &Spec, base: &Path) -> Result<Vec<Unit>> {
         .as_ref()
         .ok_or_else(|| Error::invalid("not a corpus: the experiment has no `inputs`"))?;
     let mut files: Vec<String> = Vec::new();
+    // One file counts once however it is named (`p.csv`, `./p.csv`, a link to it).
+    let mut seen: std::collections::HashMap<crate::io::atomic::FileId, String> =
+        std::collections::HashMap::new();
     for e in entries {
         for f in expand(e, base, base)? {
-            if files.contains(&f) {
+            let id = crate::io::atomic::file_id(&base.join(&f));
+            let first = match &id {
+                Some(id) => seen.get(id).cloned(),
+                None => files.contains(&f).then(|| f.clone()),
+            };
+            if let Some(first) = first {
+                let also = if first == f {
+                    String::new()
+                } else {
+                    format!(" (also as {first})")
+                };
                 return Err(Error::invalid(format!(
-                    "inputs: {f} is named twice (a sequence counts once in a corpus)"
+                    "inputs: {f} is named twice{also} (a sequence counts once in a corpus)"
                 )));
+            }
+            if let Some(id) = id {
+                seen.insert(id, f.clone());
             }
             files.push(f);
         }

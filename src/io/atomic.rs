@@ -25,16 +25,20 @@ use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 
-/// Identity of a file: (device, inode) on Unix, else its canonical path.
-#[derive(Debug, Clone, PartialEq, Eq)]
-enum FileId {
+/// Identity of a file: (device, inode) on Unix, else its canonical path. Two names of one
+/// file (`p.csv` and `./p.csv`, a symbolic or a hard link) have the same identity.
+#[derive(Debug, Clone, PartialEq, Eq, Hash)]
+pub enum FileId {
+    /// Device and inode.
     #[cfg(unix)]
     Inode(u64, u64),
+    /// Canonical path.
     #[cfg(not(unix))]
     Path(PathBuf),
 }
 
-fn file_id(path: &Path) -> Option<FileId> {
+/// The identity of the file `path` names (links followed), if it exists.
+pub fn file_id(path: &Path) -> Option<FileId> {
     let meta = std::fs::metadata(path).ok()?;
     #[cfg(unix)]
     {

@@ -207,11 +207,31 @@ impl<R: std::io::Read> TableRows<R> {
             .iter()
             .map(str::to_string)
             .collect();
-        let index: HashMap<&str, usize> = header
-            .iter()
-            .enumerate()
-            .map(|(i, h)| (h.as_str(), i))
-            .collect();
+        let mut index: HashMap<&str, usize> = HashMap::with_capacity(header.len());
+        for (i, h) in header.iter().enumerate() {
+            if let Some(first) = index.insert(h.as_str(), i) {
+                // A column read twice would be read from whichever copy came last: refuse
+                // any copy of a column the reader uses.
+                let used = [cols.valid, cols.frame, cols.time, cols.segment].contains(&Some(h))
+                    || cols.axes[..dims].iter().any(|a| {
+                        h.strip_prefix(a)
+                            .is_some_and(|n| !n.is_empty() && n.bytes().all(|b| b.is_ascii_digit()))
+                    });
+                if used {
+                    return Err(Error::parse(
+                        path,
+                        1,
+                        i as u64 + 1,
+                        format!(
+                            "column '{h}' appears twice (fields {} and {}): which copy holds the data is ambiguous",
+                            first + 1,
+                            i + 1
+                        ),
+                    ));
+                }
+                index.insert(h.as_str(), first);
+            }
+        }
         let coord_cols = coordinate_columns(path, &index, &cols, dims, format)?;
         let find = |name: Option<&str>| name.and_then(|n| index.get(n).copied());
         let (valid_col, frame_col) = (find(cols.valid), find(cols.frame));
@@ -423,7 +443,7 @@ fn coordinate_columns(
                     return Err(Error::parse(
                         path,
                         1,
-                        0,
+                        x as u64 + 1,
                         format!("--dims 3 needs a column '{name}' and the {format} header has none; use --dims 2"),
                     ))
                 }
@@ -431,7 +451,7 @@ fn coordinate_columns(
                     return Err(Error::parse(
                         path,
                         1,
-                        0,
+                        x as u64 + 1,
                         format!("header has '{}{p}' but no '{name}'", cols.axes[0]),
                     ))
                 }

@@ -1001,3 +1001,30 @@ fn merge_refuses_a_partial_with_values_no_run_gives() {
         assert!(!out.exists(), "a refused merge wrote {}", out.display());
     }
 }
+
+/// One file counts once in a corpus however it is spelled (issue 41, item 13): `p.csv` and
+/// `./p.csv`, a symbolic link and a hard link to it were each counted twice.
+#[test]
+fn a_corpus_counts_one_file_once_however_it_is_named() {
+    use keyshape_lab::experiment::{corpus, Spec};
+    let (_scratch, d) = tmp("twice");
+    std::fs::copy(
+        shared("mediapipe_face_tracks/liveportrait_d18.csv"),
+        d.join("p.csv"),
+    )
+    .unwrap();
+    let mut spellings = vec!["./p.csv"];
+    #[cfg(unix)]
+    {
+        std::os::unix::fs::symlink("p.csv", d.join("soft.csv")).unwrap();
+        std::fs::hard_link(d.join("p.csv"), d.join("hard.csv")).unwrap();
+        spellings.extend(["soft.csv", "hard.csv"]);
+    }
+    for other in spellings {
+        let text =
+            format!("title = \"t\"\ninputs = [\"p.csv\", \"{other}\"]\nmethods = [\"spread\"]\n");
+        let spec = Spec::from_str(Path::new("t.toml"), &text).unwrap();
+        let e = corpus::units(&spec, &d).unwrap_err().to_string();
+        assert!(e.contains("is named twice (also as p.csv)"), "{other}: {e}");
+    }
+}

@@ -264,3 +264,95 @@ fn tables_read_from_the_file_equal_the_whole_text_parse() {
         assert_eq!(same(&write(name, &bytes), &d2), 0, "{name} should fail");
     }
 }
+
+/// The coordinate bound is where results stay right (issue 41, item 13): a real track
+/// scaled by 10^e, for e up to the bound's 30, gives the same condition number and the same
+/// errors relative to its scale — and a coordinate past the bound is refused by name.
+#[test]
+fn results_are_scale_free_up_to_the_coordinate_bound() {
+    use keyshape_lab::decompose::{decompose, prepare, PrepareOptions};
+    use keyshape_lab::solve::{SolveOptions, Solver};
+    let base = read("pyfeat_samples/openface_test.csv", 2);
+    let opts = PrepareOptions {
+        points: None,
+        align: true,
+    };
+    let solve = |seq: &keyshape_lab::sequence::Sequence| {
+        let prep = prepare(seq, &opts).unwrap();
+        let d = decompose(
+            &prep.seq.coords,
+            prep.seq.points,
+            &[1, 30, 60, 90],
+            None,
+            &SolveOptions::new(Solver::Nnls),
+        )
+        .unwrap();
+        (d.condition, d.mean_rms())
+    };
+    let (c0, r0) = solve(&base);
+    for e in [10, 20, 30] {
+        let s = 10f64.powi(e);
+        assert!(s <= keyshape_lab::sequence::MAX_COORD);
+        let scaled = base.with_coords(&base.coords * s);
+        let (c, r) = solve(&scaled);
+        assert!(
+            (c - c0).abs() < 1e-9 * c0,
+            "1e{e}: condition {c} against {c0}"
+        );
+        assert!(
+            (r / s - r0).abs() < 1e-9 * r0,
+            "1e{e}: rms {} against {r0}",
+            r / s
+        );
+    }
+    let d = tempfile::tempdir().unwrap();
+    let p = d.path().join("big.csv");
+    std::fs::write(&p, "frame,x0,y0,x1,y1\n0,1e31,2,3,4\n1,1,2,3,5\n").unwrap();
+    let e = keyshape_lab::io::read_sequence(&p, &Default::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("big.csv:2:2: coordinate 1e31 is beyond ±1e30"),
+        "{e}"
+    );
+}
+
+/// A column read twice (a second `x0`, `x_0`, `frame` or `detected`) is refused at its
+/// field, not read from whichever copy came last (issue 41, item 13).
+#[test]
+fn a_coordinate_or_frame_column_given_twice_is_refused() {
+    let d = tempfile::tempdir().unwrap();
+    for (name, text, want) in [
+        (
+            "a.csv",
+            "frame,x0,y0,x1,y1,x0\n0,1,2,3,4,5\n",
+            "a.csv:1:6: column 'x0' appears twice (fields 2 and 6)",
+        ),
+        (
+            "b.csv",
+            "frame,detected,x_0,x_1,y_0,y_1,x_1\n0,1,1,2,3,4,5\n",
+            "b.csv:1:7: column 'x_1' appears twice (fields 4 and 7)",
+        ),
+        (
+            "c.csv",
+            "frame,x0,y0,frame\n0,1,2,3\n",
+            "c.csv:1:4: column 'frame' appears twice",
+        ),
+    ] {
+        let p = d.path().join(name);
+        std::fs::write(&p, text).unwrap();
+        let e = keyshape_lab::io::read_sequence(&p, &Default::default())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains(want), "{e}");
+    }
+    // A repeated column the reader does not use is left alone.
+    let p = d.path().join("ok.csv");
+    std::fs::write(&p, "frame,note,x0,y0,x1,y1,note\n0,a,1,2,3,4,b\n").unwrap();
+    assert_eq!(
+        keyshape_lab::io::read_sequence(&p, &Default::default())
+            .unwrap()
+            .points,
+        2
+    );
+}
