@@ -103,6 +103,19 @@ pub fn run(a: &SolveArgs) -> Result<()> {
         &[a.input.file.as_deref()],
     )?;
     super::check_json_stdout(a.json, a.out.as_ref())?;
+    if let Some(r) = a.rcond {
+        if a.solver != Solver::Ls {
+            anyhow::bail!(
+                "--rcond is the least-squares cutoff: it does not apply to --solver {}",
+                a.solver
+            );
+        }
+        if !(r.is_finite() && (0.0..1.0).contains(&r)) {
+            anyhow::bail!(
+                "--rcond {r}: give a cutoff in [0, 1) relative to the largest singular value"
+            );
+        }
+    }
     if a.stream {
         return run_stream(a, smoothing);
     }

@@ -114,15 +114,28 @@ impl Shard {
             })?;
             let min = num("SLURM_ARRAY_TASK_MIN")?.unwrap_or(0);
             let max = num("SLURM_ARRAY_TASK_MAX")?;
+            let contiguous = || {
+                Error::invalid(format!(
+                    "--shard auto: the Slurm array has gaps or a step ({count} tasks from {min}); submit a contiguous --array=0-{}",
+                    count.saturating_sub(1)
+                ))
+            };
+            // A step spaces the task ids out: id − min would no longer count the tasks.
+            if num("SLURM_ARRAY_TASK_STEP")?.is_some_and(|step| step != 1) {
+                return Err(contiguous());
+            }
             if let Some(max) = max {
-                if max + 1 - min != count {
-                    return Err(Error::invalid(format!(
-                        "--shard auto: the Slurm array {min}-{max} has gaps or a step ({count} tasks); submit a contiguous --array=0-{}",
-                        count - 1
-                    )));
+                if max < min || max - min + 1 != count {
+                    return Err(contiguous());
                 }
             }
-            return shard(id.saturating_sub(min), count, "the Slurm array");
+            if id < min || max.is_some_and(|max| id > max) {
+                return Err(Error::invalid(format!(
+                    "--shard auto: SLURM_ARRAY_TASK_ID {id} lies outside the array ({min}-{})",
+                    max.map_or("?".to_string(), |m| m.to_string())
+                )));
+            }
+            return shard(id - min, count, "the Slurm array");
         }
         if let Some(id) = num("JOB_COMPLETION_INDEX")? {
             let count = num("KSLAB_SHARD_COUNT")?.ok_or_else(|| {

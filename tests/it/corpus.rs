@@ -652,6 +652,35 @@ fn shard_options_are_checked_and_read_from_the_schedulers() {
     ]))
     .unwrap_err();
     assert!(e.to_string().contains("gaps or a step"), "{e}");
+    // Issue 41: a step without a maximum, and a task id outside the array, picked a
+    // wrong shard.
+    let e = Shard::from_env(&env(&[
+        ("SLURM_ARRAY_TASK_ID", "2"),
+        ("SLURM_ARRAY_TASK_MIN", "0"),
+        ("SLURM_ARRAY_TASK_STEP", "2"),
+        ("SLURM_ARRAY_TASK_COUNT", "4"),
+    ]))
+    .unwrap_err();
+    assert!(e.to_string().contains("gaps or a step"), "{e}");
+    let e = Shard::from_env(&env(&[
+        ("SLURM_ARRAY_TASK_ID", "0"),
+        ("SLURM_ARRAY_TASK_MIN", "1"),
+        ("SLURM_ARRAY_TASK_COUNT", "4"),
+    ]))
+    .unwrap_err();
+    assert!(
+        e.to_string()
+            .contains("SLURM_ARRAY_TASK_ID 0 lies outside the array (1-?)"),
+        "{e}"
+    );
+    let s = Shard::from_env(&env(&[
+        ("SLURM_ARRAY_TASK_ID", "4"),
+        ("SLURM_ARRAY_TASK_MIN", "1"),
+        ("SLURM_ARRAY_TASK_STEP", "1"),
+        ("SLURM_ARRAY_TASK_COUNT", "4"),
+    ]))
+    .unwrap();
+    assert_eq!(s, Shard { index: 3, count: 4 });
     let s = Shard::from_env(&env(&[
         ("JOB_COMPLETION_INDEX", "1"),
         ("KSLAB_SHARD_COUNT", "3"),
