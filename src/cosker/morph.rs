@@ -7,6 +7,26 @@ use serde::Deserialize;
 use std::collections::BTreeMap;
 use std::path::Path;
 
+/// The most a shape may move a vertex, in extents of the mesh.
+pub const MAX_OFFSET_EXTENTS: f64 = 100.0;
+
+/// A shape name must be one field of a CSV and one column of a weights file: not empty, no
+/// comma, quote or line break, and not a name already taken.
+pub fn check_name(name: &str, taken: &[String]) -> std::result::Result<(), String> {
+    if name.is_empty() {
+        return Err("a shape has an empty name".into());
+    }
+    if name.contains([',', '"', '\n', '\r']) {
+        return Err(format!(
+            "shape name '{name}' holds a comma, quote or line break (it names a CSV column)"
+        ));
+    }
+    if taken.iter().any(|t| t == name) {
+        return Err(format!("shape name '{name}' is given twice"));
+    }
+    Ok(())
+}
+
 /// A named morph target as dense per-vertex offsets.
 pub type DenseTarget = (String, Vec<[f64; 3]>);
 
@@ -39,8 +59,17 @@ impl MorphTargets {
                     format!("shape ids must run 0, 1, …; found {id}"),
                 ));
             }
-            names.push(r.get(1).unwrap_or("").to_string());
+            let name = r.get(1).unwrap_or("").trim();
+            check_name(name, &names).map_err(|m| Error::parse(expressions, i as u64 + 2, 2, m))?;
+            names.push(name.to_string());
         }
+        if names.is_empty() {
+            return Err(Error::file(expressions, "names no shapes"));
+        }
+        // (shape, vertex) → the line that gave it: a second row for one would be summed by
+        // nobody and silently win.
+        let mut given: std::collections::HashMap<(usize, usize), u64> =
+            std::collections::HashMap::new();
         let mut out = vec![Vec::new(); names.len()];
         let mut rdr =
             csv::Reader::from_path(deltas).map_err(|e| Error::file(deltas, e.to_string()))?;
@@ -88,9 +117,53 @@ impl MorphTargets {
                     ),
                 ));
             }
+            if let Some(first) = given.insert((s, v), line) {
+                return Err(Error::parse(
+                    deltas,
+                    line,
+                    1,
+                    format!("shape {s} / vertex {v} is given twice (first on line {first})"),
+                ));
+            }
             out[s].push((v, o));
         }
+        if given.is_empty() {
+            return Err(Error::file(
+                deltas,
+                "holds no offsets: every shape would be the neutral face",
+            ));
+        }
         Ok(MorphTargets { names, deltas: out })
+    }
+
+    /// Refuses offsets out of all proportion to the mesh (`positions`): beyond
+    /// [`MAX_OFFSET_EXTENTS`] times its extent, a shape's landmarks would swamp every solve
+    /// (an offset of 1e40 zeroed every weight) or overflow a glTF's 32-bit floats.
+    pub fn check_scale(&self, positions: &[[f64; 3]]) -> Result<()> {
+        let mut lo = [f64::INFINITY; 3];
+        let mut hi = [f64::NEG_INFINITY; 3];
+        for p in positions {
+            for k in 0..3 {
+                lo[k] = lo[k].min(p[k]);
+                hi[k] = hi[k].max(p[k]);
+            }
+        }
+        let extent = (0..3).map(|k| hi[k] - lo[k]).fold(0.0, f64::max);
+        if !(extent.is_finite() && extent > 0.0) {
+            return Err(Error::invalid("the mesh has no extent"));
+        }
+        for (s, d) in self.deltas.iter().enumerate() {
+            for &(v, o) in d {
+                let m = o.iter().fold(0.0f64, |a, c| a.max(c.abs()));
+                if m.is_nan() || m > MAX_OFFSET_EXTENTS * extent {
+                    return Err(Error::invalid(format!(
+                        "shape '{}' moves vertex {v} by {m:e}, over {MAX_OFFSET_EXTENTS} times the mesh's extent {extent:.4}: not a shape of this mesh",
+                        self.names[s]
+                    )));
+                }
+            }
+        }
+        Ok(())
     }
 
     /// The shapes with any nonzero weight in `weights` (shapes × frames), as (name, dense
@@ -127,6 +200,7 @@ impl MorphTargets {
         fps: f64,
         rotations: Option<&[[f64; 4]]>,
     ) -> Result<()> {
+        self.check_scale(&mesh.positions)?;
         let (dense, used) = self.used_dense(weights, mesh.positions.len());
         crate::io::write_atomic(path, |f| {
             crate::io::gltf::write_morph_glb_posed(

@@ -50,12 +50,47 @@ pub fn read_gltf_mesh(path: &Path) -> Result<(crate::io::obj::Mesh, MorphTargets
     let mut faces: Vec<Vec<usize>> = Vec::new();
     let mut deltas: Vec<Vec<(usize, [f64; 3])>> = Vec::new();
     let mut count = None;
-    for prim in mesh.primitives() {
+    for (pi, prim) in mesh.primitives().enumerate() {
+        // Positions are VEC3 FLOAT (glTF 2.0 §3.7.2.1); another type would be read as
+        // garbage, not refused, by the reader below.
+        let check = |acc: &gltf::Accessor, what: &str| -> Result<()> {
+            if acc.data_type() != gltf::accessor::DataType::F32
+                || acc.dimensions() != gltf::accessor::Dimensions::Vec3
+            {
+                return Err(Error::file(
+                    path,
+                    format!(
+                        "primitive {pi}: {what} accessor {} holds {:?} {:?}; glTF positions are VEC3 FLOAT",
+                        acc.index(),
+                        acc.dimensions(),
+                        acc.data_type()
+                    ),
+                ));
+            }
+            Ok(())
+        };
+        let pos_acc = prim.get(&gltf::Semantic::Positions).ok_or_else(|| {
+            Error::file(path, format!("primitive {pi} has no POSITION attribute"))
+        })?;
+        check(&pos_acc, "POSITION")?;
+        for (t, target) in prim.morph_targets().enumerate() {
+            if let Some(acc) = target.positions() {
+                check(&acc, &format!("morph target {t}'s POSITION"))?;
+            }
+        }
         let reader = prim.reader(|b| data.get(b.index()).map(Vec::as_slice));
         let base = positions.len();
         let pos: Vec<[f32; 3]> = reader
             .read_positions()
-            .ok_or_else(|| Error::file(path, "a primitive has no positions"))?
+            .ok_or_else(|| {
+                Error::file(
+                    path,
+                    format!(
+                        "primitive {pi}: the POSITION accessor {} cannot be read (no buffer view, or its buffer is missing)",
+                        pos_acc.index()
+                    ),
+                )
+            })?
             .collect();
         positions.extend(pos.iter().map(|p| p.map(f64::from)));
         if let Some(idx) = reader.read_indices() {
@@ -97,6 +132,10 @@ pub fn read_gltf_mesh(path: &Path) -> Result<(crate::io::obj::Mesh, MorphTargets
         }
         None => (0..k).map(|i| format!("target{i}")).collect(),
     };
+    for (i, n) in names.iter().enumerate() {
+        crate::cosker::morph::check_name(n, &names[..i])
+            .map_err(|m| Error::file(path, format!("mesh.extras.targetNames: {m}")))?;
+    }
     if let Some((i, p)) = positions
         .iter()
         .enumerate()

@@ -153,6 +153,9 @@ impl Rig {
         if morph.names.is_empty() {
             return Err(Error::invalid("rig: no shapes"));
         }
+        morph
+            .check_scale(positions)
+            .map_err(|e| Error::invalid(format!("rig: {e}")))?;
         Ok(Rig {
             names: morph.names.clone(),
             neutral,

@@ -1091,3 +1091,196 @@ fn a_gltf_rig_with_a_landmark_list_solves_like_the_folder_it_came_from() {
     assert_eq!(r.code, 1);
     assert!(r.stderr.contains("applies to a glTF rig"), "{}", r.stderr);
 }
+
+/// A damaged rig folder is refused by name, nothing written (issue 41, item 13): an empty or
+/// header-only offsets file, an offset given twice, empty, repeated or comma names, and
+/// offsets out of all proportion (1e40 zeroed every weight; 1e308 wrote an infinite float
+/// into the GLB).
+#[test]
+fn a_damaged_rig_folder_is_refused_by_name() {
+    let src = shared("ict_facekit_face");
+    let exprs = std::fs::read_to_string(src.join("expressions.csv")).unwrap();
+    let deltas = std::fs::read_to_string(src.join("expression_deltas.csv")).unwrap();
+    let header = deltas.lines().next().unwrap().to_string();
+    let first_row = deltas.lines().nth(1).unwrap().to_string();
+    let second_name = exprs
+        .lines()
+        .nth(2)
+        .unwrap()
+        .split(',')
+        .nth(1)
+        .unwrap()
+        .to_string();
+    let rename = |from: &str, to: &str| exprs.replacen(&format!(",{from},"), &format!(",{to},"), 1);
+    let cases: Vec<(&str, String, String, &str)> = vec![
+        (
+            "empty offsets",
+            exprs.clone(),
+            String::new(),
+            "expression_deltas.csv: holds no offsets",
+        ),
+        (
+            "header only",
+            exprs.clone(),
+            format!("{header}\n"),
+            "expression_deltas.csv: holds no offsets",
+        ),
+        (
+            "an offset twice",
+            exprs.clone(),
+            format!(
+                "{header}\n{first_row}\n{deltas_rest}",
+                deltas_rest = &deltas[header.len() + 1..]
+            ),
+            "expression_deltas.csv:3:1: shape 0 / vertex 6 is given twice (first on line 2)",
+        ),
+        (
+            "an empty name",
+            rename("browDown_L", ""),
+            deltas.clone(),
+            "expressions.csv:2:2: a shape has an empty name",
+        ),
+        (
+            "a repeated name",
+            rename(&second_name, "browDown_L"),
+            deltas.clone(),
+            "expressions.csv:3:2: shape name 'browDown_L' is given twice",
+        ),
+        (
+            "a comma name",
+            rename("browDown_L", "\"brow,Down\""),
+            deltas.clone(),
+            "holds a comma, quote or line break",
+        ),
+        (
+            "an offset of 1e40",
+            exprs.clone(),
+            deltas.replacen("0,6,0.002,", "0,6,1e40,", 1),
+            "shape 'browDown_L' moves vertex 6 by 1e40",
+        ),
+        (
+            "an offset of 1e308",
+            exprs.clone(),
+            deltas.replacen("0,6,0.002,", "0,6,1e308,", 1),
+            "moves vertex 6 by 1e308",
+        ),
+    ];
+    for (what, e, d, want) in cases {
+        let dir = tempfile::tempdir().unwrap();
+        for f in ["neutral_face.obj", "landmarks_multipie68.csv"] {
+            std::fs::copy(src.join(f), dir.path().join(f)).unwrap();
+        }
+        std::fs::write(dir.path().join("expressions.csv"), &e).unwrap();
+        std::fs::write(dir.path().join("expression_deltas.csv"), &d).unwrap();
+        let out = dir.path().join("w.csv");
+        let glb = dir.path().join("r.glb");
+        let r = kslab(&[
+            "rig",
+            "--rig",
+            dir.path().to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--gltf",
+            glb.to_str().unwrap(),
+        ]);
+        assert_eq!(r.code, 1, "{what}: {}", r.stderr);
+        assert!(
+            r.stderr.contains(want),
+            "{what}: expected '{want}' in {}",
+            r.stderr
+        );
+        assert!(
+            !out.exists() && !glb.exists(),
+            "{what}: an output was written"
+        );
+    }
+}
+
+/// glTF positions are VEC3 FLOAT: an accessor of another component type or shape was read
+/// as garbage (issue 41, item 13), and one that cannot be read said "no positions".
+#[test]
+fn a_gltf_rig_with_positions_of_the_wrong_type_is_refused() {
+    let d = tempfile::tempdir().unwrap();
+    let positions = vec![
+        [0.0, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.0, 0.0, 1.0],
+    ];
+    let faces = vec![vec![0, 1, 2], vec![0, 2, 3]];
+    let dense = vec![("a".to_string(), vec![[0.1, 0.0, 0.0]; 4])];
+    let mut glb = Vec::new();
+    keyshape_lab::io::gltf::write_morph_glb(
+        &mut glb,
+        &positions,
+        &faces,
+        &dense,
+        &DMatrix::zeros(1, 2),
+        30.0,
+    )
+    .unwrap();
+    // The JSON chunk starts at byte 20; edits keep its length.
+    let json_len = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
+    let json = String::from_utf8(glb[20..20 + json_len].to_vec()).unwrap();
+    let v: serde_json::Value = serde_json::from_str(json.trim_end()).unwrap();
+    let pos = v["meshes"][0]["primitives"][0]["attributes"]["POSITION"]
+        .as_u64()
+        .unwrap() as usize;
+    let marks = d.path().join("marks.csv");
+    std::fs::write(&marks, "landmark,vertex\n0,0\n").unwrap();
+    for (what, from, to) in [
+        (
+            "componentType",
+            "\"componentType\":5126",
+            "\"componentType\":5125",
+        ),
+        ("type", "\"type\":\"VEC3\"", "\"type\":\"VEC4\""),
+    ] {
+        // Edit the POSITION accessor only: find its object by position in the array.
+        let acc_start = nth_accessor_start(&json, pos);
+        let end = acc_start + json[acc_start..].find('}').unwrap();
+        let edited = format!(
+            "{}{}{}",
+            &json[..acc_start],
+            json[acc_start..end].replacen(from, to, 1),
+            &json[end..]
+        );
+        assert_ne!(edited, json, "{what}: the edit changed nothing");
+        let mut bytes = glb.clone();
+        bytes[20..20 + json_len].copy_from_slice(edited.as_bytes());
+        let p = d.path().join(format!("{what}.glb"));
+        std::fs::write(&p, &bytes).unwrap();
+        let e = keyshape_lab::rig::gltf_rig::read_gltf_mesh(&p)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains(&format!("primitive 0: POSITION accessor {pos} holds"))
+                && e.contains("glTF positions are VEC3 FLOAT"),
+            "{what}: {e}"
+        );
+    }
+}
+
+/// Where the `n`-th object of the `accessors` array starts in a glTF's JSON.
+fn nth_accessor_start(json: &str, n: usize) -> usize {
+    let mut i = json.find("\"accessors\":[").unwrap() + "\"accessors\":[".len();
+    for _ in 0..n {
+        let mut depth = 0;
+        loop {
+            match json.as_bytes()[i] {
+                b'{' => depth += 1,
+                b'}' => {
+                    depth -= 1;
+                    if depth == 0 {
+                        i += 1;
+                        break;
+                    }
+                }
+                _ => {}
+            }
+            i += 1;
+        }
+        i += 1; // the comma
+    }
+    i
+}
