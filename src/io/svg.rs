@@ -428,6 +428,34 @@ pub fn read_template(path: &Path) -> Result<TargetSet> {
     parse_template(path, &text)
 }
 
+/// Why the points of element `id` cannot be read: the first value of its `points` that is
+/// not a number an SVG (32-bit floats) can hold.
+fn unreadable_points(text: &str, id: &str) -> String {
+    let Ok(doc) = roxmltree::Document::parse(text) else {
+        return "the file is not well-formed XML".into();
+    };
+    let Some(points) = doc
+        .descendants()
+        .find(|n| n.attribute("id") == Some(id))
+        .and_then(|n| n.attribute("points"))
+    else {
+        return "it has no points attribute".into();
+    };
+    for v in points
+        .split(|c: char| c == ',' || c.is_whitespace())
+        .filter(|v| !v.is_empty())
+    {
+        match v.parse::<f64>() {
+            Err(_) => return format!("'{v}' is not a number"),
+            Ok(x) if !(x.abs() <= f64::from(f32::MAX)) => {
+                return format!("coordinate {v} is beyond what an SVG holds (±3.4e38)")
+            }
+            Ok(_) => {}
+        }
+    }
+    "the SVG renderer dropped it: a zero size, or a transform that hides it?".into()
+}
+
 /// Parses template text (`path` names the file in errors).
 pub fn parse_template(path: &Path, text: &str) -> Result<TargetSet> {
     let text = text.to_string();
@@ -530,7 +558,10 @@ pub fn parse_template(path: &Path, text: &str) -> Result<TargetSet> {
                 if text.contains(&format!("id=\"{id}\"")) {
                     Error::file(
                         path,
-                        format!("contour '{id}' is in the file, but its points could not be read (a coordinate that is not a number?)"),
+                        format!(
+                            "contour '{id}' is in the file, but its points could not be read ({})",
+                            unreadable_points(&text, &id)
+                        ),
                     )
                 } else {
                     Error::file(
@@ -573,6 +604,30 @@ pub fn parse_template(path: &Path, text: &str) -> Result<TargetSet> {
     }
     if keys.is_empty() {
         return Err(Error::file(path, "no <g id=\"key-<frame>\"> groups found"));
+    }
+    // Every key the template wrote must come back: a panel deleted, hidden or scaled to
+    // nothing (which the SVG renderer drops) would otherwise be read as one key fewer.
+    if let Some(frame) = meta
+        .origins
+        .keys()
+        .find(|f| !keys.iter().any(|k| k.frame == **f))
+    {
+        return Err(Error::file(
+            path,
+            format!(
+                "key-{frame} is missing or draws nothing (deleted, hidden or scaled to zero?): a template's keys all come back, {} of {} here",
+                keys.len(),
+                meta.origins.len()
+            ),
+        ));
+    }
+    for k in &keys {
+        if crate::sequence::degenerate_shape(&k.coords, 2) {
+            return Err(Error::file(
+                path,
+                format!("key-{}: all its points coincide (scaled to zero?)", k.frame),
+            ));
+        }
     }
     // Drawing contours: the template's, without the run of loose points.
     let mut polylines = meta.polylines.clone();

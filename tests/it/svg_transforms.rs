@@ -208,3 +208,42 @@ fn a_template_saved_by_inkscape_is_read_as_drawn() {
         "uniform scale",
     );
 }
+
+/// A key panel deleted or scaled to nothing was read as one key fewer, exit 0, and a
+/// coordinate an SVG cannot hold was "not a number?" (issue 41, items 13 and 15).
+#[test]
+fn a_missing_or_vanished_key_and_an_impossible_coordinate_are_named() {
+    let path = data("template_lips3.svg");
+    let svg = std::fs::read_to_string(&path).unwrap();
+    let err = |text: &str| {
+        parse_template(Path::new("edited.svg"), text)
+            .unwrap_err()
+            .to_string()
+    };
+    // Scaled to zero.
+    let (attr, ox, oy) = group_transform(&svg, 102);
+    let zero = svg.replacen(
+        &attr,
+        &format!("transform=\"translate({ox} {oy}) scale(0)\""),
+        1,
+    );
+    let e = err(&zero);
+    assert!(e.contains("key-102 is missing or draws nothing"), "{e}");
+    assert!(e.contains("2 of 3 here"), "{e}");
+    // Deleted: the panel's group renamed away stands for a deletion (its ids go with it).
+    let gone = svg.replace("id=\"key-102", "id=\"gone-102");
+    let e = err(&gone);
+    assert!(e.contains("key-102 is missing"), "{e}");
+    // A coordinate of 1e300.
+    let tag = "<polyline id=\"key-102-c0\"";
+    let at = svg.find(tag).unwrap();
+    let p = at + svg[at..].find("points=\"").unwrap() + "points=\"".len();
+    let end = p + svg[p..].find([',', ' ']).unwrap();
+    let big = format!("{}1e300{}", &svg[..p], &svg[end..]);
+    let e = err(&big);
+    assert!(
+        e.contains("contour 'key-102-c0'")
+            && e.contains("coordinate 1e300 is beyond what an SVG holds"),
+        "{e}"
+    );
+}
