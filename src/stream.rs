@@ -246,6 +246,10 @@ pub fn stream_solve(
             Error::invalid(format!(
                 "{what} {f}: frame {f} is a failed frame (the tracker found no face there); pick a tracked frame"
             ))
+        } else if (lo..=hi).contains(&f) {
+            Error::invalid(format!(
+                "{what} {f}: frame {f} is not in the file (frames run {lo}..={hi} with gaps)"
+            ))
         } else {
             Error::invalid(format!(
                 "{what} {f}: frame {f} is out of range: frames run {lo}..={hi}"

@@ -178,6 +178,12 @@ pub fn run(a: &RigArgs) -> Result<()> {
         Some(d) => d.clone(),
         None => shared_data("ict_facekit_face")?,
     };
+    if !dir.exists() {
+        anyhow::bail!(
+            "--rig {}: no such folder or file (a rig folder like ../shared/data/ict_facekit_face, or a .glb/.gltf with --rig-landmarks)",
+            dir.display()
+        );
+    }
     let (mesh, morph, marks) = if dir.is_dir() {
         if a.rig_landmarks.is_some() {
             anyhow::bail!("--rig-landmarks applies to a glTF rig; {} is a folder, which names its own landmarks", dir.display());

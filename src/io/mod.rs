@@ -326,6 +326,12 @@ pub fn text_from_bytes(path: &Path, bytes: Vec<u8>, gz: bool) -> Result<String> 
     } else {
         bytes
     };
+    // A UTF-8 byte-order mark (Windows editors write one) is not part of the text: every
+    // reader takes the file without it, as the CSV reader does.
+    let mut bytes = bytes;
+    if bytes.starts_with(&[0xEF, 0xBB, 0xBF]) {
+        bytes.drain(..3);
+    }
     let mut line = 1u64;
     let mut start = 0usize;
     for (i, &b) in bytes.iter().enumerate() {
@@ -336,7 +342,7 @@ pub fn text_from_bytes(path: &Path, bytes: Vec<u8>, gz: bool) -> Result<String> 
             return Err(Error::parse(
                 path,
                 line,
-                0,
+                (i - start + 1) as u64,
                 format!("line is longer than {MAX_LINE_BYTES} bytes: not a text table"),
             ));
         }

@@ -447,7 +447,7 @@ fn unreadable_points(text: &str, id: &str) -> String {
     {
         match v.parse::<f64>() {
             Err(_) => return format!("'{v}' is not a number"),
-            Ok(x) if !(x.abs() <= f64::from(f32::MAX)) => {
+            Ok(x) if x.is_nan() || x.abs() > f64::from(f32::MAX) => {
                 return format!("coordinate {v} is beyond what an SVG holds (±3.4e38)")
             }
             Ok(_) => {}

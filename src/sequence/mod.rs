@@ -326,6 +326,16 @@ impl Sequence {
         }
         let (lo, hi) = (self.frames.iter().min(), self.frames.iter().max());
         Err(Error::invalid(match (lo, hi) {
+            (Some(lo), Some(hi)) if (*lo..=*hi).contains(&frame) => {
+                // Inside the range: a number the file skips.
+                let before = self.frames.iter().filter(|&&f| f < frame).max();
+                let after = self.frames.iter().filter(|&&f| f > frame).min();
+                format!(
+                    "frame {frame} is not in the file: its frame numbers skip from {} to {} (frames run {lo}..={hi} with gaps)",
+                    before.map_or("the start".into(), i64::to_string),
+                    after.map_or("the end".into(), i64::to_string)
+                )
+            }
             (Some(lo), Some(hi)) => {
                 format!("frame {frame} is out of range: frames run {lo}..={hi}")
             }

@@ -356,3 +356,23 @@ fn a_coordinate_or_frame_column_given_twice_is_refused() {
         2
     );
 }
+
+/// A UTF-8 byte-order mark is read past by every reader, as the CSV reader always did
+/// (issue 41, item 15: JSON and `.pts` refused it).
+#[test]
+fn a_byte_order_mark_is_read_past_by_every_reader() {
+    let d = tempfile::tempdir().unwrap();
+    for (name, text) in [
+        ("a.csv", "frame,x0,y0,x1,y1\n0,1,2,3,4\n"),
+        (
+            "a.json",
+            r#"{"kslab_sequence":1,"dims":2,"points":2,"frames":[{"frame":0,"coords":[1,2,3,4]}]}"#,
+        ),
+        ("a.pts", "version: 1\nn_points: 2\n{\n1 2\n3 4\n}\n"),
+    ] {
+        let p = d.path().join(name);
+        std::fs::write(&p, format!("\u{feff}{text}")).unwrap();
+        let seq = read_sequence(&p, &ReadOptions::default()).unwrap();
+        assert_eq!((seq.points, seq.coords[(3, 0)]), (2, 4.0), "{name}");
+    }
+}
