@@ -113,6 +113,13 @@ pub fn run(a: &CurvesArgs) -> Result<()> {
             eprintln!("wrote {}", path.display());
         }
     }
+    if let Some(line) = keyshape_lab::keyshapes::curves::summary(&rows) {
+        // On standard error when standard output carries the table.
+        sayln!(
+            a.out.is_none() || super::is_stdout(a.out.as_ref()),
+            "{line}"
+        );
+    }
     Ok(())
 }
 

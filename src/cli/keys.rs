@@ -174,7 +174,7 @@ pub fn run(a: &KeysArgs) -> Result<()> {
             }
         }
         outln!(
-            "Eq. 5 error under {}: {e:.6e} (RMS {:.4} per point)",
+            "Eq. 5 error under {}: {e:.6e} (overall RMS {:.4} = √(E / (frames·points)), as `kslab solve` reports it beside its mean per-frame RMS)",
             a.solver,
             an.rms(e)
         );

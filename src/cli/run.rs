@@ -66,19 +66,50 @@ pub fn run(a: &RunArgs) -> Result<()> {
     super::check_outputs(&[], &[Some(&dir)], &[Some(&a.spec)])?;
     let progress = Progress::new(&spec.title);
     let tick = |d, t| progress.tick(d, t);
+    let mut summary = Vec::new();
     let files = match (shard, spec.inputs.is_some()) {
         (Some(s), _) => {
             let p = corpus::run_shard(&spec, &base, &a.spec.display().to_string(), s, &tick)?;
             vec![corpus::write_partial(&p, &dir)?]
         }
         (None, true) => write_corpus(&corpus::run(&spec, &base, &tick)?, &dir)?,
-        (None, false) => write_outcome(&run_spec(&spec, &base, &tick)?, &dir)?,
+        (None, false) => {
+            let o = run_spec(&spec, &base, &tick)?;
+            let files = write_outcome(&o, &dir)?;
+            summary = outcome_summary(&o);
+            files
+        }
     };
     progress.finish();
     for f in files {
         outln!("{}", f.display());
     }
+    for line in summary {
+        outln!("{line}");
+    }
     Ok(())
+}
+
+/// The lines a user wants after a run: the lowest curve, the lowest smoothing approach at
+/// equal jitter, the retarget study's solvers side by side.
+fn outcome_summary(o: &keyshape_lab::experiment::Outcome) -> Vec<String> {
+    use keyshape_lab::experiment::smoothing;
+    let mut out = Vec::new();
+    out.extend(keyshape_lab::keyshapes::curves::summary(&o.rows));
+    out.extend(smoothing::summary(&smoothing::at_equal_jitter(
+        &o.smoothing,
+        &[0.75, 0.5, 0.35],
+    )));
+    let clean: Vec<String> = o
+        .retarget
+        .iter()
+        .filter(|r| r.trace_noise == 0.0)
+        .map(|r| format!("{} target RMS {:.4}", r.solver, r.target_rms))
+        .collect();
+    if !clean.is_empty() {
+        out.push(format!("retarget, exact target: {}", clean.join(", ")));
+    }
+    out
 }
 
 pub fn merge(a: &MergeArgs) -> Result<()> {

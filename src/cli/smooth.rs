@@ -109,6 +109,10 @@ pub fn run(a: &SmoothArgs) -> Result<()> {
             rows.len() - 1
         );
     }
+    let at = keyshape_lab::experiment::smoothing::at_equal_jitter(&rows, &[0.75, 0.5, 0.35]);
+    if let Some(line) = keyshape_lab::experiment::smoothing::summary(&at) {
+        outln!("{line}");
+    }
     for f in files.iter().chain(
         figures
             .iter()

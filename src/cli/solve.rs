@@ -17,15 +17,12 @@ use std::path::PathBuf;
 pub struct SolveArgs {
     #[command(flatten)]
     input: InputArgs,
-    /// Key frames, by the frame numbers the file uses, e.g. `3,17,42`.
-    #[arg(
-        long,
-        value_delimiter = ',',
-        required = true,
-        num_args = 1..,
-        allow_negative_numbers = true
-    )]
-    keys: Vec<i64>,
+    /// The key frames: `--keys 3,17,42` by the file's frame numbers, or chosen by
+    /// `--method NAME --k K` as `kslab keys` chooses them (one of the two is required).
+    #[command(flatten)]
+    choice: super::keys::KeyChoiceArgs,
+    #[command(flatten)]
+    heuristic: super::keys::HeuristicArgs,
     /// ls (Eq. 3), nnls (Eq. 4, w ≥ 0) or bounded (0 ≤ w ≤ 1).
     #[arg(long, default_value = "nnls", value_parser = parse_solver)]
     solver: Solver,
@@ -103,6 +100,13 @@ pub fn run(a: &SolveArgs) -> Result<()> {
         &[a.input.file.as_deref()],
     )?;
     super::check_json_stdout(a.json, a.out.as_ref())?;
+    if a.choice.keys.is_empty() && a.choice.method.is_none() {
+        anyhow::bail!("name the key frames: --keys 3,17,42, or --method spread --k 12 (as `kslab keys` chooses them)");
+    }
+    a.heuristic.check(&a.choice.methods(), a.solver)?;
+    if a.stream && a.choice.keys.is_empty() {
+        anyhow::bail!("--stream needs the key frames by number (--keys): choosing them needs the whole track in memory; run `kslab keys` first");
+    }
     if let Some(r) = a.rcond {
         if a.solver != Solver::Ls {
             anyhow::bail!(
@@ -120,9 +124,24 @@ pub fn run(a: &SolveArgs) -> Result<()> {
         return run_stream(a, smoothing);
     }
     let progress = super::progress::Progress::new("solve");
-    let prep = a.input.prepare_only()?;
+    let mut prep = a.input.prepare_only()?;
+    let cols = a
+        .choice
+        .columns_in_place(&mut prep.seq, &a.heuristic.options(a.solver))?;
     let seq = &prep.seq;
-    let cols = super::keys::frame_columns(seq, &a.keys)?;
+    let keys: Vec<i64> = cols.iter().map(|&c| seq.frames[c]).collect();
+    if a.choice.keys.is_empty() {
+        eprintln!(
+            "keys by {}: {}",
+            a.choice
+                .method
+                .unwrap_or(keyshape_lab::keyshapes::Method::Spread),
+            keys.iter()
+                .map(i64::to_string)
+                .collect::<Vec<_>>()
+                .join(",")
+        );
+    }
     let neutral = match a.neutral {
         Some(f) => Some(
             seq.column_of_frame(f)
@@ -156,11 +175,11 @@ pub fn run(a: &SolveArgs) -> Result<()> {
     }
     warn(&d);
     if let Some(png) = &a.png {
-        let labels: Vec<String> = a.keys.iter().map(|k| format!("w_{k}")).collect();
+        let labels: Vec<String> = keys.iter().map(|k| format!("w_{k}")).collect();
         let title = format!(
             "{}: weights over time, {} keys, {}{}",
             seq.source.rsplit('/').next().unwrap_or(&seq.source),
-            a.keys.len(),
+            keys.len(),
             a.solver,
             smoothing.map_or(String::new(), |s| format!(
                 " (λ {} {} order {})",
@@ -178,11 +197,11 @@ pub fn run(a: &SolveArgs) -> Result<()> {
         keyshape_lab::render::save_png(&pm, png)?;
     }
     match &a.out {
-        Some(path) => write_atomic(path, |w| write_csv(w, seq, &a.keys, &d))?,
+        Some(path) => write_atomic(path, |w| write_csv(w, seq, &keys, &d))?,
         None if a.json => {}
         None => {
             let stdout = std::io::stdout();
-            match write_csv(&mut stdout.lock(), seq, &a.keys, &d) {
+            match write_csv(&mut stdout.lock(), seq, &keys, &d) {
                 // `kslab solve … | head` closes the pipe early: not an error.
                 Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => {}
                 r => r?,
@@ -193,7 +212,7 @@ pub fn run(a: &SolveArgs) -> Result<()> {
         let v = json!({
             "source": seq.source,
             "solver": d.solver.name(),
-            "keys": a.keys,
+            "keys": keys,
             "neutral": a.neutral,
             "frames": seq.n_frames(),
             "points": seq.points,
@@ -222,7 +241,7 @@ pub fn run(a: &SolveArgs) -> Result<()> {
     } else if let Some(p) = &a.out {
         sayln!(
             super::is_stdout(a.out.as_ref()),
-            "{} frames, {} keys, {}{}: mean RMS {:.4}, negative weights {:.1}%, max |w| {:.3} → {}",
+            "{} frames, {} keys, {}{}: mean RMS {:.4} per frame (overall {:.4}), negative weights {:.1}%, max |w| {:.3} → {}",
             seq.n_frames(),
             d.key_columns.len(),
             d.solver,
@@ -234,6 +253,7 @@ pub fn run(a: &SolveArgs) -> Result<()> {
                 weight_jitter(&d.weights, &segs)
             )),
             d.mean_rms(),
+            d.overall_rms(),
             100.0 * d.negative_share(),
             d.max_abs_weight(),
             p.display()
@@ -262,14 +282,14 @@ fn run_stream(a: &SolveArgs, smoothing: Option<Smoothing>) -> Result<()> {
         dims: usize::from(a.input.dims),
         points: a.input.points.clone(),
         align: !a.input.no_align,
-        keys: a.keys.clone(),
+        keys: a.choice.keys.clone(),
         neutral: a.neutral,
         solve: opts,
         smoothing,
     };
     let header = {
         let mut h = String::from("frame,rms");
-        for k in &a.keys {
+        for k in &a.choice.keys {
             h.push_str(&format!(",w_{k}"));
         }
         h
@@ -330,14 +350,14 @@ fn run_stream(a: &SolveArgs, smoothing: Option<Smoothing>) -> Result<()> {
     let Some(s) = summary else {
         anyhow::bail!("the streamed solve stopped without a result");
     };
-    warn_solve(a.keys.len(), s.rank, s.condition, s.unconverged);
+    warn_solve(a.choice.keys.len(), s.rank, s.condition, s.unconverged);
     if let Some(p) = &a.out {
         sayln!(
             super::is_stdout(a.out.as_ref()),
             "{} frames ({} failed, skipped), {} keys, {}, streamed in {} passes ({} Procrustes rounds): mean RMS {:.4}, max |w| {:.3} → {}",
             s.frames,
             s.failed,
-            a.keys.len(),
+            a.choice.keys.len(),
             a.solver,
             s.passes,
             s.align_rounds,

@@ -657,3 +657,32 @@ pub fn at_equal_jitter(rows: &[SmoothRow], fractions: &[f64]) -> Vec<AtJitter> {
     }
     out
 }
+
+/// The one line a user wants from the study: at each jitter level of `at` (as
+/// [`at_equal_jitter`] gives it), the approach with the lowest target error against the
+/// clean reference, and its lag.
+pub fn summary(at: &[AtJitter]) -> Option<String> {
+    let mut levels: Vec<f64> = Vec::new();
+    for a in at {
+        if !levels.contains(&a.jitter_target) {
+            levels.push(a.jitter_target);
+        }
+    }
+    let parts: Vec<String> = levels
+        .iter()
+        .filter_map(|l| {
+            at.iter()
+                .filter(|a| a.jitter_target == *l)
+                .filter_map(|a| a.target_rms_clean.map(|e| (a, e)))
+                .min_by(|x, y| x.1.total_cmp(&y.1))
+                .map(|(a, e)| {
+                    format!(
+                        "at jitter {l:.3}: {} (clean target RMS {e:.3}, lag {} frames)",
+                        a.approach,
+                        a.lag_frames.map_or("?".into(), |g| g.to_string())
+                    )
+                })
+        })
+        .collect();
+    (!parts.is_empty()).then(|| format!("lowest error at equal jitter — {}", parts.join("; ")))
+}

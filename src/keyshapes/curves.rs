@@ -148,3 +148,26 @@ fn curve(
             .collect(),
     }
 }
+
+/// The one line a user wants from a sweep: per solver (in the order met), the method with
+/// the lowest error at the largest k swept, e.g. `at k = 12, lowest error: nnls greedy (RMS
+/// 0.71), ls greedy (RMS 0.12)`. None for no rows.
+pub fn summary(rows: &[CurveRow]) -> Option<String> {
+    let kmax = rows.iter().map(|r| r.k).max()?;
+    let mut solvers: Vec<&str> = Vec::new();
+    for r in rows {
+        if !solvers.contains(&r.solver.as_str()) {
+            solvers.push(&r.solver);
+        }
+    }
+    let parts: Vec<String> = solvers
+        .iter()
+        .filter_map(|s| {
+            rows.iter()
+                .filter(|r| r.solver == *s && r.k == kmax)
+                .min_by(|a, b| a.total_sq_error.total_cmp(&b.total_sq_error))
+                .map(|r| format!("{s} {} (RMS {:.4})", r.method, r.rms))
+        })
+        .collect();
+    Some(format!("at k = {kmax}, lowest error: {}", parts.join(", ")))
+}

@@ -7,6 +7,7 @@
 mod align;
 mod bad_input;
 mod catalogue;
+mod cli_results;
 mod common;
 mod corpus;
 mod experiments;

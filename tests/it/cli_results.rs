@@ -1,0 +1,129 @@
+//! What a command tells its user (issue 41, item 5): `solve` chooses its own keys as `keys`
+//! does, `keys` and `solve` report the same overall RMS for the same keys, and `curves`,
+//! `smooth` and `run` end with the line a user wants.
+
+use crate::common::{kslab, shared};
+
+fn ok(args: &[&str]) -> (String, String) {
+    let r = kslab(args);
+    assert_eq!(r.code, 0, "kslab {args:?}: {}", r.stderr);
+    (r.stdout, r.stderr)
+}
+
+#[test]
+fn solve_chooses_keys_as_keys_does_and_both_report_one_overall_rms() {
+    let t = shared("mediapipe_face_tracks/liveportrait_d18.csv");
+    let t = t.to_str().unwrap();
+    let d = tempfile::tempdir().unwrap();
+    let o = |n: &str| d.path().join(n).display().to_string();
+    let (keys, _) = ok(&[
+        "keys", t, "--points", "lips", "--method", "kmeans2", "--k", "6", "--json",
+    ]);
+    let kv: serde_json::Value = serde_json::from_str(&keys).unwrap();
+    let frames: Vec<String> = kv["frames"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| f.to_string())
+        .collect();
+    let (_, said) = ok(&[
+        "solve",
+        t,
+        "--points",
+        "lips",
+        "--method",
+        "kmeans2",
+        "--k",
+        "6",
+        "--out",
+        &o("a.csv"),
+    ]);
+    assert!(
+        said.contains(&format!("keys by kmeans2: {}", frames.join(","))),
+        "{said}"
+    );
+    let (sj, _) = ok(&[
+        "solve",
+        t,
+        "--points",
+        "lips",
+        "--keys",
+        &frames.join(","),
+        "--json",
+        "--out",
+        &o("b.csv"),
+    ]);
+    assert_eq!(
+        std::fs::read_to_string(o("a.csv")).unwrap(),
+        std::fs::read_to_string(o("b.csv")).unwrap()
+    );
+    let sv: serde_json::Value = serde_json::from_str(&sj).unwrap();
+    let (k_rms, s_rms) = (
+        kv["rms"].as_f64().unwrap(),
+        sv["overall_rms"].as_f64().unwrap(),
+    );
+    assert!(
+        (k_rms - s_rms).abs() < 1e-9 * k_rms,
+        "keys {k_rms} solve {s_rms}"
+    );
+    let (text, _) = ok(&[
+        "keys", t, "--points", "lips", "--method", "kmeans2", "--k", "6",
+    ]);
+    assert!(text.contains(&format!("overall RMS {k_rms:.4}")), "{text}");
+    // Neither keys nor a method: refused, naming both ways.
+    let r = kslab(&["solve", t]);
+    assert_eq!(r.code, 1);
+    assert!(
+        r.stderr
+            .contains("--keys 3,17,42, or --method spread --k 12"),
+        "{}",
+        r.stderr
+    );
+}
+
+#[test]
+fn curves_smooth_and_run_end_with_their_result() {
+    let d = tempfile::tempdir().unwrap();
+    let o = |n: &str| d.path().join(n).display().to_string();
+    let (out, _) = ok(&[
+        "curves",
+        "--methods",
+        "spread,greedy",
+        "--k",
+        "2..5",
+        "--solver",
+        "nnls,ls",
+        "--out",
+        &o("c.csv"),
+    ]);
+    let csv = std::fs::read_to_string(o("c.csv")).unwrap();
+    // The line names, per solver, the method lowest at the largest k — checked on the CSV.
+    for solver in ["nnls", "ls"] {
+        let best = csv
+            .lines()
+            .skip(1)
+            .map(|l| l.split(',').collect::<Vec<_>>())
+            .filter(|f| f[1] == solver && f[2] == "5")
+            .min_by(|a, b| {
+                a[3].parse::<f64>()
+                    .unwrap()
+                    .total_cmp(&b[3].parse::<f64>().unwrap())
+            })
+            .unwrap()[0]
+            .to_string();
+        assert!(out.contains(&format!("{solver} {best} (RMS")), "{out}");
+    }
+    assert!(out.starts_with("at k = 5, lowest error: "), "{out}");
+    let (out, _) = ok(&["smooth", "--points", "lips", "--out", &o("sm")]);
+    assert!(
+        out.contains("lowest error at equal jitter — at jitter"),
+        "{out}"
+    );
+    let (out, _) = ok(&[
+        "run",
+        "experiments/smoke_builtin_lips.toml",
+        "--out",
+        &o("run"),
+    ]);
+    assert!(out.contains("lowest error: "), "{out}");
+}
