@@ -237,7 +237,14 @@ pub fn run(a: &RigArgs) -> Result<()> {
             }
             false
         }
-        None => false,
+        None => {
+            if let Some(n) = seq.segments.as_deref().map(count_clips).filter(|&n| n > 1) {
+                eprintln!(
+                    "note: {name} labels {n} clips and one identity (one neutral frame) serves them all; if the clips are different people, --identity-per clip fits each its own (on the news sample: RMS landmark error 3.5 → 2.2 px)"
+                );
+            }
+            false
+        }
     };
     let clips = if per_clip {
         clip_ranges(seq.segments.as_deref().unwrap_or(&[]))
@@ -347,6 +354,14 @@ pub fn run(a: &RigArgs) -> Result<()> {
 }
 
 /// Column ranges of consecutive equal clip labels.
+/// How many distinct clips `labels` name.
+fn count_clips(labels: &[String]) -> usize {
+    let mut v: Vec<&String> = labels.iter().collect();
+    v.sort();
+    v.dedup();
+    v.len()
+}
+
 fn clip_ranges(labels: &[String]) -> Vec<std::ops::Range<usize>> {
     let mut out = Vec::new();
     let mut start = 0;

@@ -127,3 +127,22 @@ fn curves_smooth_and_run_end_with_their_result() {
     ]);
     assert!(out.contains("lowest error: "), "{out}");
 }
+
+/// A file of several clips solved with one identity says that `--identity-per clip` exists
+/// (issue 41, item 6); asking for either says nothing.
+#[test]
+fn rig_on_a_file_of_clips_names_the_per_clip_identity() {
+    let news = shared("pyfeat_samples/news_sample_compact.csv");
+    let n = news.to_str().unwrap();
+    let d = tempfile::tempdir().unwrap();
+    let o = d.path().join("w.csv").display().to_string();
+    let (_, said) = ok(&["rig", n, "--out", &o]);
+    assert!(
+        said.contains("labels 20 clips") && said.contains("--identity-per clip"),
+        "{said}"
+    );
+    for per in ["track", "clip"] {
+        let (_, said) = ok(&["rig", n, "--identity-per", per, "--out", &o]);
+        assert!(!said.contains("note:"), "{per}: {said}");
+    }
+}
