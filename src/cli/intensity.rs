@@ -4,7 +4,7 @@
 
 use anyhow::Result;
 use clap::Args;
-use keyshape_lab::cosker::intensity::{study, Centring, Evaluation, StudySettings};
+use keyshape_lab::cosker::intensity::{study_with_format, Centring, Evaluation, StudySettings};
 use std::path::PathBuf;
 
 /// Arguments of `kslab intensity`.
@@ -14,6 +14,11 @@ pub struct IntensityArgs {
     /// shared/data/pyfeat_samples/news_sample_compact.csv, found through $KSLAB_SHARED or
     /// beside the repository, never from the current directory).
     file: Option<PathBuf>,
+    /// Force the input format instead of detecting it (the study needs a py-feat table:
+    /// `--format pyfeat` reads a file whose header looks like another tracker's).
+    /// [default: detected from the file's name and first line].
+    #[arg(long, value_parser = parse_format)]
+    format: Option<keyshape_lab::sequence::Format>,
     /// Clips used for training (the rest are tested), `A..B` inclusive [default: 1..14].
     /// Split evaluation only.
     #[arg(long, value_parser = super::curves::parse_range)]
@@ -46,6 +51,10 @@ pub struct IntensityArgs {
     /// Also print each test clip's correlations.
     #[arg(long)]
     clips: bool,
+}
+
+fn parse_format(s: &str) -> std::result::Result<keyshape_lab::sequence::Format, String> {
+    keyshape_lab::sequence::Format::parse(s).map_err(|e| e.to_string())
 }
 
 fn parse_evaluation(s: &str) -> std::result::Result<Evaluation, String> {
@@ -81,7 +90,14 @@ pub fn run(a: &IntensityArgs) -> Result<()> {
     };
     st.check()?;
     let progress = super::progress::Progress::new("intensity");
-    let r = study(&path, &st)?;
+    let r = study_with_format(&path, a.format, &st).map_err(|e| {
+        let m = e.to_string();
+        if m.contains("keeps no `clip` column") {
+            anyhow::anyhow!("{m} (--format pyfeat)")
+        } else {
+            anyhow::Error::from(e)
+        }
+    })?;
     progress.finish();
     if a.json {
         let mut v = serde_json::to_value(&r)?;

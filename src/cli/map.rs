@@ -140,7 +140,7 @@ pub fn run(a: &MapArgs) -> Result<()> {
     )?;
     let progress = super::progress::Progress::new("map: reading");
     let prep = a.input.prepare_only()?;
-    let actions = Actions::read(&a.actions)?;
+    let actions = Actions::read_for(&a.actions, &prep.seq.source, &prep.seq.frames)?;
     let src = model_of(&prep, &actions, a).with_context(|| format!("{}", a.actions.display()))?;
     let traj = trajectories(&src, &prep.seq.coords);
     let names: Vec<String> = src.actions.iter().map(|x| x.0.clone()).collect();
@@ -169,10 +169,12 @@ pub fn run(a: &MapArgs) -> Result<()> {
                 align: true,
             },
         )?;
-        let tact = Actions::read(
+        let tact = Actions::read_for(
             a.target_actions
                 .as_deref()
                 .context("--target-sequence needs --target-actions")?,
+            &tseq.source,
+            &tprep.seq.frames,
         )?;
         let tgt = model_of(&tprep, &tact, a)?;
         let alignment = match &a.alignment {

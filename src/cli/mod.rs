@@ -45,6 +45,7 @@ macro_rules! out {
     }};
 }
 
+mod actions;
 mod bench;
 mod curves;
 mod info;
@@ -120,6 +121,8 @@ enum Command {
     Rig(rig::RigArgs),
     /// Drive a 3-D mesh from the feature points: RBF transfer + skinning (paper 004).
     Transfer(transfer::TransferArgs),
+    /// Choose one example frame per action (jaw drop, smile, blink …) for `modes` and `map`.
+    Actions(actions::ActionsArgs),
     /// Action-specific modes and their orthogonality (Cosker et al., paper 002 Table 2).
     Modes(modes::ModesArgs),
     /// Map action-mode trajectories onto a second person and onto morph targets (paper 002 §3.2–3.3).
@@ -170,6 +173,7 @@ pub fn main() -> ExitCode {
         Command::Retarget(a) => retarget::run(&a),
         Command::Rig(a) => rig::run(&a),
         Command::Transfer(a) => transfer::run(&a),
+        Command::Actions(a) => actions::run(&a),
         Command::Modes(a) => modes::run(&a),
         Command::Intensity(a) => intensity::run(&a),
         Command::Smooth(a) => smooth::run(&a),

@@ -127,7 +127,7 @@ pub fn run(a: &ModesArgs) -> Result<()> {
     let progress = super::progress::Progress::new("modes");
     let prep = a.input.prepare_only()?;
     let (pts, ropts) = a.regions.build(&prep)?;
-    let actions = Actions::read(&a.actions)?;
+    let actions = Actions::read_for(&a.actions, &prep.seq.source, &prep.seq.frames)?;
     let st = orthogonality_study(
         &prep.seq.coords,
         &prep.seq.frames,

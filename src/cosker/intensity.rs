@@ -376,14 +376,31 @@ pub fn centre(x: &mut DMatrix<f64>, clips: &[usize], st: &StudySettings) -> Resu
 /// labels: a frame's strongest study action when its score exceeds the threshold, else
 /// neutral. Each test clip's proportions go through median-3 and a polynomial separately.
 pub fn study(path: &std::path::Path, st: &StudySettings) -> Result<Study> {
+    study_with_format(path, None, st)
+}
+
+/// [`study`] with the reader forced to `format` (None: detected from the file).
+pub fn study_with_format(
+    path: &std::path::Path,
+    format: Option<crate::sequence::Format>,
+    st: &StudySettings,
+) -> Result<Study> {
     use crate::decompose::{prepare, PrepareOptions};
     use crate::io::{read_columns, read_sequence, ReadOptions};
     st.check()?;
-    let seq = read_sequence(path, &ReadOptions::default())?;
+    let seq = read_sequence(path, &ReadOptions { format, dims: 2 })?;
     let clips: Vec<usize> = seq
         .segments
         .as_ref()
-        .ok_or_else(|| Error::file(path, "no `clip` column"))?
+        .ok_or_else(|| {
+            Error::file(
+                path,
+                format!(
+                    "read with the {} reader, which keeps no `clip` column (only the py-feat reader does): the study needs clips (people) to test on; force the py-feat reader if the file is one",
+                    seq.format
+                ),
+            )
+        })?
         .iter()
         .map(|c| {
             c.parse::<f64>()

@@ -3,6 +3,7 @@
 //! the paper's appearance models (we have tracked points, not images, so there is no
 //! texture).
 //!
+//! * [`actions`]: one example frame per action, chosen from the track;
 //! * [`modes`]: region-based artificial training sets, action-specific modes and the
 //!   orthogonality measure of Table 2 (§3.1, §5 Eq. 9);
 //! * [`trajectory`]: action-mode trajectories, their normalisation and the mapping between
@@ -11,6 +12,7 @@
 //! * [`intensity`]: soft-KNN action intensities, median-3 and polynomial smoothing and the
 //!   correlation of Eq. 10 (§4, §5.1).
 
+pub mod actions;
 pub mod intensity;
 pub mod modes;
 pub mod morph;

@@ -455,6 +455,38 @@ impl Actions {
     pub fn read(path: &Path) -> Result<Actions> {
         crate::io::read_json(path)
     }
+
+    /// Reads an actions file to use with the track `source` (a path): refused when the file
+    /// names another track (compared by file name, since the paths differ from machine to
+    /// machine), or names a frame `frames` lacks.
+    pub fn read_for(path: &Path, source: &str, frames: &[i64]) -> Result<Actions> {
+        let a = Actions::read(path)?;
+        let name = |s: &str| {
+            Path::new(s)
+                .file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_default()
+        };
+        if !a.sequence.is_empty() && name(&a.sequence) != name(source) {
+            return Err(Error::file(
+                path,
+                format!(
+                    "these actions were chosen on {}, not on {}: their frames name other faces; choose this track's with `kslab actions {source} --out FILE`",
+                    a.sequence, source
+                ),
+            ));
+        }
+        if let Some(x) = a.actions.iter().find(|x| !frames.contains(&x.frame)) {
+            return Err(Error::file(
+                path,
+                format!(
+                    "action {} names frame {}, which {} does not have (or the tracker failed on)",
+                    x.name, x.frame, source
+                ),
+            ));
+        }
+        Ok(a)
+    }
 }
 
 /// Each action's shape vector: the mean shape with only its region's offsets of its

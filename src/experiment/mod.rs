@@ -192,7 +192,11 @@ pub(crate) fn analyse(
                 full.seq.dims,
                 &opts,
             )?;
-            let actions = crate::cosker::modes::Actions::read(&base.join(&m.actions))?;
+            let actions = crate::cosker::modes::Actions::read_for(
+                &base.join(&m.actions),
+                &full.seq.source,
+                &full.seq.frames,
+            )?;
             Some(crate::cosker::modes::orthogonality_study(
                 &full.seq.coords,
                 &full.seq.frames,
@@ -205,8 +209,9 @@ pub(crate) fn analyse(
         None => None,
     };
     let intensity = match &spec.intensity {
-        Some(st) => Some(crate::cosker::intensity::study(
+        Some(st) => Some(crate::cosker::intensity::study_with_format(
             &base.join(&spec.input),
+            spec.format,
             st,
         )?),
         None => None,

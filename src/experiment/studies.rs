@@ -130,7 +130,11 @@ pub(crate) fn map_study(
             prep.seq.dims,
             &region_opts,
         )?;
-        let acts = crate::cosker::modes::Actions::read(&base.join(actions))?;
+        let acts = crate::cosker::modes::Actions::read_for(
+            &base.join(actions),
+            &prep.seq.source,
+            &prep.seq.frames,
+        )?;
         Ok((
             person_model(
                 &prep.seq.coords,

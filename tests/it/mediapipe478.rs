@@ -193,13 +193,30 @@ fn a_face_landmarker_track_maps_through_action_modes() {
         None,
     );
     let t = t.to_str().unwrap();
-    let actions = "assets/cosker/actions_liveportrait_d6.json";
-    ok(&["modes", t, "--actions", actions]);
+    // Its own actions, chosen by `kslab actions`: the shipped d6 file's frames (the
+    // irises change no measure); the shipped file itself names another track.
+    let actions = d.path().join("actions.json").display().to_string();
+    ok(&["actions", t, "--out", &actions]);
+    let frames = |p: &str| -> Vec<i64> {
+        let v: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap();
+        v["actions"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|a| a["frame"].as_i64().unwrap())
+            .collect()
+    };
+    assert_eq!(
+        frames(&actions),
+        frames("assets/cosker/actions_liveportrait_d6.json")
+    );
+    ok(&["modes", t, "--actions", &actions]);
     ok(&[
         "map",
         t,
         "--actions",
-        actions,
+        &actions,
         "--out",
         &d.path().join("m.csv").display().to_string(),
     ]);

@@ -1118,3 +1118,68 @@ fn normalisation_names_are_the_spelling_the_options_read() {
         );
     }
 }
+
+/// `kslab actions` chooses the frames `tools/choose_actions.py` chose for the shipped files
+/// (the oracle), works on iBUG-68 tracks too, and an actions file used with another track
+/// is refused (issue 41, item 4).
+#[test]
+fn kslab_actions_reproduces_the_shipped_files_and_is_checked_against_its_track() {
+    use crate::common::kslab;
+    let d = tempfile::tempdir().unwrap();
+    let frames = |text: &str| -> Vec<(String, i64)> {
+        let v: serde_json::Value = serde_json::from_str(text).unwrap();
+        v["actions"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|a| {
+                (
+                    a["name"].as_str().unwrap().to_string(),
+                    a["frame"].as_i64().unwrap(),
+                )
+            })
+            .collect()
+    };
+    for p in ["d6", "d9"] {
+        let track = shared(&format!("mediapipe_face_tracks/liveportrait_{p}.csv"));
+        let r = kslab(&["actions", track.to_str().unwrap()]);
+        assert_eq!(r.code, 0, "{}", r.stderr);
+        let shipped =
+            std::fs::read_to_string(format!("assets/cosker/actions_liveportrait_{p}.json"))
+                .unwrap();
+        assert_eq!(frames(&r.stdout), frames(&shipped), "{p}");
+        assert!(r.stderr.starts_with("9 actions chosen on "), "{}", r.stderr);
+    }
+    let of = shared("pyfeat_samples/openface_test.csv");
+    let out = d.path().join("a.json");
+    let r = kslab(&[
+        "actions",
+        of.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    assert_eq!(frames(&std::fs::read_to_string(&out).unwrap()).len(), 9);
+    // The d6 actions on d9: refused, naming the command that makes d9's.
+    let d9 = shared("mediapipe_face_tracks/liveportrait_d9.csv");
+    for cmd in ["modes", "map"] {
+        let mut args = vec![
+            cmd,
+            d9.to_str().unwrap(),
+            "--actions",
+            "assets/cosker/actions_liveportrait_d6.json",
+        ];
+        if cmd == "map" {
+            args.extend(["--out", "/dev/null"]);
+        }
+        let r = kslab(&args);
+        assert_eq!(r.code, 1, "{cmd}: {}", r.stderr);
+        assert!(
+            r.stderr
+                .contains("were chosen on mediapipe_face_tracks/liveportrait_d6.csv"),
+            "{}",
+            r.stderr
+        );
+        assert!(r.stderr.contains("kslab actions"), "{}", r.stderr);
+    }
+}

@@ -21,7 +21,7 @@ pub struct ScaleArgs {
     /// greedy (`keys --method greedy --k 16`), curves (`curves --k 2..16`, default methods);
     /// and the other subcommands with their defaults: info, template, retarget (built-in
     /// target), transfer (onto the ICT face at 68 points, the MediaPipe canonical face at 468;
-    /// `--json`), modes (d6's actions), rig (ICT FaceKit), smooth (needs ../shared/data for
+    /// `--json`), modes (the track's own actions, chosen untimed by `kslab actions`), rig (ICT FaceKit), smooth (needs ../shared/data for
     /// transfer, modes and rig).
     #[arg(
         long,
@@ -169,16 +169,27 @@ pub fn run(a: &ScaleArgs) -> Result<()> {
                         "--json".into(),
                     ]
                 }
-                "modes" => vec![
-                    "modes".into(),
-                    t.clone(),
-                    "--actions".into(),
-                    concat!(
-                        env!("CARGO_MANIFEST_DIR"),
-                        "/assets/cosker/actions_liveportrait_d6.json"
-                    )
-                    .into(),
-                ],
+                "modes" => {
+                    // The track's own actions (untimed): another track's would be refused.
+                    let acts = dir.join(format!("actions_{n}x{}.json", a.points));
+                    if !acts.exists() {
+                        let st = std::process::Command::new(&exe)
+                            .args(["actions", &t, "--out"])
+                            .arg(&acts)
+                            .stdout(std::process::Stdio::null())
+                            .stderr(std::process::Stdio::null())
+                            .status()?;
+                        if !st.success() {
+                            bail!("kslab actions {t} failed");
+                        }
+                    }
+                    vec![
+                        "modes".into(),
+                        t.clone(),
+                        "--actions".into(),
+                        acts.display().to_string(),
+                    ]
+                }
                 "rig" => vec!["rig".into(), t.clone(), "--out".into(), out],
                 _ => vec![
                     "smooth".into(),
