@@ -77,14 +77,17 @@ pub fn run(a: &CurvesArgs) -> Result<()> {
     let constrained = a.solvers.iter().copied().find(|s| *s != Solver::Ls);
     a.heuristic
         .check(&a.methods, constrained.unwrap_or(a.solvers[0]))?;
+    let progress = Progress::new("curves: reading");
     let mut prep = a.input.prepare_only()?;
+    progress.step("curves: principal axes");
     let methods: Vec<Method> = a.methods.iter().map(|m| a.heuristic.apply(*m)).collect();
     let axes = keyshape_lab::keyshapes::axes_needed(&methods, a.k.1);
     // The analysis takes the coordinates; only the frame numbers and source are used after.
     let coords = std::mem::replace(&mut prep.seq.coords, nalgebra::DMatrix::zeros(0, 0));
     let an = Analysis::with_axes(coords, prep.seq.points, axes)?;
     let opts = a.heuristic.options(a.solvers[0]);
-    let progress = Progress::new("curves");
+    progress.step(&format!("curves: k = {}..{}", a.k.0, a.k.1));
+    progress.units("curves (method × solver)");
     let rows = sweep(&an, &methods, a.k.0..=a.k.1, &a.solvers, &opts, &|d, t| {
         progress.tick(d, t)
     })?;

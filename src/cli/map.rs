@@ -206,10 +206,12 @@ pub fn run(a: &MapArgs) -> Result<()> {
             );
         }
         progress.step("map: pictures");
+        progress.units("frames");
         side_by_side(a, &prep, &tprep, &shapes, every, &progress)?;
     }
     if let Some(dir) = &a.morph {
         progress.step("map: morph targets");
+        progress.units("frames");
         morph(a, &prep, dir, &names, &action_traj, every, &progress)?;
     }
     Ok(())

@@ -16,21 +16,29 @@ pub fn set_quiet(quiet: bool) {
 pub struct Progress {
     bar: ProgressBar,
     done: Arc<AtomicBool>,
+    counting: AtomicBool,
 }
 
+/// While a step's size is unknown: its name, a spinner and the time so far — no `0/0` bar.
+const UNSIZED: &str = "{spinner} {msg} {elapsed}";
+/// A step of known size: its name, the bar, what it counts, and the time left.
+const SIZED: &str = "{spinner} {msg} [{bar:30}] {pos}/{len}{prefix} {elapsed}, ETA {eta}";
+
 impl Progress {
+    /// A bar for the step `message` (e.g. `curves: reading`), drawn once it has run a second.
     pub fn new(message: &str) -> Progress {
         let quiet = QUIET.load(Ordering::SeqCst);
-        let bar = ProgressBar::with_draw_target(Some(0), ProgressDrawTarget::hidden());
-        if let Ok(style) =
-            ProgressStyle::with_template("{spinner} {msg} [{bar:30}] {pos}/{len} {elapsed}")
-        {
-            bar.set_style(style.progress_chars("=> "));
-        }
+        let bar = ProgressBar::with_draw_target(None, ProgressDrawTarget::hidden());
         bar.set_message(message.to_string());
         let done = Arc::new(AtomicBool::new(false));
+        let p = Progress {
+            bar,
+            done,
+            counting: AtomicBool::new(false),
+        };
+        p.style(UNSIZED);
         if !quiet {
-            let (bar, done) = (bar.clone(), done.clone());
+            let (bar, done) = (p.bar.clone(), p.done.clone());
             std::thread::spawn(move || {
                 std::thread::sleep(Duration::from_secs(1));
                 if !done.load(Ordering::SeqCst) {
@@ -39,18 +47,40 @@ impl Progress {
                 }
             });
         }
-        Progress { bar, done }
+        p
     }
 
-    /// Records `done` of `total` steps.
+    fn style(&self, template: &str) {
+        if let Ok(style) = ProgressStyle::with_template(template) {
+            self.bar.set_style(style.progress_chars("=> "));
+        }
+    }
+
+    /// What the counts of [`Progress::tick`] are (`frames`, `curves`, `settings` …).
+    pub fn units(&self, unit: &str) {
+        self.bar.set_prefix(format!(" {unit}"));
+    }
+
+    /// Records `done` of `total` units of the current step.
     pub fn tick(&self, done: usize, total: usize) {
+        if total == 0 {
+            return;
+        }
+        if !self.counting.swap(true, Ordering::SeqCst) {
+            self.style(SIZED);
+            self.bar.reset_eta();
+        }
         self.bar.set_length(total as u64);
         self.bar.set_position(done as u64);
     }
 
-    /// Names the step now running.
+    /// Names the step now running; its size is unknown until it ticks.
     pub fn step(&self, message: &str) {
         self.bar.set_message(message.to_string());
+        if self.counting.swap(false, Ordering::SeqCst) {
+            self.style(UNSIZED);
+            self.bar.set_prefix("");
+        }
     }
 
     pub fn finish(&self) {

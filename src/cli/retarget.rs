@@ -546,6 +546,7 @@ fn pictures(
     if let Some(dir) = &a.png_dir {
         keyshape_lab::io::create_dir_all(dir)?;
         progress.step("retarget: PNG frames");
+        progress.units("frames");
         for t in 0..s.n_frames() {
             progress.tick(t, s.n_frames());
             save_png(
@@ -558,6 +559,7 @@ fn pictures(
     if let Some(p) = &a.apng {
         let fps = s.fps().unwrap_or(30.0);
         progress.step("retarget: animated PNG");
+        progress.units("frames");
         let n = s.n_frames();
         write_apng(p, n, fps, &|t| {
             progress.tick(t, n);

@@ -64,7 +64,12 @@ pub fn run(a: &RunArgs) -> Result<()> {
         }
     });
     super::check_outputs(&[], &[Some(&dir)], &[Some(&a.spec)])?;
-    let progress = Progress::new(&spec.title);
+    let progress = Progress::new(&format!("{}: {}", stem, spec.title));
+    progress.units(if spec.inputs.is_some() {
+        "sequences"
+    } else {
+        "curves (method × solver)"
+    });
     let tick = |d, t| progress.tick(d, t);
     let mut summary = Vec::new();
     let files = match (shard, spec.inputs.is_some()) {

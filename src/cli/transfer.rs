@@ -135,6 +135,7 @@ pub fn run(a: &TransferArgs) -> Result<()> {
     let (mut deform, mut max_disp) = (0.0, 0.0f64);
     if a.obj_dir.is_some() || a.png_dir.is_some() {
         progress.step("transfer: frames");
+        progress.units("frames");
     }
     for c0 in (0..n).step_by(MESH_CHUNK) {
         let t1 = Instant::now();

@@ -42,12 +42,18 @@ pub fn run(a: &RigBenchArgs) -> Result<()> {
     // One thread: the frames are sequential (each warm-starts from the previous one); the
     // neutral search would use every core.
     let single = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
-    for (solver, identity) in [
+    let progress = crate::cli::progress::Progress::new("bench rig: timing the solvers");
+    progress.units("settings (solver × identity)");
+    for (n, (solver, identity)) in [
         (Solver::Bounded, Identity::Offset),
         (Solver::Bounded, Identity::Rbf),
         (Solver::Nnls, Identity::Offset),
         (Solver::Ls, Identity::Offset),
-    ] {
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        progress.tick(n, 4);
         let opts = RigOptions {
             solver,
             identity,
