@@ -3,7 +3,6 @@
 use super::request::Computed;
 use super::state::{Prompt, State};
 use crate::keyshapes::Method;
-use crate::plot::method_style;
 use crate::solve::Solver;
 use nalgebra::DMatrix;
 use ratatui::layout::{Constraint, Layout, Rect};
@@ -456,10 +455,28 @@ fn colour(rgb: [u8; 3]) -> Color {
     Color::Rgb(rgb[0], rgb[1], rgb[2])
 }
 
+/// Each method's colour in the lab. A terminal may be dark or light, so every colour is of
+/// middle luminance — a WCAG contrast of at least 2.5 against black and against white — and
+/// each differs from every other (the PNG plots, on white, tell the k-means variants apart
+/// by dashes as well; a terminal chart has only colour).
+pub fn lab_rgb(method: &str) -> [u8; 3] {
+    match method {
+        "spread" => [70, 130, 255],
+        "kmeans2" => [40, 170, 60],
+        "kmeans3" => [210, 60, 210],
+        "kmeans2-mean" => [0, 160, 160],
+        "kmeans3-mean" => [150, 100, 255],
+        "hull" => [235, 50, 50],
+        "greedy" => [230, 140, 0],
+        "random" => [140, 140, 140],
+        _ => [200, 120, 60],
+    }
+}
+
 fn error_chart(f: &mut Frame, s: &State, area: Rect) {
     let mut title = vec![Span::raw(format!("E(k) {}: ", s.settings.solver))];
     for m in Method::ALL {
-        let (rgb, _) = method_style(&m.name());
+        let rgb = lab_rgb(&m.name());
         title.push(Span::styled(
             format!("{} ", short_label(&m)),
             Style::default().fg(colour(rgb)),
@@ -492,7 +509,7 @@ fn error_chart(f: &mut Frame, s: &State, area: Rect) {
     let mut datasets: Vec<Dataset> = series
         .iter()
         .map(|(m, pts)| {
-            let (rgb, _) = method_style(m);
+            let rgb = lab_rgb(m);
             let kind = if pts.len() == 1 {
                 GraphType::Scatter
             } else {
@@ -721,12 +738,15 @@ pub const KEYS: [(&str, &str); 21] = [
         "r",
         "the track solved onto `--rig` (posed rig, named weights)",
     ),
-    ("click timeline", "seek"),
-    ("click chart", "pick the nearest method and k"),
+    ("click", "timeline: seek; chart: nearest method and k"),
     ("?", "this help"),
-    ("Esc", "close help / prompt, else quit"),
-    ("q", "quit"),
-    ("Ctrl-C", "quit"),
+    ("q / Ctrl-C", "quit (Esc: close help or prompt, else quit)"),
+    ("err", "header: target RMS vs G(q) over all frames (px)"),
+    (
+        "jit",
+        "header: jitter, RMS 2nd difference of the target (px/f²)",
+    ),
+    ("rms", "panel titles: this frame's RMS error (px)"),
 ];
 
 fn centred(area: Rect, w: u16, h: u16) -> Rect {
@@ -816,4 +836,54 @@ pub fn chart_pick(area: Rect, s: &State, col: u16, row: u16) -> Option<(Method, 
         d(a).total_cmp(&d(b))
     })?;
     Some((Method::parse(&best.method).ok()?, best.k))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::lab_rgb;
+    use crate::keyshapes::Method;
+
+    /// WCAG 2 relative luminance.
+    fn luminance(c: [u8; 3]) -> f64 {
+        let lin = |v: u8| {
+            let v = f64::from(v) / 255.0;
+            if v <= 0.03928 {
+                v / 12.92
+            } else {
+                ((v + 0.055) / 1.055).powf(2.4)
+            }
+        };
+        0.2126 * lin(c[0]) + 0.7152 * lin(c[1]) + 0.0722 * lin(c[2])
+    }
+
+    /// Issue 41 item 8: greedy (20, 20, 20), kmeans2-mean (10, 90, 30) and kmeans3-mean
+    /// (110, 20, 120) vanished on a dark terminal, and kmeans2 and kmeans2-mean shared a
+    /// green. Every method now reads on black and on white and differs from every other.
+    #[test]
+    fn every_method_reads_on_dark_and_light_terminals_and_differs_from_the_others() {
+        let all: Vec<[u8; 3]> = Method::ALL.iter().map(|m| lab_rgb(&m.name())).collect();
+        for (m, &c) in Method::ALL.iter().zip(&all) {
+            let l = luminance(c);
+            let on_black = (l + 0.05) / 0.05;
+            let on_white = 1.05 / (l + 0.05);
+            assert!(
+                on_black >= 2.5 && on_white >= 2.5,
+                "{m}: {on_black:.2} on black, {on_white:.2} on white"
+            );
+        }
+        for i in 0..all.len() {
+            for j in 0..i {
+                let d: f64 = (0..3)
+                    .map(|k| (f64::from(all[i][k]) - f64::from(all[j][k])).powi(2))
+                    .sum::<f64>()
+                    .sqrt();
+                assert!(
+                    d >= 80.0,
+                    "{} and {} differ by {d:.0}",
+                    Method::ALL[i],
+                    Method::ALL[j]
+                );
+            }
+        }
+    }
 }
