@@ -69,7 +69,8 @@ pub fn run(a: &TuiArgs) -> Result<()> {
         None => None,
         Some(d) => {
             let rig = keyshape_lab::rig::Rig::read_ict(d)?;
-            Some(keyshape_lab::tui::rig::rig_view(&seq, &rig)?)
+            let view = keyshape_lab::tui::rig::rig_view(&seq, &rig)?;
+            Some((rig, view))
         }
     };
     keyshape_lab::tui::run(seq, &path, target, mesh, rig, a.head_motion == "apply")

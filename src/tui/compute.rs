@@ -303,6 +303,16 @@ pub const WORKER_THREAD: &str = "kslab-worker";
 /// Starts the worker thread; results come back as [`Action`]s. A job that panics is
 /// reported as [`Action::Failed`] and the worker goes on with the next job.
 pub fn spawn(seq: Sequence, target: Option<TargetSet>) -> (Sender<Job>, Receiver<Action>) {
+    spawn_with_rig(seq, target, None)
+}
+
+/// [`spawn`], with the lab's `--rig`: every sequence loaded later (`o`) is solved onto it
+/// too, answered by [`Action::RigSolved`] after its [`Action::Loaded`].
+pub fn spawn_with_rig(
+    seq: Sequence,
+    target: Option<TargetSet>,
+    rig: Option<std::sync::Arc<crate::rig::Rig>>,
+) -> (Sender<Job>, Receiver<Action>) {
     let (jobs_tx, jobs_rx) = channel::<Job>();
     let (out_tx, out_rx) = channel::<Action>();
     let worker = std::thread::Builder::new().name(WORKER_THREAD.into());
@@ -338,8 +348,16 @@ pub fn spawn(seq: Sequence, target: Option<TargetSet>) -> (Sender<Job>, Receiver
                     Ok(seq) => {
                         let fps = seq.fps().unwrap_or(30.0);
                         let (name, n) = (seq.source.clone(), seq.n_frames());
+                        let solved = rig.as_ref().map(|r| {
+                            super::rig::rig_view(&seq, r)
+                                .map(std::sync::Arc::new)
+                                .map_err(|e| e.to_string())
+                        });
                         engine = Engine::new(seq);
                         let _ = out_tx.send(Action::Loaded(id, name, n, fps));
+                        if let Some(r) = solved {
+                            let _ = out_tx.send(Action::RigSolved(id, r));
+                        }
                     }
                     Err(e) => {
                         let _ = out_tx.send(Action::Failed(id, e.to_string()));

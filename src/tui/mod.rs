@@ -70,6 +70,8 @@ pub fn command(c: char) -> Option<Action> {
 pub fn interpret(s: &State, k: KeyEvent) -> Option<Action> {
     match key_action(k)? {
         Action::Char(c) if s.prompt.is_none() => command(c).or(Some(Action::Char(c))),
+        // In a prompt a space is text (a path may hold one), not play / pause.
+        Action::TogglePlay if s.prompt.is_some() => Some(Action::Char(' ')),
         a => Some(a),
     }
 }
@@ -172,7 +174,7 @@ pub fn run(
     path: &str,
     target: Option<crate::retarget::target::TargetSet>,
     mesh: Option<mesh::MeshView>,
-    rig: Option<rig::RigView>,
+    rig: Option<(crate::rig::Rig, rig::RigView)>,
     export_head_motion: bool,
 ) -> anyhow::Result<()> {
     let mut s = State::new(&seq.source, seq.n_frames(), seq.fps().unwrap_or(30.0));
@@ -181,8 +183,13 @@ pub fn run(
     s.mesh = mesh.map(std::sync::Arc::new);
     s.show_mesh = false; // the 2-D target first; `x` shows the mesh
     s.show_rig = rig.is_some(); // opened with --rig: the rig first; `r` toggles
-    s.rig = rig.map(std::sync::Arc::new);
-    let (jobs, results) = compute::spawn(seq, target);
+    let (rig, view) = match rig {
+        Some((r, v)) => (Some(std::sync::Arc::new(r)), Some(std::sync::Arc::new(v))),
+        None => (None, None),
+    };
+    s.rig = view;
+    // The rig stays with the lab: a sequence opened with `o` is solved onto it too.
+    let (jobs, results) = compute::spawn_with_rig(seq, target, rig);
     let mut terminal = ratatui::try_init()?;
     // ratatui's hook restores the terminal on a panic; a panic in the worker is caught and
     // reported in the status line instead, so the lab must keep its screen.

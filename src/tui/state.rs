@@ -69,6 +69,8 @@ pub enum Action {
     Failed(u64, String),
     /// A new sequence was loaded (name, frames, fps).
     Loaded(u64, String, usize, f64),
+    /// The loaded sequence solved onto the lab's `--rig`, or why it could not be.
+    RigSolved(u64, Result<std::sync::Arc<super::rig::RigView>, String>),
 }
 
 /// Side effects for the loop to carry out.
@@ -141,6 +143,8 @@ pub struct State {
     pub rig: Option<std::sync::Arc<super::rig::RigView>>,
     /// Show the rig view (track + posed rig, named weights) in place of the two top panels.
     pub show_rig: bool,
+    /// The request id of the sequence loaded last (its rig solve answers to it).
+    pub loaded: u64,
     /// The key frames come from a user target set (`kslab tui --target`), not a method.
     pub target_keys: bool,
     clock: f64,
@@ -173,6 +177,7 @@ impl State {
             show_mesh: false,
             rig: None,
             show_rig: false,
+            loaded: 0,
             target_keys: false,
             clock: 0.0,
         }
@@ -331,6 +336,7 @@ pub fn update(s: &mut State, action: Action) -> Vec<Effect> {
         }
         Action::Loaded(id, name, frames, fps) => {
             if id == s.request {
+                s.loaded = id;
                 s.source = name;
                 s.frames = frames;
                 s.fps = fps;
@@ -339,10 +345,26 @@ pub fn update(s: &mut State, action: Action) -> Vec<Effect> {
                 s.curves = None;
                 s.mesh = None;
                 s.show_mesh = false;
-                s.rig = None;
+                // With `--rig` the worker solves the new track onto the rig next
+                // (RigSolved); until then the key-shape view shows.
                 s.show_rig = false;
+                s.rig = None;
                 s.target_keys = false;
                 return s.recompute();
+            }
+        }
+        Action::RigSolved(id, r) => {
+            if id == s.loaded {
+                match r {
+                    Ok(v) => {
+                        s.rig = Some(v);
+                        s.show_rig = true;
+                    }
+                    Err(e) => {
+                        s.show_rig = false;
+                        s.status = format!("rig: {e}");
+                    }
+                }
             }
         }
     }

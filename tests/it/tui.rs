@@ -630,3 +630,72 @@ fn the_rig_view_names_the_largest_weights_and_r_toggles_it() {
     update(&mut s, Action::Rig);
     assert!(!s.show_rig);
 }
+
+/// In the open prompt a space is part of the path, not play / pause (issue 41, item 8: `o`
+/// dropped spaces from a path).
+#[test]
+fn a_space_in_the_open_prompt_is_part_of_the_path() {
+    use crossterm::event::{KeyCode, KeyEvent, KeyModifiers};
+    use keyshape_lab::tui::interpret;
+    let mut s = State::new("builtin", 216, 30.0);
+    let key = |c: KeyCode| KeyEvent::new(c, KeyModifiers::NONE);
+    // Outside a prompt, space plays.
+    assert!(matches!(
+        interpret(&s, key(KeyCode::Char(' '))),
+        Some(Action::TogglePlay)
+    ));
+    update(&mut s, Action::Open);
+    for c in "my tracks/a b.csv".chars() {
+        let a = interpret(&s, key(KeyCode::Char(c))).unwrap();
+        update(&mut s, a);
+    }
+    assert!(!s.playing, "the space toggled playback");
+    let effects = update(&mut s, Action::Enter);
+    assert_eq!(effects.len(), 1);
+    assert!(
+        matches!(&effects[0], Effect::Load(_, p) if p == "my tracks/a b.csv"),
+        "{effects:?}"
+    );
+}
+
+/// A sequence opened with `o` in a lab started with `--rig` is solved onto the rig too
+/// (issue 41, item 8: the rig was forgotten), and a track the rig cannot take says why.
+#[test]
+fn the_rig_stays_with_the_lab_when_another_sequence_is_opened() {
+    use keyshape_lab::tui::compute::{spawn_with_rig, Job};
+    let rig = std::sync::Arc::new(
+        keyshape_lab::rig::Rig::read_ict(&crate::common::shared("ict_facekit_face")).unwrap(),
+    );
+    let (jobs, results) = spawn_with_rig(builtin_sequence().unwrap(), None, Some(rig));
+    let d18 = crate::common::shared("mediapipe_face_tracks/liveportrait_d18.csv");
+    jobs.send(Job::Load(3, d18.display().to_string())).unwrap();
+    let mut s = State::new("builtin", 216, 30.0);
+    s.request = 3;
+    let mut got = Vec::new();
+    while got.len() < 2 {
+        let a = results.recv_timeout(Duration::from_secs(60)).unwrap();
+        got.push(format!("{a:?}").chars().take(12).collect::<String>());
+        update(&mut s, a);
+    }
+    assert!(
+        s.rig.is_some() && s.show_rig,
+        "{got:?}: the new track is not on the rig"
+    );
+    // A track of no layout the rig knows: the key-shape view, and the reason.
+    let d = tempfile::tempdir().unwrap();
+    let plain = d.path().join("three.csv");
+    std::fs::write(
+        &plain,
+        "frame,x0,y0,x1,y1,x2,y2\n0,0,0,1,0,0,1\n1,0,0,2,0,0,1\n",
+    )
+    .unwrap();
+    jobs.send(Job::Load(4, plain.display().to_string()))
+        .unwrap();
+    s.request = 4;
+    for _ in 0..2 {
+        let a = results.recv_timeout(Duration::from_secs(60)).unwrap();
+        update(&mut s, a);
+    }
+    assert!(s.rig.is_none() && !s.show_rig);
+    assert!(s.status.starts_with("rig: "), "{}", s.status);
+}
