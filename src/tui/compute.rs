@@ -36,6 +36,8 @@ pub struct Engine {
     seq: Sequence,
     target: Option<TargetSet>,
     cache: HashMap<String, Cached>,
+    /// The key plan and target of the last request shown, for its split view.
+    plan: Option<(u64, Settings, KeyPlan, Target)>,
 }
 
 impl Engine {
@@ -45,6 +47,7 @@ impl Engine {
             seq,
             target: None,
             cache: HashMap::new(),
+            plan: None,
         }
     }
 
@@ -55,6 +58,7 @@ impl Engine {
             seq,
             target: Some(target),
             cache: HashMap::new(),
+            plan: None,
         }
     }
 
@@ -105,8 +109,20 @@ impl Engine {
             .ok_or_else(|| Error::invalid("cache"))
     }
 
-    /// The fast part of a request: keys, weights, reconstructions, targets.
+    /// A whole request: keys, and weights, reconstructions and targets for the chosen
+    /// solver and for LS and NNLS (the split view) — [`Engine::compute_shown`] then
+    /// [`Engine::split_views`].
     pub fn compute(&mut self, id: u64, settings: &Settings) -> Result<Computed> {
+        let mut c = self.compute_shown(id, settings)?;
+        let rest = self.split_views(id)?;
+        c.views.extend(rest);
+        Ok(c)
+    }
+
+    /// What the screen shows first: keys, and the chosen solver's weights,
+    /// reconstructions and targets. The split view's other solvers follow from
+    /// [`Engine::split_views`] (the worker sends them in the background).
+    pub fn compute_shown(&mut self, id: u64, settings: &Settings) -> Result<Computed> {
         let t0 = Instant::now();
         let user_target = self.target.clone();
         let c = self.cached(&settings.points)?;
@@ -159,66 +175,15 @@ impl Engine {
                 )
             }
         };
-        let mut solvers = vec![settings.solver];
-        for s in [Solver::Ls, Solver::Nnls] {
-            if !solvers.contains(&s) {
-                solvers.push(s);
-            }
-        }
+        let plan = match shapes {
+            Some(m) => KeyPlan::Shapes(m),
+            None => KeyPlan::Global(keys.clone()),
+        };
+        let view = solver_view(c, settings, &plan, &target, settings.solver)?;
+        let views = vec![view];
         let coords = &c.prep.seq.coords;
         let dims = c.prep.seq.dims;
-        let segs = segments(&c.prep.seq.frames, c.prep.seq.segments.as_deref());
-        let smoothing = Smoothing {
-            lambda: settings.smooth,
-            order: 1,
-            mode: SmoothMode::Offline,
-        };
-        let mut views = Vec::new();
-        for s in solvers {
-            let r = retarget_smoothed(
-                coords,
-                dims,
-                &match &shapes {
-                    Some(m) => KeyPlan::Shapes(m.clone()),
-                    None => KeyPlan::Global(keys.clone()),
-                },
-                &target,
-                None,
-                s,
-                Some(&c.truth),
-                Some((&smoothing, segs.as_slice())),
-            )?;
-            if r.unconverged > 0 {
-                return Err(Error::invalid(format!(
-                    "the {s} solve did not settle (λ {}): lower λ (L)",
-                    settings.smooth
-                )));
-            }
-            let points = r.target.nrows() / dims.max(1);
-            let target_jitter =
-                crate::experiment::smoothing::jitter(&r.target, &segs, points.max(1));
-            views.push(SolverView {
-                target_jitter,
-                solver: s,
-                frame_rms: r
-                    .source_sq
-                    .iter()
-                    .map(|e| (e / r.points as f64).sqrt())
-                    .collect(),
-                frame_target_rms: r.target_rms_per_frame().unwrap_or_default(),
-                source_rms: r.source_rms(),
-                target_rms: r.target_rms().unwrap_or(f64::NAN),
-                jitter: r.jitter(),
-                weights: r
-                    .weights
-                    .into_iter()
-                    .next()
-                    .unwrap_or_else(|| DMatrix::zeros(0, 0)),
-                recon: r.source,
-                target: r.target,
-            });
-        }
-        Ok(Computed {
+        let out = Computed {
             id,
             settings: settings.clone(),
             frames: c.prep.seq.frames.clone(),
@@ -234,7 +199,29 @@ impl Engine {
             views,
             seconds: t0.elapsed().as_secs_f64(),
             head: c.prep.head.clone(),
-        })
+        };
+        self.plan = Some((id, settings.clone(), plan, target));
+        Ok(out)
+    }
+
+    /// The split view's solvers (LS and NNLS, less the one shown) for request `id`, which
+    /// must be the last [`Engine::compute_shown`].
+    pub fn split_views(&mut self, id: u64) -> Result<Vec<SolverView>> {
+        let Some((pid, settings, plan, target)) = self.plan.take() else {
+            return Err(Error::invalid("split view: no request shown"));
+        };
+        if pid != id {
+            return Err(Error::invalid("split view: a newer request was shown"));
+        }
+        let c = self.cached(&settings.points)?;
+        let mut views = Vec::new();
+        for s in [Solver::Ls, Solver::Nnls] {
+            if s != settings.solver {
+                views.push(solver_view(c, &settings, &plan, &target, s)?);
+            }
+        }
+        self.plan = Some((pid, settings, plan, target));
+        Ok(views)
     }
 
     /// The error curves of every method for a request's points and solver, k = 2..24;
@@ -286,6 +273,62 @@ pub enum Job {
     /// Panics in the worker: how the tests check that a failing job cannot kill it.
     #[doc(hidden)]
     Crash(u64),
+}
+
+/// One solver's weights, reconstructions and targets for a request.
+fn solver_view(
+    c: &Cached,
+    settings: &Settings,
+    plan: &KeyPlan,
+    target: &Target,
+    s: Solver,
+) -> Result<SolverView> {
+    let coords = &c.prep.seq.coords;
+    let dims = c.prep.seq.dims;
+    let segs = segments(&c.prep.seq.frames, c.prep.seq.segments.as_deref());
+    let smoothing = Smoothing {
+        lambda: settings.smooth,
+        order: 1,
+        mode: SmoothMode::Offline,
+    };
+    let r = retarget_smoothed(
+        coords,
+        dims,
+        plan,
+        target,
+        None,
+        s,
+        Some(&c.truth),
+        Some((&smoothing, segs.as_slice())),
+    )?;
+    if r.unconverged > 0 {
+        return Err(Error::invalid(format!(
+            "the {s} solve did not settle (λ {}): lower λ (L)",
+            settings.smooth
+        )));
+    }
+    let points = r.target.nrows() / dims.max(1);
+    let target_jitter = crate::experiment::smoothing::jitter(&r.target, &segs, points.max(1));
+    Ok(SolverView {
+        target_jitter,
+        solver: s,
+        frame_rms: r
+            .source_sq
+            .iter()
+            .map(|e| (e / r.points as f64).sqrt())
+            .collect(),
+        frame_target_rms: r.target_rms_per_frame().unwrap_or_default(),
+        source_rms: r.source_rms(),
+        target_rms: r.target_rms().unwrap_or(f64::NAN),
+        jitter: r.jitter(),
+        weights: r
+            .weights
+            .into_iter()
+            .next()
+            .unwrap_or_else(|| DMatrix::zeros(0, 0)),
+        recon: r.source,
+        target: r.target,
+    })
 }
 
 /// Loads a sequence for the lab (`builtin` or a path).
@@ -364,7 +407,9 @@ pub fn spawn_with_rig(
                     }
                 },
                 Job::Compute(id, settings) => {
-                    match engine.compute(id, &settings) {
+                    // What the screen shows first; the split view's solvers and the error
+                    // curves follow, each abandoned for a newer request.
+                    match engine.compute_shown(id, &settings) {
                         Ok(c) => {
                             let _ = out_tx.send(Action::Computed(Box::new(c)));
                         }
@@ -381,6 +426,18 @@ pub fn spawn_with_rig(
                         Err(TryRecvError::Empty) => false,
                         Err(TryRecvError::Disconnected) => true,
                     };
+                    if abandon() {
+                        return;
+                    }
+                    match engine.split_views(id) {
+                        Ok(v) => {
+                            let _ = out_tx.send(Action::SplitViews(id, v));
+                        }
+                        Err(e) => {
+                            let _ = out_tx.send(Action::Failed(id, e.to_string()));
+                            return;
+                        }
+                    }
                     match engine.curves(&settings, &mut abandon) {
                         Ok(Some(rows)) => {
                             let _ = out_tx.send(Action::Curves(id, rows));

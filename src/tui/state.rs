@@ -69,6 +69,8 @@ pub enum Action {
     Failed(u64, String),
     /// A new sequence was loaded (name, frames, fps).
     Loaded(u64, String, usize, f64),
+    /// The split view's other solvers for a request already shown.
+    SplitViews(u64, Vec<super::request::SolverView>),
     /// The loaded sequence solved onto the lab's `--rig`, or why it could not be.
     RigSolved(u64, Result<std::sync::Arc<super::rig::RigView>, String>),
 }
@@ -351,6 +353,11 @@ pub fn update(s: &mut State, action: Action) -> Vec<Effect> {
                 s.rig = None;
                 s.target_keys = false;
                 return s.recompute();
+            }
+        }
+        Action::SplitViews(id, views) => {
+            if let Some(c) = s.computed.as_mut().filter(|c| c.id == id) {
+                c.views.extend(views);
             }
         }
         Action::RigSolved(id, r) => {

@@ -235,6 +235,11 @@ fn face_panels(f: &mut Frame, s: &State, c: &Computed, area: Rect) {
         .map_or("n/a".to_string(), |v| format!("{v:.2}"));
     if s.split {
         let (Some(ls), Some(nn)) = (c.view(Solver::Ls), c.view(Solver::Nnls)) else {
+            f.render_widget(
+                Paragraph::new("computing LS and NNLS for the split view…")
+                    .block(Block::bordered()),
+                area,
+            );
             return;
         };
         let [a, b, d] = Layout::horizontal([Constraint::Ratio(1, 3); 3]).areas(area);

@@ -50,17 +50,26 @@ pub fn run(a: &TuiBenchArgs) -> Result<()> {
         .map(|_| Action::K(1))
         .chain((0..5).map(|_| Action::Method(true)))
         .collect();
+    let mut background = Vec::new();
     for a in changes {
+        // Input to redraw: what the screen shows (keys, the chosen solver), as the worker
+        // sends it first; the split view's LS / NNLS follow in the background.
         let t = Instant::now();
         update(&mut s, a);
-        let c = engine.compute(s.request, &s.settings.clone())?;
+        let c = engine.compute_shown(s.request, &s.settings.clone())?;
         update(&mut s, Action::Computed(Box::new(c)));
         term.draw(|f| view::draw(f, &s))?;
         lat.push((
             format!("{} k={}", s.settings.method, s.settings.k),
             t.elapsed().as_secs_f64() * 1e3,
         ));
+        let t = Instant::now();
+        let id = s.request;
+        let v = engine.split_views(id)?;
+        update(&mut s, Action::SplitViews(id, v));
+        background.push(t.elapsed().as_secs_f64() * 1e3);
     }
+    background.sort_by(f64::total_cmp);
     let t = Instant::now();
     let rows = engine
         .curves(&s.settings, &mut || false)?
@@ -86,12 +95,17 @@ pub fn run(a: &TuiBenchArgs) -> Result<()> {
         warm * 1e3
     );
     for (what, v) in &lat {
-        outln!("| change → {what}: keys, weights for the split view, redraw | {v:.0} ms |");
+        outln!("| change → {what}: keys, the chosen solver's weights, redraw | {v:.0} ms |");
     }
     outln!(
         "| **median / max input-to-redraw** | **{:.0} / {:.0} ms** |",
         ms[ms.len() / 2],
         ms[ms.len() - 1]
+    );
+    outln!(
+        "| then, in the background: LS / NNLS for the split view, median / max | {:.0} / {:.0} ms |",
+        background[background.len() / 2],
+        background[background.len() - 1]
     );
     outln!("| redraw alone (120 × 40) | {draw:.1} ms |");
     outln!(
