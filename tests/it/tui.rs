@@ -699,3 +699,32 @@ fn the_rig_stays_with_the_lab_when_another_sequence_is_opened() {
     assert!(s.rig.is_none() && !s.show_rig);
     assert!(s.status.starts_with("rig: "), "{}", s.status);
 }
+
+/// The worker's first answer is what the screen shows; the split view's solvers follow and
+/// join the same request (issue 41, item 8), and a stale answer is dropped.
+#[test]
+fn the_split_view_follows_the_first_answer_and_joins_its_request() {
+    let mut engine = Engine::new(builtin_sequence().unwrap());
+    let mut s = State::new("builtin", 216, 30.0);
+    s.request = 1;
+    let shown = engine.compute_shown(1, &Settings::default()).unwrap();
+    assert_eq!(shown.views.len(), 1);
+    update(&mut s, Action::Computed(Box::new(shown)));
+    s.split = true;
+    assert!(screen(&s, 100, 30).contains("computing LS and NNLS for the split view"));
+    let rest = engine.split_views(1).unwrap();
+    assert_eq!(rest.len(), 1, "nnls is shown: ls follows");
+    // A stale request's views are dropped.
+    update(&mut s, Action::SplitViews(0, rest.clone()));
+    assert_eq!(s.computed.as_ref().unwrap().views.len(), 1);
+    update(&mut s, Action::SplitViews(1, rest));
+    assert_eq!(s.computed.as_ref().unwrap().views.len(), 2);
+    let whole = Engine::new(builtin_sequence().unwrap())
+        .compute(1, &Settings::default())
+        .unwrap();
+    let c = s.computed.as_ref().unwrap();
+    for (a, b) in c.views.iter().zip(&whole.views) {
+        assert_eq!((a.solver, &a.weights), (b.solver, &b.weights));
+    }
+    assert!(!screen(&s, 100, 30).contains("computing LS and NNLS"));
+}
