@@ -120,7 +120,8 @@ fn header(f: &mut Frame, s: &State, area: Rect) {
     // Parts in display order with a priority: the lowest go first when 80 columns are not
     // enough (never the frame, method, k, solver or error).
     let mut parts: Vec<(String, u8)> = vec![
-        (short.to_string(), 2),
+        // The file name goes only after everything but the settings and the error.
+        (short.to_string(), 8),
         (format!("{} frames", s.frames), 0),
         (st.points.clone(), 3),
         (keys, 9),
@@ -478,12 +479,42 @@ pub fn lab_rgb(method: &str) -> [u8; 3] {
     }
 }
 
+/// The chart's legend in at most `width` characters: every method, named as short as it
+/// takes (`spread`, then `spr`), the solver kept, `E(k)` dropped first.
+pub fn legend_labels(solver: &str, width: usize) -> (String, Vec<String>) {
+    let tiny = |m: &Method| match m {
+        Method::Spread => "spr".to_string(),
+        Method::Greedy => "grd".to_string(),
+        Method::Random => "rnd".to_string(),
+        other => short_label(other),
+    };
+    let long: Vec<String> = Method::ALL.iter().map(short_label).collect();
+    let short: Vec<String> = Method::ALL.iter().map(tiny).collect();
+    let len = |head: &str, names: &[String]| {
+        head.chars().count() + names.iter().map(|n| n.chars().count() + 1).sum::<usize>()
+    };
+    for (head, names) in [
+        (format!("E(k) {solver}: "), &long),
+        (format!("E(k) {solver}: "), &short),
+        (format!("{solver}: "), &short),
+    ] {
+        if len(&head, names) <= width {
+            return (head, names.clone());
+        }
+    }
+    (String::new(), short)
+}
+
 fn error_chart(f: &mut Frame, s: &State, area: Rect) {
-    let mut title = vec![Span::raw(format!("E(k) {}: ", s.settings.solver))];
-    for m in Method::ALL {
+    let (head, names) = legend_labels(
+        s.settings.solver.name(),
+        area.width.saturating_sub(2) as usize,
+    );
+    let mut title = vec![Span::raw(head)];
+    for (m, name) in Method::ALL.iter().zip(names) {
         let rgb = lab_rgb(&m.name());
         title.push(Span::styled(
-            format!("{} ", short_label(&m)),
+            format!("{name} "),
             Style::default().fg(colour(rgb)),
         ));
     }
@@ -668,6 +699,12 @@ pub fn weight_lines(
                 if bar_w >= 3 {
                     spans.push(Span::styled(format!("{} ", bar(x, bar_w)), colour(x)));
                     used += bar_w + 1;
+                } else if with_value && col_w > label_w + 1 + 1 + 4 {
+                    // No room for a bar: a one-character shade keeps the weights visible
+                    // at a glance (they vanished at k ≥ 15 on 80 columns).
+                    let a = (x.abs() / wmax * 4.0).round() as usize;
+                    spans.push(Span::styled(shades[a.min(4)].to_string(), colour(x)));
+                    used += 1;
                 }
                 if with_value {
                     spans.push(Span::styled(format!("{:>4}", short_value(x)), colour(x)));

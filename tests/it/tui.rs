@@ -728,3 +728,38 @@ fn the_split_view_follows_the_first_answer_and_joins_its_request() {
     }
     assert!(!screen(&s, 100, 30).contains("computing LS and NNLS"));
 }
+
+/// At 80 × 24 (issue 41, item 8): the chart's legend names every method, the header keeps
+/// a long file name, and at k ≥ 15 every key still shows its weight as a shade and a value.
+#[test]
+fn eighty_columns_keep_the_legend_the_file_name_and_the_weights() {
+    let legend = view::legend_labels("nnls", 40);
+    assert_eq!(legend.1.len(), 8);
+    assert!(legend.0.chars().count() + legend.1.iter().map(|n| n.len() + 1).sum::<usize>() <= 40);
+    assert_eq!(view::legend_labels("nnls", 80).0, "E(k) nnls: ");
+    let mut s = computed_state(Settings {
+        k: 16,
+        ..Settings::default()
+    });
+    s.source = "/home/someone/tracks/liveportrait_d18.csv".into();
+    let text = screen(&s, 80, 24);
+    let header = text.lines().next().unwrap();
+    // The name, shortened from the left when the settings need the room.
+    assert!(header.contains("d18.csv"), "{header}");
+    assert!(
+        header.contains("spread k=16") && header.contains("err "),
+        "{header}"
+    );
+    let chart_row = text.lines().find(|l| l.contains("km2m")).unwrap();
+    for name in ["spr", "km2", "km3", "km2m", "km3m", "hull", "grd", "rnd"] {
+        assert!(chart_row.contains(name), "{name} missing: {chart_row}");
+    }
+    // The weights panel: 16 keys, each with a shade and a value.
+    let panel: Vec<&str> = text.lines().skip(15).take(6).collect();
+    let shaded = panel
+        .iter()
+        .map(|l| l.split("││").nth(1).unwrap_or(""))
+        .map(|l| l.chars().filter(|c| "░▒▓█".contains(*c)).count())
+        .sum::<usize>();
+    assert!(shaded >= 1, "no weight shown as a shade: {text}");
+}
