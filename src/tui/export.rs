@@ -24,6 +24,21 @@ pub fn next_dir(base: &Path) -> PathBuf {
         .unwrap_or(first)
 }
 
+/// The footer's line after an export: `exported to kslab-export-2/: weights.csv, view.png,
+/// experiment.toml` (the folder once, then the names).
+pub fn status_line(dir: &Path, files: &[String]) -> String {
+    let names: Vec<String> = files
+        .iter()
+        .map(|f| {
+            Path::new(f)
+                .file_name()
+                .map_or(f.clone(), |n| n.to_string_lossy().into_owned())
+        })
+        .collect();
+    let d = dir.strip_prefix(".").unwrap_or(dir);
+    format!("exported to {}/: {}", d.display(), names.join(", "))
+}
+
 /// Writes `weights.csv`, `view.png` and `experiment.toml` into `dir`, all or none;
 /// returns their paths.
 pub fn export(s: &State, seq_path: &str, dir: &Path) -> Result<Vec<String>> {
@@ -186,6 +201,21 @@ fn export_files(s: &State, seq_path: &str, dir: &Path) -> Result<Vec<String>> {
 #[cfg(test)]
 mod tests {
     use super::next_dir;
+
+    #[test]
+    fn the_export_line_fits_an_eighty_column_footer() {
+        let dir = std::path::Path::new("./kslab-export-12");
+        let files: Vec<String> = ["weights.csv", "view.png", "experiment.toml"]
+            .iter()
+            .map(|f| dir.join(f).display().to_string())
+            .collect();
+        let line = super::status_line(dir, &files);
+        assert_eq!(
+            line,
+            "exported to kslab-export-12/: weights.csv, view.png, experiment.toml"
+        );
+        assert!(line.chars().count() < 79);
+    }
 
     #[test]
     fn exports_are_numbered_and_never_replace_an_earlier_one() {

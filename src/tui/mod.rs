@@ -106,9 +106,10 @@ fn perform(s: &mut State, effects: Vec<Effect>, jobs: &Sender<compute::Job>, seq
                 let _ = jobs.send(compute::Job::Load(id, path));
             }
             Effect::Export => {
+                // The folder, then the file names: short enough for an 80-column footer.
                 let dir = export::next_dir(std::path::Path::new("."));
                 s.status = match export::export(s, seq_path, &dir) {
-                    Ok(files) => format!("exported {}", files.join(", ")),
+                    Ok(files) => export::status_line(&dir, &files),
                     Err(e) => format!("error: export failed: {e}"),
                 };
             }

@@ -112,11 +112,24 @@ fn header(f: &mut Frame, s: &State, area: Rect) {
         st.solver.to_string()
     };
     // The whole sequence's target error and the jitter of the retargeted points.
-    let quality = s
+    let mut quality = s
         .computed
         .as_ref()
         .and_then(|c| c.views.first())
         .map(|v| format!("err {:.2} jit {:.2}", v.target_rms, v.target_jitter));
+    // The rig view shows the rig solve: its shapes, solver and landmark error, not the
+    // key-shape settings (which still drive the panels below and `e`).
+    let (keys, solver) = match (s.show_rig, &s.rig) {
+        (true, Some(r)) => {
+            let n = r.rms.len().max(1) as f64;
+            quality = Some(format!("landmark RMS {:.2}", r.rms.iter().sum::<f64>() / n));
+            (
+                format!("rig: {} shapes", r.names.len()),
+                "bounded".to_string(),
+            )
+        }
+        _ => (keys, solver),
+    };
     // Parts in display order with a priority: the lowest go first when 80 columns are not
     // enough (never the frame, method, k, solver or error).
     let mut parts: Vec<(String, u8)> = vec![
@@ -244,11 +257,19 @@ fn face_panels(f: &mut Frame, s: &State, c: &Computed, area: Rect) {
             return;
         };
         let [a, b, d] = Layout::horizontal([Constraint::Ratio(1, 3); 3]).areas(area);
+        // The title as long as the panel allows: at 80 columns "source ·" goes, not a
+        // number ("NNLS 0.3" was all that was left).
+        let full = format!(
+            "source · LS {:.2} NNLS {:.2}",
+            ls.frame_rms[t], nn.frame_rms[t]
+        );
+        let title = if full.chars().count() + 2 <= a.width as usize {
+            full
+        } else {
+            format!("LS {:.2} NNLS {:.2}", ls.frame_rms[t], nn.frame_rms[t])
+        };
         let src = shape_panel(
-            format!(
-                "source · LS {:.2} NNLS {:.2}",
-                ls.frame_rms[t], nn.frame_rms[t]
-            ),
+            title,
             vec![
                 (&c.tracked, Color::White),
                 (&ls.recon, Color::Red),
@@ -540,7 +561,13 @@ fn error_chart(f: &mut Frame, s: &State, area: Rect) {
         .iter()
         .map(|x| (x.name.clone(), x.points.clone()))
         .collect();
-    let k = s.settings.k as f64;
+    // The marker stands at the k shown: the hull's own count, not the k it ignores.
+    let k = match s.computed.as_ref() {
+        Some(c) if s.settings.method == Method::Hull && c.settings.method == Method::Hull => {
+            c.keys.len() as f64
+        }
+        _ => s.settings.k as f64,
+    };
     let current = [(k, 0.0), (k, ymax)];
     let mut datasets: Vec<Dataset> = series
         .iter()

@@ -762,4 +762,14 @@ fn eighty_columns_keep_the_legend_the_file_name_and_the_weights() {
         .map(|l| l.chars().filter(|c| "░▒▓█".contains(*c)).count())
         .sum::<usize>();
     assert!(shaded >= 1, "no weight shown as a shade: {text}");
+    // The split view's source title keeps both numbers whole ("NNLS 0.3" was cut).
+    s.split = true;
+    let text = screen(&s, 80, 24);
+    let title = text.lines().nth(1).unwrap();
+    let nnls = title.split("NNLS ").nth(1).unwrap();
+    let num: String = nnls
+        .chars()
+        .take_while(|c| c.is_ascii_digit() || *c == '.')
+        .collect();
+    assert_eq!(num.split('.').nth(1).map(str::len), Some(2), "{title}");
 }
