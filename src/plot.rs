@@ -150,7 +150,8 @@ pub fn approach_style(approach: &str) -> ([u8; 3], Style) {
     match approach {
         "none" => ([20, 20, 20], Style::Marker),
         "prior offline order 1" => ([31, 90, 200], Style::Line),
-        "prior offline order 2" => ([20, 150, 200], Style::Line),
+        // Cyan, not a second blue beside order 1's.
+        "prior offline order 2" => ([0, 190, 200], Style::Line),
         "prior causal order 1" => ([110, 20, 120], Style::Line),
         "moving-average" => ([30, 150, 60], Style::Dashed),
         "ema" => ([230, 140, 20], Style::Dashed),
@@ -164,7 +165,8 @@ pub fn approach_style(approach: &str) -> ([u8; 3], Style) {
             let colour = if beta < 0.1 {
                 [220, 30, 30]
             } else if beta < 1.0 {
-                [150, 60, 30]
+                // Olive, not a second red beside beta < 0.1's.
+                [150, 150, 0]
             } else {
                 [230, 60, 160]
             };

@@ -146,8 +146,16 @@ pub fn write_smoothing(
     if png {
         // Both scorings side by side on one y scale: against G(q), which carries the
         // tracker's jitter, and against the clean reference.
-        let mut a = crate::plot::smoothing_plot(rows, &format!("{title}: vs tracked"), false);
-        let mut c = crate::plot::smoothing_plot(rows, &format!("{title}: vs clean"), true);
+        let mut a = crate::plot::smoothing_plot(
+            rows,
+            &format!("{title}: vs tracked (lower left is better)"),
+            false,
+        );
+        let mut c = crate::plot::smoothing_plot(
+            rows,
+            &format!("{title}: vs clean (lower left is better)"),
+            true,
+        );
         let top = |p: &crate::plot::PlotSpec| p.bounds().map_or(0.0, |b| b.1 .1);
         let y = top(&a).max(top(&c));
         a.y_at_least = Some(y);

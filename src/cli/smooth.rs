@@ -89,9 +89,10 @@ pub fn run(a: &SmoothArgs) -> Result<()> {
     let rows = smoothing_study_in_place(raw.as_ref(), &mut prep, &st, &Default::default())?;
     let seq = raw.as_ref().unwrap_or(&prep.seq);
     keyshape_lab::io::create_dir_all(&a.out)?;
+    // The file's name, not its path: a path filled the title and cut what followed.
     let title = format!(
         "{} {} k={} {}",
-        seq.source,
+        super::curves::short(&seq.source),
         a.method,
         st.key_count(),
         a.solver
