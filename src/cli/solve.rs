@@ -188,11 +188,12 @@ pub fn run(a: &SolveArgs) -> Result<()> {
                 s.order
             ))
         );
-        let pm = keyshape_lab::render::weights::weights_picture(
+        let pm = keyshape_lab::render::weights::weights_picture_marked(
             &d.weights,
             &labels,
             &seq.frames,
             &title,
+            &keys,
         )?;
         keyshape_lab::render::save_png(&pm, png)?;
     }

@@ -43,6 +43,19 @@ pub fn weights_picture(
     frames: &[i64],
     title: &str,
 ) -> Result<Pixmap> {
+    weights_picture_marked(w, labels, frames, title, &[])
+}
+
+/// [`weights_picture`] with the key frames (`keys`, frame numbers) marked on the time axis.
+/// The colour scale is one-sided (0 … max) when no weight is negative (NNLS, bounded), so
+/// no half of it stands unused.
+pub fn weights_picture_marked(
+    w: &DMatrix<f64>,
+    labels: &[String],
+    frames: &[i64],
+    title: &str,
+    keys: &[i64],
+) -> Result<Pixmap> {
     let (k, n) = w.shape();
     if k == 0 || n == 0 || labels.len() != k || frames.len() != n {
         return Err(Error::invalid(format!(
@@ -123,30 +136,56 @@ pub fn weights_picture(
             ink,
         );
     }
+    // Key frames: a dark mark on the axis at each (under the plot, above the numbers).
+    let mut marked = 0;
+    for key in keys {
+        if let Some(t) = frames.iter().position(|f| f == key) {
+            let x = left as f32 + (t as f32 + 0.5) * plot_w as f32 / n as f32;
+            paint.set_color_rgba8(230, 120, 0, 255);
+            if let Some(r) = Rect::from_xywh(x - 1.5, axis_y + 1.0, 3.0, 7.0) {
+                pm.fill_rect(r, &paint, Transform::identity(), None);
+            }
+            marked += 1;
+        }
+    }
+    let axis_title = if marked > 0 {
+        "frame (orange marks: the key frames)"
+    } else {
+        "frame"
+    };
     text::draw(
         &mut pm,
-        "frame",
+        axis_title,
         (left + plot_w / 2) as f32,
         axis_y + 36.0,
         12.0,
         Anchor::Centre,
         ink,
     );
-    // Colour scale: −scale … 0 … +scale.
+    let tol = crate::decompose::NEGATIVE_TOLERANCE * scale;
+    let any_negative = w.iter().any(|v| *v < -tol);
+    // Colour scale: −scale … 0 … +scale, or 0 … +scale when no weight is negative.
     let (sx, sy, sw) = (
         left as f32 + plot_w as f32 / 2.0 - 200.0,
         axis_y + 52.0,
         400.0,
     );
+    let lo = if any_negative { -1.0 } else { 0.0 };
     for x in 0..sw as usize {
-        let v = (x as f64 / (sw as f64 - 1.0) * 2.0 - 1.0) * scale;
+        let v = (lo + x as f64 / (sw as f64 - 1.0) * (1.0 - lo)) * scale;
         let c = diverging(v, scale);
         paint.set_color_rgba8(c[0], c[1], c[2], 255);
         if let Some(r) = Rect::from_xywh(sx + x as f32, sy, 1.0, 14.0) {
             pm.fill_rect(r, &paint, Transform::identity(), None);
         }
     }
-    for (frac, v) in [(0.0, -scale), (0.5, 0.0), (1.0, scale)] {
+    let ticks: &[(f32, f64)] = if any_negative {
+        &[(0.0, -1.0), (0.5, 0.0), (1.0, 1.0)]
+    } else {
+        &[(0.0, 0.0), (0.5, 0.5), (1.0, 1.0)]
+    };
+    for &(frac, v) in ticks {
+        let v = v * scale;
         text::draw(
             &mut pm,
             &format!("{v:.3}"),
@@ -157,7 +196,6 @@ pub fn weights_picture(
             ink,
         );
     }
-    let tol = crate::decompose::NEGATIVE_TOLERANCE * scale;
     let negative = w.iter().filter(|v| **v < -tol).count() as f64 / (k * n) as f64;
     text::draw(
         &mut pm,
