@@ -26,7 +26,7 @@ cp "$T/fig6_lips_d6/curves_nnls_aligned_vs_raw.png" docs/fig6_lips_d6_nnls_align
 $K run -q experiments/chuang_fig6_face_pexels.toml --out "$T/fig6_face_pexels"
 cp "$T/fig6_face_pexels/curves_nnls.png" docs/fig6_face_pexels_nnls.png
 
-# Paper 000 Figs. 4-5: the frames where LS distorts most.
+# Paper 000 Figs. 4-5: the frames where LS and NNLS differ most, spread over the sequence.
 $K run -q experiments/chuang_fig4_5_lips_d6.toml --out "$T/fig45"
 cp "$T/fig45/strip.png" docs/fig4_5_lips_d6_strip.png
 

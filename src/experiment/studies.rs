@@ -249,11 +249,17 @@ pub(crate) fn retarget_study(
     if r.strip == 0 || last.is_empty() {
         return Ok((rows, None));
     }
-    let first = last[0].1.target_rms_per_frame().unwrap_or_default();
-    let mut order: Vec<usize> = (0..first.len()).collect();
-    order.sort_by(|&a, &b| first[b].total_cmp(&first[a]));
-    let mut cols: Vec<usize> = order.into_iter().take(r.strip).collect();
-    cols.sort_unstable();
+    // The frames where the solvers' targets differ most (with one solver, where it errs
+    // most), spread over the sequence: the worst frames come in runs of near-identical
+    // neighbours, and four of one run show one moment four times.
+    let score: Vec<f64> = match (last.first(), last.get(1)) {
+        (Some(a), Some(b)) => (0..a.1.target.ncols())
+            .map(|t| (a.1.target.column(t) - b.1.target.column(t)).norm())
+            .collect(),
+        _ => last[0].1.target_rms_per_frame().unwrap_or_default(),
+    };
+    let gap = (score.len() / (4 * r.strip)).max(1);
+    let cols = spaced_top(&score, r.strip, gap);
     let polylines = prep
         .layout
         .as_ref()
@@ -285,4 +291,50 @@ pub(crate) fn retarget_study(
             .collect(),
     };
     Ok((rows, Some(strip)))
+}
+
+/// The `count` columns of largest `score`, each at least `gap` columns from every other
+/// chosen one (greedy, largest first), in column order.
+pub fn spaced_top(score: &[f64], count: usize, gap: usize) -> Vec<usize> {
+    let mut order: Vec<usize> = (0..score.len()).collect();
+    order.sort_by(|&a, &b| score[b].total_cmp(&score[a]).then(a.cmp(&b)));
+    let mut chosen: Vec<usize> = Vec::with_capacity(count);
+    for c in order {
+        if chosen.len() == count {
+            break;
+        }
+        if chosen.iter().all(|&p| p.abs_diff(c) >= gap) {
+            chosen.push(c);
+        }
+    }
+    chosen.sort_unstable();
+    chosen
+}
+
+#[cfg(test)]
+mod tests {
+    use super::spaced_top;
+
+    #[test]
+    fn the_strip_takes_the_largest_scores_spread_apart() {
+        // A run of large scores at 10..14 and a smaller peak at 40: with a gap of 5 the
+        // run gives one frame and the others come from elsewhere.
+        let mut s = vec![0.0; 60];
+        for (i, v) in [
+            (10, 9.0),
+            (11, 10.0),
+            (12, 9.5),
+            (13, 9.2),
+            (40, 5.0),
+            (50, 4.0),
+            (30, 3.0),
+        ] {
+            s[i] = v;
+        }
+        assert_eq!(spaced_top(&s, 4, 5), vec![11, 30, 40, 50]);
+        // Gap 1 is the plain top four.
+        assert_eq!(spaced_top(&s, 4, 1), vec![10, 11, 12, 13]);
+        // Fewer columns than asked: all of them.
+        assert_eq!(spaced_top(&[1.0, 2.0], 4, 1), vec![0, 1]);
+    }
 }
