@@ -443,6 +443,12 @@ fn write_pngs(dir: &std::path::Path, seq: &Sequence, rig: &Rig, r: &RigSolve) ->
     keyshape_lab::io::create_dir_all(dir)?;
     for f in 0..n {
         let [y, p, ro] = r.cameras[f].yaw_pitch_roll();
+        let top =
+            match keyshape_lab::rig::largest_weights(&rig.names, r.weights.column(f).as_slice(), 2)
+            {
+                t if t.is_empty() => "rig landmarks (no shape active)".to_string(),
+                t => t,
+            };
         let panels = [
             Panel {
                 title: format!("track and fitted rig · RMS {:.2}", r.rms[f]),
@@ -468,8 +474,9 @@ fn write_pngs(dir: &std::path::Path, seq: &Sequence, rig: &Rig, r: &RigSolve) ->
             },
             Panel {
                 title: "the rig posed by the weights, front view".into(),
+                // The shapes that pose it, by name, in the legend (where long names fit).
                 layers: vec![Layer {
-                    name: "rig landmarks",
+                    name: &top,
                     shape: col(&front, f),
                     dims: 2,
                     polylines: &lines,
@@ -486,7 +493,7 @@ fn write_pngs(dir: &std::path::Path, seq: &Sequence, rig: &Rig, r: &RigSolve) ->
             p.to_degrees(),
             ro.to_degrees()
         );
-        let pm = render_panels(&panels, &caption, 360)?;
+        let pm = render_panels(&panels, &caption, 420)?;
         keyshape_lab::render::save_png(&pm, &dir.join(format!("rig_{:06}.png", seq.frames[f])))?;
     }
     Ok(())

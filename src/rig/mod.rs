@@ -31,6 +31,27 @@ pub const LANDMARKS: usize = 68;
 
 pub use crate::sequence::mediapipe_to_ibug68;
 
+/// The `n` largest weights of one frame (at least 0.01), largest first, as "name .83"
+/// — what a picture of the frame names.
+pub fn largest_weights(names: &[String], w: &[f64], n: usize) -> String {
+    let mut order: Vec<usize> = (0..w.len().min(names.len()))
+        .filter(|&i| w[i] >= 0.01)
+        .collect();
+    order.sort_by(|&a, &b| w[b].total_cmp(&w[a]).then(a.cmp(&b)));
+    order
+        .iter()
+        .take(n)
+        .map(|&i| {
+            format!(
+                "{} {}",
+                names[i],
+                format!("{:.2}", w[i]).trim_start_matches('0')
+            )
+        })
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
 /// A blendshape rig seen through its landmark vertices.
 #[derive(Debug, Clone)]
 pub struct Rig {
@@ -1226,6 +1247,17 @@ fn run(
 
 #[cfg(test)]
 mod tests {
+
+    #[test]
+    fn a_frame_names_its_largest_weights_largest_first() {
+        let names: Vec<String> = ["a", "b", "c", "d"].iter().map(|s| s.to_string()).collect();
+        assert_eq!(
+            super::largest_weights(&names, &[0.2, 0.9, 0.005, 0.4], 3),
+            "b .90, d .40, a .20"
+        );
+        assert_eq!(super::largest_weights(&names, &[0.0; 4], 3), "");
+    }
+
     use super::evenly_spaced;
 
     #[test]
