@@ -54,6 +54,21 @@ fn track_with_bad_frame(dir: &Path, name: &str, bad: impl Fn(usize) -> String) -
     s(&p)
 }
 
+/// Runs `script` in bash in `dir` and expects it to succeed.
+#[cfg(unix)]
+fn bash_ok(dir: &Path, script: &str) {
+    let out = Command::new("bash")
+        .args(["-c", script])
+        .current_dir(dir)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
 #[cfg(unix)]
 #[test]
 fn a_link_planted_at_a_guessable_temporary_name_is_never_followed() {
@@ -65,16 +80,7 @@ fn a_link_planted_at_a_guessable_temporary_name_is_never_followed() {
         "ln -s victim.txt .w2.csv.tmp-$$; exec {} solve --keys 3,50 --out w2.csv",
         env!("CARGO_BIN_EXE_kslab")
     );
-    let out = Command::new("bash")
-        .args(["-c", &script])
-        .current_dir(d.path())
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    bash_ok(d.path(), &script);
     assert_eq!(
         std::fs::read_to_string(d.path().join("victim.txt")).unwrap(),
         "secret\n"
@@ -97,16 +103,7 @@ fn a_replaced_file_keeps_its_permission_bits_and_a_new_one_follows_the_umask() {
     let script = format!(
         "umask 022; {bin} solve --keys 3,50 --out w.csv --json > s.json && {bin} solve --keys 3 --out new.csv"
     );
-    let out = Command::new("bash")
-        .args(["-c", &script])
-        .current_dir(d.path())
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    bash_ok(d.path(), &script);
     let mode = |p: &str| {
         std::fs::metadata(d.path().join(p))
             .unwrap()
