@@ -19,7 +19,7 @@ pub enum Error {
         err: std::io::Error,
     },
     /// A file was read but its content is wrong at a known place.
-    #[error("{}:{line}:{column}: {message}", path.display())]
+    #[error("{}{}: {message}", path.display(), place(*line, *column))]
     Parse {
         /// The file.
         path: PathBuf,
@@ -65,6 +65,44 @@ impl Error {
         }
     }
 
+    /// An error from the `csv` crate while reading `path`, at the line and 1-based field the
+    /// crate reports (a record of the wrong length names the first field missing or extra).
+    ///
+    /// The crate does not count blank lines; give the `text` that was read so the line is
+    /// counted from the byte offset instead ([`Error::csv_in`]).
+    pub fn csv(path: impl Into<PathBuf>, err: &csv::Error) -> Self {
+        Error::csv_line(path, err, err.position().map_or(0, |p| p.line()))
+    }
+
+    /// [`Error::csv`] for a reader over `text`: the line counted from the byte offset.
+    pub fn csv_in(path: impl Into<PathBuf>, err: &csv::Error, text: &[u8]) -> Self {
+        let line = err.position().map_or(0, |p| line_at(text, p.byte()));
+        Error::csv_line(path, err, line)
+    }
+
+    fn csv_line(path: impl Into<PathBuf>, err: &csv::Error, line: u64) -> Self {
+        let (column, message) = match err.kind() {
+            csv::ErrorKind::UnequalLengths {
+                expected_len, len, ..
+            } => {
+                let (expected, len) = (*expected_len, *len);
+                let plural = |n: u64| if n == 1 { "field" } else { "fields" };
+                (
+                    expected.min(len) + 1,
+                    format!(
+                        "this row has {len} {} where the first row has {expected}",
+                        plural(len)
+                    ),
+                )
+            }
+            csv::ErrorKind::Io(e) => {
+                return Error::io(path, std::io::Error::new(e.kind(), e.to_string()))
+            }
+            _ => (0, format!("CSV error: {err}")),
+        };
+        Error::parse(path, line, column, message)
+    }
+
     /// An [`Error::Parse`] at `line:column` of `path`.
     pub fn parse(path: impl Into<PathBuf>, line: u64, column: u64, msg: impl Into<String>) -> Self {
         Error::Parse {
@@ -73,5 +111,96 @@ impl Error {
             column,
             message: msg.into(),
         }
+    }
+}
+
+/// The 1-based line of the first content at or after byte `byte` of `text`: the `csv` crate
+/// places a record at the blank lines before it, and does not count them in its own line.
+pub fn line_at(text: &[u8], byte: u64) -> u64 {
+    let mut end = (byte as usize).min(text.len());
+    while end < text.len() && matches!(text[end], b'\n' | b'\r') {
+        end += 1;
+    }
+    1 + text[..end].iter().filter(|&&b| b == b'\n').count() as u64
+}
+
+/// [`line_at`] for records met in order: counts forward from the last call, so reading a
+/// file costs one pass (calling [`line_at`] per record would be quadratic in its length).
+pub struct LineCounter<'a> {
+    text: &'a [u8],
+    at: usize,
+    line: u64,
+}
+
+impl<'a> LineCounter<'a> {
+    /// A counter at the start of `text`.
+    pub fn new(text: &'a [u8]) -> Self {
+        LineCounter {
+            text,
+            at: 0,
+            line: 1,
+        }
+    }
+
+    /// The line of the first content at or after byte `byte`; `byte` must not go backwards.
+    pub fn line_at(&mut self, byte: u64) -> u64 {
+        let mut end = (byte as usize).clamp(self.at, self.text.len());
+        while end < self.text.len() && matches!(self.text[end], b'\n' | b'\r') {
+            end += 1;
+        }
+        self.line += self.text[self.at..end]
+            .iter()
+            .filter(|&&b| b == b'\n')
+            .count() as u64;
+        self.at = end;
+        self.line
+    }
+}
+
+/// `:line:column`, leaving out what is unknown (0), so no message points at a column 0 that
+/// does not exist.
+fn place(line: u64, column: u64) -> String {
+    match (line, column) {
+        (0, _) => String::new(),
+        (l, 0) => format!(":{l}"),
+        (l, c) => format!(":{l}:{c}"),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Columns are 1-based: an unknown one is left out, never printed as 0 (issue 41, 15).
+    #[test]
+    fn unknown_places_are_left_out() {
+        assert_eq!(Error::parse("a.csv", 3, 2, "m").to_string(), "a.csv:3:2: m");
+        assert_eq!(Error::parse("a.csv", 3, 0, "m").to_string(), "a.csv:3: m");
+        assert_eq!(Error::parse("a.csv", 0, 0, "m").to_string(), "a.csv: m");
+    }
+
+    /// A csv-crate error names the line and the first field missing or extra.
+    #[test]
+    fn csv_errors_name_line_and_field() {
+        let read = |text: &str| {
+            let mut rdr = csv::Reader::from_reader(text.as_bytes());
+            let e = rdr.records().find_map(|r| r.err()).unwrap();
+            Error::csv_in("t.csv", &e, text.as_bytes()).to_string()
+        };
+        assert_eq!(
+            read("a,b,c\n1,2,3\n\n4\n"),
+            "t.csv:4:2: this row has 1 field where the first row has 3"
+        );
+        let text = b"a\n1\n\n\r\n2\n3";
+        let mut lines = LineCounter::new(text);
+        let starts = [2u64, 4, 8, 10];
+        let counted: Vec<u64> = starts.iter().map(|&b| lines.line_at(b)).collect();
+        let direct: Vec<u64> = starts.iter().map(|&b| line_at(text, b)).collect();
+        assert_eq!(counted, vec![2, 5, 6, 6]);
+        assert_eq!(counted, direct);
+        assert_eq!(
+            read("a,b\n1,2,3,4\n"),
+            "t.csv:2:3: this row has 4 fields where the first row has 2"
+        );
     }
 }

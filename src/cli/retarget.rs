@@ -331,6 +331,10 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
     if let Some(p) = &a.out {
         write_atomic(p, |w| write_csv(w, s, &r, &columns, head))?;
     }
+    let jitter = keyshape_lab::solve::jitter::weight_jitter_all(
+        &r.weights,
+        &keyshape_lab::solve::temporal::segments(&s.frames, s.segments.as_deref()),
+    );
     let summary = json!({
         "source": s.source,
         "solver": a.solver.name(),
@@ -339,7 +343,7 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
         "frames": s.n_frames(),
         "source_rms": r.source_rms(),
         "target_rms": r.target_rms(),
-        "jitter": r.jitter(),
+        "jitter": jitter,
         "negative_share": r.negative_share(),
         "unconverged_frames": r.unconverged,
         "target": a.target.as_ref().map_or("builtin:cartoon".to_string(), |p| p.display().to_string()),
@@ -363,7 +367,7 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
             key_frames.len(),
             a.solver,
             r.source_rms(),
-            r.jitter(),
+            jitter,
             100.0 * r.negative_share()
         );
         sayln!(

@@ -370,21 +370,7 @@ fn run_stream(a: &SolveArgs, smoothing: Option<Smoothing>) -> Result<()> {
     Ok(())
 }
 
-/// Mean squared second difference of the weights within segments (per weight).
-pub fn weight_jitter(w: &nalgebra::DMatrix<f64>, segs: &[std::ops::Range<usize>]) -> f64 {
-    let (mut acc, mut n) = (0.0, 0usize);
-    for r in segs {
-        for t in r.start + 1..r.end.saturating_sub(1) {
-            acc += (w.column(t + 1) - w.column(t) * 2.0 + w.column(t - 1)).norm_squared();
-            n += w.nrows();
-        }
-    }
-    if n == 0 {
-        0.0
-    } else {
-        acc / n as f64
-    }
-}
+pub use keyshape_lab::solve::jitter::weight_jitter;
 
 fn warn(d: &Decomposition) {
     warn_solve(d.key_columns.len(), d.rank, d.condition, d.unconverged);

@@ -33,6 +33,12 @@ pub struct TuiArgs {
     /// in image coordinates, as `kslab retarget` does; `none` keeps both aligned.
     #[arg(long, default_value = "apply", value_parser = ["apply", "none"])]
     head_motion: String,
+    /// The image size, WIDTHxHEIGHT in pixels, of a track in MediaPipe's normalised 0-1
+    /// coordinates: the track (and every normalised one opened with `o`) is scaled to pixels.
+    /// Needs FILE; refused for a track already in pixels.
+    /// [default: none: a normalised track is shown as it is, with a note]
+    #[arg(long, value_name = "WxH", value_parser = super::input::parse_image_size, requires = "file")]
+    image_size: Option<(f64, f64)>,
 }
 
 pub fn run(a: &TuiArgs) -> Result<()> {
@@ -43,7 +49,11 @@ pub fn run(a: &TuiArgs) -> Result<()> {
         .file
         .as_ref()
         .map_or("builtin".to_string(), |p| p.display().to_string());
-    let seq = keyshape_lab::tui::compute::load(&path)?;
+    let mut seq = keyshape_lab::tui::compute::load(&path)?;
+    if let Some((w, h)) = a.image_size {
+        seq.scale_to_image(w, h)
+            .map_err(|e| anyhow::anyhow!("--image-size {w}x{h}: {e}"))?;
+    }
     let target = match &a.target {
         None => None,
         Some(p) if p.extension().is_some_and(|e| e.eq_ignore_ascii_case("svg")) => {
@@ -73,7 +83,15 @@ pub fn run(a: &TuiArgs) -> Result<()> {
             Some((rig, view))
         }
     };
-    keyshape_lab::tui::run(seq, &path, target, mesh, rig, a.head_motion == "apply")
+    keyshape_lab::tui::run_sized(
+        seq,
+        &path,
+        target,
+        mesh,
+        rig,
+        a.head_motion == "apply",
+        a.image_size,
+    )
 }
 
 impl Default for TuiArgs {
@@ -85,6 +103,7 @@ impl Default for TuiArgs {
             rig: None,
             features: "builtin".into(),
             head_motion: "apply".into(),
+            image_size: None,
         }
     }
 }

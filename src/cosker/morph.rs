@@ -44,23 +44,27 @@ impl MorphTargets {
     /// dx, dy, dz); vertices must be below `vertices`.
     pub fn read(expressions: &Path, deltas: &Path, vertices: usize) -> Result<MorphTargets> {
         let mut names = Vec::new();
-        let mut rdr = csv::Reader::from_path(expressions)
-            .map_err(|e| Error::file(expressions, e.to_string()))?;
-        for (i, r) in rdr.records().enumerate() {
-            let r = r.map_err(|e| Error::parse(expressions, i as u64 + 2, 0, e.to_string()))?;
-            let id: usize = r.get(0).unwrap_or("").parse().map_err(|_| {
-                Error::parse(expressions, i as u64 + 2, 1, "shape id is not a number")
-            })?;
+        let text = crate::io::read_text(expressions)?;
+        let mut rdr = csv::Reader::from_reader(text.as_bytes());
+        let mut lines = crate::error::LineCounter::new(text.as_bytes());
+        for r in rdr.records() {
+            let r = r.map_err(|e| Error::csv_in(expressions, &e, text.as_bytes()))?;
+            let line = r.position().map_or(0, |p| lines.line_at(p.byte()));
+            let id: usize = r
+                .get(0)
+                .unwrap_or("")
+                .parse()
+                .map_err(|_| Error::parse(expressions, line, 1, "shape id is not a number"))?;
             if id != names.len() {
                 return Err(Error::parse(
                     expressions,
-                    i as u64 + 2,
+                    line,
                     1,
                     format!("shape ids must run 0, 1, …; found {id}"),
                 ));
             }
             let name = r.get(1).unwrap_or("").trim();
-            check_name(name, &names).map_err(|m| Error::parse(expressions, i as u64 + 2, 2, m))?;
+            check_name(name, &names).map_err(|m| Error::parse(expressions, line, 2, m))?;
             names.push(name.to_string());
         }
         if names.is_empty() {
@@ -71,11 +75,12 @@ impl MorphTargets {
         let mut given: std::collections::HashMap<(usize, usize), u64> =
             std::collections::HashMap::new();
         let mut out = vec![Vec::new(); names.len()];
-        let mut rdr =
-            csv::Reader::from_path(deltas).map_err(|e| Error::file(deltas, e.to_string()))?;
-        for (i, r) in rdr.records().enumerate() {
-            let line = i as u64 + 2;
-            let r = r.map_err(|e| Error::parse(deltas, line, 0, e.to_string()))?;
+        let text = crate::io::read_text(deltas)?;
+        let mut rdr = csv::Reader::from_reader(text.as_bytes());
+        let mut lines = crate::error::LineCounter::new(text.as_bytes());
+        for r in rdr.records() {
+            let r = r.map_err(|e| Error::csv_in(deltas, &e, text.as_bytes()))?;
+            let line = r.position().map_or(0, |p| lines.line_at(p.byte()));
             let num = |c: usize| -> Result<f64> {
                 r.get(c).unwrap_or("").parse::<f64>().map_err(|_| {
                     Error::parse(

@@ -283,21 +283,7 @@ impl Lowpass {
     }
 }
 
-/// RMS of the second temporal difference within segments, per value.
-pub fn jitter(x: &DMatrix<f64>, segs: &[Range<usize>], per: usize) -> f64 {
-    let (mut acc, mut n) = (0.0, 0usize);
-    for r in segs {
-        for t in r.start + 1..r.end.saturating_sub(1) {
-            acc += (x.column(t + 1) - x.column(t) * 2.0 + x.column(t - 1)).norm_squared();
-            n += per;
-        }
-    }
-    if n == 0 {
-        0.0
-    } else {
-        (acc / n as f64).sqrt()
-    }
-}
+pub use crate::solve::jitter::jitter;
 
 /// The shift in −`max`..=`max` frames maximising the cross-correlation of `a` with `b`
 /// (rows mean-removed, summed over rows, within segments): positive when `a` trails `b`.

@@ -58,7 +58,8 @@ pub struct RetargetRow {
     pub source_rms: f64,
     /// Target-domain RMS per point against G(Q_t).
     pub target_rms: f64,
-    /// Mean squared second difference of the weights.
+    /// Weight jitter: RMS second difference of the weights within clips
+    /// ([`crate::solve::jitter`]).
     pub jitter: f64,
     /// Share of negative weights.
     pub negative_share: f64,
@@ -210,6 +211,7 @@ pub(crate) fn retarget_study(
     let keys = sel.key_frames(&r.method, "the [retarget] study")?.to_vec();
     let key_frames: Vec<i64> = keys.iter().map(|&c| prep.seq.frames[c]).collect();
     let (g, iod) = setup::builtin_target(seq, prep)?;
+    let segs = crate::solve::temporal::segments(&prep.seq.frames, prep.seq.segments.as_deref());
     let mut rows = Vec::new();
     let mut last = Vec::new();
     let top_noise = r.trace_noise.iter().copied().fold(0.0, f64::max);
@@ -233,7 +235,7 @@ pub(crate) fn retarget_study(
                 keys: key_frames.clone(),
                 source_rms: res.source_rms(),
                 target_rms: res.target_rms().unwrap_or(f64::NAN),
-                jitter: res.jitter(),
+                jitter: crate::solve::jitter::weight_jitter_all(&res.weights, &segs),
                 negative_share: res.negative_share(),
                 max_abs_weight: res
                     .weights

@@ -398,7 +398,7 @@ pub fn read_columns(path: &Path, names: &[&str]) -> Result<Vec<Vec<f64>>> {
         .from_reader(text.as_bytes());
     let header: Vec<String> = rdr
         .headers()
-        .map_err(|e| Error::parse(path, 1, 0, e.to_string()))?
+        .map_err(|e| Error::csv_in(path, &e, text.as_bytes()))?
         .iter()
         .map(str::to_string)
         .collect();
@@ -412,11 +412,10 @@ pub fn read_columns(path: &Path, names: &[&str]) -> Result<Vec<Vec<f64>>> {
         })
         .collect::<Result<_>>()?;
     let mut out = vec![Vec::new(); names.len()];
+    let mut lines = crate::error::LineCounter::new(text.as_bytes());
     for rec in rdr.records() {
-        let rec = rec.map_err(|e| {
-            Error::parse(path, e.position().map_or(0, |p| p.line()), 0, e.to_string())
-        })?;
-        let line = rec.position().map_or(0, |p| p.line());
+        let rec = rec.map_err(|e| Error::csv_in(path, &e, text.as_bytes()))?;
+        let line = rec.position().map_or(0, |p| lines.line_at(p.byte()));
         for (k, &c) in idx.iter().enumerate() {
             let cell = rec.get(c).unwrap_or("");
             let v: f64 = cell.parse().map_err(|_| {

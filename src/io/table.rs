@@ -507,8 +507,18 @@ fn coordinate_columns(
 
 /// A csv error at `line` (None: the line the csv crate counted).
 fn csv_error(path: &Path, e: &csv::Error, line: Option<u64>) -> Error {
-    let line = line.unwrap_or_else(|| e.position().map_or(0, |p| p.line()));
-    Error::parse(path, line, 0, format!("CSV error: {e}"))
+    match (Error::csv(path, e), line) {
+        (
+            Error::Parse {
+                path,
+                column,
+                message,
+                ..
+            },
+            Some(line),
+        ) => Error::parse(path, line, column, message),
+        (err, _) => err,
+    }
 }
 
 fn parse_num(path: &Path, line: u64, col: usize, name: &str, cell: &str) -> Result<f64> {

@@ -97,8 +97,8 @@ impl Retargeted {
         })
     }
 
-    /// Jitter: mean squared second difference of the weights over time,
-    /// `mean (w_{t+1} − 2 w_t + w_{t−1})²` over frames and weights (all regions).
+    /// Jitter: RMS second difference of the weights over time (all regions, the whole
+    /// sequence as one segment; see [`crate::solve::jitter`]).
     pub fn jitter(&self) -> f64 {
         jitter(&self.weights)
     }
@@ -122,22 +122,11 @@ fn rms(sq: &[f64], points: usize) -> f64 {
     (sq.iter().sum::<f64>() / (sq.len() * points).max(1) as f64).sqrt()
 }
 
-/// Mean squared second difference over time of every weight track.
+/// RMS second difference over time of every weight track, the whole sequence as one
+/// segment ([`crate::solve::jitter::weight_jitter_all`] takes clips into account).
 pub fn jitter(weights: &[DMatrix<f64>]) -> f64 {
-    let (mut sum, mut n) = (0.0, 0usize);
-    for w in weights {
-        for t in 1..w.ncols().saturating_sub(1) {
-            for i in 0..w.nrows() {
-                sum += (w[(i, t + 1)] - 2.0 * w[(i, t)] + w[(i, t - 1)]).powi(2);
-                n += 1;
-            }
-        }
-    }
-    if n == 0 {
-        0.0
-    } else {
-        sum / n as f64
-    }
+    let frames = weights.first().map_or(0, |w| w.ncols());
+    crate::solve::jitter::weight_jitter_all(weights, std::slice::from_ref(&(0..frames)))
 }
 
 /// Applies per-frame head motion to every column (paper 000 §5: "only scaled 2D translation

@@ -66,11 +66,13 @@ pub struct Rig {
 /// Reads a `landmark,vertex` CSV naming a vertex for each of the 68 landmarks exactly once;
 /// every vertex must be below `vertices`.
 pub fn read_landmark_vertices(path: &Path, vertices: usize) -> Result<Vec<usize>> {
-    let mut rdr = csv::Reader::from_path(path).map_err(|e| Error::file(path, e.to_string()))?;
+    let text = crate::io::read_text(path)?;
+    let mut rdr = csv::Reader::from_reader(text.as_bytes());
+    let mut lines = crate::error::LineCounter::new(text.as_bytes());
     let mut out = vec![None; LANDMARKS];
-    for (i, r) in rdr.records().enumerate() {
-        let line = i as u64 + 2;
-        let r = r.map_err(|e| Error::parse(path, line, 0, e.to_string()))?;
+    for r in rdr.records() {
+        let r = r.map_err(|e| Error::csv_in(path, &e, text.as_bytes()))?;
+        let line = r.position().map_or(0, |p| lines.line_at(p.byte()));
         let field = |c: usize| -> Result<usize> {
             let v = r.get(c).unwrap_or("").trim();
             v.parse::<usize>()

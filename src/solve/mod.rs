@@ -13,6 +13,7 @@ pub mod active_set;
 pub(crate) mod chol;
 pub mod filters;
 pub mod jacobi;
+pub mod jitter;
 pub mod lstsq;
 pub mod temporal;
 pub mod textbook;

@@ -320,7 +320,7 @@ fn solver_view(
         frame_target_rms: r.target_rms_per_frame().unwrap_or_default(),
         source_rms: r.source_rms(),
         target_rms: r.target_rms().unwrap_or(f64::NAN),
-        jitter: r.jitter(),
+        jitter: crate::solve::jitter::weight_jitter_all(&r.weights, &segs),
         weights: r
             .weights
             .into_iter()
@@ -356,6 +356,35 @@ pub fn spawn_with_rig(
     target: Option<TargetSet>,
     rig: Option<std::sync::Arc<crate::rig::Rig>>,
 ) -> (Sender<Job>, Receiver<Action>) {
+    spawn_lab(seq, target, rig, None)
+}
+
+/// What the lab says about a sequence in normalised 0–1 image coordinates (MediaPipe's
+/// default), or None for one in pixels.
+pub fn normalised_note(seq: &Sequence) -> Option<String> {
+    seq.is_normalised().then(|| {
+        "normalised 0-1 coordinates: errors are fractions of the image; start the lab with --image-size WxH for pixels".to_string()
+    })
+}
+
+/// Reads `path` as [`load`] does; a track in normalised coordinates is scaled to pixels of
+/// `image_size` (width, height) when given. A track already in pixels is read as it is.
+pub fn load_sized(path: &str, image_size: Option<(f64, f64)>) -> Result<Sequence> {
+    let mut seq = load(path)?;
+    if let Some((w, h)) = image_size.filter(|_| seq.is_normalised()) {
+        seq.scale_to_image(w, h)?;
+    }
+    Ok(seq)
+}
+
+/// [`spawn_with_rig`], with the lab's `--image-size`: every normalised sequence opened with
+/// `o` is scaled to it; one left normalised is answered by an [`Action::Notice`].
+pub fn spawn_lab(
+    seq: Sequence,
+    target: Option<TargetSet>,
+    rig: Option<std::sync::Arc<crate::rig::Rig>>,
+    image_size: Option<(f64, f64)>,
+) -> (Sender<Job>, Receiver<Action>) {
     let (jobs_tx, jobs_rx) = channel::<Job>();
     let (out_tx, out_rx) = channel::<Action>();
     let worker = std::thread::Builder::new().name(WORKER_THREAD.into());
@@ -387,8 +416,9 @@ pub fn spawn_with_rig(
                 // The one deliberate panic: the tests' way to check the worker survives one.
                 #[allow(clippy::panic)]
                 Job::Crash(id) => panic!("job {id} crashed on purpose"),
-                Job::Load(id, path) => match load(&path) {
+                Job::Load(id, path) => match load_sized(&path, image_size) {
                     Ok(seq) => {
+                        let note = normalised_note(&seq);
                         let fps = seq.fps().unwrap_or(30.0);
                         let (name, n) = (seq.source.clone(), seq.n_frames());
                         let solved = rig.as_ref().map(|r| {
@@ -398,6 +428,9 @@ pub fn spawn_with_rig(
                         });
                         engine = Engine::new(seq);
                         let _ = out_tx.send(Action::Loaded(id, name, n, fps));
+                        if let Some(note) = note {
+                            let _ = out_tx.send(Action::Notice(id, note));
+                        }
                         if let Some(r) = solved {
                             let _ = out_tx.send(Action::RigSolved(id, r));
                         }

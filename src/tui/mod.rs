@@ -8,6 +8,7 @@ pub mod export;
 pub mod mesh;
 pub mod request;
 pub mod rig;
+pub mod rig_panels;
 pub mod state;
 pub mod view;
 
@@ -178,6 +179,20 @@ pub fn run(
     rig: Option<(crate::rig::Rig, rig::RigView)>,
     export_head_motion: bool,
 ) -> anyhow::Result<()> {
+    run_sized(seq, path, target, mesh, rig, export_head_motion, None)
+}
+
+/// [`run`], with the lab's `--image-size` (width, height): sequences in normalised 0–1
+/// coordinates opened with `o` are scaled to it (the first one is scaled by the caller).
+pub fn run_sized(
+    seq: Sequence,
+    path: &str,
+    target: Option<crate::retarget::target::TargetSet>,
+    mesh: Option<mesh::MeshView>,
+    rig: Option<(crate::rig::Rig, rig::RigView)>,
+    export_head_motion: bool,
+    image_size: Option<(f64, f64)>,
+) -> anyhow::Result<()> {
     let mut s = State::new(&seq.source, seq.n_frames(), seq.fps().unwrap_or(30.0));
     s.export_head_motion = export_head_motion;
     s.target_keys = target.is_some();
@@ -190,7 +205,10 @@ pub fn run(
     };
     s.rig = view;
     // The rig stays with the lab: a sequence opened with `o` is solved onto it too.
-    let (jobs, results) = compute::spawn_with_rig(seq, target, rig);
+    if let Some(note) = compute::normalised_note(&seq) {
+        s.status = note;
+    }
+    let (jobs, results) = compute::spawn_lab(seq, target, rig, image_size);
     let mut terminal = ratatui::try_init()?;
     // ratatui's hook restores the terminal on a panic; a panic in the worker is caught and
     // reported in the status line instead, so the lab must keep its screen.

@@ -56,7 +56,8 @@ pub struct SolverView {
     pub source_rms: f64,
     /// Whole-sequence target RMS.
     pub target_rms: f64,
-    /// Weight jitter.
+    /// Weight jitter: RMS second difference of the weights within clips
+    /// ([`crate::solve::jitter`]).
     pub jitter: f64,
     /// Jitter of the retargeted target points: RMS second difference per point
     /// (units/frame²), within segments.

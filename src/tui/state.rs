@@ -71,6 +71,9 @@ pub enum Action {
     Loaded(u64, String, usize, f64),
     /// The split view's other solvers for a request already shown.
     SplitViews(u64, Vec<super::request::SolverView>),
+    /// Something the user should know about the sequence of a load (its coordinates are
+    /// normalised …), shown in the status line while that sequence is loaded.
+    Notice(u64, String),
     /// The loaded sequence solved onto the lab's `--rig`, or why it could not be.
     RigSolved(u64, Result<std::sync::Arc<super::rig::RigView>, String>),
 }
@@ -358,6 +361,11 @@ pub fn update(s: &mut State, action: Action) -> Vec<Effect> {
         Action::SplitViews(id, views) => {
             if let Some(c) = s.computed.as_mut().filter(|c| c.id == id) {
                 c.views.extend(views);
+            }
+        }
+        Action::Notice(id, note) => {
+            if id == s.loaded {
+                s.status = note;
             }
         }
         Action::RigSolved(id, r) => {

@@ -1,6 +1,7 @@
 //! Drawing the state. Views take `&State` and never change it.
 
 use super::request::Computed;
+use super::rig_panels::{rig_error_over_time, rig_panel, rig_weights, rig_weights_over_time};
 use super::state::{Prompt, State};
 use crate::keyshapes::Method;
 use crate::solve::Solver;
@@ -52,8 +53,17 @@ pub fn draw(f: &mut Frame, s: &State) {
             let [chart, weights] =
                 Layout::horizontal([Constraint::Percentage(55), Constraint::Percentage(45)])
                     .areas(bottom);
-            error_chart(f, s, chart);
-            weight_bars(f, s, c, weights);
+            // The rig view's lower panels describe the rig solve: its largest weights and
+            // its landmark error over time (the key-shape chart and bars belong to the
+            // key-shape view).
+            if let (true, Some(r)) = (s.show_rig, &s.rig) {
+                let t = s.frame.min(r.weights.len().saturating_sub(1));
+                rig_weights_over_time(f, r, t, chart);
+                rig_error_over_time(f, r, t, weights);
+            } else {
+                error_chart(f, s, chart);
+                weight_bars(f, s, c, weights);
+            }
         }
         None => {
             let msg = if s.busy {
@@ -346,67 +356,6 @@ fn face_panels(f: &mut Frame, s: &State, c: &Computed, area: Rect) {
 }
 
 /// The tracked landmarks (white) and the posed rig's under the fitted head pose (magenta).
-fn rig_panel(
-    r: &super::rig::RigView,
-    t: usize,
-) -> Canvas<'_, impl Fn(&mut ratatui::widgets::canvas::Context) + '_> {
-    Canvas::default()
-        .block(Block::bordered().title(format!(
-            "track + posed rig · rms {:.2}",
-            r.rms.get(t).copied().unwrap_or(f64::NAN)
-        )))
-        .marker(Marker::Braille)
-        .x_bounds(r.bounds.0)
-        .y_bounds(r.bounds.1)
-        .paint(move |ctx| {
-            for (pts, color) in [
-                (&r.tracked[t], Color::White),
-                (&r.fitted[t], Color::Magenta),
-            ] {
-                for line in &r.polylines {
-                    for w in line.windows(2) {
-                        let (p, q) = (pts[w[0]], pts[w[1]]);
-                        ctx.draw(&CLine {
-                            x1: p[0],
-                            y1: p[1],
-                            x2: q[0],
-                            y2: q[1],
-                            color,
-                        });
-                    }
-                }
-                ctx.layer();
-            }
-        })
-}
-
-/// The rig's weights on frame `t` as named bars, largest first, as many as fit.
-fn rig_weights(r: &super::rig::RigView, t: usize, rows: usize) -> Paragraph<'_> {
-    let w = &r.weights[t];
-    let mut order: Vec<usize> = (0..w.len()).collect();
-    order.sort_by(|&a, &b| w[b].abs().total_cmp(&w[a].abs()).then(a.cmp(&b)));
-    let shown = rows.max(1);
-    let lines: Vec<Line> = order
-        .iter()
-        .take(shown)
-        .map(|&i| {
-            let v = w[i];
-            let bar = "█".repeat((v.abs().min(1.0) * 12.0).round() as usize);
-            Line::from(vec![
-                Span::raw(format!("{:<16.16} ", r.names[i])),
-                Span::styled(
-                    format!("{bar:<12}"),
-                    Style::default().fg(if v < 0.0 { Color::Red } else { Color::Magenta }),
-                ),
-                Span::raw(format!(" {v:.2}")),
-            ])
-        })
-        .collect();
-    let active = w.iter().filter(|v| v.abs() > 1e-9).count();
-    Paragraph::new(lines)
-        .block(Block::bordered().title(format!("rig weights · {active} of {} active", w.len())))
-}
-
 fn mesh_panel(
     m: &super::mesh::MeshView,
     t: usize,
@@ -448,7 +397,13 @@ fn time_line(f: &mut Frame, s: &State, c: &Computed, area: Rect) {
     let n = c.frames.len().max(1);
     let col = |i: usize| (i * w.saturating_sub(1)) / (n - 1).max(1);
     let mut marks = vec!['─'; w];
-    for &k in &c.keys {
+    // Key frames belong to the key-shape solve; the rig view has none.
+    let keys: &[usize] = if s.show_rig && s.rig.is_some() {
+        &[]
+    } else {
+        &c.keys
+    };
+    for &k in keys {
         if let Some(m) = marks.get_mut(col(k)) {
             *m = '◆';
         }

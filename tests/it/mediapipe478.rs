@@ -332,3 +332,40 @@ fn normalised_coordinates_are_detected_said_and_scaled_to_pixels() {
     assert_eq!(r.code, 2);
     assert!(r.stderr.contains("not an image size"), "{}", r.stderr);
 }
+
+/// The lab reads normalised tracks too (issue 41, item 3): `--image-size` scales the first
+/// one and every normalised one opened with `o`, a pixel track opened later is left as it
+/// is, and a track left normalised is said in the status line — only while it is loaded.
+#[test]
+fn the_lab_scales_normalised_tracks_and_says_when_it_cannot() {
+    use keyshape_lab::tui::compute::{load, load_sized, normalised_note};
+    use keyshape_lab::tui::state::{update, Action, State};
+    let d = tempfile::tempdir().unwrap();
+    let src = "mediapipe_face_tracks/liveportrait_d18.csv";
+    let px = landmarker_track(d.path(), "px.csv", src, None);
+    let norm = landmarker_track(d.path(), "norm.csv", src, Some((640.0, 480.0)));
+    let (px, norm) = (px.to_str().unwrap(), norm.to_str().unwrap());
+    let pixels = load(px).unwrap();
+    assert!(normalised_note(&pixels).is_none());
+    let left = load_sized(norm, None).unwrap();
+    assert!(normalised_note(&left).unwrap().contains("--image-size"));
+    let scaled = load_sized(norm, Some((640.0, 480.0))).unwrap();
+    assert!(normalised_note(&scaled).is_none());
+    let worst = (&scaled.coords - &pixels.coords).amax();
+    assert!(worst < 1e-9 * pixels.coords.amax(), "{worst}");
+    // A pixel track opened with the size given is read unchanged.
+    assert_eq!(
+        load_sized(px, Some((640.0, 480.0))).unwrap().coords,
+        pixels.coords
+    );
+    // The notice shows for the sequence loaded, not for a load that was overtaken.
+    let mut s = State::new("x", 10, 30.0);
+    s.loaded = 3;
+    update(&mut s, Action::Notice(2, "old".into()));
+    assert_eq!(s.status, "");
+    update(&mut s, Action::Notice(3, "normalised".into()));
+    assert_eq!(s.status, "normalised");
+    // The option needs a file: the built-in sequence is in pixels.
+    let r = kslab(&["tui", "--image-size", "640x480"]);
+    assert_eq!(r.code, 2, "{}", r.stderr);
+}

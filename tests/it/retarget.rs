@@ -48,10 +48,11 @@ fn coincident_feature_points_are_a_clear_error() {
 }
 
 #[test]
-fn jitter_is_the_mean_squared_second_difference() {
-    // w_t = t²: second difference 2 everywhere, so jitter 4.
+fn jitter_is_the_rms_second_difference() {
+    // w_t = t²: second difference 2 everywhere, so jitter 2 (one definition everywhere,
+    // issue 41 item 5; it was the mean square, 4).
     let w = DMatrix::from_fn(2, 10, |_, t| (t * t) as f64);
-    assert!((jitter(&[w]) - 4.0).abs() < 1e-12);
+    assert!((jitter(&[w]) - 2.0).abs() < 1e-12);
     assert_eq!(jitter(&[DMatrix::from_element(3, 10, 0.7)]), 0.0);
 }
 

@@ -651,7 +651,10 @@ fn bad_rigs_and_tracks_are_refused_with_the_file_and_nothing_is_written() {
             &id_order,
             "expressions.csv:3:1: shape ids must run 0, 1, …; found 7",
         ),
-        (&fields, "expressions.csv:6:0: CSV error: record 5 (line: 6"),
+        (
+            &fields,
+            "expressions.csv:6:2: this row has 1 field where the first row has 6",
+        ),
         (&dx_text, "expression_deltas.csv:3:3: not a number: 'abc'"),
         (&vertex_text, "expression_deltas.csv:3:2: not an index: 'q'"),
         (

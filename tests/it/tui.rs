@@ -626,9 +626,21 @@ fn the_rig_view_names_the_largest_weights_and_r_toggles_it() {
         pos.windows(2).all(|p| p[0] < p[1]),
         "bars out of order: {first:?}"
     );
+    // The lower panels describe the rig solve too (issue 41, item 8): the frame's largest
+    // weights and the landmark error over time, with no key-shape chart, bars or key marks.
+    assert!(text.contains("over time: eyeLookIn jawOpen"), "{text}");
+    assert!(text.contains("landmark RMS over time"), "{text}");
+    for key_shape_only in ["E(k)", "key frames", "◆"] {
+        assert!(
+            !text.contains(key_shape_only),
+            "{key_shape_only} in\n{text}"
+        );
+    }
     assert_screen(&text, "tui_rig_80x24.txt");
     update(&mut s, Action::Rig);
     assert!(!s.show_rig);
+    let text = screen(&s, 80, 24);
+    assert!(text.contains("key frames") && text.contains("◆"), "{text}");
 }
 
 /// In the open prompt a space is part of the path, not play / pause (issue 41, item 8: `o`
