@@ -509,6 +509,7 @@ pub fn render_strip(s: &Strip) -> Result<tiny_skia::Pixmap> {
                 },
             ],
             bounds: sb,
+            mesh: None,
         }];
         for (j, sv) in s.solvers.iter().enumerate() {
             let (name, tgt, rms) = (&sv.name, &sv.target, &sv.target_rms);
@@ -533,6 +534,7 @@ pub fn render_strip(s: &Strip) -> Result<tiny_skia::Pixmap> {
                     },
                 ],
                 bounds: tb,
+                mesh: None,
             });
         }
         let caption = format!("frame {frame}   (tracing noise {} IOD)", s.trace_noise);

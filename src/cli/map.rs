@@ -256,6 +256,7 @@ fn side_by_side(
                     dashed: false,
                 }],
                 bounds: sb,
+                mesh: None,
             },
             Panel {
                 title: "second person's model".into(),
@@ -268,6 +269,7 @@ fn side_by_side(
                     dashed: false,
                 }],
                 bounds: tb,
+                mesh: None,
             },
         ];
         render_panels(&panels, &format!("frame {}", prep.seq.frames[t]), 320)

@@ -292,7 +292,7 @@ pub fn run(a: &RigArgs) -> Result<()> {
         morph.write_used_glb(p, &mesh, &r.weights, seq.fps().unwrap_or(30.0), Some(&q))?;
     }
     if let Some(dir) = &a.png_dir {
-        write_pngs(dir, &seq, &rig, &r)?;
+        write_pngs(dir, &seq, &rig, &r, &mesh, &morph)?;
     }
     let frozen: Vec<&str> = r
         .shapes
@@ -412,9 +412,17 @@ fn write_pose(w: &mut dyn Write, seq: &Sequence, r: &RigSolve) -> std::io::Resul
     Ok(())
 }
 
-/// The per-frame pictures of `--png-dir`.
-fn write_pngs(dir: &std::path::Path, seq: &Sequence, rig: &Rig, r: &RigSolve) -> Result<()> {
-    use keyshape_lab::render::face::{bounds_of, col, render_panels, Layer, Panel};
+/// The per-frame pictures of `--png-dir`: the track with the fitted rig, and the rig's mesh
+/// posed by the weights (shaded, front view) with its landmarks.
+fn write_pngs(
+    dir: &std::path::Path,
+    seq: &Sequence,
+    rig: &Rig,
+    r: &RigSolve,
+    mesh: &keyshape_lab::io::obj::Mesh,
+    morph: &keyshape_lab::cosker::morph::MorphTargets,
+) -> Result<()> {
+    use keyshape_lab::render::face::{bounds_of, col, render_panels, Layer, Panel, ShadedMesh};
     let layout = keyshape_lab::sequence::Layout::ibug68();
     let all: Vec<usize> = (0..keyshape_lab::rig::LANDMARKS).collect();
     let lines = keyshape_lab::retarget::setup::polylines_for(&layout, &all);
@@ -439,10 +447,18 @@ fn write_pngs(dir: &std::path::Path, seq: &Sequence, rig: &Rig, r: &RigSolve) ->
         }
     }
     let tb = bounds_of(&[&seq.coords, &fitted], 2);
-    let fb = bounds_of(&[&front], 2);
+    // The face: the landmarks' extent over the sequence, widened a quarter each way so the
+    // forehead and cheeks around them show (the rest of the head is cut at the panel).
+    let fb = {
+        let ((a0, b0), (a1, b1)) = bounds_of(&[&front], 2);
+        let (px, py) = (0.25 * (a1 - a0), 0.25 * (b1 - b0));
+        ((a0 - px, b0 - py), (a1 + px, b1 + py))
+    };
+    let mut posed = mesh.positions.clone();
     keyshape_lab::io::create_dir_all(dir)?;
     for f in 0..n {
         let [y, p, ro] = r.cameras[f].yaw_pitch_roll();
+        morph.blend(&mesh.positions, r.weights.column(f).as_slice(), &mut posed);
         let top =
             match keyshape_lab::rig::largest_weights(&rig.names, r.weights.column(f).as_slice(), 2)
             {
@@ -471,9 +487,10 @@ fn write_pngs(dir: &std::path::Path, seq: &Sequence, rig: &Rig, r: &RigSolve) ->
                     },
                 ],
                 bounds: tb,
+                mesh: None,
             },
             Panel {
-                title: "the rig posed by the weights, front view".into(),
+                title: "the rig's mesh posed by the weights, front view".into(),
                 // The shapes that pose it, by name, in the legend (where long names fit).
                 layers: vec![Layer {
                     name: &top,
@@ -484,6 +501,10 @@ fn write_pngs(dir: &std::path::Path, seq: &Sequence, rig: &Rig, r: &RigSolve) ->
                     dashed: false,
                 }],
                 bounds: fb,
+                mesh: Some(ShadedMesh {
+                    positions: &posed,
+                    faces: &mesh.faces,
+                }),
             },
         ];
         let caption = format!(

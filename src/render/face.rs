@@ -32,6 +32,19 @@ pub struct Panel<'a> {
     pub layers: Vec<Layer<'a>>,
     /// Data bounds ((x0, y0), (x1, y1)), kept fixed over frames so motion shows.
     pub bounds: ((f64, f64), (f64, f64)),
+    /// A shaded mesh drawn under the layers (front view), or None.
+    pub mesh: Option<ShadedMesh<'a>>,
+}
+
+/// A mesh to draw shaded in a panel: `positions` with y up (a rig's own frame, drawn as
+/// (x, −y) in the panel's coordinates, as the layers drawn from it are) and `faces` of
+/// vertex indices.
+#[derive(Debug, Clone, Copy)]
+pub struct ShadedMesh<'a> {
+    /// Vertex positions, y up, z towards the viewer.
+    pub positions: &'a [[f64; 3]],
+    /// Faces (polygons) as vertex indices.
+    pub faces: &'a [Vec<usize>],
 }
 
 /// Bounds of every point of every column of the matrices (flat shapes, `dims` per point),
@@ -142,6 +155,10 @@ pub fn render_panels(panels: &[Panel], caption: &str, size: u32) -> Result<Pixma
         let (cx, cy) = ((x0 + x1) / 2.0, (y0 + y1) / 2.0);
         let (mx, my) = (ox + size as f32 / 2.0, top + fs * 0.3 + inner / 2.0);
         let map = |x: f64, y: f64| (mx + ((x - cx) * s) as f32, my + ((y - cy) * s) as f32);
+        if let Some(m) = &p.mesh {
+            let clip = (ox, top + fs * 0.3, size as f32, inner);
+            super::mesh::draw_shaded(&mut pm, m.positions, m.faces, &|x, y| map(x, -y), clip);
+        }
         for l in &p.layers {
             draw_layer(&mut pm, l, &map);
         }
@@ -262,11 +279,13 @@ pub fn render_frame(f: &FrameShapes, caption: &str, size: u32) -> Result<Pixmap>
                 ),
             ],
             bounds: f.source_bounds,
+            mesh: None,
         },
         Panel {
             title: "target".into(),
             layers: target,
             bounds: f.target_bounds,
+            mesh: None,
         },
     ];
     render_panels(&panels, caption, size)

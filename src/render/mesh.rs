@@ -88,6 +88,85 @@ pub fn wireframe(
     Ok(pm)
 }
 
+/// Draws `faces` over `positions` (y up, z towards the viewer) flat-shaded, far faces first
+/// (painter's order by mean depth), each grey by how squarely it faces a light above left of
+/// the viewer; `map` takes (x, y up) to the picture, and nothing is drawn outside `clip`
+/// (x, y, width, height in pixels).
+pub fn draw_shaded(
+    pm: &mut Pixmap,
+    positions: &[[f64; 3]],
+    faces: &[Vec<usize>],
+    map: &dyn Fn(f64, f64) -> (f32, f32),
+    clip: (f32, f32, f32, f32),
+) {
+    let mask = tiny_skia::Mask::new(pm.width(), pm.height()).and_then(|mut m| {
+        let rect = tiny_skia::Rect::from_xywh(clip.0, clip.1, clip.2, clip.3)?;
+        m.fill_path(
+            &PathBuilder::from_rect(rect),
+            FillRule::Winding,
+            false,
+            Transform::identity(),
+        );
+        Some(m)
+    });
+    let light = {
+        let l: [f64; 3] = [-0.35, 0.45, 1.0];
+        let n = (l[0] * l[0] + l[1] * l[1] + l[2] * l[2]).sqrt();
+        [l[0] / n, l[1] / n, l[2] / n]
+    };
+    let mut order: Vec<(f64, usize)> = faces
+        .iter()
+        .enumerate()
+        .filter(|(_, f)| f.len() >= 3 && f.iter().all(|&v| v < positions.len()))
+        .map(|(i, f)| {
+            let z = f.iter().map(|&v| positions[v][2]).sum::<f64>() / f.len() as f64;
+            (z, i)
+        })
+        .collect();
+    order.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let mut paint = Paint {
+        anti_alias: false,
+        ..Paint::default()
+    };
+    for (_, i) in order {
+        let f = &faces[i];
+        // Newell's normal: robust for quads that are not quite planar.
+        let mut n = [0.0f64; 3];
+        for (k, &a) in f.iter().enumerate() {
+            let (p, q) = (positions[a], positions[f[(k + 1) % f.len()]]);
+            n[0] += (p[1] - q[1]) * (p[2] + q[2]);
+            n[1] += (p[2] - q[2]) * (p[0] + q[0]);
+            n[2] += (p[0] - q[0]) * (p[1] + q[1]);
+        }
+        let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+        if len <= 0.0 || n[2] <= 0.0 {
+            continue; // edge-on or facing away
+        }
+        let lambert = ((n[0] * light[0] + n[1] * light[1] + n[2] * light[2]) / len).max(0.0);
+        let g = (70.0 + 170.0 * lambert).round().clamp(0.0, 255.0) as u8;
+        paint.set_color_rgba8(g, g, (f64::from(g) * 1.02).min(255.0) as u8, 255);
+        let mut pb = PathBuilder::new();
+        for (k, &v) in f.iter().enumerate() {
+            let (x, y) = map(positions[v][0], positions[v][1]);
+            if k == 0 {
+                pb.move_to(x, y)
+            } else {
+                pb.line_to(x, y)
+            }
+        }
+        pb.close();
+        if let Some(path) = pb.finish() {
+            pm.fill_path(
+                &path,
+                &paint,
+                FillRule::Winding,
+                Transform::identity(),
+                mask.as_ref(),
+            );
+        }
+    }
+}
+
 /// Source feature points (a panel) beside the deformed mesh.
 pub fn transfer_frame(
     source: &[f64],
@@ -109,6 +188,7 @@ pub fn transfer_frame(
             dashed: false,
         }],
         bounds: source_bounds,
+        mesh: None,
     };
     let left = render_panels(&[panel], caption, size)?;
     let mut out = Pixmap::new(

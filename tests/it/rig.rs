@@ -474,6 +474,38 @@ fn kslab_rig_writes_weights_pose_and_live_link_and_its_options_take_effect() {
     );
     assert_eq!(std::fs::read_dir(&pngs).unwrap().count(), 477);
     assert!(pngs.join("rig_000200.png").exists());
+    // The right panel is the rig's mesh posed by the weights, shaded (issue 41, item 9):
+    // most of it is grey, not white paper, and a smiling frame differs from a neutral one
+    // there.
+    let right_half = |f: &str| -> Vec<u8> {
+        let dec = png::Decoder::new(std::io::BufReader::new(
+            std::fs::File::open(pngs.join(f)).unwrap(),
+        ));
+        let mut rd = dec.read_info().unwrap();
+        let mut buf = vec![0; rd.output_buffer_size().unwrap()];
+        let info = rd.next_frame(&mut buf).unwrap();
+        let (w, h, ch) = (
+            info.width as usize,
+            info.height as usize,
+            info.color_type.samples(),
+        );
+        (h / 5..h * 4 / 5)
+            .flat_map(|y| (w * 5 / 8..w * 7 / 8).map(move |x| (y, x)))
+            .map(|(y, x)| buf[(y * w + x) * ch])
+            .collect()
+    };
+    let (a, b) = (right_half("rig_000200.png"), right_half("rig_000300.png"));
+    let grey = a.iter().filter(|&&v| (60..235).contains(&v)).count();
+    assert!(grey > a.len() / 2, "{grey} of {} pixels shaded", a.len());
+    let differ = a
+        .iter()
+        .zip(&b)
+        .filter(|(x, y)| x.abs_diff(**y) > 8)
+        .count();
+    assert!(
+        differ > a.len() / 100,
+        "frames 200 and 300 differ in {differ} pixels"
+    );
     crate::common::assert_valid_gltf(std::path::Path::new(&glb));
     // The GLB animates the weights and the head pose (the node's rotation), every frame.
     let bytes = std::fs::read(&glb).unwrap();
