@@ -57,6 +57,7 @@ mod modes;
 mod progress;
 mod retarget;
 mod rig;
+mod rig_accuracy;
 mod run;
 mod smooth;
 mod solve;
@@ -119,6 +120,8 @@ enum Command {
     Retarget(retarget::RetargetArgs),
     /// Solve a tracked face (68 or MediaPipe 468 points) onto a blendshape rig (ARKit-style, e.g. ICT FaceKit) with head pose; weights, Live Link Face CSV, glTF.
     Rig(rig::RigArgs),
+    /// The rig accuracy benchmark: performances rendered through the rig from known weights, solved back and measured per shape against the truth.
+    RigAccuracy(rig_accuracy::RigAccuracyArgs),
     /// Drive a 3-D mesh from the feature points: RBF transfer + skinning (paper 004).
     Transfer(transfer::TransferArgs),
     /// Choose one example frame per action (jaw drop, smile, blink …) for `modes` and `map`.
@@ -172,6 +175,7 @@ pub fn main() -> ExitCode {
         Command::Template(a) => template::run(&a),
         Command::Retarget(a) => retarget::run(&a),
         Command::Rig(a) => rig::run(&a),
+        Command::RigAccuracy(a) => rig_accuracy::run(&a),
         Command::Transfer(a) => transfer::run(&a),
         Command::Actions(a) => actions::run(&a),
         Command::Modes(a) => modes::run(&a),

@@ -65,10 +65,27 @@ pub struct RigArgs {
     #[arg(long, value_name = "clip|track", value_parser = ["clip", "track"])]
     identity_per: Option<String>,
     /// Shapes whose image motion is explained by other shapes beyond this share (their
-    /// determination, 0–1, at the neutral frame's head pose) are frozen at 0 instead of
-    /// soaking up noise; 0 freezes only shapes that do not move the landmarks.
-    #[arg(long, default_value_t = 0.02)]
+    /// determination, 0–1, at the neutral frame's head pose) are frozen at 0; 0 (the
+    /// default) freezes only shapes that do not move the landmarks: what others explain is
+    /// settled by --prior instead (freezing lost shapes the performance used; issue 39).
+    #[arg(long, default_value_t = 0.0)]
     min_determination: f64,
+    /// The magnitude prior (≥ 0): each frame minimises its landmark error plus μ‖w‖², with
+    /// μ = PRIOR × IOD² (IOD: the track's median outer-eye-corner distance), gaze shapes
+    /// (eyeLook*) held 100× harder — 68 points have no pupils — and mutually exclusive pairs
+    /// (smile/frown, blink/wide, jawLeft/jawRight …) paying for being on together. 0 is off.
+    /// Tuned on `kslab rig-accuracy`.
+    #[arg(long, default_value_t = keyshape_lab::rig::RECOMMENDED_PRIOR, allow_negative_numbers = true)]
+    prior: f64,
+    /// The offline, zero-phase temporal prior: each clip's weights smoothed by a Gaussian
+    /// of σ frames, no lag (it needs the whole file; --live turns it off). 0 is off.
+    /// Tuned on `kslab rig-accuracy` (2 already flattens speech-rate jaw motion).
+    #[arg(long, value_name = "SIGMA", allow_negative_numbers = true)]
+    zero_phase: Option<f64>,
+    /// Weights for live use: causal only (no --zero-phase; combine with --smooth λ for the
+    /// causal temporal prior, each frame pulled towards the last).
+    #[arg(long)]
+    live: bool,
     /// Causal temporal prior λ (≥ 0): each frame's weights are pulled towards the previous
     /// frame's by adding λ‖w − w_prev‖² to its squared landmark error (λ in squared image
     /// units per unit weight²; not across clips). Only the causal form exists for rigs;
@@ -119,7 +136,7 @@ fn parse_format(s: &str) -> Result<keyshape_lab::sequence::Format, String> {
     keyshape_lab::sequence::Format::parse(s).map_err(|e| e.to_string())
 }
 
-fn parse_identity(s: &str) -> Result<Identity, String> {
+pub fn parse_identity(s: &str) -> Result<Identity, String> {
     Identity::parse(s).map_err(|e| e.to_string())
 }
 
@@ -209,6 +226,13 @@ pub fn run(a: &RigArgs) -> Result<()> {
             Neutral::Column(seq.column_of_frame(frame)?)
         }
     };
+    let zero_phase = match (a.live, a.zero_phase) {
+        (true, Some(z)) if z != 0.0 => anyhow::bail!(
+            "--live is causal: --zero-phase {z} smooths with frames still to come; drop one of them"
+        ),
+        (true, _) => 0.0,
+        (false, z) => z.unwrap_or(keyshape_lab::rig::RECOMMENDED_ZERO_PHASE),
+    };
     let opts = RigOptions {
         solver: a.solver,
         identity: a.identity,
@@ -216,6 +240,8 @@ pub fn run(a: &RigArgs) -> Result<()> {
         min_determination: a.min_determination,
         smooth: a.smooth.unwrap_or(0.0),
         landmark_weights: keyshape_lab::rig::landmark_weights(&a.landmark_weight)?,
+        prior: a.prior,
+        zero_phase,
         ..Default::default()
     };
     let per_clip = match a.identity_per.as_deref() {
@@ -319,6 +345,8 @@ pub fn run(a: &RigArgs) -> Result<()> {
             "neutral_frames": neutral_frames,
             "landmark_weights": opts.landmark_weights.to_vec(),
             "smooth": opts.smooth,
+            "prior": opts.prior,
+            "zero_phase": opts.zero_phase,
             "mean_rms": mean_rms,
             "unconverged": r.unconverged,
             "mean_steps": r.steps.iter().map(|&x| f64::from(x)).sum::<f64>() / r.steps.len() as f64,
@@ -334,10 +362,12 @@ pub fn run(a: &RigArgs) -> Result<()> {
     } else {
         sayln!(
             taken,
-            "{} frames onto {} shapes ({}), identity {}{}: RMS landmark error {:.3}, {} frozen ({}), {} frames unconverged",
+            "{} frames onto {} shapes ({}, prior {}, zero-phase σ {}), identity {}{}: RMS landmark error {:.3}, {} frozen{}, {} frames unconverged",
             seq.n_frames(),
             rig.k(),
             a.solver.name(),
+            opts.prior,
+            opts.zero_phase,
             a.identity.name(),
             match neutral_frames.len() {
                 0 => String::new(),
@@ -346,7 +376,11 @@ pub fn run(a: &RigArgs) -> Result<()> {
             },
             mean_rms,
             frozen.len(),
-            frozen.join(" "),
+            if frozen.is_empty() {
+                String::new()
+            } else {
+                format!(" ({})", frozen.join(" "))
+            },
             r.unconverged
         );
     }

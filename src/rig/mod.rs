@@ -10,6 +10,7 @@
 //! exactly (under their bounds) for each trial camera: the error never rises, and on
 //! noise-free renders it converges to the rendered weights (tested to 1e-6).
 
+pub mod accuracy;
 pub mod camera;
 pub mod gltf_rig;
 pub mod livelink;
@@ -342,6 +343,47 @@ pub struct RigOptions {
     /// Per landmark (iBUG order), the weight of its squared error in the fit (≥ 0; all 1 is
     /// the plain least-squares fit). The camera's starting fit ignores them.
     pub landmark_weights: [f64; LANDMARKS],
+    /// The magnitude prior (≥ 0): each frame minimises its landmark error plus `μ‖w‖²`,
+    /// `μ = prior × IOD²`, IOD the track's median distance between the outer eye corners
+    /// (landmarks 36 and 45), so the prior does not depend on the image's scale. What the
+    /// landmarks cannot tell apart is settled towards zero instead of by chance.
+    pub prior: f64,
+    /// The offline, zero-phase temporal prior: after the solve, each clip's weights are
+    /// smoothed by a Gaussian of this σ in frames, forwards and backwards alike (no lag;
+    /// needs the whole file, so not for live use); 0 is off. The weights stay within their
+    /// bounds (a Gaussian average of bounded weights is bounded) and the landmark error is
+    /// recomputed for the smoothed weights.
+    pub zero_phase: f64,
+}
+
+/// The magnitude prior `kslab rig` uses by default: μ = 0.0026 × IOD², 30 px² at an
+/// inter-ocular distance of 107 px — tuned on the accuracy benchmark (`kslab rig-accuracy`;
+/// README, "Rig accuracy against ground truth").
+pub const RECOMMENDED_PRIOR: f64 = 0.0026;
+
+/// The zero-phase σ (frames) `kslab rig` uses for files by default: 1 frame, tuned on the
+/// benchmark (2 frames already flattens speech-rate jaw motion).
+pub const RECOMMENDED_ZERO_PHASE: f64 = 1.0;
+
+impl RigOptions {
+    /// The options that win the accuracy benchmark for an offline file: the magnitude prior
+    /// (gaze held, exclusive pairs), no shape frozen, the zero-phase temporal prior.
+    pub fn recommended() -> RigOptions {
+        RigOptions {
+            min_determination: 0.0,
+            prior: RECOMMENDED_PRIOR,
+            zero_phase: RECOMMENDED_ZERO_PHASE,
+            ..RigOptions::default()
+        }
+    }
+
+    /// [`RigOptions::recommended`] for live use: causal, so no zero-phase smoothing.
+    pub fn live() -> RigOptions {
+        RigOptions {
+            zero_phase: 0.0,
+            ..RigOptions::recommended()
+        }
+    }
 }
 
 impl Default for RigOptions {
@@ -354,6 +396,8 @@ impl Default for RigOptions {
             max_steps: 50,
             smooth: 0.0,
             landmark_weights: [1.0; LANDMARKS],
+            prior: 0.0,
+            zero_phase: 0.0,
         }
     }
 }
@@ -494,6 +538,78 @@ impl Blocks {
     }
 }
 
+/// The track's median distance between the outer eye corners (landmarks 36 and 45), the
+/// scale the magnitude prior is given in.
+pub fn track_iod(track: &DMatrix<f64>) -> f64 {
+    let mut d: Vec<f64> = (0..track.ncols())
+        .map(|f| {
+            let (dx, dy) = (
+                track[(2 * 45, f)] - track[(2 * 36, f)],
+                track[(2 * 45 + 1, f)] - track[(2 * 36 + 1, f)],
+            );
+            (dx * dx + dy * dy).sqrt()
+        })
+        .collect();
+    d.sort_by(f64::total_cmp);
+    d.get(d.len() / 2).copied().unwrap_or(0.0)
+}
+
+/// How much more the magnitude prior holds the gaze shapes (`eyeLook*`): 68 landmarks have
+/// no pupils, so eye gaze does not move them except through the lids, and a free gaze
+/// shape explains lid and brow motion instead of the shapes that made it.
+pub const GAZE_DAMPING: f64 = 100.0;
+
+/// Is this a gaze shape (ARKit's eyeLookIn/Out/Up/Down)?
+pub fn is_gaze(name: &str) -> bool {
+    name.starts_with("eyeLook")
+}
+
+/// Pairs of shapes that undo each other and are never on together in a performance: the
+/// jaw and the mouth to either side, smile against frown, blink against wide, and each eye's
+/// gaze in against out and up against down (ARKit names, one side each).
+pub const EXCLUSIVE: [(&str, &str); 12] = [
+    ("jawLeft", "jawRight"),
+    ("mouthLeft", "mouthRight"),
+    ("mouthSmile_L", "mouthFrown_L"),
+    ("mouthSmile_R", "mouthFrown_R"),
+    ("eyeBlink_L", "eyeWide_L"),
+    ("eyeBlink_R", "eyeWide_R"),
+    ("eyeLookIn_L", "eyeLookOut_L"),
+    ("eyeLookIn_R", "eyeLookOut_R"),
+    ("eyeLookUp_L", "eyeLookDown_L"),
+    ("eyeLookUp_R", "eyeLookDown_R"),
+    ("mouthRollLower", "mouthShrugLower"),
+    ("mouthRollUpper", "mouthShrugUpper"),
+];
+
+/// The [`EXCLUSIVE`] pairs among the free shapes, as free indices with their γ.
+fn exclusive_pairs(rig: &Rig, free: &[usize], ridge: &[f64]) -> Vec<(usize, usize, f64)> {
+    let at = |name: &str| free.iter().position(|&s| rig.names[s] == name);
+    EXCLUSIVE
+        .iter()
+        .filter_map(|(a, b)| {
+            let (a, b) = (at(a)?, at(b)?);
+            Some((a, b, 2.0 * (ridge[a] * ridge[b]).sqrt()))
+        })
+        .filter(|p| p.2 > 0.0)
+        .collect()
+}
+
+/// Per free shape (`free`, rig order), the magnitude prior's μ: `opts.prior × IOD²`, times
+/// [`GAZE_DAMPING`] for gaze shapes.
+fn magnitude_prior(track: &DMatrix<f64>, opts: &RigOptions, rig: &Rig, free: &[usize]) -> Vec<f64> {
+    let mu = opts.prior * track_iod(track).powi(2);
+    free.iter()
+        .map(|&s| {
+            if is_gaze(&rig.names[s]) {
+                GAZE_DAMPING * mu
+            } else {
+                mu
+            }
+        })
+        .collect()
+}
+
 /// The track's frame `f` as image points with y up.
 fn frame_points(track: &DMatrix<f64>, f: usize) -> Vec<[f64; 2]> {
     (0..LANDMARKS)
@@ -517,6 +633,12 @@ struct FrameSolver<'a> {
     /// each frame's weights are pulled towards (`λ‖w − w_prev‖²` added to the error).
     lambda: f64,
     prev: Option<Vec<f64>>,
+    /// The magnitude prior: per free shape, μᵢ in `Σ μᵢ wᵢ²` added to the error.
+    ridge: Vec<f64>,
+    /// Mutually exclusive pairs (free indices a, b) and γ in `γ w_a w_b` added to the error:
+    /// with γ = 2√(μ_a μ_b) the pair's prior is `(√μ_a w_a + √μ_b w_b)²`, convex, and shapes
+    /// that undo each other (smile and frown) pay for being on together.
+    pairs: Vec<(usize, usize, f64)>,
 }
 
 impl<'a> FrameSolver<'a> {
@@ -541,6 +663,8 @@ impl<'a> FrameSolver<'a> {
             cam: None,
             lambda: 0.0,
             prev: None,
+            ridge: vec![0.0; m],
+            pairs: Vec::new(),
         }
     }
 
@@ -586,7 +710,18 @@ impl<'a> FrameSolver<'a> {
             }
             _ => 0.0,
         };
-        self.sq_error_with(cam, u, &self.blocks.lw) + prior
+        let magnitude: f64 = self
+            .w
+            .iter()
+            .zip(&self.ridge)
+            .map(|(w, r)| r * w * w)
+            .sum::<f64>()
+            + self
+                .pairs
+                .iter()
+                .map(|&(a, b, g)| g * self.w[a] * self.w[b])
+                .sum::<f64>();
+        self.sq_error_with(cam, u, &self.blocks.lw) + prior + magnitude
     }
 
     /// One Gauss–Newton step of camera and weights together, linearised at the current
@@ -755,7 +890,11 @@ impl<'a> FrameSolver<'a> {
         let m = self.free.len();
         let ridge = 1e-9 * (0..m).map(|i| g[i * m + i]).sum::<f64>() / m as f64;
         for i in 0..m {
-            g[i * m + i] += ridge;
+            g[i * m + i] += ridge + self.ridge[i];
+        }
+        for &(a, b, gamma) in &self.pairs {
+            g[a * m + b] += gamma / 2.0;
+            g[b * m + a] += gamma / 2.0;
         }
         if let (Some(p), true) = (&self.prev, self.lambda > 0.0) {
             for i in 0..m {
@@ -951,6 +1090,18 @@ pub fn solve_rig(
             opts.min_determination
         )));
     }
+    if !(opts.zero_phase.is_finite() && (0.0..=1000.0).contains(&opts.zero_phase)) {
+        return Err(Error::invalid(format!(
+            "the zero-phase σ must be a number of frames in [0, 1000], not {}",
+            opts.zero_phase
+        )));
+    }
+    if !(opts.prior.is_finite() && opts.prior >= 0.0) {
+        return Err(Error::invalid(format!(
+            "the magnitude prior must be a number ≥ 0, not {}",
+            opts.prior
+        )));
+    }
     if !(opts.smooth.is_finite() && opts.smooth >= 0.0) {
         return Err(Error::invalid(format!(
             "the temporal prior λ must be a number ≥ 0, not {}",
@@ -1107,6 +1258,9 @@ fn best_explaining(
                 opts.max_steps.max(1),
                 &opts.landmark_weights,
             );
+            fs.ridge = magnitude_prior(track, opts, rig, &fs.free);
+            fs.pairs = exclusive_pairs(rig, &fs.free, &fs.ridge);
+            fs.pairs = exclusive_pairs(rig, &fs.free, &fs.ridge);
             let mut total = 0.0;
             for &f in &scored {
                 let u = frame_points(track, f);
@@ -1192,6 +1346,30 @@ fn person_rig(rig: &Rig, track: &DMatrix<f64>, n: usize, id: Identity) -> Result
     Ok(person)
 }
 
+/// Smooths the columns `clip` of `w` along time by a Gaussian of `sigma` frames (radius
+/// ⌈3σ⌉, the kernel renormalised where it passes the clip's ends): zero phase, no lag.
+pub fn zero_phase(w: &mut DMatrix<f64>, clip: Range<usize>, sigma: f64) {
+    let radius = (3.0 * sigma).ceil() as i64;
+    let kern: Vec<f64> = (-radius..=radius)
+        .map(|d| (-(d * d) as f64 / (2.0 * sigma * sigma)).exp())
+        .collect();
+    let src = w.columns(clip.start, clip.len()).into_owned();
+    let n = clip.len() as i64;
+    for t in 0..n {
+        let (mut acc, mut sum) = (nalgebra::DVector::zeros(w.nrows()), 0.0);
+        for d in -radius..=radius {
+            let u = t + d;
+            if (0..n).contains(&u) {
+                let k = kern[(d + radius) as usize];
+                acc += src.column(u as usize) * k;
+                sum += k;
+            }
+        }
+        w.column_mut(clip.start + t as usize)
+            .copy_from(&(acc / sum));
+    }
+}
+
 /// One pass over the frames with the shapes `free`, each clip with its person's rig (warm
 /// starts do not cross clips).
 fn run(
@@ -1214,6 +1392,8 @@ fn run(
             &opts.landmark_weights,
         );
         fs.lambda = opts.smooth;
+        fs.ridge = magnitude_prior(track, opts, rig, &fs.free);
+        fs.pairs = exclusive_pairs(rig, &fs.free, &fs.ridge);
         for f in clip.clone() {
             let u = frame_points(track, f);
             let (it, ok, e) = fs.solve(&u)?;
@@ -1233,6 +1413,25 @@ fn run(
                 r: nalgebra::Matrix3::identity(),
                 t: [0.0, 0.0],
             }));
+        }
+    }
+    if opts.zero_phase > 0.0 {
+        for (clip, person) in people {
+            zero_phase(&mut weights, clip.clone(), opts.zero_phase);
+            for f in clip.clone() {
+                let w: Vec<f64> = weights.column(f).iter().copied().collect();
+                let u = frame_points(track, f);
+                let e: f64 = person
+                    .posed(&w)
+                    .iter()
+                    .zip(&u)
+                    .map(|(p, q)| {
+                        let x = cameras[f].project(p);
+                        (x[0] - q[0]).powi(2) + (x[1] - q[1]).powi(2)
+                    })
+                    .sum();
+                rms[f] = (e / LANDMARKS as f64).sqrt();
+            }
         }
     }
     Ok(RigSolve {

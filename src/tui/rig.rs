@@ -41,7 +41,7 @@ pub fn rig_view(seq: &Sequence, rig: &Rig) -> Result<RigView> {
         return Err(Error::invalid("--rig needs a 2-D track"));
     }
     seq.check_geometry()?;
-    let r = solve_rig(rig, &seq.coords, &[], &RigOptions::default())?;
+    let r = solve_rig(rig, &seq.coords, &[], &RigOptions::recommended())?;
     let n = seq.n_frames();
     let (mut tracked, mut fitted, mut weights) = (Vec::new(), Vec::new(), Vec::new());
     let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);

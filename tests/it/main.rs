@@ -22,6 +22,7 @@ mod readers;
 mod reference;
 mod retarget;
 mod rig;
+mod rig_accuracy;
 mod scale;
 mod smoothing;
 mod solvers;

@@ -560,14 +560,16 @@ fn kslab_rig_writes_weights_pose_and_live_link_and_its_options_take_effect() {
     let pose = std::fs::read_to_string(&p).unwrap();
     assert!(pose.starts_with("frame,yaw_deg,pitch_deg,roll_deg,scale,tx,ty,rms\n"));
     // The fitted head pose follows py-feat's own estimate (measured |r| = 0.974 yaw, 0.974
-    // pitch, 0.925 roll; py-feat's yaw has the opposite sign).
+    // pitch, 0.925 roll with the plain solve; 0.969 pitch with issue 39's default priors,
+    // which let fewer shapes stand in for head pitch; py-feat's yaw has the opposite sign,
+    // and py-feat is another estimator, not the truth).
     let ours = keyshape_lab::io::read_columns(
         &d.path().join("p.csv"),
         &["yaw_deg", "pitch_deg", "roll_deg"],
     )
     .unwrap();
     let theirs = keyshape_lab::io::read_columns(&track, &["Yaw", "Pitch", "Roll"]).unwrap();
-    for (i, (lo, sign)) in [(0.97, -1.0), (0.97, 1.0), (0.92, 1.0)]
+    for (i, (lo, sign)) in [(0.97, -1.0), (0.96, 1.0), (0.92, 1.0)]
         .into_iter()
         .enumerate()
     {
@@ -582,6 +584,9 @@ fn kslab_rig_writes_weights_pose_and_live_link_and_its_options_take_effect() {
         vec!["--identity", "none"],
         vec!["--neutral", "0"],
         vec!["--min-determination", "0.2"],
+        vec!["--prior", "0"],
+        vec!["--zero-phase", "0"],
+        vec!["--live"],
         vec!["--identity-per", "clip"],
         vec!["--smooth", "100"],
         vec!["--neutral", "least-active"],

@@ -628,7 +628,7 @@ fn the_rig_view_names_the_largest_weights_and_r_toggles_it() {
     );
     // The lower panels describe the rig solve too (issue 41, item 8): the frame's largest
     // weights and the landmark error over time, with no key-shape chart, bars or key marks.
-    assert!(text.contains("over time: eyeLookIn jawOpen"), "{text}");
+    assert!(text.contains("over time: jawOpen mouthSmil"), "{text}");
     assert!(text.contains("landmark RMS over time"), "{text}");
     for key_shape_only in ["E(k)", "key frames", "◆"] {
         assert!(

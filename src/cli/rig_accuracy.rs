@@ -1,0 +1,170 @@
+//! `kslab rig-accuracy`: the rig accuracy benchmark (issue 39). Performances rendered
+//! through the rig from known weights are solved back with `kslab rig`'s solve, and every
+//! shape is measured against the truth.
+
+use super::solve::parse_solver;
+use anyhow::Result;
+use clap::Args;
+use keyshape_lab::io::{fmt_num, shared_data, write_atomic};
+use keyshape_lab::rig::accuracy::{self, Kind, Settings, ShapeAccuracy, Summary};
+use keyshape_lab::rig::{Identity, Rig, RigOptions};
+use keyshape_lab::solve::Solver;
+use serde_json::json;
+use std::path::PathBuf;
+
+/// Arguments of `kslab rig-accuracy`.
+#[derive(Debug, Args)]
+pub struct RigAccuracyArgs {
+    /// The rig (ICT FaceKit folder layout) [default: ../shared/data/ict_facekit_face].
+    #[arg(long, value_name = "DIR")]
+    rig: Option<PathBuf>,
+    /// The performance: smooth (a dozen shapes as overlapping smooth bumps), winks
+    /// (one-sided shapes alone to 1.0 in turn), blinks (both eyes to 1.0, often), speech
+    /// (fast jaw motion), or all four.
+    #[arg(long, default_value = "all", value_parser = ["smooth", "winks", "blinks", "speech", "all"])]
+    kind: String,
+    /// Frames of performance.
+    #[arg(long, default_value_t = 300, allow_negative_numbers = true)]
+    frames: usize,
+    /// Neutral frames before the performance (0: none).
+    #[arg(long, default_value_t = 20, allow_negative_numbers = true)]
+    lead_in: usize,
+    /// Landmark noise σ, pixels (at --iod).
+    #[arg(long, default_value_t = 0.5, allow_negative_numbers = true)]
+    noise: f64,
+    /// The inter-ocular distance the face is drawn at, pixels.
+    #[arg(long, default_value_t = 107.0, allow_negative_numbers = true)]
+    iod: f64,
+    /// Whose neutral face is rendered: `other` (a seeded deformation of the rig's: wider,
+    /// mouth lower, eyes apart, three bumps) or `same` (the rig's own).
+    #[arg(long, default_value = "other", value_parser = ["other", "same"])]
+    person: String,
+    /// Head yaw range, ± degrees.
+    #[arg(long, default_value_t = 18.0, allow_negative_numbers = true)]
+    yaw: f64,
+    /// Head pitch range, ± degrees.
+    #[arg(long, default_value_t = 9.0, allow_negative_numbers = true)]
+    pitch: f64,
+    /// Seed of the performance, the person and the noise.
+    #[arg(long, default_value_t = 7)]
+    seed: u64,
+    /// The solve's weights: bounded, nnls or ls (as `kslab rig`).
+    #[arg(long, default_value = "bounded", value_parser = parse_solver)]
+    solver: Solver,
+    /// As `kslab rig --identity`.
+    #[arg(long, default_value = "offset", value_parser = super::rig::parse_identity)]
+    identity: Identity,
+    /// As `kslab rig --min-determination`.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    min_determination: f64,
+    /// As `kslab rig --prior` (the magnitude prior, μ = PRIOR × IOD²).
+    #[arg(long, default_value_t = keyshape_lab::rig::RECOMMENDED_PRIOR, allow_negative_numbers = true)]
+    prior: f64,
+    /// As `kslab rig --zero-phase` (offline Gaussian σ, frames; 0 for the live solve).
+    #[arg(long, default_value_t = keyshape_lab::rig::RECOMMENDED_ZERO_PHASE, allow_negative_numbers = true)]
+    zero_phase: f64,
+    /// As `kslab rig --smooth` (causal prior λ).
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    smooth: f64,
+    /// Write every shape's measures here (CSV: kind, shape, active, r, mae, rmse,
+    /// peak_reach, twin_leakage, idle_activation, jitter, true_jitter, lag)
+    /// [default: not written].
+    #[arg(long, short)]
+    out: Option<PathBuf>,
+    /// Print the summaries as JSON.
+    #[arg(long)]
+    json: bool,
+}
+
+pub fn run(a: &RigAccuracyArgs) -> Result<()> {
+    super::check_outputs(&[a.out.as_ref()], &[], &[a.rig.as_deref()])?;
+    let dir = match &a.rig {
+        Some(d) => d.clone(),
+        None => shared_data("ict_facekit_face")?,
+    };
+    let rig = Rig::read_ict(&dir)?;
+    let kinds: Vec<Kind> = if a.kind == "all" {
+        Kind::ALL.to_vec()
+    } else {
+        vec![Kind::parse(&a.kind)?]
+    };
+    let opts = RigOptions {
+        solver: a.solver,
+        identity: a.identity,
+        min_determination: a.min_determination,
+        smooth: a.smooth,
+        prior: a.prior,
+        zero_phase: a.zero_phase,
+        ..Default::default()
+    };
+    let mut all: Vec<(Kind, Vec<ShapeAccuracy>, Summary)> = Vec::new();
+    for kind in kinds {
+        let st = Settings {
+            kind,
+            frames: a.frames,
+            lead_in: a.lead_in,
+            noise_px: a.noise,
+            iod_px: a.iod,
+            other_person: a.person == "other",
+            yaw_deg: a.yaw,
+            pitch_deg: a.pitch,
+            seed: a.seed,
+        };
+        let (_, _, rows, summary) = accuracy::run(&rig, &st, &opts)?;
+        all.push((kind, rows, summary));
+    }
+    if let Some(p) = &a.out {
+        write_atomic(p, |w| {
+            writeln!(w, "kind,shape,active,r,mae,rmse,peak_reach,twin_leakage,idle_activation,jitter,true_jitter,lag")?;
+            let opt = |v: Option<f64>| v.map_or(String::new(), fmt_num);
+            for (kind, rows, _) in &all {
+                for r in rows {
+                    writeln!(
+                        w,
+                        "{},{},{},{},{},{},{},{},{},{},{},{}",
+                        kind.name(),
+                        r.shape,
+                        r.active,
+                        if r.r.is_nan() {
+                            String::new()
+                        } else {
+                            fmt_num(r.r)
+                        },
+                        fmt_num(r.mae),
+                        fmt_num(r.rmse),
+                        opt(r.peak_reach),
+                        opt(r.twin_leakage),
+                        opt(r.idle_activation),
+                        fmt_num(r.jitter),
+                        fmt_num(r.true_jitter),
+                        r.lag.map_or(String::new(), |l| l.to_string()),
+                    )?;
+                }
+            }
+            Ok(())
+        })?;
+    }
+    if a.json {
+        let v: Vec<_> = all
+            .iter()
+            .map(|(k, _, s)| json!({"kind": k.name(), "summary": s}))
+            .collect();
+        outln!("{}", serde_json::to_string_pretty(&v)?);
+    } else {
+        for (k, _, s) in &all {
+            outln!(
+                "{:<7} mean r {:.3}  worst r {:.3} ({})  weight RMSE {:.3}  idle max {:.2} ({})  twin leakage max {:.2}  peak reach min {}",
+                k.name(),
+                s.mean_r,
+                s.worst_r,
+                s.worst_shape,
+                s.rmse,
+                s.max_idle,
+                s.max_idle_shape,
+                s.max_twin_leakage,
+                s.min_peak_reach.map_or("—".into(), |v| format!("{v:.2}")),
+            );
+        }
+    }
+    Ok(())
+}

