@@ -7,7 +7,7 @@ use anyhow::Result;
 use clap::Args;
 use keyshape_lab::io::{fmt_num, shared_data, write_atomic};
 use keyshape_lab::rig::accuracy::{self, Kind, Settings, ShapeAccuracy, Summary};
-use keyshape_lab::rig::{Identity, Rig, RigOptions};
+use keyshape_lab::rig::{Identity, Neutral, Rig, RigOptions};
 use keyshape_lab::solve::Solver;
 use serde_json::json;
 use std::path::PathBuf;
@@ -54,6 +54,10 @@ pub struct RigAccuracyArgs {
     /// As `kslab rig --identity`.
     #[arg(long, default_value = "offset", value_parser = super::rig::parse_identity)]
     identity: Identity,
+    /// The neutral frame: `auto` (as `kslab rig`), `least-active`, or `lead-in` (the middle
+    /// of the lead-in, where the truth is neutral: what a user who recorded one would name).
+    #[arg(long, default_value = "auto", value_parser = ["auto", "least-active", "lead-in"])]
+    neutral: String,
     /// As `kslab rig --min-determination`.
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     min_determination: f64,
@@ -71,13 +75,19 @@ pub struct RigAccuracyArgs {
     /// [default: not written].
     #[arg(long, short)]
     out: Option<PathBuf>,
+    /// Also write each kind's rendered track and truth here, for another solver to be
+    /// measured on the same tracks (`tools/rig_reference.py`): `<kind>_track.csv` (frame,
+    /// x0, y0 … x67, y67; image axes, y down) and `<kind>_truth.csv` (frame, one column per
+    /// rig shape) [default: not written].
+    #[arg(long, value_name = "DIR")]
+    tracks: Option<PathBuf>,
     /// Print the summaries as JSON.
     #[arg(long)]
     json: bool,
 }
 
 pub fn run(a: &RigAccuracyArgs) -> Result<()> {
-    super::check_outputs(&[a.out.as_ref()], &[], &[a.rig.as_deref()])?;
+    super::check_outputs(&[a.out.as_ref()], &[a.tracks.as_ref()], &[a.rig.as_deref()])?;
     let dir = match &a.rig {
         Some(d) => d.clone(),
         None => shared_data("ict_facekit_face")?,
@@ -88,7 +98,16 @@ pub fn run(a: &RigAccuracyArgs) -> Result<()> {
     } else {
         vec![Kind::parse(&a.kind)?]
     };
+    if a.neutral == "lead-in" && a.lead_in == 0 {
+        anyhow::bail!("--neutral lead-in needs a lead-in (--lead-in is 0)");
+    }
+    let neutral = match a.neutral.as_str() {
+        "least-active" => Neutral::LeastActive,
+        "lead-in" => Neutral::Column(a.lead_in / 2),
+        _ => Neutral::Auto,
+    };
     let opts = RigOptions {
+        neutral,
         solver: a.solver,
         identity: a.identity,
         min_determination: a.min_determination,
@@ -110,7 +129,10 @@ pub fn run(a: &RigAccuracyArgs) -> Result<()> {
             pitch_deg: a.pitch,
             seed: a.seed,
         };
-        let (_, _, rows, summary) = accuracy::run(&rig, &st, &opts)?;
+        let (track, _, rows, summary) = accuracy::run(&rig, &st, &opts)?;
+        if let Some(dir) = &a.tracks {
+            write_track(dir, kind, &rig, &track)?;
+        }
         all.push((kind, rows, summary));
     }
     if let Some(p) = &a.out {
@@ -166,5 +188,30 @@ pub fn run(a: &RigAccuracyArgs) -> Result<()> {
             );
         }
     }
+    Ok(())
+}
+
+/// `<kind>_track.csv` and `<kind>_truth.csv` in `dir`.
+fn write_track(dir: &std::path::Path, kind: Kind, rig: &Rig, t: &accuracy::Track) -> Result<()> {
+    keyshape_lab::io::create_dir_all(dir)?;
+    write_atomic(&dir.join(format!("{}_track.csv", kind.name())), |w| {
+        let head: Vec<String> = (0..t.points.nrows() / 2)
+            .map(|i| format!("x{i},y{i}"))
+            .collect();
+        writeln!(w, "frame,{}", head.join(","))?;
+        for f in 0..t.points.ncols() {
+            let row: Vec<String> = t.points.column(f).iter().map(|v| fmt_num(*v)).collect();
+            writeln!(w, "{f},{}", row.join(","))?;
+        }
+        Ok(())
+    })?;
+    write_atomic(&dir.join(format!("{}_truth.csv", kind.name())), |w| {
+        writeln!(w, "frame,{}", rig.names.join(","))?;
+        for f in 0..t.truth.ncols() {
+            let row: Vec<String> = t.truth.column(f).iter().map(|v| fmt_num(*v)).collect();
+            writeln!(w, "{f},{}", row.join(","))?;
+        }
+        Ok(())
+    })?;
     Ok(())
 }
