@@ -190,6 +190,13 @@ pub fn smoothing_plot(
             names.push(&r.approach);
         }
     }
+    // Nothing jitters more than no smoothing and is better for it: a setting past the
+    // unsmoothed jitter (One Euro at a high β) is cut at 5 % beyond it, so it does not
+    // squash the band where the approaches compete; its legend says how far it went.
+    let x_cap = rows
+        .iter()
+        .find(|r| r.approach == "none")
+        .map_or(f64::INFINITY, |r| 1.05 * r.jitter_target);
     let series = names
         .iter()
         .map(|n| {
@@ -213,8 +220,12 @@ pub fn smoothing_plot(
                     (r.jitter_target, y)
                 })
                 .collect();
+            let (points, left) = cut_at_x(points, x_cap);
             Series {
-                name: n.to_string(),
+                name: match left {
+                    Some(top) => format!("{n} (off right: jitter to {top:.2})"),
+                    None => n.to_string(),
+                },
                 points,
                 style,
                 color,
@@ -233,6 +244,25 @@ pub fn smoothing_plot(
         y_from_zero: true,
         y_at_least: None,
     }
+}
+
+/// A polyline cut where it first passes `x = cap` (the crossing kept, interpolated), and the
+/// largest x it reached beyond the cap, if it passed it.
+pub fn cut_at_x(points: Vec<(f64, f64)>, cap: f64) -> (Vec<(f64, f64)>, Option<f64>) {
+    let Some(i) = points.iter().position(|p| p.0 > cap) else {
+        return (points, None);
+    };
+    let top = points[i..]
+        .iter()
+        .map(|p| p.0)
+        .fold(f64::NEG_INFINITY, f64::max);
+    let mut kept = points[..i].to_vec();
+    if let Some(&(x0, y0)) = kept.last() {
+        let (x1, y1) = points[i];
+        let u = (cap - x0) / (x1 - x0);
+        kept.push((cap, y0 + u * (y1 - y0)));
+    }
+    (kept, Some(top))
 }
 
 /// One method's mean curve across a corpus with its 95 % interval: `(k, mean, lo, hi)`.
@@ -275,5 +305,53 @@ pub fn interval_plot(
         series: bands,
         y_from_zero: true,
         y_at_least: None,
+    }
+}
+
+#[cfg(test)]
+mod cut_tests {
+    use super::cut_at_x;
+
+    /// A curve that runs past the cap stops at the crossing; one that does not is whole.
+    #[test]
+    fn a_curve_is_cut_where_it_first_passes_the_cap() {
+        let (kept, top) = cut_at_x(vec![(1.0, 1.0), (0.5, 2.0), (2.0, 5.0), (3.0, 9.0)], 1.0);
+        assert_eq!(kept, vec![(1.0, 1.0), (0.5, 2.0), (1.0, 3.0)]);
+        assert_eq!(top, Some(3.0));
+        let whole = vec![(1.0, 1.0), (0.5, 2.0)];
+        assert_eq!(cut_at_x(whole.clone(), 1.0), (whole, None));
+    }
+
+    /// The smoothing plot ends 5 % past the unsmoothed jitter (issue 41, item 9): One Euro
+    /// at β = 0.5 jittering more than no smoothing no longer squashes the band where the
+    /// approaches compete, and its legend says where it went.
+    #[test]
+    fn the_smoothing_plot_ends_past_the_unsmoothed_jitter() {
+        use crate::experiment::smoothing::SmoothRow;
+        let row = |approach: &str, jitter: f64, err: f64| SmoothRow {
+            approach: approach.into(),
+            setting: String::new(),
+            source_rms: 0.0,
+            target_rms_tracked: err,
+            target_rms_clean: err,
+            jitter_target: jitter,
+            jitter_weights: 0.0,
+            lag_frames: 0,
+            kkt: None,
+        };
+        let rows = [
+            row("none", 1.4, 1.0),
+            row("ema", 0.5, 2.0),
+            row("one-euro beta 0.5", 1.2, 1.5),
+            row("one-euro beta 0.5", 2.0, 8.0),
+        ];
+        let spec = super::smoothing_plot(&rows, "t", false);
+        let ((_, x1), _) = spec.bounds().unwrap();
+        assert!((x1 - 1.05 * 1.4).abs() < 1e-12, "{x1}");
+        assert_eq!(
+            spec.series[2].name,
+            "one-euro beta 0.5 (off right: jitter to 2.00)"
+        );
+        assert_eq!(spec.series[1].name, "ema");
     }
 }

@@ -1349,25 +1349,14 @@ fn person_rig(rig: &Rig, track: &DMatrix<f64>, n: usize, id: Identity) -> Result
 /// Smooths the columns `clip` of `w` along time by a Gaussian of `sigma` frames (radius
 /// ⌈3σ⌉, the kernel renormalised where it passes the clip's ends): zero phase, no lag.
 pub fn zero_phase(w: &mut DMatrix<f64>, clip: Range<usize>, sigma: f64) {
-    let radius = (3.0 * sigma).ceil() as i64;
-    let kern: Vec<f64> = (-radius..=radius)
-        .map(|d| (-(d * d) as f64 / (2.0 * sigma * sigma)).exp())
-        .collect();
-    let src = w.columns(clip.start, clip.len()).into_owned();
-    let n = clip.len() as i64;
-    for t in 0..n {
-        let (mut acc, mut sum) = (nalgebra::DVector::zeros(w.nrows()), 0.0);
-        for d in -radius..=radius {
-            let u = t + d;
-            if (0..n).contains(&u) {
-                let k = kern[(d + radius) as usize];
-                acc += src.column(u as usize) * k;
-                sum += k;
-            }
-        }
-        w.column_mut(clip.start + t as usize)
-            .copy_from(&(acc / sum));
-    }
+    // The smoothing study's zero-phase low-pass, over this one clip.
+    let part = w.columns(clip.start, clip.len()).into_owned();
+    let smooth = crate::experiment::smoothing::gaussian_lowpass(
+        &part,
+        std::slice::from_ref(&(0..clip.len())),
+        sigma,
+    );
+    w.columns_mut(clip.start, clip.len()).copy_from(&smooth);
 }
 
 /// One pass over the frames with the shapes `free`, each clip with its person's rig (warm
