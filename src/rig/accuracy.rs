@@ -438,37 +438,20 @@ pub fn twin(rig_names: &[String], s: usize) -> Option<usize> {
     rig_names.iter().position(|m| *m == other)
 }
 
+/// The RMS second difference of one series (the house's jitter, one segment).
 fn rms2(x: &[f64]) -> f64 {
-    if x.len() < 3 {
-        return 0.0;
-    }
-    let s: f64 = x
-        .windows(3)
-        .map(|w| (w[2] - 2.0 * w[1] + w[0]).powi(2))
-        .sum();
-    (s / (x.len() - 2) as f64).sqrt()
+    let m = DMatrix::from_row_slice(1, x.len(), x);
+    crate::solve::jitter::weight_jitter(&m, std::slice::from_ref(&(0..x.len())))
 }
 
-/// The shift in −`max`..=`max` maximising the cross-correlation of `got` with `truth`
-/// (means removed): positive when `got` trails.
-fn lag(got: &[f64], truth: &[f64], max: i64) -> Option<i64> {
-    let n = got.len() as i64;
-    let mean = |x: &[f64]| x.iter().sum::<f64>() / x.len().max(1) as f64;
-    let (mg, mt) = (mean(got), mean(truth));
-    let mut best: Option<(f64, i64)> = None;
-    for d in -max..=max {
-        let mut c = 0.0;
-        for t in 0..n {
-            let u = t - d;
-            if (0..n).contains(&u) {
-                c += (got[t as usize] - mg) * (truth[u as usize] - mt);
-            }
-        }
-        if best.is_none_or(|(b, _)| c > b) {
-            best = Some((c, d));
-        }
-    }
-    best.filter(|(c, _)| *c > 0.0).map(|(_, d)| d)
+/// The shift in −`max`..=`max` frames by which `got` trails `truth` (the smoothing study's
+/// cross-correlation lag, one segment).
+fn lag(got: &[f64], truth: &[f64], max: i64) -> i64 {
+    let (a, b) = (
+        DMatrix::from_row_slice(1, got.len(), got),
+        DMatrix::from_row_slice(1, truth.len(), truth),
+    );
+    crate::experiment::smoothing::lag(&a, &b, std::slice::from_ref(&(0..got.len())), max)
 }
 
 /// Every shape's accuracy of `solved` against `truth` (both k × frames, rig order), and the
@@ -515,7 +498,7 @@ pub fn measure(
             idle_activation: (!active).then(|| g.iter().copied().fold(0.0, f64::max)),
             jitter: rms2(&g),
             true_jitter: rms2(&t),
-            lag: if active { lag(&g, &t, 10) } else { None },
+            lag: active.then(|| lag(&g, &t, 10)),
         });
     }
     let act: Vec<&ShapeAccuracy> = rows.iter().filter(|r| r.active).collect();
