@@ -95,9 +95,6 @@ impl Error {
                     ),
                 )
             }
-            csv::ErrorKind::Io(e) => {
-                return Error::io(path, std::io::Error::new(e.kind(), e.to_string()))
-            }
             _ => (0, format!("CSV error: {err}")),
         };
         Error::parse(path, line, column, message)

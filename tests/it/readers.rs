@@ -376,3 +376,28 @@ fn a_byte_order_mark_is_read_past_by_every_reader() {
         assert_eq!((seq.points, seq.coords[(3, 0)]), (2, 4.0), "{name}");
     }
 }
+
+/// A gzip file cut off mid-stream is the file's error, said as a gzip error with no
+/// made-up line or column (issue 41, item 15).
+#[test]
+fn a_gzip_cut_off_mid_stream_is_a_file_error() {
+    use std::io::Write;
+    let d = tempfile::tempdir().unwrap();
+    let mut text = String::from("frame,x0,y0,x1,y1\n");
+    for i in 0..20000 {
+        text += &format!("{i},{i},2,3,4\n");
+    }
+    let mut gz = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
+    gz.write_all(text.as_bytes()).unwrap();
+    let bytes = gz.finish().unwrap();
+    let p = d.path().join("cut.csv.gz");
+    std::fs::write(&p, &bytes[..bytes.len() / 2]).unwrap();
+    let r = crate::common::kslab(&["info", &p.display().to_string()]);
+    assert_eq!(r.code, 1);
+    assert!(
+        r.stderr.contains("cut.csv.gz: not a valid gzip file"),
+        "{}",
+        r.stderr
+    );
+    assert!(!r.stderr.contains("CSV error"), "{}", r.stderr);
+}
