@@ -17,7 +17,8 @@ use std::path::PathBuf;
 #[derive(Debug, Args)]
 pub struct RigArgs {
     /// A 68-point track in iBUG order (OpenFace, py-feat, .pts, plain CSV), or a MediaPipe
-    /// 468-point track (read through the built-in 468 → 68 correspondence), 2-D
+    /// track — Face Mesh's 468 points or Face Landmarker's 478 (with irises) — solved
+    /// through every point the rig covers (see --landmarks), 2-D
     /// [default: the built-in 216-frame MediaPipe sequence].
     file: Option<PathBuf>,
     /// Force the input format: mediapipe, openface, pyfeat, pts, json or csv [default:
@@ -36,11 +37,23 @@ pub struct RigArgs {
     /// beside this repository].
     #[arg(long, value_name = "DIR")]
     rig: Option<PathBuf>,
-    /// With a glTF/GLB --rig: a `landmark,vertex` CSV naming the mesh vertex of each of the
-    /// 68 iBUG landmarks (vertices counted across the mesh's primitives).
-    /// [default: none; required with a glTF rig, refused with a folder].
+    /// A `landmark,vertex` CSV of any length naming, for each track point the rig covers
+    /// (the tracker's numbering: iBUG 0–67, MediaPipe 0–477), the mesh vertex it sits on
+    /// (vertices counted across a glTF mesh's primitives); points it does not name are
+    /// left out of the solve
+    /// [default: required with a glTF rig; a folder's own landmarks_multipie68.csv for
+    /// 68-point tracks, and for MediaPipe tracks its landmarks_mediapipe468.csv or, on the
+    /// ICT face, the built-in dense correspondence].
     #[arg(long, value_name = "CSV")]
     rig_landmarks: Option<PathBuf>,
+    /// How a MediaPipe track meets the rig: `dense` (every point the rig covers: 462 of the
+    /// 468 on the ICT face, and with 478 points the two iris centres, which make eye gaze
+    /// visible) or `68` (the 68 iBUG points, through the built-in 468 → 68
+    /// correspondence; the path for comparing with iBUG trackers). Refused for a 68-point
+    /// track, which has only the one
+    /// [default: dense].
+    #[arg(long, value_name = "dense|68", value_parser = ["dense", "68"])]
+    landmarks: Option<String>,
     /// bounded (0 ≤ w ≤ 1, as rigs expect), nnls (w ≥ 0) or ls (unconstrained).
     #[arg(long, default_value = "bounded", value_parser = parse_solver)]
     solver: Solver,
@@ -178,44 +191,38 @@ pub fn run(a: &RigArgs) -> Result<()> {
     };
     let mut seq = seq;
     super::input::apply_image_size(&mut seq, a.image_size)?;
+    keyshape_lab::rig::correspondence::check_layout(seq.points)
+        .with_context(|| format!("{name}: kslab rig"))?;
     // (A `match` on a moved value: the 468-point track is freed once its 68 points are
     // taken, instead of living on under a shadowed name.)
-    let seq = match seq {
-        seq if seq.points == keyshape_lab::rig::LANDMARKS => seq,
-        seq if seq.points == 468 || seq.points == 478 => {
-            seq.select_points(&keyshape_lab::rig::mediapipe_to_ibug68()?)?
-        }
-        seq => anyhow::bail!(
-            "{name}: kslab rig needs 68-point tracks in iBUG order or MediaPipe tracks (468 Face Mesh points, or Face Landmarker's 478 with irises); this one has {} points",
-            seq.points
+    let seq = match (seq.points, a.landmarks.as_deref()) {
+        (68, Some("dense")) => anyhow::bail!(
+            "--landmarks dense applies to MediaPipe tracks; {name} has the 68 iBUG points only"
         ),
+        (68, _) | (_, None | Some("dense")) => seq,
+        _ => seq.select_points(&keyshape_lab::rig::mediapipe_to_ibug68()?)?,
     };
     seq.check_geometry()?;
     let dir = match &a.rig {
         Some(d) => d.clone(),
         None => shared_data("ict_facekit_face")?,
     };
-    if !dir.exists() {
+    if dir.is_file() && a.rig_landmarks.is_none() {
         anyhow::bail!(
-            "--rig {}: no such folder or file (a rig folder like ../shared/data/ict_facekit_face, or a .glb/.gltf with --rig-landmarks)",
+            "{}: a glTF rig needs --rig-landmarks CSV (landmark,vertex: the mesh vertex of each track point it covers)",
             dir.display()
         );
     }
-    let (mesh, morph, marks) = if dir.is_dir() {
-        if a.rig_landmarks.is_some() {
-            anyhow::bail!("--rig-landmarks applies to a glTF rig; {} is a folder, which names its own landmarks", dir.display());
-        }
-        Rig::read_ict_parts(&dir)
-            .with_context(|| format!("reading the rig in {}", dir.display()))?
-    } else {
-        let csv = a.rig_landmarks.as_ref().ok_or_else(|| {
-            anyhow::anyhow!("{}: a glTF rig needs --rig-landmarks CSV (landmark,vertex for the 68 iBUG landmarks)", dir.display())
-        })?;
-        let (mesh, morph) = keyshape_lab::rig::gltf_rig::read_gltf_mesh(&dir)?;
-        let marks = keyshape_lab::rig::read_landmark_vertices(csv, mesh.positions.len())?;
-        (mesh, morph, marks)
-    };
-    let rig = Rig::from_parts(&mesh.positions, &morph, &marks)?;
+    let (mesh, morph, rig) =
+        keyshape_lab::rig::correspondence::read_rig(&dir, seq.points, a.rig_landmarks.as_deref())
+            .with_context(|| format!("reading the rig {}", dir.display()))?;
+    if seq.points != 68 && a.landmark_weight.iter().any(|_| true) {
+        anyhow::bail!(
+            "--landmark-weight names iBUG-68 landmarks and groups; {name} is solved through {} MediaPipe points (use --landmarks 68 to weigh the 68)",
+            rig.landmarks()
+        );
+    }
+    let seq = seq.select_points(&rig.points)?;
     let neutral = match a.neutral.as_deref().map(str::trim) {
         None | Some("auto") => Neutral::Auto,
         Some("least-active") => Neutral::LeastActive,
@@ -343,6 +350,9 @@ pub fn run(a: &RigArgs) -> Result<()> {
                 (_, Neutral::Column(c)) => Some(seq.frames[c].to_string()),
             },
             "neutral_frames": neutral_frames,
+            "layout": rig.layout,
+            "landmarks": rig.landmarks(),
+            "irises": rig.sees_pupils(),
             "landmark_weights": opts.landmark_weights.to_vec(),
             "smooth": opts.smooth,
             "prior": opts.prior,
@@ -457,13 +467,11 @@ fn write_pngs(
     morph: &keyshape_lab::cosker::morph::MorphTargets,
 ) -> Result<()> {
     use keyshape_lab::render::face::{bounds_of, col, render_panels, Layer, Panel, ShadedMesh};
-    let layout = keyshape_lab::sequence::Layout::ibug68();
-    let all: Vec<usize> = (0..keyshape_lab::rig::LANDMARKS).collect();
-    let lines = keyshape_lab::retarget::setup::polylines_for(&layout, &all);
+    let lines = rig.polylines();
     let n = seq.n_frames();
     let (mut fitted, mut front) = (
-        nalgebra::DMatrix::zeros(2 * all.len(), n),
-        nalgebra::DMatrix::zeros(2 * all.len(), n),
+        nalgebra::DMatrix::zeros(2 * rig.landmarks(), n),
+        nalgebra::DMatrix::zeros(2 * rig.landmarks(), n),
     );
     for f in 0..n {
         let w: Vec<f64> = r.weights.column(f).iter().copied().collect();

@@ -18,6 +18,11 @@ pub struct RigAccuracyArgs {
     /// The rig (ICT FaceKit folder layout) [default: ../shared/data/ict_facekit_face].
     #[arg(long, value_name = "DIR")]
     rig: Option<PathBuf>,
+    /// The tracker's landmark set the performance is rendered at and solved from: 68 (iBUG),
+    /// 468 (MediaPipe Face Mesh, through the rig's dense correspondence) or 478 (Face
+    /// Landmarker: the 468 and the iris centres, which see eye gaze).
+    #[arg(long, default_value = "68", value_parser = ["68", "468", "478"])]
+    landmarks: String,
     /// The performance: smooth (a dozen shapes as overlapping smooth bumps), winks
     /// (one-sided shapes alone to 1.0 in turn), blinks (both eyes to 1.0, often), speech
     /// (fast jaw motion), or all four.
@@ -32,6 +37,15 @@ pub struct RigAccuracyArgs {
     /// Landmark noise σ, pixels (at --iod).
     #[arg(long, default_value_t = 0.5, allow_negative_numbers = true)]
     noise: f64,
+    /// Landmark noise σ as a percentage of the inter-ocular distance, instead of --noise
+    /// (0.5 px at 107 px is 0.47 %) [default: --noise].
+    #[arg(
+        long,
+        value_name = "PERCENT",
+        allow_negative_numbers = true,
+        conflicts_with = "noise"
+    )]
+    noise_iod: Option<f64>,
     /// The inter-ocular distance the face is drawn at, pixels.
     #[arg(long, default_value_t = 107.0, allow_negative_numbers = true)]
     iod: f64,
@@ -77,7 +91,8 @@ pub struct RigAccuracyArgs {
     out: Option<PathBuf>,
     /// Also write each kind's rendered track and truth here, for another solver to be
     /// measured on the same tracks (`tools/rig_reference.py`): `<kind>_track.csv` (frame,
-    /// x0, y0 … x67, y67; image axes, y down) and `<kind>_truth.csv` (frame, one column per
+    /// then x and y of each landmark, named by its track point: x0, y0 … x67, y67 for 68
+    /// points; image axes, y down) and `<kind>_truth.csv` (frame, one column per
     /// rig shape) [default: not written].
     #[arg(long, value_name = "DIR")]
     tracks: Option<PathBuf>,
@@ -92,7 +107,15 @@ pub fn run(a: &RigAccuracyArgs) -> Result<()> {
         Some(d) => d.clone(),
         None => shared_data("ict_facekit_face")?,
     };
-    let rig = Rig::read_ict(&dir)?;
+    let layout: usize = a.landmarks.parse()?;
+    let (_, _, rig) = keyshape_lab::rig::correspondence::read_rig(&dir, layout, None)?;
+    let noise = match a.noise_iod {
+        Some(p) if !(p.is_finite() && (0.0..=100.0).contains(&p)) => {
+            anyhow::bail!("--noise-iod {p}: give a percentage in [0, 100]")
+        }
+        Some(p) => p / 100.0 * a.iod,
+        None => a.noise,
+    };
     let kinds: Vec<Kind> = if a.kind == "all" {
         Kind::ALL.to_vec()
     } else {
@@ -122,7 +145,7 @@ pub fn run(a: &RigAccuracyArgs) -> Result<()> {
             kind,
             frames: a.frames,
             lead_in: a.lead_in,
-            noise_px: a.noise,
+            noise_px: noise,
             iod_px: a.iod,
             other_person: a.person == "other",
             yaw_deg: a.yaw,
@@ -195,9 +218,7 @@ pub fn run(a: &RigAccuracyArgs) -> Result<()> {
 fn write_track(dir: &std::path::Path, kind: Kind, rig: &Rig, t: &accuracy::Track) -> Result<()> {
     keyshape_lab::io::create_dir_all(dir)?;
     write_atomic(&dir.join(format!("{}_track.csv", kind.name())), |w| {
-        let head: Vec<String> = (0..t.points.nrows() / 2)
-            .map(|i| format!("x{i},y{i}"))
-            .collect();
+        let head: Vec<String> = rig.points.iter().map(|i| format!("x{i},y{i}")).collect();
         writeln!(w, "frame,{}", head.join(","))?;
         for f in 0..t.points.ncols() {
             let row: Vec<String> = t.points.column(f).iter().map(|v| fmt_num(*v)).collect();

@@ -78,7 +78,7 @@ pub fn run(a: &TuiArgs) -> Result<()> {
     let rig = match &a.rig {
         None => None,
         Some(d) => {
-            let rig = keyshape_lab::rig::Rig::read_ict(d)?;
+            let rig = keyshape_lab::rig::correspondence::RigSource::new(d);
             let view = keyshape_lab::tui::rig::rig_view(&seq, &rig)?;
             Some((rig, view))
         }

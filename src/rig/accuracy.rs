@@ -7,7 +7,7 @@
 //! agreement with another estimator (py-feat) is not it.
 
 use super::camera::Camera;
-use super::{solve_rig, Rig, RigOptions, LANDMARKS};
+use super::{solve_rig, Rig, RigOptions};
 use crate::cosker::intensity::correlation;
 use crate::error::{Error, Result};
 use nalgebra::DMatrix;
@@ -292,7 +292,10 @@ pub fn other_person(rig: &Rig, seed: u64) -> Rig {
     }
     let (width, height) = (hi[0] - lo[0], hi[1] - lo[1]);
     let cx = (lo[0] + hi[0]) / 2.0;
-    let iod = (n[45][0] - n[36][0]).abs();
+    let iod = rig
+        .eyes()
+        .map_or(0.3 * width, |[a, b]| (n[b][0] - n[a][0]).abs());
+    let (mouth, eyes) = parts(rig);
     let bumps: Vec<([f64; 2], f64, f64)> = (0..3)
         .map(|_| {
             (
@@ -305,10 +308,10 @@ pub fn other_person(rig: &Rig, seed: u64) -> Rig {
     let mut neutral = n.clone();
     for (i, p) in neutral.iter_mut().enumerate() {
         p[0] = cx + 1.08 * (p[0] - cx);
-        if (48..68).contains(&i) {
+        if mouth[i] {
             p[1] -= 0.03 * height;
         }
-        if (36..48).contains(&i) {
+        if eyes[i] {
             p[0] += 0.02 * iod * (p[0] - cx).signum();
         }
         for (c, r, a) in &bumps {
@@ -319,18 +322,46 @@ pub fn other_person(rig: &Rig, seed: u64) -> Rig {
         }
     }
     Rig {
-        names: rig.names.clone(),
         neutral,
-        deltas: rig.deltas.clone(),
+        ..rig.clone()
     }
+}
+
+/// Per landmark of `rig`: is it on the lips, is it on an eye (lids, corners, irises)? From
+/// the track layout: iBUG 48–67 and 36–47; MediaPipe's `lips`, eye and iris groups.
+fn parts(rig: &Rig) -> (Vec<bool>, Vec<bool>) {
+    let layout = crate::sequence::Layout::for_points(rig.layout);
+    let group = |names: &[&str]| -> Vec<usize> {
+        layout.as_ref().map_or(Vec::new(), |l| {
+            names
+                .iter()
+                .filter_map(|n| l.groups.get(*n))
+                .flat_map(|g| g.points.iter().copied())
+                .collect()
+        })
+    };
+    let (lips, eyes) = if rig.layout == 68 {
+        ((48..68).collect(), (36..48).collect())
+    } else {
+        (
+            group(&["lips"]),
+            group(&["left_eye", "right_eye", "left_iris", "right_iris"]),
+        )
+    };
+    (
+        rig.points.iter().map(|p| lips.contains(p)).collect(),
+        rig.points.iter().map(|p| eyes.contains(p)).collect(),
+    )
 }
 
 /// Renders the benchmark track of `st` through `rig`.
 pub fn render(rig: &Rig, st: &Settings) -> Result<Track> {
     st.check()?;
-    if rig.neutral.len() != LANDMARKS {
-        return Err(Error::invalid("the benchmark renders 68-landmark rigs"));
-    }
+    let Some([ea, eb]) = rig.eyes() else {
+        return Err(Error::invalid(
+            "the benchmark draws the face at an inter-ocular distance: the rig must read both outer eye corners",
+        ));
+    };
     let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(st.seed);
     let perf = performance(rig, st.kind, st.frames, &mut rng)?;
     let total = st.lead_in + st.frames;
@@ -342,11 +373,11 @@ pub fn render(rig: &Rig, st: &Settings) -> Result<Track> {
         rig.clone()
     };
     let iod = {
-        let (a, b) = (rig.neutral[36], rig.neutral[45]);
+        let (a, b) = (rig.neutral[ea], rig.neutral[eb]);
         ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt()
     };
     if iod.is_nan() || iod <= 0.0 {
-        return Err(Error::invalid("the rig's eye corners 36 and 45 coincide"));
+        return Err(Error::invalid("the rig's outer eye corners coincide"));
     }
     let scale = st.iod_px / iod;
     let cameras: Vec<Camera> = (0..total)

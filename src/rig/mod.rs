@@ -12,6 +12,7 @@
 
 pub mod accuracy;
 pub mod camera;
+pub mod correspondence;
 pub mod gltf_rig;
 pub mod livelink;
 pub mod study;
@@ -31,6 +32,7 @@ use std::path::Path;
 pub const LANDMARKS: usize = 68;
 
 pub use crate::sequence::mediapipe_to_ibug68;
+pub use correspondence::{read_correspondence, read_landmark_vertices};
 
 /// The `n` largest weights of one frame (at least 0.01), largest first, as "name .83"
 /// — what a picture of the frame names.
@@ -62,60 +64,11 @@ pub struct Rig {
     pub neutral: Vec<[f64; 3]>,
     /// Per shape, the landmarks' offsets from the neutral.
     pub deltas: Vec<Vec<[f64; 3]>>,
-}
-
-/// Reads a `landmark,vertex` CSV naming a vertex for each of the 68 landmarks exactly once;
-/// every vertex must be below `vertices`.
-pub fn read_landmark_vertices(path: &Path, vertices: usize) -> Result<Vec<usize>> {
-    let text = crate::io::read_text(path)?;
-    let mut rdr = csv::Reader::from_reader(text.as_bytes());
-    let mut lines = crate::error::LineCounter::new(text.as_bytes());
-    let mut out = vec![None; LANDMARKS];
-    for r in rdr.records() {
-        let r = r.map_err(|e| Error::csv_in(path, &e, text.as_bytes()))?;
-        let line = r.position().map_or(0, |p| lines.line_at(p.byte()));
-        let field = |c: usize| -> Result<usize> {
-            let v = r.get(c).unwrap_or("").trim();
-            v.parse::<usize>()
-                .map_err(|_| Error::parse(path, line, c as u64 + 1, format!("not an index: '{v}'")))
-        };
-        let (l, v) = (field(0)?, field(1)?);
-        if l >= LANDMARKS {
-            return Err(Error::parse(
-                path,
-                line,
-                1,
-                format!("landmark {l} is not one of the 68 (0–67)"),
-            ));
-        }
-        if v >= vertices {
-            return Err(Error::parse(
-                path,
-                line,
-                2,
-                format!("landmark {l} names vertex {v}, but the mesh has {vertices} vertices"),
-            ));
-        }
-        if out[l].replace(v).is_some() {
-            return Err(Error::parse(
-                path,
-                line,
-                1,
-                format!("landmark {l} is named twice"),
-            ));
-        }
-    }
-    let missing: Vec<String> = (0..LANDMARKS)
-        .filter(|&l| out[l].is_none())
-        .map(|l| l.to_string())
-        .collect();
-    if !missing.is_empty() {
-        return Err(Error::file(
-            path,
-            format!("no vertex for landmark(s) {}", missing.join(", ")),
-        ));
-    }
-    Ok(out.into_iter().flatten().collect())
+    /// Per landmark, the track point it is read from (the tracker's numbering: iBUG 0–67,
+    /// MediaPipe 0–477); the solve takes the track's points in this order.
+    pub points: Vec<usize>,
+    /// The track layout's point count (68, 468 or 478; see [`correspondence::LAYOUTS`]).
+    pub layout: usize,
 }
 
 impl Rig {
@@ -147,30 +100,52 @@ impl Rig {
         Ok((mesh, morph, marks))
     }
 
-    /// A rig from mesh positions, sparse morph targets and the landmark vertices.
+    /// A rig from mesh positions, sparse morph targets and the vertices of the 68 iBUG
+    /// landmarks, in landmark order.
     pub fn from_parts(
         positions: &[[f64; 3]],
         morph: &MorphTargets,
         marks: &[usize],
     ) -> Result<Rig> {
+        let pairs: Vec<(usize, usize)> = marks.iter().copied().enumerate().collect();
+        Rig::from_correspondence(positions, morph, 68, &pairs)
+    }
+
+    /// A rig reading a track of `layout` points (68, 468 or 478) through `pairs` (track
+    /// point, mesh vertex): each named point is the landmark at its vertex; the others are
+    /// left out.
+    pub fn from_correspondence(
+        positions: &[[f64; 3]],
+        morph: &MorphTargets,
+        layout: usize,
+        pairs: &[(usize, usize)],
+    ) -> Result<Rig> {
+        correspondence::check_against_track(pairs, layout, "the rig's correspondence")?;
+        if let Some(&(l, v)) = pairs.iter().find(|p| p.1 >= positions.len()) {
+            return Err(Error::invalid(format!(
+                "rig: landmark {l} names vertex {v}, but the mesh has {} vertices",
+                positions.len()
+            )));
+        }
+        let marks: Vec<usize> = pairs.iter().map(|p| p.1).collect();
         let neutral: Vec<[f64; 3]> = marks.iter().map(|&v| positions[v]).collect();
         for (l, p) in neutral.iter().enumerate() {
             if p.iter().any(|c| !c.is_finite()) {
                 return Err(Error::invalid(format!(
-                    "rig: landmark {l} (vertex {}) has a non-finite position",
-                    marks[l]
+                    "rig: landmark {} (vertex {}) has a non-finite position",
+                    pairs[l].0, marks[l]
                 )));
             }
         }
-        let mut at = vec![usize::MAX; positions.len()];
+        let mut at: Vec<Vec<usize>> = vec![Vec::new(); positions.len()];
         for (l, &v) in marks.iter().enumerate() {
-            at[v] = l;
+            at[v].push(l);
         }
         let mut deltas = vec![vec![[0.0; 3]; marks.len()]; morph.names.len()];
         for (s, d) in morph.deltas.iter().enumerate() {
             for &(v, o) in d {
-                if at[v] != usize::MAX {
-                    deltas[s][at[v]] = o;
+                for &l in at.get(v).map_or(&[][..], Vec::as_slice) {
+                    deltas[s][l] = o;
                 }
             }
         }
@@ -184,7 +159,31 @@ impl Rig {
             names: morph.names.clone(),
             neutral,
             deltas,
+            points: pairs.iter().map(|p| p.0).collect(),
+            layout,
         })
+    }
+
+    /// Number of landmarks.
+    pub fn landmarks(&self) -> usize {
+        self.neutral.len()
+    }
+
+    /// The landmarks (indices into [`Rig::neutral`]) of the outer eye corners, subject's
+    /// right then left, if the rig reads both.
+    pub fn eyes(&self) -> Option<[usize; 2]> {
+        let [a, b] = correspondence::eye_corners(self.layout)?;
+        let at = |p: usize| self.points.iter().position(|&q| q == p);
+        Some([at(a)?, at(b)?])
+    }
+
+    /// Does the rig read an iris centre (so eye gaze moves its landmarks)?
+    pub fn sees_pupils(&self) -> bool {
+        self.layout == 478
+            && self
+                .points
+                .iter()
+                .any(|p| correspondence::IRIS_CENTRES.contains(p))
     }
 
     /// Number of shapes.
@@ -211,7 +210,7 @@ impl Rig {
     /// Renders a 2-D track (image axes, y down) of the rig posed by `weights` (k × frames)
     /// under per-frame cameras: the oracle of the recovery tests and the synthetic study.
     pub fn render(&self, weights: &DMatrix<f64>, cams: &[Camera]) -> DMatrix<f64> {
-        let mut out = DMatrix::zeros(2 * LANDMARKS, weights.ncols());
+        let mut out = DMatrix::zeros(2 * self.landmarks(), weights.ncols());
         for f in 0..weights.ncols() {
             let w: Vec<f64> = weights.column(f).iter().copied().collect();
             for (i, p) in self.posed(&w).iter().enumerate() {
@@ -532,20 +531,40 @@ impl Blocks {
             }
         }
         for (p, o) in out.iter_mut().enumerate().take(self.k) {
-            let row = &self.d[p * n * 3..(p + 1) * n * 3];
-            *o = row.iter().zip(&v).map(|(x, y)| x * y).sum();
+            *o = dot(&self.d[p * n * 3..(p + 1) * n * 3], &v);
         }
     }
 }
 
-/// The track's median distance between the outer eye corners (landmarks 36 and 45), the
-/// scale the magnitude prior is given in.
-pub fn track_iod(track: &DMatrix<f64>) -> f64 {
+/// `Σ aᵢ bᵢ` over equal-length slices, in four running sums (which the compiler keeps in
+/// vector registers; one running sum would serialise every addition).
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    let (ca, cb) = (a.chunks_exact(4), b.chunks_exact(4));
+    let tail: f64 = ca
+        .remainder()
+        .iter()
+        .zip(cb.remainder())
+        .map(|(x, y)| x * y)
+        .sum();
+    let mut acc = [0.0; 4];
+    for (x, y) in ca.zip(cb) {
+        for k in 0..4 {
+            acc[k] += x[k] * y[k];
+        }
+    }
+    (acc[0] + acc[1]) + (acc[2] + acc[3]) + tail
+}
+
+/// The track's median distance between the outer eye corners (`eyes`: the two landmarks,
+/// as [`Rig::eyes`] gives them; iBUG 36 and 45 on a 68-point track), the scale the
+/// magnitude prior is given in.
+pub fn track_iod(track: &DMatrix<f64>, eyes: [usize; 2]) -> f64 {
+    let [a, b] = eyes;
     let mut d: Vec<f64> = (0..track.ncols())
         .map(|f| {
             let (dx, dy) = (
-                track[(2 * 45, f)] - track[(2 * 36, f)],
-                track[(2 * 45 + 1, f)] - track[(2 * 36 + 1, f)],
+                track[(2 * b, f)] - track[(2 * a, f)],
+                track[(2 * b + 1, f)] - track[(2 * a + 1, f)],
             );
             (dx * dx + dy * dy).sqrt()
         })
@@ -554,9 +573,10 @@ pub fn track_iod(track: &DMatrix<f64>) -> f64 {
     d.get(d.len() / 2).copied().unwrap_or(0.0)
 }
 
-/// How much more the magnitude prior holds the gaze shapes (`eyeLook*`): 68 landmarks have
-/// no pupils, so eye gaze does not move them except through the lids, and a free gaze
-/// shape explains lid and brow motion instead of the shapes that made it.
+/// How much more the magnitude prior holds the gaze shapes (`eyeLook*`) when the rig reads
+/// no iris (iBUG 68, MediaPipe 468): eye gaze then moves the landmarks only through the
+/// lids, and a free gaze shape explains lid and brow motion instead of the shapes that made
+/// it. With iris centres (478 points) the gaze shapes are held like any other.
 pub const GAZE_DAMPING: f64 = 100.0;
 
 /// Is this a gaze shape (ARKit's eyeLookIn/Out/Up/Down)?
@@ -598,10 +618,15 @@ fn exclusive_pairs(rig: &Rig, free: &[usize], ridge: &[f64]) -> Vec<(usize, usiz
 /// Per free shape (`free`, rig order), the magnitude prior's μ: `opts.prior × IOD²`, times
 /// [`GAZE_DAMPING`] for gaze shapes.
 fn magnitude_prior(track: &DMatrix<f64>, opts: &RigOptions, rig: &Rig, free: &[usize]) -> Vec<f64> {
-    let mu = opts.prior * track_iod(track).powi(2);
+    let mu = match rig.eyes() {
+        Some(eyes) => opts.prior * track_iod(track, eyes).powi(2),
+        // solve_rig refuses a prior without the eye corners.
+        None => 0.0,
+    };
+    let damp = !rig.sees_pupils();
     free.iter()
         .map(|&s| {
-            if is_gaze(&rig.names[s]) {
+            if damp && is_gaze(&rig.names[s]) {
                 GAZE_DAMPING * mu
             } else {
                 mu
@@ -612,7 +637,7 @@ fn magnitude_prior(track: &DMatrix<f64>, opts: &RigOptions, rig: &Rig, free: &[u
 
 /// The track's frame `f` as image points with y up.
 fn frame_points(track: &DMatrix<f64>, f: usize) -> Vec<[f64; 2]> {
-    (0..LANDMARKS)
+    (0..track.nrows() / 2)
         .map(|i| [track[(2 * i, f)], -track[(2 * i + 1, f)]])
         .collect()
 }
@@ -642,13 +667,7 @@ struct FrameSolver<'a> {
 }
 
 impl<'a> FrameSolver<'a> {
-    fn new(
-        rig: &'a Rig,
-        free: Vec<usize>,
-        solver: Solver,
-        max_steps: usize,
-        lw: &[f64; LANDMARKS],
-    ) -> Self {
+    fn new(rig: &'a Rig, free: Vec<usize>, solver: Solver, max_steps: usize, lw: &[f64]) -> Self {
         let sub: Vec<Vec<[f64; 3]>> = free.iter().map(|&s| rig.deltas[s].clone()).collect();
         let m = free.len();
         FrameSolver {
@@ -693,7 +712,15 @@ impl<'a> FrameSolver<'a> {
 
     /// The plain squared landmark error (what is reported).
     fn sq_error(&self, cam: &Camera, u: &[[f64; 2]]) -> f64 {
-        self.sq_error_with(cam, u, &[1.0; LANDMARKS])
+        let posed = self.rig.posed(&self.full_weights());
+        posed
+            .iter()
+            .zip(u)
+            .map(|(p, q)| {
+                let e = cam.project(p);
+                (e[0] - q[0]).powi(2) + (e[1] - q[1]).powi(2)
+            })
+            .sum()
     }
 
     /// What the steps minimise: the weighted squared landmark error plus the prior's term.
@@ -732,18 +759,25 @@ impl<'a> FrameSolver<'a> {
     fn step(&mut self, cam: &Camera, u: &[[f64; 2]]) -> Camera {
         let m = self.free.len();
         let x = self.rig.posed(&self.full_weights());
-        let n = LANDMARKS;
+        let n = u.len();
         let r = &cam.r;
-        // Residual of the current fit, plus A·w (so the model is linear in w itself).
-        let mut res = vec![[0.0; 2]; n];
-        for i in 0..n {
-            let e = cam.project(&x[i]);
-            res[i] = [u[i][0] - e[0], u[i][1] - e[1]];
-        }
-        // Camera Jacobian rows (2 per landmark) and A = s R₂ D (2 per landmark, m columns).
-        let mut jc = vec![[0.0; 6]; 2 * n];
+        let lw = &self.blocks.lw;
+        // The model is linear in w: the right side is the residual plus A·w, and with
+        // A·w = s R₂ (x − N) that is the residual of the neutral, u − proj(N).
+        //
+        // Hcw = Jᵀ W A and bw = Aᵀ W r never form A (2 per landmark × m): each of the
+        // camera's six Jacobian rows, and the right side, is pulled back through s R₂ onto
+        // the rig's coordinates (`v`, 7 rows of 3 per landmark), and then met with every
+        // shape's deltas in one contiguous dot product.
+        let mut hcc = nalgebra::Matrix6::<f64>::zeros();
+        let mut bc = nalgebra::Vector6::<f64>::zeros();
+        let len = 3 * n;
+        let mut v = vec![0.0; 7 * len];
         for i in 0..n {
             let p = x[i];
+            let e = cam.project(&self.rig.neutral[i]);
+            let rhs = [u[i][0] - e[0], u[i][1] - e[1]];
+            let wi = lw[i];
             for row in 0..2 {
                 let rr = [r[(row, 0)], r[(row, 1)], r[(row, 2)]];
                 // ∂/∂ω of s·rr·(I + [ω]×)p = s·rr·(ω × p) = s·(p × rr)·ω.
@@ -753,7 +787,7 @@ impl<'a> FrameSolver<'a> {
                     p[0] * rr[1] - p[1] * rr[0],
                 ];
                 let proj = rr[0] * p[0] + rr[1] * p[1] + rr[2] * p[2];
-                jc[2 * i + row] = [
+                let j = [
                     proj,
                     cam.s * c[0],
                     cam.s * c[1],
@@ -761,65 +795,35 @@ impl<'a> FrameSolver<'a> {
                     if row == 0 { 1.0 } else { 0.0 },
                     if row == 1 { 1.0 } else { 0.0 },
                 ];
+                for a in 0..6 {
+                    bc[a] += wi * j[a] * rhs[row];
+                    for b in 0..6 {
+                        hcc[(a, b)] += wi * j[a] * j[b];
+                    }
+                    let f = wi * cam.s * j[a];
+                    if f != 0.0 {
+                        let at = a * len + 3 * i;
+                        for (o, q) in v[at..at + 3].iter_mut().zip(&rr) {
+                            *o += f * q;
+                        }
+                    }
+                }
+                let f = wi * cam.s * rhs[row];
+                let at = 6 * len + 3 * i;
+                for (o, q) in v[at..at + 3].iter_mut().zip(&rr) {
+                    *o += f * q;
+                }
             }
         }
         let d = &self.blocks.d;
-        let mut a = vec![0.0; 2 * n * m];
-        for j in 0..m {
-            let dj = &d[j * n * 3..(j + 1) * n * 3];
-            for i in 0..n {
-                for row in 0..2 {
-                    a[(2 * i + row) * m + j] = cam.s
-                        * (r[(row, 0)] * dj[3 * i]
-                            + r[(row, 1)] * dj[3 * i + 1]
-                            + r[(row, 2)] * dj[3 * i + 2]);
-                }
-            }
-        }
-        // Right side r = res + A w.
-        let mut rhs = vec![0.0; 2 * n];
-        for i in 0..2 * n {
-            let aw: f64 = a[i * m..(i + 1) * m]
-                .iter()
-                .zip(&self.w)
-                .map(|(x, y)| x * y)
-                .sum();
-            rhs[i] = res[i / 2][i % 2] + aw;
-        }
-        // The landmark weights: every row of landmark i scaled by √wᵢ (the weights' Gram
-        // `self.blocks.gram` has them already).
-        for i in 0..2 * n {
-            let sw = self.blocks.lw[i / 2].sqrt();
-            if sw != 1.0 {
-                rhs[i] *= sw;
-                jc[i].iter_mut().for_each(|v| *v *= sw);
-                a[i * m..(i + 1) * m].iter_mut().for_each(|v| *v *= sw);
-            }
-        }
-        let mut hcc = nalgebra::Matrix6::<f64>::zeros();
-        let mut bc = nalgebra::Vector6::<f64>::zeros();
-        // Hcw = Jᵀ A, row-major 6 × m; bw = Aᵀ r.
         let mut hcw_flat = vec![0.0; 6 * m];
         let mut bw = vec![0.0; m];
-        for i in 0..2 * n {
-            let ji = &jc[i];
-            let ai = &a[i * m..(i + 1) * m];
-            let ri = rhs[i];
+        for j in 0..m {
+            let dj = &d[j * len..(j + 1) * len];
             for p in 0..6 {
-                bc[p] += ji[p] * ri;
-                for q in 0..6 {
-                    hcc[(p, q)] += ji[p] * ji[q];
-                }
-                let jp = ji[p];
-                if jp != 0.0 {
-                    for (h, &aij) in hcw_flat[p * m..(p + 1) * m].iter_mut().zip(ai) {
-                        *h += jp * aij;
-                    }
-                }
+                hcw_flat[p * m + j] = dot(&v[p * len..(p + 1) * len], dj);
             }
-            for (b, &aij) in bw.iter_mut().zip(ai) {
-                *b += aij * ri;
-            }
+            bw[j] = dot(&v[6 * len..7 * len], dj);
         }
         let hcw = DMatrix::from_row_slice(6, m, &hcw_flat);
         let mut g = vec![0.0; m * m];
@@ -975,7 +979,7 @@ impl<'a> FrameSolver<'a> {
 /// determination is then `1 / (Gₖₖ (G⁻¹)ₖₖ)` against every taken shape but itself (for a
 /// frozen shape: against all taken shapes).
 pub fn identifiability(rig: &Rig, cam: &Camera, min_det: f64) -> Vec<ShapeReport> {
-    identifiability_weighted(rig, cam, min_det, &[1.0; LANDMARKS])
+    identifiability_weighted(rig, cam, min_det, &vec![1.0; rig.landmarks()])
 }
 
 /// [`identifiability`] with each landmark's squared motion weighted by `lw` (as the solve
@@ -984,7 +988,7 @@ pub fn identifiability_weighted(
     rig: &Rig,
     cam: &Camera,
     min_det: f64,
-    lw: &[f64; LANDMARKS],
+    lw: &[f64],
 ) -> Vec<ShapeReport> {
     let k = rig.k();
     let blocks = Blocks::new(&rig.deltas, lw);
@@ -1061,10 +1065,11 @@ pub fn solve_rig(
     clips: &[Range<usize>],
     opts: &RigOptions,
 ) -> Result<RigSolve> {
-    if track.nrows() != 2 * LANDMARKS {
+    let n = rig.landmarks();
+    if track.nrows() != 2 * n {
         return Err(Error::invalid(format!(
-            "a rig solve needs 68-point 2-D tracks (iBUG order); this one has {} points",
-            track.nrows() / 2
+            "the rig reads {n} landmarks (2-D), but the track has {} rows: select the rig's points (Rig::points) from the track first",
+            track.nrows(),
         )));
     }
     if track.ncols() == 0 {
@@ -1081,7 +1086,7 @@ pub fn solve_rig(
         .find(|&c| crate::sequence::degenerate_shape(track.column(c).as_slice(), 2))
     {
         return Err(Error::invalid(format!(
-            "frame column {c}: all {LANDMARKS} landmarks coincide, so no camera can be fitted to it"
+            "frame column {c}: all {n} landmarks coincide, so no camera can be fitted to it"
         )));
     }
     if !(opts.min_determination >= 0.0 && opts.min_determination < 1.0) {
@@ -1118,7 +1123,14 @@ pub fn solve_rig(
             "landmark {i}'s weight must be a finite number ≥ 0, not {w}"
         )));
     }
-    let weighted = opts.landmark_weights.iter().filter(|w| **w > 0.0).count();
+    let lw = rig_landmark_weights(rig, opts)?;
+    if opts.prior > 0.0 && rig.eyes().is_none() {
+        let [a, b] = correspondence::eye_corners(rig.layout).unwrap_or([36, 45]);
+        return Err(Error::invalid(format!(
+            "the magnitude prior is scaled by the outer eye corners (track points {a} and {b}), which the rig's correspondence leaves out: name them, or set the prior to 0"
+        )));
+    }
+    let weighted = lw.iter().filter(|w| **w > 0.0).count();
     if weighted < 4 {
         return Err(Error::invalid(format!(
             "the landmark weights leave {weighted} landmarks with weight > 0; the head pose needs at least 4"
@@ -1153,6 +1165,7 @@ pub fn solve_rig(
             &[(0..track.ncols(), rig.clone())],
             all,
             opts,
+            &lw,
         )?),
         _ => None,
     };
@@ -1177,7 +1190,7 @@ pub fn solve_rig(
                 for c in clips {
                     let n = match first {
                         Some(first) if auto == Neutral::LeastActive => least_active(c, first),
-                        _ => best_explaining(rig, track, c.clone(), opts)?,
+                        _ => best_explaining(rig, track, c.clone(), opts, &lw)?,
                     };
                     people.push((c.clone(), person_rig(rig, track, n, id)?));
                     neutrals.push(n);
@@ -1192,18 +1205,32 @@ pub fn solve_rig(
         (None, Some(first)) => first.cameras[0],
         (None, None) => fit_camera(&rig.neutral, &frame_points(track, 0))?,
     };
-    let shapes = identifiability_weighted(
-        &people[0].1,
-        &cam_n,
-        opts.min_determination,
-        &opts.landmark_weights,
-    );
+    let shapes = identifiability_weighted(&people[0].1, &cam_n, opts.min_determination, &lw);
     let free: Vec<usize> = (0..rig.k()).filter(|&s| !shapes[s].frozen).collect();
-    let mut out = run(rig, track, &people, free, opts)?;
+    let mut out = run(rig, track, &people, free, opts, &lw)?;
     out.shapes = shapes;
     out.neutrals = neutrals;
     out.people = people;
     Ok(out)
+}
+
+/// Per landmark, the weight of its squared error: `opts.landmark_weights` (iBUG numbering)
+/// read at the rig's points on a 68-point layout; on other layouts they must all be 1.
+fn rig_landmark_weights(rig: &Rig, opts: &RigOptions) -> Result<Vec<f64>> {
+    if rig.layout == LANDMARKS {
+        return Ok(rig
+            .points
+            .iter()
+            .map(|&p| opts.landmark_weights.get(p).copied().unwrap_or(1.0))
+            .collect());
+    }
+    if opts.landmark_weights.iter().any(|&w| w != 1.0) {
+        return Err(Error::invalid(format!(
+            "landmark weights name the 68 iBUG landmarks; this rig reads a {}-point track",
+            rig.layout
+        )));
+    }
+    Ok(vec![1.0; rig.landmarks()])
 }
 
 /// Neutral candidates tried per clip by [`Neutral::Auto`] (all frames of shorter clips).
@@ -1235,6 +1262,7 @@ fn best_explaining(
     track: &DMatrix<f64>,
     clip: Range<usize>,
     opts: &RigOptions,
+    lw: &[f64],
 ) -> Result<usize> {
     use rayon::prelude::*;
     let candidates = evenly_spaced(clip.clone(), NEUTRAL_CANDIDATES);
@@ -1244,29 +1272,17 @@ fn best_explaining(
         .map(|&n| -> Result<(usize, f64)> {
             let person = person_rig(rig, track, n, opts.identity)?;
             let cam = fit_camera(&person.neutral, &frame_points(track, n))?;
-            let shapes = identifiability_weighted(
-                &person,
-                &cam,
-                opts.min_determination,
-                &opts.landmark_weights,
-            );
+            let shapes = identifiability_weighted(&person, &cam, opts.min_determination, lw);
             let free: Vec<usize> = (0..rig.k()).filter(|&s| !shapes[s].frozen).collect();
-            let mut fs = FrameSolver::new(
-                &person,
-                free,
-                opts.solver,
-                opts.max_steps.max(1),
-                &opts.landmark_weights,
-            );
+            let mut fs = FrameSolver::new(&person, free, opts.solver, opts.max_steps.max(1), lw);
             fs.ridge = magnitude_prior(track, opts, rig, &fs.free);
-            fs.pairs = exclusive_pairs(rig, &fs.free, &fs.ridge);
             fs.pairs = exclusive_pairs(rig, &fs.free, &fs.ridge);
             let mut total = 0.0;
             for &f in &scored {
                 let u = frame_points(track, f);
                 fs.solve(&u)?;
                 let cam = fs.cam.unwrap_or(cam);
-                total += fs.sq_error_with(&cam, &u, &opts.landmark_weights);
+                total += fs.sq_error_with(&cam, &u, lw);
             }
             Ok((n, total))
         })
@@ -1305,9 +1321,8 @@ fn person_rig(rig: &Rig, track: &DMatrix<f64>, n: usize, id: Identity) -> Result
         }
     }
     let mut person = Rig {
-        names: rig.names.clone(),
         neutral,
-        deltas: rig.deltas.clone(),
+        ..rig.clone()
     };
     if id == Identity::Rbf {
         // The RBF interpolates the identity's displacement (person − rig at the landmarks),
@@ -1367,19 +1382,15 @@ fn run(
     people: &[(Range<usize>, Rig)],
     free: Vec<usize>,
     opts: &RigOptions,
+    lw: &[f64],
 ) -> Result<RigSolve> {
     let frames = track.ncols();
+    let n = rig.landmarks();
     let mut weights = DMatrix::zeros(rig.k(), frames);
     let (mut cameras, mut rms, mut steps) = (Vec::new(), Vec::new(), Vec::new());
     let mut unconverged = 0;
     for (clip, person) in people {
-        let mut fs = FrameSolver::new(
-            person,
-            free.clone(),
-            opts.solver,
-            opts.max_steps.max(1),
-            &opts.landmark_weights,
-        );
+        let mut fs = FrameSolver::new(person, free.clone(), opts.solver, opts.max_steps.max(1), lw);
         fs.lambda = opts.smooth;
         fs.ridge = magnitude_prior(track, opts, rig, &fs.free);
         fs.pairs = exclusive_pairs(rig, &fs.free, &fs.ridge);
@@ -1388,7 +1399,7 @@ fn run(
             let (it, ok, e) = fs.solve(&u)?;
             unconverged += usize::from(!ok);
             steps.push(it);
-            rms.push((e / LANDMARKS as f64).sqrt());
+            rms.push((e / n as f64).sqrt());
             let w = fs.full_weights();
             if w.iter().any(|v| !v.is_finite()) {
                 return Err(Error::invalid(format!(
@@ -1419,7 +1430,7 @@ fn run(
                         (x[0] - q[0]).powi(2) + (x[1] - q[1]).powi(2)
                     })
                     .sum();
-                rms[f] = (e / LANDMARKS as f64).sqrt();
+                rms[f] = (e / n as f64).sqrt();
             }
         }
     }

@@ -354,7 +354,7 @@ pub fn spawn(seq: Sequence, target: Option<TargetSet>) -> (Sender<Job>, Receiver
 pub fn spawn_with_rig(
     seq: Sequence,
     target: Option<TargetSet>,
-    rig: Option<std::sync::Arc<crate::rig::Rig>>,
+    rig: Option<std::sync::Arc<crate::rig::correspondence::RigSource>>,
 ) -> (Sender<Job>, Receiver<Action>) {
     spawn_lab(seq, target, rig, None)
 }
@@ -382,7 +382,7 @@ pub fn load_sized(path: &str, image_size: Option<(f64, f64)>) -> Result<Sequence
 pub fn spawn_lab(
     seq: Sequence,
     target: Option<TargetSet>,
-    rig: Option<std::sync::Arc<crate::rig::Rig>>,
+    rig: Option<std::sync::Arc<crate::rig::correspondence::RigSource>>,
     image_size: Option<(f64, f64)>,
 ) -> (Sender<Job>, Receiver<Action>) {
     let (jobs_tx, jobs_rx) = channel::<Job>();

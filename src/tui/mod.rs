@@ -176,7 +176,7 @@ pub fn run(
     path: &str,
     target: Option<crate::retarget::target::TargetSet>,
     mesh: Option<mesh::MeshView>,
-    rig: Option<(crate::rig::Rig, rig::RigView)>,
+    rig: Option<(crate::rig::correspondence::RigSource, rig::RigView)>,
     export_head_motion: bool,
 ) -> anyhow::Result<()> {
     run_sized(seq, path, target, mesh, rig, export_head_motion, None)
@@ -189,7 +189,7 @@ pub fn run_sized(
     path: &str,
     target: Option<crate::retarget::target::TargetSet>,
     mesh: Option<mesh::MeshView>,
-    rig: Option<(crate::rig::Rig, rig::RigView)>,
+    rig: Option<(crate::rig::correspondence::RigSource, rig::RigView)>,
     export_head_motion: bool,
     image_size: Option<(f64, f64)>,
 ) -> anyhow::Result<()> {

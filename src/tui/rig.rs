@@ -3,8 +3,9 @@
 //! posed rig's under the fitted head pose, and the rig's weights as named bars.
 
 use crate::error::{Error, Result};
-use crate::rig::{mediapipe_to_ibug68, solve_rig, Rig, RigOptions, LANDMARKS};
-use crate::sequence::{Layout, Sequence};
+use crate::rig::correspondence::{check_layout, RigSource};
+use crate::rig::{solve_rig, RigOptions};
+use crate::sequence::Sequence;
 
 /// What the lab draws of a rig solve.
 #[derive(Debug, Clone)]
@@ -13,30 +14,25 @@ pub struct RigView {
     pub names: Vec<String>,
     /// Per frame, every shape's weight.
     pub weights: Vec<Vec<f64>>,
-    /// Per frame, the tracked 68 landmarks (x, y up).
+    /// Per frame, the tracked landmarks the rig reads (x, y up).
     pub tracked: Vec<Vec<[f64; 2]>>,
     /// Per frame, the posed rig's landmarks under the fitted head pose (x, y up).
     pub fitted: Vec<Vec<[f64; 2]>>,
     /// Per frame, RMS landmark error (track units).
     pub rms: Vec<f64>,
-    /// iBUG-68 contours.
+    /// The track layout's contours through them.
     pub polylines: Vec<Vec<usize>>,
     /// x and y bounds over all frames of both.
     pub bounds: ([f64; 2], [f64; 2]),
 }
 
-/// Solves `seq` (68 points, or MediaPipe 468 through the built-in correspondence) onto
-/// `rig` with the default options (bounded, offset identity, automatic neutral).
-pub fn rig_view(seq: &Sequence, rig: &Rig) -> Result<RigView> {
-    let seq = match seq.points {
-        LANDMARKS => seq.clone(),
-        468 | 478 => seq.select_points(&mediapipe_to_ibug68()?)?,
-        n => {
-            return Err(Error::invalid(format!(
-                "--rig needs a 68-point or MediaPipe (468 or 478-point) track, not {n} points"
-            )))
-        }
-    };
+/// Solves `seq` (68 points, or MediaPipe 468 / 478 through every point the rig covers) onto
+/// the rig `source` names, with `kslab rig`'s offline defaults ([`RigOptions::recommended`]).
+pub fn rig_view(seq: &Sequence, source: &RigSource) -> Result<RigView> {
+    check_layout(seq.points).map_err(|e| Error::invalid(format!("--rig: {e}")))?;
+    let (_, _, rig) = source.read_for(seq.points)?;
+    let seq = seq.select_points(&rig.points)?;
+    let rig = &rig;
     if seq.dims != 2 {
         return Err(Error::invalid("--rig needs a 2-D track"));
     }
@@ -53,7 +49,7 @@ pub fn rig_view(seq: &Sequence, rig: &Rig) -> Result<RigView> {
     };
     for f in 0..n {
         let w: Vec<f64> = r.weights.column(f).iter().copied().collect();
-        let t: Vec<[f64; 2]> = (0..LANDMARKS)
+        let t: Vec<[f64; 2]> = (0..rig.landmarks())
             .map(|i| [seq.coords[(2 * i, f)], -seq.coords[(2 * i + 1, f)]])
             .collect();
         // What was fitted: the person's rig (the identity applied) under the frame's camera.
@@ -71,14 +67,13 @@ pub fn rig_view(seq: &Sequence, rig: &Rig) -> Result<RigView> {
     }
     let half = (hi[0] - lo[0]).max(hi[1] - lo[1]) * 0.55;
     let (cx, cy) = ((lo[0] + hi[0]) / 2.0, (lo[1] + hi[1]) / 2.0);
-    let all: Vec<usize> = (0..LANDMARKS).collect();
     Ok(RigView {
         names: rig.names.clone(),
         weights,
         tracked,
         fitted,
         rms: r.rms,
-        polylines: crate::retarget::setup::polylines_for(&Layout::ibug68(), &all),
+        polylines: rig.polylines(),
         bounds: ([cx - half, cx + half], [cy - half, cy + half]),
     })
 }

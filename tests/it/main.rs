@@ -23,6 +23,7 @@ mod reference;
 mod retarget;
 mod rig;
 mod rig_accuracy;
+mod rig_dense;
 mod scale;
 mod smoothing;
 mod solvers;

@@ -158,14 +158,38 @@ fn a_face_landmarker_track_of_478_points_goes_through_every_subcommand() {
     ]);
     ok(&["retarget", t, "--k", "4", "--out", &o("rt2.csv")]);
     ok(&["smooth", t, "--points", "lips", "--out", &o("sm")]);
-    // The rig reads the 468 → 68 correspondence from the first 468 points: the same
-    // weights as the 468-point file it was made from.
-    ok(&["rig", t, "--out", &o("r478.csv")]);
+    // Through the 68 iBUG points (`--landmarks 68`) the rig reads the 468 → 68
+    // correspondence from the first 468 points: the same weights as the 468-point file it
+    // was made from. Dense (the default), the 478 file adds the two iris centres.
+    ok(&["rig", t, "--landmarks", "68", "--out", &o("r478.csv")]);
     let src = shared("mediapipe_face_tracks/liveportrait_d18.csv");
-    ok(&["rig", src.to_str().unwrap(), "--out", &o("r468.csv")]);
+    ok(&[
+        "rig",
+        src.to_str().unwrap(),
+        "--landmarks",
+        "68",
+        "--out",
+        &o("r468.csv"),
+    ]);
     assert_eq!(
         std::fs::read_to_string(o("r478.csv")).unwrap(),
         std::fs::read_to_string(o("r468.csv")).unwrap()
+    );
+    let dense478 = ok(&["rig", t, "--json", "--out", &o("d478.csv")]);
+    let dense468 = ok(&[
+        "rig",
+        src.to_str().unwrap(),
+        "--json",
+        "--out",
+        &o("d468.csv"),
+    ]);
+    assert!(
+        dense478.contains("\"landmarks\": 464") && dense478.contains("\"irises\": true"),
+        "{dense478}"
+    );
+    assert!(
+        dense468.contains("\"landmarks\": 462") && dense468.contains("\"irises\": false"),
+        "{dense468}"
     );
     // Transfer onto the MediaPipe canonical face and onto the ICT face (through the rig's
     // 468 → 68 correspondence).
@@ -179,7 +203,7 @@ fn a_face_landmarker_track_of_478_points_goes_through_every_subcommand() {
     }
     // The lab's rig view takes it too.
     let seq = keyshape_lab::io::read_sequence(Path::new(t), &Default::default()).unwrap();
-    let rig = keyshape_lab::rig::Rig::read_ict(&shared("ict_facekit_face")).unwrap();
+    let rig = keyshape_lab::rig::correspondence::RigSource::new(shared("ict_facekit_face"));
     keyshape_lab::tui::rig::rig_view(&seq, &rig).unwrap();
 }
 

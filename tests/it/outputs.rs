@@ -310,7 +310,8 @@ fn a_degenerate_frame_is_refused_by_name_on_every_path_that_fits_it() {
     // solve refuse it too, instead of panicking in the camera's SVD.
     let seq = keyshape_lab::io::read_sequence(Path::new(&tiny), &Default::default()).unwrap();
     let rig = keyshape_lab::rig::Rig::read_ict(&shared("ict_facekit_face")).unwrap();
-    let e = keyshape_lab::tui::rig::rig_view(&seq, &rig)
+    let source = keyshape_lab::rig::correspondence::RigSource::new(shared("ict_facekit_face"));
+    let e = keyshape_lab::tui::rig::rig_view(&seq, &source)
         .err()
         .unwrap()
         .to_string();

@@ -1120,16 +1120,43 @@ fn a_gltf_rig_with_a_landmark_list_solves_like_the_folder_it_came_from() {
     ]);
     assert_eq!(r.code, 1);
     assert!(r.stderr.contains("needs --rig-landmarks"), "{}", r.stderr);
+    // A list with a folder takes effect (issue 39: a correspondence of any length): the 51
+    // inner points without the jaw line solve, and differently; a list naming a point past
+    // the track's 68 is refused by name, nothing written.
+    let inner = d.path().join("inner.csv");
+    let text = std::fs::read_to_string(&marks).unwrap();
+    let kept: Vec<&str> = text.lines().take(1).chain(text.lines().skip(18)).collect();
+    std::fs::write(&inner, kept.join("\n")).unwrap();
+    let w3 = d.path().join("w3.csv");
     let r = kslab(&[
         "rig",
         &track,
         "--rig-landmarks",
-        &marks.display().to_string(),
+        &inner.display().to_string(),
         "--out",
-        &w2.display().to_string(),
+        &w3.display().to_string(),
+    ]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    assert_ne!(read(&w3), a);
+    let past = d.path().join("past.csv");
+    std::fs::write(&past, format!("{}\n70,12\n", kept.join("\n"))).unwrap();
+    let w4 = d.path().join("w4.csv");
+    let r = kslab(&[
+        "rig",
+        &track,
+        "--rig-landmarks",
+        &past.display().to_string(),
+        "--out",
+        &w4.display().to_string(),
     ]);
     assert_eq!(r.code, 1);
-    assert!(r.stderr.contains("applies to a glTF rig"), "{}", r.stderr);
+    assert!(
+        r.stderr
+            .contains("past.csv names landmark 70, but the track has 68 points"),
+        "{}",
+        r.stderr
+    );
+    assert!(!w4.exists());
 }
 
 /// A damaged rig folder is refused by name, nothing written (issue 41, item 13): an empty or

@@ -120,7 +120,7 @@ fn the_prior_optimum_meets_its_kkt_conditions() {
     };
     let r = solve_rig(&rig, &track.points, &[], &opts).unwrap();
     let k = rig.k();
-    let mu = opts.prior * track_iod(&track.points).powi(2);
+    let mu = opts.prior * track_iod(&track.points, [36, 45]).powi(2);
     let ridge: Vec<f64> = (0..k)
         .map(|s| {
             if is_gaze(&rig.names[s]) {

@@ -600,7 +600,9 @@ fn keys_that_do_not_apply_say_why_and_the_hull_shows_its_k() {
 /// `r` says how to get one.
 #[test]
 fn the_rig_view_names_the_largest_weights_and_r_toggles_it() {
-    let rig = keyshape_lab::rig::Rig::read_ict(&crate::common::shared("ict_facekit_face")).unwrap();
+    let rig = keyshape_lab::rig::correspondence::RigSource::new(crate::common::shared(
+        "ict_facekit_face",
+    ));
     let view = keyshape_lab::tui::rig::rig_view(&builtin_sequence().unwrap(), &rig).unwrap();
     let mut s = computed_state(Settings::default());
     update(&mut s, Action::Rig);
@@ -675,9 +677,9 @@ fn a_space_in_the_open_prompt_is_part_of_the_path() {
 #[test]
 fn the_rig_stays_with_the_lab_when_another_sequence_is_opened() {
     use keyshape_lab::tui::compute::{spawn_with_rig, Job};
-    let rig = std::sync::Arc::new(
-        keyshape_lab::rig::Rig::read_ict(&crate::common::shared("ict_facekit_face")).unwrap(),
-    );
+    let rig = std::sync::Arc::new(keyshape_lab::rig::correspondence::RigSource::new(
+        crate::common::shared("ict_facekit_face"),
+    ));
     let (jobs, results) = spawn_with_rig(builtin_sequence().unwrap(), None, Some(rig));
     let d18 = crate::common::shared("mediapipe_face_tracks/liveportrait_d18.csv");
     jobs.send(Job::Load(3, d18.display().to_string())).unwrap();
