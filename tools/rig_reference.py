@@ -25,13 +25,14 @@ from scipy.ndimage import gaussian_filter1d
 from scipy.optimize import lsq_linear
 
 
-def read_rig(d):
-    marks = [int(r["vertex"]) for r in csv.DictReader(open(os.path.join(d, "landmarks_multipie68.csv")))]
+def read_rig(d, marks):
+    """The rig's landmarks at `marks` (mesh vertices, one per landmark, in track order)."""
+    n = len(marks)
     verts = [list(map(float, l.split()[1:4])) for l in open(os.path.join(d, "neutral_face.obj")) if l.startswith("v ")]
     neutral = np.array([verts[v] for v in marks])
     names = [r["shape"] for r in csv.DictReader(open(os.path.join(d, "expressions.csv")))]
     at = {v: i for i, v in enumerate(marks)}
-    deltas = np.zeros((len(names), 68, 3))
+    deltas = np.zeros((len(names), n, 3))
     for r in csv.DictReader(open(os.path.join(d, "expression_deltas.csv"))):
         v = int(r["vertex"])
         if v in at:
@@ -40,7 +41,7 @@ def read_rig(d):
 
 
 def fit_camera(x, u):
-    """Scaled orthographic camera u ~ s R[:2] x + t (x: 68x3, u: 68x2, y up)."""
+    """Scaled orthographic camera u ~ s R[:2] x + t (x: n x 3, u: n x 2, y up)."""
     xc, uc = x - x.mean(0), u - u.mean(0)
     m, *_ = np.linalg.lstsq(xc, uc, rcond=None)  # 3x2 affine
     a = m.T  # 2x3
@@ -72,13 +73,24 @@ def main():
     p.add_argument("--mu", type=float, default=30.0)
     p.add_argument("--lead-in", type=int, default=20)
     p.add_argument("--sigma", type=float, default=0.0)
+    p.add_argument(
+        "--landmarks",
+        help="landmark,vertex CSV naming the vertex of each track point (default: the rig's "
+        "landmarks_multipie68.csv; for `rig-accuracy --landmarks 468` tracks, "
+        "assets/features/mediapipe468_to_ict.csv)",
+    )
     a = p.parse_args()
-    names, neutral, deltas = read_rig(a.rig)
+    marks_csv = a.landmarks or os.path.join(a.rig, "landmarks_multipie68.csv")
+    vertex_of = {int(r["landmark"]): int(r["vertex"]) for r in csv.DictReader(open(marks_csv))}
     for path in sorted(glob.glob(os.path.join(a.dir, "*_track.csv"))):
         kind = os.path.basename(path)[: -len("_track.csv")]
+        # The header names each landmark's track point: x0,y0,... (iBUG) or x33,y33,...
+        header = open(path).readline().strip().split(",")[1:]
+        points = [int(h[1:]) for h in header[0::2]]
+        names, neutral, deltas = read_rig(a.rig, [vertex_of[q] for q in points])
         rows = np.loadtxt(path, delimiter=",", skiprows=1)[:, 1:]
         truth = np.loadtxt(os.path.join(a.dir, kind + "_truth.csv"), delimiter=",", skiprows=1)[:, 1:]
-        track = rows.reshape(len(rows), 68, 2) * [1.0, -1.0]  # y up
+        track = rows.reshape(len(rows), len(points), 2) * [1.0, -1.0]  # y up
         # Identity from the lead-in: the mean residual of the rig's neutral, lifted.
         person = neutral.copy()
         if a.lead_in > 0:
