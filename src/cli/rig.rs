@@ -8,6 +8,7 @@ use clap::Args;
 use keyshape_lab::io::{fmt_num, read_sequence, shared_data, write_atomic, ReadOptions};
 use keyshape_lab::rig::{livelink, solve_rig, Identity, Neutral, Rig, RigOptions, RigSolve};
 use keyshape_lab::sequence::Sequence;
+use keyshape_lab::solve::temporal::SmoothMode;
 use keyshape_lab::solve::Solver;
 use serde_json::json;
 use std::io::Write;
@@ -99,13 +100,18 @@ pub struct RigArgs {
     /// causal temporal prior, each frame pulled towards the last).
     #[arg(long)]
     live: bool,
-    /// Causal temporal prior λ (≥ 0): each frame's weights are pulled towards the previous
-    /// frame's by adding λ‖w − w_prev‖² to its squared landmark error (λ in squared image
-    /// units per unit weight²; not across clips). Only the causal form exists for rigs;
-    /// `kslab solve --smooth` has the offline one.
+    /// Temporal prior λ (≥ 0, squared image units per unit weight²; not across clips), in
+    /// --smooth-mode: offline, each clip's weights minimise the frames' squared landmark
+    /// errors plus λ Σ_t ‖w_t − w_{t−1}‖² (the whole clip at once, zero phase, with each
+    /// frame's head pose from the per-frame solve); causal, each frame's weights are pulled
+    /// towards the previous frame's by λ‖w − w_prev‖²
     /// [default: off, the same as 0].
     #[arg(long, value_name = "LAMBDA", allow_negative_numbers = true)]
     smooth: Option<f64>,
+    /// offline (the whole clip; for files) or causal (the past only; for live use)
+    /// [default: offline; causal with --live].
+    #[arg(long, value_name = "offline|causal", value_parser = ["offline", "causal"])]
+    smooth_mode: Option<String>,
     /// Weight of a group of landmarks' squared error in the fit, as `GROUP=W` (W ≥ 0;
     /// repeatable, later ones win): GROUP is jaw (0–16, the face contour), brows (17–26),
     /// nose (27–35), eyes (36–47), lips (48–59, outer), mouth (60–67, inner) or a landmark
@@ -240,12 +246,23 @@ pub fn run(a: &RigArgs) -> Result<()> {
         (true, _) => 0.0,
         (false, z) => z.unwrap_or(keyshape_lab::rig::RECOMMENDED_ZERO_PHASE),
     };
+    let smooth_mode = match (a.live, a.smooth_mode.as_deref()) {
+        (true, Some("offline")) => anyhow::bail!(
+            "--live is causal: --smooth-mode offline solves each clip with frames still to come; drop one of them"
+        ),
+        (true, _) | (false, Some("causal")) => SmoothMode::Causal,
+        (false, _) => SmoothMode::Offline,
+    };
+    if a.smooth_mode.is_some() && a.smooth.unwrap_or(0.0) == 0.0 {
+        anyhow::bail!("--smooth-mode applies to the temporal prior: give --smooth λ > 0");
+    }
     let opts = RigOptions {
         solver: a.solver,
         identity: a.identity,
         neutral,
         min_determination: a.min_determination,
         smooth: a.smooth.unwrap_or(0.0),
+        smooth_mode,
         landmark_weights: keyshape_lab::rig::landmark_weights(&a.landmark_weight)?,
         prior: a.prior,
         zero_phase,
@@ -355,6 +372,9 @@ pub fn run(a: &RigArgs) -> Result<()> {
             "irises": rig.sees_pupils(),
             "landmark_weights": opts.landmark_weights.to_vec(),
             "smooth": opts.smooth,
+            "smooth_mode": opts.smooth_mode.name(),
+            "sweeps": r.sweeps,
+            "sweeps_unconverged": r.sweeps_unconverged,
             "prior": opts.prior,
             "zero_phase": opts.zero_phase,
             "mean_rms": mean_rms,

@@ -81,9 +81,12 @@ pub struct RigAccuracyArgs {
     /// As `kslab rig --zero-phase` (offline Gaussian σ, frames; 0 for the live solve).
     #[arg(long, default_value_t = keyshape_lab::rig::RECOMMENDED_ZERO_PHASE, allow_negative_numbers = true)]
     zero_phase: f64,
-    /// As `kslab rig --smooth` (causal prior λ).
+    /// As `kslab rig --smooth` (the temporal prior λ).
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     smooth: f64,
+    /// As `kslab rig --smooth-mode`.
+    #[arg(long, default_value = "offline", value_parser = ["offline", "causal"])]
+    smooth_mode: String,
     /// Write every shape's measures here (CSV: kind, shape, active, r, mae, rmse,
     /// peak_reach, twin_leakage, idle_activation, jitter, true_jitter, lag)
     /// [default: not written].
@@ -135,6 +138,11 @@ pub fn run(a: &RigAccuracyArgs) -> Result<()> {
         identity: a.identity,
         min_determination: a.min_determination,
         smooth: a.smooth,
+        smooth_mode: if a.smooth_mode == "causal" {
+            keyshape_lab::solve::temporal::SmoothMode::Causal
+        } else {
+            keyshape_lab::solve::temporal::SmoothMode::Offline
+        },
         prior: a.prior,
         zero_phase: a.zero_phase,
         ..Default::default()
@@ -198,7 +206,7 @@ pub fn run(a: &RigAccuracyArgs) -> Result<()> {
     } else {
         for (k, _, s) in &all {
             outln!(
-                "{:<7} mean r {:.3}  worst r {:.3} ({})  weight RMSE {:.3}  idle max {:.2} ({})  twin leakage max {:.2}  peak reach min {}",
+                "{:<7} mean r {:.3}  worst r {:.3} ({})  weight RMSE {:.3}  idle max {:.2} ({})  twin leakage max {:.2}  peak reach min {}  lag max {}",
                 k.name(),
                 s.mean_r,
                 s.worst_r,
@@ -208,6 +216,7 @@ pub fn run(a: &RigAccuracyArgs) -> Result<()> {
                 s.max_idle_shape,
                 s.max_twin_leakage,
                 s.min_peak_reach.map_or("—".into(), |v| format!("{v:.2}")),
+                s.max_abs_lag,
             );
         }
     }

@@ -454,6 +454,8 @@ pub struct Summary {
     pub max_twin_leakage: f64,
     /// The lowest peak reach.
     pub min_peak_reach: Option<f64>,
+    /// The largest lag (frames, either way) of an active shape.
+    pub max_abs_lag: i64,
 }
 
 /// The left/right twin of a shape name (`_L` ↔ `_R`), if the rig has it.
@@ -563,6 +565,11 @@ pub fn measure(
             .iter()
             .filter_map(|r| r.peak_reach)
             .min_by(f64::total_cmp),
+        max_abs_lag: rows
+            .iter()
+            .filter_map(|r| r.lag.map(i64::abs))
+            .max()
+            .unwrap_or(0),
     };
     (rows, summary)
 }

@@ -16,6 +16,7 @@ pub mod correspondence;
 pub mod gltf_rig;
 pub mod livelink;
 pub mod study;
+pub mod temporal;
 
 use crate::cosker::morph::MorphTargets;
 use crate::error::{Error, Result};
@@ -335,10 +336,14 @@ pub struct RigOptions {
     pub min_determination: f64,
     /// Gauss–Newton steps per frame at most.
     pub max_steps: usize,
-    /// Causal temporal prior λ (≥ 0, squared image units per unit weight²): each frame
-    /// minimises its landmark error plus `λ‖w − w_prev‖²`, `w_prev` the previous frame's
-    /// weights (not across clips); 0 is off.
+    /// Temporal prior λ (≥ 0, squared image units per unit weight²; 0 is off), in
+    /// `smooth_mode`: causal, each frame minimises its landmark error plus
+    /// `λ‖w − w_prev‖²`, `w_prev` the previous frame's weights; offline, each clip's weights
+    /// minimise the sum of the frames' errors plus `λ Σ_t ‖w_t − w_{t−1}‖²` (see
+    /// [`temporal`]). Never across clips.
     pub smooth: f64,
+    /// Offline (the whole clip, zero phase) or causal (the past only, for live use).
+    pub smooth_mode: crate::solve::temporal::SmoothMode,
     /// Per landmark (iBUG order), the weight of its squared error in the fit (≥ 0; all 1 is
     /// the plain least-squares fit). The camera's starting fit ignores them.
     pub landmark_weights: [f64; LANDMARKS],
@@ -394,6 +399,7 @@ impl Default for RigOptions {
             min_determination: 0.02,
             max_steps: 50,
             smooth: 0.0,
+            smooth_mode: crate::solve::temporal::SmoothMode::Causal,
             landmark_weights: [1.0; LANDMARKS],
             prior: 0.0,
             zero_phase: 0.0,
@@ -426,6 +432,10 @@ pub struct RigSolve {
     pub rms: Vec<f64>,
     /// Per frame, Gauss–Newton steps used.
     pub steps: Vec<u32>,
+    /// Sweeps of the offline temporal prior (the most any clip took; 0 when it is off).
+    pub sweeps: usize,
+    /// Clips whose offline temporal prior stopped at [`temporal::MAX_SWEEPS`].
+    pub sweeps_unconverged: usize,
     /// Frames whose steps stopped at the cap.
     pub unconverged: usize,
     /// Per shape, identifiability.
@@ -1374,6 +1384,33 @@ pub fn zero_phase(w: &mut DMatrix<f64>, clip: Range<usize>, sigma: f64) {
     w.columns_mut(clip.start, clip.len()).copy_from(&smooth);
 }
 
+/// The per-frame RMS landmark error of `weights` on the frames `clip`, under the frames'
+/// cameras (after the weights were changed by a temporal prior).
+fn recompute_rms(
+    person: &Rig,
+    track: &DMatrix<f64>,
+    clip: Range<usize>,
+    cameras: &[Camera],
+    weights: &DMatrix<f64>,
+    rms: &mut [f64],
+) {
+    let n = person.landmarks();
+    for f in clip {
+        let w: Vec<f64> = weights.column(f).iter().copied().collect();
+        let u = frame_points(track, f);
+        let e: f64 = person
+            .posed(&w)
+            .iter()
+            .zip(&u)
+            .map(|(p, q)| {
+                let x = cameras[f].project(p);
+                (x[0] - q[0]).powi(2) + (x[1] - q[1]).powi(2)
+            })
+            .sum();
+        rms[f] = (e / n as f64).sqrt();
+    }
+}
+
 /// One pass over the frames with the shapes `free`, each clip with its person's rig (warm
 /// starts do not cross clips).
 fn run(
@@ -1389,9 +1426,12 @@ fn run(
     let mut weights = DMatrix::zeros(rig.k(), frames);
     let (mut cameras, mut rms, mut steps) = (Vec::new(), Vec::new(), Vec::new());
     let mut unconverged = 0;
+    let offline =
+        opts.smooth > 0.0 && opts.smooth_mode == crate::solve::temporal::SmoothMode::Offline;
+    let (mut sweeps, mut sweeps_unconverged) = (0, 0);
     for (clip, person) in people {
         let mut fs = FrameSolver::new(person, free.clone(), opts.solver, opts.max_steps.max(1), lw);
-        fs.lambda = opts.smooth;
+        fs.lambda = if offline { 0.0 } else { opts.smooth };
         fs.ridge = magnitude_prior(track, opts, rig, &fs.free);
         fs.pairs = exclusive_pairs(rig, &fs.free, &fs.ridge);
         for f in clip.clone() {
@@ -1414,24 +1454,24 @@ fn run(
                 t: [0.0, 0.0],
             }));
         }
+        if offline {
+            let (n_sweeps, ok) = temporal::offline_prior(
+                &mut fs,
+                track,
+                clip.clone(),
+                &cameras,
+                &mut weights,
+                opts.smooth,
+            );
+            sweeps = sweeps.max(n_sweeps);
+            sweeps_unconverged += usize::from(!ok);
+            recompute_rms(person, track, clip.clone(), &cameras, &weights, &mut rms);
+        }
     }
     if opts.zero_phase > 0.0 {
         for (clip, person) in people {
             zero_phase(&mut weights, clip.clone(), opts.zero_phase);
-            for f in clip.clone() {
-                let w: Vec<f64> = weights.column(f).iter().copied().collect();
-                let u = frame_points(track, f);
-                let e: f64 = person
-                    .posed(&w)
-                    .iter()
-                    .zip(&u)
-                    .map(|(p, q)| {
-                        let x = cameras[f].project(p);
-                        (x[0] - q[0]).powi(2) + (x[1] - q[1]).powi(2)
-                    })
-                    .sum();
-                rms[f] = (e / n as f64).sqrt();
-            }
+            recompute_rms(person, track, clip.clone(), &cameras, &weights, &mut rms);
         }
     }
     Ok(RigSolve {
@@ -1440,6 +1480,8 @@ fn run(
         rms,
         steps,
         unconverged,
+        sweeps,
+        sweeps_unconverged,
         shapes: Vec::new(),
         neutrals: Vec::new(),
         people: Vec::new(),

@@ -118,6 +118,8 @@ const CASES: &[Case] = &[
     Case { name: "actions on a track of no known layout", files: &[("three.csv", PLAIN)], args: &["actions", "{d}/three.csv", "--out", "{d}/a.json"], code: 1, needle: "three.csv: actions are chosen on MediaPipe (468 or 478 points) or iBUG-68 tracks, not 3 points", absent: &["a.json"] },
     // ---- outputs as one set (issue 41) ----
     Case { name: "two outputs, one file spelled two ways", files: &[], args: &["curves", "--methods", "spread", "--k", "2..3", "--out", "{d}/c.csv", "--png", "{d}/./c.csv"], code: 1, needle: "c.csv: named as two outputs", absent: &["c.csv"] },
+    Case { name: "rig --smooth-mode without --smooth", files: &[], args: &["rig", "--smooth-mode", "causal", "--out", "{d}/w.csv"], code: 1, needle: "--smooth-mode applies to the temporal prior", absent: &["w.csv"] },
+    Case { name: "rig --live --smooth-mode offline", files: &[], args: &["rig", "--live", "--smooth", "10", "--smooth-mode", "offline", "--out", "{d}/w.csv"], code: 1, needle: "--live is causal: --smooth-mode offline", absent: &["w.csv"] },
     Case { name: "rig: the Live Link file fails after the weights", files: &[], args: &["rig", "--out", "{d}/r.csv", "--livelink", "/dev/full"], code: 1, needle: "/dev/full: No space left on device", absent: &["r.csv"] },
     Case { name: "a spec that would be its own report", files: &[("report.json", "title = \"x\"\ninput = \"builtin\"\nmethods = [\"spread\"]\nk = \"2..4\"\n")], args: &["run", "{d}/report.json", "--out", "{d}"], code: 1, needle: "refusing to write: this is the input file", absent: &["curves.csv"] },
 ];

@@ -589,6 +589,7 @@ fn kslab_rig_writes_weights_pose_and_live_link_and_its_options_take_effect() {
         vec!["--live"],
         vec!["--identity-per", "clip"],
         vec!["--smooth", "100"],
+        vec!["--smooth", "100", "--smooth-mode", "causal"],
         vec!["--neutral", "least-active"],
         vec!["--landmark-weight", "jaw=0.2"],
         vec![
