@@ -394,6 +394,8 @@ pub fn spawn_lab(
             None => Engine::new(seq),
         };
         let mut pending: Option<Job> = None;
+        // The λ the rig view was last solved with (a load solves it with 0).
+        let mut rig_smooth = 0.0;
         loop {
             let job = match pending.take() {
                 Some(j) => j,
@@ -421,6 +423,7 @@ pub fn spawn_lab(
                         let note = normalised_note(&seq);
                         let fps = seq.fps().unwrap_or(30.0);
                         let (name, n) = (seq.source.clone(), seq.n_frames());
+                        rig_smooth = 0.0;
                         let solved = rig.as_ref().map(|r| {
                             super::rig::rig_view(&seq, r)
                                 .map(std::sync::Arc::new)
@@ -450,6 +453,15 @@ pub fn spawn_lab(
                             let _ = out_tx.send(Action::Failed(id, e.to_string()));
                             return;
                         }
+                    }
+                    // `l` / `L` also steer the rig view: its offline temporal prior.
+                    let lambda = settings.smooth.min(super::rig::RIG_SMOOTH_MAX);
+                    if let Some(r) = rig.as_ref().filter(|_| lambda != rig_smooth) {
+                        rig_smooth = lambda;
+                        let v = super::rig::rig_view_smoothed(engine.sequence(), r, lambda)
+                            .map(std::sync::Arc::new)
+                            .map_err(|e| e.to_string());
+                        let _ = out_tx.send(Action::RigSmoothed(id, v));
                     }
                     let mut abandon = || match jobs_rx.try_recv() {
                         Ok(j) => {

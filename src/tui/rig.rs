@@ -24,11 +24,25 @@ pub struct RigView {
     pub polylines: Vec<Vec<usize>>,
     /// x and y bounds over all frames of both.
     pub bounds: ([f64; 2], [f64; 2]),
+    /// The offline temporal prior's λ it was solved with (0: off, the zero-phase Gaussian
+    /// of [`RigOptions::recommended`] instead).
+    pub smooth: f64,
 }
 
 /// Solves `seq` (68 points, or MediaPipe 468 / 478 through every point the rig covers) onto
 /// the rig `source` names, with `kslab rig`'s offline defaults ([`RigOptions::recommended`]).
 pub fn rig_view(seq: &Sequence, source: &RigSource) -> Result<RigView> {
+    rig_view_smoothed(seq, source, 0.0)
+}
+
+/// The largest λ the lab's `l` gives the rig's offline prior (the key-shape solve goes on
+/// to 1e6): the rig's weights barely change beyond it, and its solve slows (564 sweeps, 7 s
+/// for the built-in sequence at 1e4; at 1e5 the sweeps stop at their cap).
+pub const RIG_SMOOTH_MAX: f64 = 1e4;
+
+/// [`rig_view`] with the offline temporal prior λ (the lab's `l` / `L`) in place of the
+/// zero-phase Gaussian; 0 is [`rig_view`].
+pub fn rig_view_smoothed(seq: &Sequence, source: &RigSource, smooth: f64) -> Result<RigView> {
     check_layout(seq.points).map_err(|e| Error::invalid(format!("--rig: {e}")))?;
     let (_, _, rig) = source.read_for(seq.points)?;
     let seq = seq.select_points(&rig.points)?;
@@ -37,7 +51,17 @@ pub fn rig_view(seq: &Sequence, source: &RigSource) -> Result<RigView> {
         return Err(Error::invalid("--rig needs a 2-D track"));
     }
     seq.check_geometry()?;
-    let r = solve_rig(rig, &seq.coords, &[], &RigOptions::recommended())?;
+    let opts = if smooth > 0.0 {
+        RigOptions {
+            smooth,
+            smooth_mode: crate::solve::temporal::SmoothMode::Offline,
+            zero_phase: 0.0,
+            ..RigOptions::recommended()
+        }
+    } else {
+        RigOptions::recommended()
+    };
+    let r = solve_rig(rig, &seq.coords, &[], &opts)?;
     let n = seq.n_frames();
     let (mut tracked, mut fitted, mut weights) = (Vec::new(), Vec::new(), Vec::new());
     let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
@@ -74,6 +98,7 @@ pub fn rig_view(seq: &Sequence, source: &RigSource) -> Result<RigView> {
         fitted,
         rms: r.rms,
         polylines: rig.polylines(),
+        smooth,
         bounds: ([cx - half, cx + half], [cy - half, cy + half]),
     })
 }

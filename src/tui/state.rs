@@ -76,6 +76,8 @@ pub enum Action {
     Notice(u64, String),
     /// The loaded sequence solved onto the lab's `--rig`, or why it could not be.
     RigSolved(u64, Result<std::sync::Arc<super::rig::RigView>, String>),
+    /// The rig solved again for a request's temporal prior λ (`l` / `L`).
+    RigSmoothed(u64, Result<std::sync::Arc<super::rig::RigView>, String>),
 }
 
 /// Side effects for the loop to carry out.
@@ -366,6 +368,15 @@ pub fn update(s: &mut State, action: Action) -> Vec<Effect> {
         Action::Notice(id, note) => {
             if id == s.loaded {
                 s.status = note;
+            }
+        }
+        Action::RigSmoothed(id, r) => {
+            // Only the newest request's: an older λ's solve is dropped.
+            if id == s.request {
+                match r {
+                    Ok(v) => s.rig = Some(v),
+                    Err(e) => s.status = format!("rig: {e}"),
+                }
             }
         }
         Action::RigSolved(id, r) => {

@@ -135,7 +135,12 @@ fn header(f: &mut Frame, s: &State, area: Rect) {
             quality = Some(format!("landmark RMS {:.2}", r.rms.iter().sum::<f64>() / n));
             (
                 format!("rig: {} shapes", r.names.len()),
-                "bounded".to_string(),
+                // The temporal prior: the offline λ (`l`), or the zero-phase σ of the default.
+                if r.smooth > 0.0 {
+                    format!("bounded λ{}", r.smooth)
+                } else {
+                    "bounded σ1".to_string()
+                },
             )
         }
         _ => (keys, solver),
@@ -752,7 +757,7 @@ pub const KEYS: [(&str, &str); 21] = [
     ("s", "next solver (nnls, ls, bounded)"),
     (
         "l / L",
-        "temporal prior λ up / down a decade (off, 1 … 1e6)",
+        "temporal prior λ ×10 / ÷10 (off … 1e6; the rig's ≤ 1e4)",
     ),
     ("v", "LS and NNLS side by side"),
     ("e", "export weights CSV, view PNG, experiment TOML"),

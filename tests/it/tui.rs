@@ -714,6 +714,68 @@ fn the_rig_stays_with_the_lab_when_another_sequence_is_opened() {
     assert!(s.status.starts_with("rig: "), "{}", s.status);
 }
 
+/// `l` steers the rig view too (issue 39, item 5): a request with λ solves the rig again with
+/// the offline temporal prior at that λ — a larger λ, smoother weights — and the screen says
+/// which prior it shows; an older request's rig is dropped.
+#[test]
+fn l_solves_the_rig_view_again_with_the_offline_prior() {
+    use keyshape_lab::tui::compute::{spawn_with_rig, Job};
+    let rig = std::sync::Arc::new(keyshape_lab::rig::correspondence::RigSource::new(
+        crate::common::shared("ict_facekit_face"),
+    ));
+    let (jobs, results) = spawn_with_rig(builtin_sequence().unwrap(), None, Some(rig.clone()));
+    let plain = keyshape_lab::tui::rig::rig_view(&builtin_sequence().unwrap(), &rig).unwrap();
+    let mut s = State::new("builtin", 216, 30.0);
+    s.rig = Some(std::sync::Arc::new(plain.clone()));
+    s.show_rig = true;
+    let solve_at = |s: &mut State, presses: usize| {
+        let mut last = None;
+        for _ in 0..presses {
+            last = update(s, Action::Smooth(true)).into_iter().next();
+        }
+        let Some(Effect::Compute(id, settings)) = last else {
+            panic!("l asks for no computation");
+        };
+        jobs.send(Job::Compute(id, settings.clone())).unwrap();
+        loop {
+            let a = results.recv_timeout(Duration::from_secs(120)).unwrap();
+            let got = match &a {
+                Action::RigSmoothed(i, v) => Some((*i, v.clone().unwrap())),
+                _ => None,
+            };
+            update(s, a);
+            if let Some((i, v)) = got {
+                assert_eq!(i, id);
+                assert_eq!(v.smooth, settings.smooth);
+                assert!(std::sync::Arc::ptr_eq(s.rig.as_ref().unwrap(), &v));
+                return (id, v);
+            }
+        }
+    };
+    let jitter = |r: &keyshape_lab::tui::rig::RigView| {
+        let w = nalgebra::DMatrix::from_fn(r.names.len(), r.weights.len(), |i, f| r.weights[f][i]);
+        keyshape_lab::solve::jitter::weight_jitter(&w, std::slice::from_ref(&(0..r.weights.len())))
+    };
+    let (_, v100) = solve_at(&mut s, 3);
+    assert_eq!(v100.smooth, 100.0);
+    assert_ne!(v100.weights, plain.weights);
+    let top = screen(&s, 80, 24);
+    assert!(top.contains("bounded λ100"), "{top}");
+    let (id, v1000) = solve_at(&mut s, 1);
+    assert!(
+        jitter(&v1000) < jitter(&v100),
+        "{} vs {}",
+        jitter(&v1000),
+        jitter(&v100)
+    );
+    // A rig answer for an older request is dropped.
+    update(
+        &mut s,
+        Action::RigSmoothed(id - 1, Ok(std::sync::Arc::new(plain))),
+    );
+    assert!(std::sync::Arc::ptr_eq(s.rig.as_ref().unwrap(), &v1000));
+}
+
 /// The worker's first answer is what the screen shows; the split view's solvers follow and
 /// join the same request (issue 41, item 8), and a stale answer is dropped.
 #[test]
