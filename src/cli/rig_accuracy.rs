@@ -20,8 +20,9 @@ pub struct RigAccuracyArgs {
     rig: Option<PathBuf>,
     /// The tracker's landmark set the performance is rendered at and solved from: 68 (iBUG),
     /// 468 (MediaPipe Face Mesh, through the rig's dense correspondence) or 478 (Face
-    /// Landmarker: the 468 and the iris centres, which see eye gaze).
-    #[arg(long, default_value = "68", value_parser = ["68", "468", "478"])]
+    /// Landmarker: the 468 and the iris centres, which see eye gaze); `468z` and `478z`
+    /// with MediaPipe's relative depth, solved as `kslab rig --dims 3` does.
+    #[arg(long, default_value = "68", value_parser = ["68", "468", "478", "468z", "478z"])]
     landmarks: String,
     /// The performance: smooth (a dozen shapes as overlapping smooth bumps), winks
     /// (one-sided shapes alone to 1.0 in turn), blinks (both eyes to 1.0, often), speech
@@ -110,7 +111,8 @@ pub fn run(a: &RigAccuracyArgs) -> Result<()> {
         Some(d) => d.clone(),
         None => shared_data("ict_facekit_face")?,
     };
-    let layout: usize = a.landmarks.parse()?;
+    let depth = a.landmarks.ends_with('z');
+    let layout: usize = a.landmarks.trim_end_matches('z').parse()?;
     let (_, _, rig) = keyshape_lab::rig::correspondence::read_rig(&dir, layout, None)?;
     let noise = match a.noise_iod {
         Some(p) if !(p.is_finite() && (0.0..=100.0).contains(&p)) => {
@@ -159,6 +161,7 @@ pub fn run(a: &RigAccuracyArgs) -> Result<()> {
             yaw_deg: a.yaw,
             pitch_deg: a.pitch,
             seed: a.seed,
+            depth,
         };
         let (track, _, rows, summary) = accuracy::run(&rig, &st, &opts)?;
         if let Some(dir) = &a.tracks {
@@ -227,7 +230,18 @@ pub fn run(a: &RigAccuracyArgs) -> Result<()> {
 fn write_track(dir: &std::path::Path, kind: Kind, rig: &Rig, t: &accuracy::Track) -> Result<()> {
     keyshape_lab::io::create_dir_all(dir)?;
     write_atomic(&dir.join(format!("{}_track.csv", kind.name())), |w| {
-        let head: Vec<String> = rig.points.iter().map(|i| format!("x{i},y{i}")).collect();
+        let depth = t.points.nrows() == 3 * rig.landmarks();
+        let head: Vec<String> = rig
+            .points
+            .iter()
+            .map(|i| {
+                if depth {
+                    format!("x{i},y{i},z{i}")
+                } else {
+                    format!("x{i},y{i}")
+                }
+            })
+            .collect();
         writeln!(w, "frame,{}", head.join(","))?;
         for f in 0..t.points.ncols() {
             let row: Vec<String> = t.points.column(f).iter().map(|v| fmt_num(*v)).collect();

@@ -103,6 +103,10 @@ pub struct Settings {
     pub pitch_deg: f64,
     /// Seed of the performance, the person and the noise.
     pub seed: u64,
+    /// Render each landmark's depth too, as MediaPipe gives it: a third row per landmark,
+    /// in the x axis's pixels, more negative closer to the camera, its origin an arbitrary
+    /// offset (here 40 px), with the same noise as x and y.
+    pub depth: bool,
 }
 
 impl Default for Settings {
@@ -117,6 +121,7 @@ impl Default for Settings {
             yaw_deg: 18.0,
             pitch_deg: 9.0,
             seed: 7,
+            depth: false,
         }
     }
 }
@@ -155,7 +160,8 @@ impl Settings {
 pub struct Track {
     /// True weights, k × frames (rig order), the lead-in first.
     pub truth: DMatrix<f64>,
-    /// 2-D landmarks (68, image axes, y down), 136 × frames, noise included.
+    /// The landmarks (image axes, y down), 2 rows each (x, y) or with `depth` 3 (x, y, z),
+    /// noise included.
     pub points: DMatrix<f64>,
     /// The person whose face was rendered (the rig with another neutral, or the rig).
     pub person: Rig,
@@ -392,7 +398,24 @@ pub fn render(rig: &Rig, st: &Settings) -> Result<Track> {
             )
         })
         .collect();
-    let mut points = person.render(&truth, &cameras);
+    let mut points = if st.depth {
+        let n = person.landmarks();
+        let mut out = DMatrix::zeros(3 * n, total);
+        for f in 0..total {
+            let w: Vec<f64> = truth.column(f).iter().copied().collect();
+            let c = &cameras[f];
+            for (i, p) in person.posed(&w).iter().enumerate() {
+                let u = c.project(p);
+                let z = c.s * (c.r[(2, 0)] * p[0] + c.r[(2, 1)] * p[1] + c.r[(2, 2)] * p[2]);
+                out[(3 * i, f)] = u[0];
+                out[(3 * i + 1, f)] = -u[1];
+                out[(3 * i + 2, f)] = -(z + 40.0);
+            }
+        }
+        out
+    } else {
+        person.render(&truth, &cameras)
+    };
     if st.noise_px > 0.0 {
         for v in points.iter_mut() {
             let (u1, u2): (f64, f64) = (rng.gen_range(f64::EPSILON..1.0), rng.gen());

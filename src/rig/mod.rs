@@ -512,10 +512,13 @@ impl Blocks {
         }
     }
 
-    /// `AᵀWA` for camera `c`: `s² Σ M_ab G^{ab}` with `M = R₂ᵀ R₂`.
-    fn gram(&self, c: &Camera, out: &mut [f64]) {
+    /// `AᵀWA` for camera `c`: `s² Σ M_ab G^{ab}` with `M = R₂ᵀ R₂ + wz r₃ r₃ᵀ` (`wz` the
+    /// weight of the depth rows, 0 for a 2-D track).
+    fn gram(&self, c: &Camera, wz: f64, out: &mut [f64]) {
         let r = &c.r;
-        let m = |a: usize, b: usize| r[(0, a)] * r[(0, b)] + r[(1, a)] * r[(1, b)];
+        let m = |a: usize, b: usize| {
+            r[(0, a)] * r[(0, b)] + r[(1, a)] * r[(1, b)] + wz * r[(2, a)] * r[(2, b)]
+        };
         let coef = [m(0, 0), m(1, 1), m(2, 2), m(0, 1), m(0, 2), m(1, 2)];
         let s2 = c.s * c.s;
         let f = coef.map(|cf| s2 * cf);
@@ -530,14 +533,17 @@ impl Blocks {
         }
     }
 
-    /// `AᵀWr` for camera `c` and per-landmark image residuals `res` (y up).
-    fn rhs(&self, c: &Camera, res: &[[f64; 2]], out: &mut [f64]) {
+    /// `AᵀWr` for camera `c` and per-landmark image residuals `res` (y up), with the depth
+    /// residuals `dres` weighted by `wz` when the track has depth.
+    fn rhs(&self, c: &Camera, res: &[[f64; 2]], dres: Option<(&[f64], f64)>, out: &mut [f64]) {
         let n = res.len();
         let r = &c.r;
         let mut v = vec![0.0; n * 3];
         for (i, e) in res.iter().enumerate() {
+            let ez = dres.map_or(0.0, |(d, wz)| wz * d[i]);
             for a in 0..3 {
-                v[i * 3 + a] = self.lw[i] * c.s * (r[(0, a)] * e[0] + r[(1, a)] * e[1]);
+                v[i * 3 + a] =
+                    self.lw[i] * c.s * (r[(0, a)] * e[0] + r[(1, a)] * e[1] + r[(2, a)] * ez);
             }
         }
         for (p, o) in out.iter_mut().enumerate().take(self.k) {
@@ -645,6 +651,11 @@ fn magnitude_prior(track: &DMatrix<f64>, opts: &RigOptions, rig: &Rig, free: &[u
         .collect()
 }
 
+/// Frame `f` of a depth track (one row per landmark, towards the viewer), if there is one.
+fn frame_depth(depth: Option<&DMatrix<f64>>, f: usize) -> Option<Vec<f64>> {
+    depth.map(|d| d.column(f).iter().copied().collect())
+}
+
 /// The track's frame `f` as image points with y up.
 fn frame_points(track: &DMatrix<f64>, f: usize) -> Vec<[f64; 2]> {
     (0..track.nrows() / 2)
@@ -674,6 +685,13 @@ struct FrameSolver<'a> {
     /// with γ = 2√(μ_a μ_b) the pair's prior is `(√μ_a w_a + √μ_b w_b)²`, convex, and shapes
     /// that undo each other (smile and frown) pay for being on together.
     pairs: Vec<(usize, usize, f64)>,
+    /// The frame's depth observations (towards the viewer, track units) when the track has
+    /// depth (`--dims 3`): each landmark's third row, `s r₃·p + tz`, is fitted too.
+    depth: Option<Vec<f64>>,
+    /// The depth offset (MediaPipe's z has its origin near the head's centre).
+    tz: f64,
+    /// The weight of a depth row's squared error against an image row's.
+    depth_weight: f64,
 }
 
 impl<'a> FrameSolver<'a> {
@@ -694,6 +712,39 @@ impl<'a> FrameSolver<'a> {
             prev: None,
             ridge: vec![0.0; m],
             pairs: Vec::new(),
+            depth: None,
+            tz: 0.0,
+            depth_weight: 1.0,
+        }
+    }
+
+    /// The depth rows' weight: `depth_weight` with depth, 0 without.
+    fn wz(&self) -> f64 {
+        if self.depth.is_some() {
+            self.depth_weight
+        } else {
+            0.0
+        }
+    }
+
+    /// The depth residuals `d − (s r₃·p + tz)` of the posed landmarks `x` under `cam`.
+    fn depth_residuals(&self, cam: &Camera, x: &[[f64; 3]]) -> Option<Vec<f64>> {
+        let d = self.depth.as_ref()?;
+        let r3 = [cam.r[(2, 0)], cam.r[(2, 1)], cam.r[(2, 2)]];
+        Some(
+            x.iter()
+                .zip(d)
+                .map(|(p, z)| z - (cam.s * (r3[0] * p[0] + r3[1] * p[1] + r3[2] * p[2]) + self.tz))
+                .collect(),
+        )
+    }
+
+    /// The depth offset that best fits the current weights under `cam` (the mean residual).
+    fn fit_tz(&mut self, cam: &Camera) {
+        self.tz = 0.0;
+        let x = self.rig.posed(&self.full_weights());
+        if let Some(r) = self.depth_residuals(cam, &x) {
+            self.tz = r.iter().sum::<f64>() / r.len().max(1) as f64;
         }
     }
 
@@ -709,7 +760,7 @@ impl<'a> FrameSolver<'a> {
     /// term weighted by `lw` (all 1: the plain error).
     fn sq_error_with(&self, cam: &Camera, u: &[[f64; 2]], lw: &[f64]) -> f64 {
         let posed = self.rig.posed(&self.full_weights());
-        posed
+        let image: f64 = posed
             .iter()
             .zip(u)
             .zip(lw)
@@ -717,7 +768,11 @@ impl<'a> FrameSolver<'a> {
                 let e = cam.project(p);
                 wi * ((e[0] - q[0]).powi(2) + (e[1] - q[1]).powi(2))
             })
-            .sum()
+            .sum();
+        let depth = self.depth_residuals(cam, &posed).map_or(0.0, |r| {
+            self.depth_weight * r.iter().zip(lw).map(|(e, wi)| wi * e * e).sum::<f64>()
+        });
+        image + depth
     }
 
     /// The plain squared landmark error (what is reported).
@@ -766,29 +821,36 @@ impl<'a> FrameSolver<'a> {
     /// `R ← R exp([ω]×)`, translation) are eliminated by their Schur complement, the weights
     /// solved under their bounds on what is left (warm-started active set), then the camera
     /// step recovered. Returns the camera the full step reaches.
-    fn step(&mut self, cam: &Camera, u: &[[f64; 2]]) -> Camera {
+    fn step(&mut self, cam: &Camera, u: &[[f64; 2]]) -> (Camera, f64) {
         let m = self.free.len();
         let x = self.rig.posed(&self.full_weights());
         let n = u.len();
         let r = &cam.r;
         let lw = &self.blocks.lw;
+        // With depth, a third row per landmark (`s r₃·p + tz`) and a seventh camera
+        // parameter, the depth offset tz.
+        let dres = self.depth_residuals(cam, &self.rig.neutral);
+        let (rows, np) = if dres.is_some() { (3, 7) } else { (2, 6) };
+        let wz = self.wz();
         // The model is linear in w: the right side is the residual plus A·w, and with
-        // A·w = s R₂ (x − N) that is the residual of the neutral, u − proj(N).
+        // A·w = s R (x − N) that is the residual of the neutral, u − proj(N).
         //
-        // Hcw = Jᵀ W A and bw = Aᵀ W r never form A (2 per landmark × m): each of the
-        // camera's six Jacobian rows, and the right side, is pulled back through s R₂ onto
-        // the rig's coordinates (`v`, 7 rows of 3 per landmark), and then met with every
+        // Hcw = Jᵀ W A and bw = Aᵀ W r never form A (rows per landmark × m): each of the
+        // camera's Jacobian rows, and the right side, is pulled back through s R onto the
+        // rig's coordinates (`v`, np + 1 rows of 3 per landmark), and then met with every
         // shape's deltas in one contiguous dot product.
-        let mut hcc = nalgebra::Matrix6::<f64>::zeros();
-        let mut bc = nalgebra::Vector6::<f64>::zeros();
+        let mut hcc = DMatrix::<f64>::zeros(np, np);
+        let mut bc = nalgebra::DVector::<f64>::zeros(np);
         let len = 3 * n;
-        let mut v = vec![0.0; 7 * len];
+        let mut v = vec![0.0; (np + 1) * len];
         for i in 0..n {
             let p = x[i];
             let e = cam.project(&self.rig.neutral[i]);
-            let rhs = [u[i][0] - e[0], u[i][1] - e[1]];
-            let wi = lw[i];
-            for row in 0..2 {
+            for row in 0..rows {
+                let (rhs, wi) = match row {
+                    0 | 1 => (u[i][row] - e[row], lw[i]),
+                    _ => (dres.as_ref().map_or(0.0, |d| d[i]), wz * lw[i]),
+                };
                 let rr = [r[(row, 0)], r[(row, 1)], r[(row, 2)]];
                 // ∂/∂ω of s·rr·(I + [ω]×)p = s·rr·(ω × p) = s·(p × rr)·ω.
                 let c = [
@@ -804,10 +866,11 @@ impl<'a> FrameSolver<'a> {
                     cam.s * c[2],
                     if row == 0 { 1.0 } else { 0.0 },
                     if row == 1 { 1.0 } else { 0.0 },
+                    if row == 2 { 1.0 } else { 0.0 },
                 ];
-                for a in 0..6 {
-                    bc[a] += wi * j[a] * rhs[row];
-                    for b in 0..6 {
+                for a in 0..np {
+                    bc[a] += wi * j[a] * rhs;
+                    for b in 0..np {
                         hcc[(a, b)] += wi * j[a] * j[b];
                     }
                     let f = wi * cam.s * j[a];
@@ -818,42 +881,42 @@ impl<'a> FrameSolver<'a> {
                         }
                     }
                 }
-                let f = wi * cam.s * rhs[row];
-                let at = 6 * len + 3 * i;
+                let f = wi * cam.s * rhs;
+                let at = np * len + 3 * i;
                 for (o, q) in v[at..at + 3].iter_mut().zip(&rr) {
                     *o += f * q;
                 }
             }
         }
         let d = &self.blocks.d;
-        let mut hcw_flat = vec![0.0; 6 * m];
+        let mut hcw_flat = vec![0.0; np * m];
         let mut bw = vec![0.0; m];
-        for j in 0..m {
-            let dj = &d[j * len..(j + 1) * len];
-            for p in 0..6 {
-                hcw_flat[p * m + j] = dot(&v[p * len..(p + 1) * len], dj);
+        for jj in 0..m {
+            let dj = &d[jj * len..(jj + 1) * len];
+            for p in 0..np {
+                hcw_flat[p * m + jj] = dot(&v[p * len..(p + 1) * len], dj);
             }
-            bw[j] = dot(&v[6 * len..7 * len], dj);
+            bw[jj] = dot(&v[np * len..(np + 1) * len], dj);
         }
-        let hcw = DMatrix::from_row_slice(6, m, &hcw_flat);
+        let hcw = DMatrix::from_row_slice(np, m, &hcw_flat);
         let mut g = vec![0.0; m * m];
-        self.blocks.gram(cam, &mut g);
+        self.blocks.gram(cam, wz, &mut g);
         let Some(hinv) = hcc.try_inverse() else {
-            return *cam;
+            return (*cam, self.tz);
         };
         // Schur complement: G' = Hww − Hcwᵀ Hcc⁻¹ Hcw, b' = bw − Hcwᵀ Hcc⁻¹ bc.
-        let t = hinv * &hcw; // 6 × m
-        let tb = hinv * bc;
+        let t = &hinv * &hcw; // np × m
+        let tb = &hinv * &bc;
         for p in 0..m {
             for q in 0..m {
                 let mut v = 0.0;
-                for c in 0..6 {
+                for c in 0..np {
                     v += hcw[(c, p)] * t[(c, q)];
                 }
                 g[p * m + q] -= v;
             }
             let mut v = 0.0;
-            for c in 0..6 {
+            for c in 0..np {
                 v += hcw[(c, p)] * tb[c];
             }
             bw[p] -= v;
@@ -863,14 +926,18 @@ impl<'a> FrameSolver<'a> {
         }
         // Camera step: Hcc δ = bc − Hcw w.
         let hw = &hcw * nalgebra::DVector::from_column_slice(&self.w);
-        let delta = hinv * (bc - hw);
+        let delta = &hinv * (bc - hw);
         let omega = nalgebra::Vector3::new(delta[1], delta[2], delta[3]);
         let rot = nalgebra::Rotation3::new(omega);
-        Camera {
-            s: cam.s + delta[0],
-            r: cam.r * rot.matrix(),
-            t: [cam.t[0] + delta[4], cam.t[1] + delta[5]],
-        }
+        let tz = if np == 7 { self.tz + delta[6] } else { self.tz };
+        (
+            Camera {
+                s: cam.s + delta[0],
+                r: cam.r * rot.matrix(),
+                t: [cam.t[0] + delta[4], cam.t[1] + delta[5]],
+            },
+            tz,
+        )
     }
 
     /// The best weights for camera `cam` (the model is linear in them: exact), warm-started
@@ -891,9 +958,12 @@ impl<'a> FrameSolver<'a> {
             })
             .collect();
         let mut g = vec![0.0; m * m];
-        self.blocks.gram(cam, &mut g);
+        let wz = self.wz();
+        self.blocks.gram(cam, wz, &mut g);
         let mut b = vec![0.0; m];
-        self.blocks.rhs(cam, &res, &mut b);
+        let dres = self.depth_residuals(cam, &self.rig.neutral);
+        self.blocks
+            .rhs(cam, &res, dres.as_deref().map(|d| (d, wz)), &mut b);
         self.solve_weights(g, b);
     }
 
@@ -944,17 +1014,19 @@ impl<'a> FrameSolver<'a> {
     /// Returns (steps, converged, squared error).
     fn solve(&mut self, u: &[[f64; 2]]) -> Result<(u32, bool, f64)> {
         let mut cam = fit_camera(&self.rig.posed(&self.full_weights()), u)?;
+        self.fit_tz(&cam);
         self.weights_for(&cam, u);
         let mut err = self.objective(&cam, u);
         for it in 1..=self.max_steps {
-            let (w0, state0) = (self.w.clone(), self.state.clone());
-            let full = self.step(&cam, u);
+            let (w0, state0, tz0) = (self.w.clone(), self.state.clone(), self.tz);
+            let (full, tz_full) = self.step(&cam, u);
             let mut accepted = None;
             let mut alpha = 1.0;
             for _ in 0..12 {
                 let trial = cam.toward(&full, alpha);
                 self.w.copy_from_slice(&w0);
                 self.state.copy_from_slice(&state0);
+                self.tz = tz0 + alpha * (tz_full - tz0);
                 self.weights_for(&trial, u);
                 let e = self.objective(&trial, u);
                 if e < err {
@@ -966,6 +1038,7 @@ impl<'a> FrameSolver<'a> {
             let Some((next, e)) = accepted else {
                 self.w = w0;
                 self.state = state0;
+                self.tz = tz0;
                 self.cam = Some(cam);
                 return Ok((it as u32, true, self.sq_error(&cam, u)));
             };
@@ -1003,7 +1076,7 @@ pub fn identifiability_weighted(
     let k = rig.k();
     let blocks = Blocks::new(&rig.deltas, lw);
     let mut g = vec![0.0; k * k];
-    blocks.gram(cam, &mut g);
+    blocks.gram(cam, 0.0, &mut g);
     let total: f64 = lw.iter().sum();
     let motion: Vec<f64> = (0..k).map(|i| (g[i * k + i] / total).sqrt()).collect();
     // Pivoted Cholesky: `l` holds the taken shapes' columns of the factor.
@@ -1076,12 +1149,23 @@ pub fn solve_rig(
     opts: &RigOptions,
 ) -> Result<RigSolve> {
     let n = rig.landmarks();
-    if track.nrows() != 2 * n {
+    if track.nrows() != 2 * n && track.nrows() != 3 * n {
         return Err(Error::invalid(format!(
-            "the rig reads {n} landmarks (2-D), but the track has {} rows: select the rig's points (Rig::points) from the track first",
+            "the rig reads {n} landmarks (2 or 3 rows each), but the track has {} rows: select the rig's points (Rig::points) from the track first",
             track.nrows(),
         )));
     }
+    // A track with depth (x, y, z per landmark): its image rows, and its depth rows with
+    // the sign turned to point towards the viewer (MediaPipe's z is more negative closer).
+    let (image, depth) = if track.nrows() == 3 * n {
+        let xy: Vec<usize> = (0..n).flat_map(|i| [3 * i, 3 * i + 1]).collect();
+        let z: Vec<usize> = (0..n).map(|i| 3 * i + 2).collect();
+        (track.select_rows(&xy), Some(-track.select_rows(&z)))
+    } else {
+        (track.clone(), None)
+    };
+    let track = &image;
+    let depth = depth.as_ref();
     if track.ncols() == 0 {
         return Err(Error::invalid("the track has no frames"));
     }
@@ -1176,6 +1260,7 @@ pub fn solve_rig(
             all,
             opts,
             &lw,
+            depth,
         )?),
         _ => None,
     };
@@ -1191,7 +1276,7 @@ pub fn solve_rig(
         match (opts.identity, opts.neutral, &first) {
             (Identity::None, _, _) => (vec![(0..track.ncols(), rig.clone())], Vec::new()),
             (id, Neutral::Column(n), _) => (
-                vec![(0..track.ncols(), person_rig(rig, track, n, id)?)],
+                vec![(0..track.ncols(), person_rig(rig, track, depth, n, id)?)],
                 vec![n],
             ),
             (id, auto, first) => {
@@ -1200,9 +1285,9 @@ pub fn solve_rig(
                 for c in clips {
                     let n = match first {
                         Some(first) if auto == Neutral::LeastActive => least_active(c, first),
-                        _ => best_explaining(rig, track, c.clone(), opts, &lw)?,
+                        _ => best_explaining(rig, track, depth, c.clone(), opts, &lw)?,
                     };
-                    people.push((c.clone(), person_rig(rig, track, n, id)?));
+                    people.push((c.clone(), person_rig(rig, track, depth, n, id)?));
                     neutrals.push(n);
                 }
                 (people, neutrals)
@@ -1217,7 +1302,7 @@ pub fn solve_rig(
     };
     let shapes = identifiability_weighted(&people[0].1, &cam_n, opts.min_determination, &lw);
     let free: Vec<usize> = (0..rig.k()).filter(|&s| !shapes[s].frozen).collect();
-    let mut out = run(rig, track, &people, free, opts, &lw)?;
+    let mut out = run(rig, track, &people, free, opts, &lw, depth)?;
     out.shapes = shapes;
     out.neutrals = neutrals;
     out.people = people;
@@ -1270,6 +1355,7 @@ fn evenly_spaced(r: Range<usize>, count: usize) -> Vec<usize> {
 fn best_explaining(
     rig: &Rig,
     track: &DMatrix<f64>,
+    depth: Option<&DMatrix<f64>>,
     clip: Range<usize>,
     opts: &RigOptions,
     lw: &[f64],
@@ -1280,7 +1366,7 @@ fn best_explaining(
     let scores: Vec<Result<(usize, f64)>> = candidates
         .par_iter()
         .map(|&n| -> Result<(usize, f64)> {
-            let person = person_rig(rig, track, n, opts.identity)?;
+            let person = person_rig(rig, track, depth, n, opts.identity)?;
             let cam = fit_camera(&person.neutral, &frame_points(track, n))?;
             let shapes = identifiability_weighted(&person, &cam, opts.min_determination, lw);
             let free: Vec<usize> = (0..rig.k()).filter(|&s| !shapes[s].frozen).collect();
@@ -1290,6 +1376,7 @@ fn best_explaining(
             let mut total = 0.0;
             for &f in &scored {
                 let u = frame_points(track, f);
+                fs.depth = frame_depth(depth, f);
                 fs.solve(&u)?;
                 let cam = fs.cam.unwrap_or(cam);
                 total += fs.sq_error_with(&cam, &u, lw);
@@ -1315,19 +1402,38 @@ fn best_explaining(
 }
 
 /// The person's rig from the neutral frame `n`.
-fn person_rig(rig: &Rig, track: &DMatrix<f64>, n: usize, id: Identity) -> Result<Rig> {
+fn person_rig(
+    rig: &Rig,
+    track: &DMatrix<f64>,
+    depth: Option<&DMatrix<f64>>,
+    n: usize,
+    id: Identity,
+) -> Result<Rig> {
     // The neutral frame is the person with no expression: its weights are 0 by definition,
     // and its head pose is the rig's neutral fitted to it.
     let u = frame_points(track, n);
     let cam = fit_camera(&rig.neutral, &u)?;
     let posed = &rig.neutral;
-    // The residual, lifted into the rig's frame in the image plane of the neutral camera.
+    // With depth, its residual too (after the best depth offset, the mean).
+    let r3 = [cam.r[(2, 0)], cam.r[(2, 1)], cam.r[(2, 2)]];
+    let dz: Option<Vec<f64>> = frame_depth(depth, n).map(|d| {
+        let r: Vec<f64> = d
+            .iter()
+            .zip(posed)
+            .map(|(z, p)| z - cam.s * (r3[0] * p[0] + r3[1] * p[1] + r3[2] * p[2]))
+            .collect();
+        let mean = r.iter().sum::<f64>() / r.len().max(1) as f64;
+        r.iter().map(|v| v - mean).collect()
+    });
+    // The residual, lifted into the rig's frame in the image plane of the neutral camera
+    // (and along its depth axis, with depth).
     let mut neutral = rig.neutral.clone();
     for (i, p) in neutral.iter_mut().enumerate() {
         let e = cam.project(&posed[i]);
         let d = [(u[i][0] - e[0]) / cam.s, (u[i][1] - e[1]) / cam.s];
+        let z = dz.as_ref().map_or(0.0, |z| z[i] / cam.s);
         for a in 0..3 {
-            p[a] += cam.r[(0, a)] * d[0] + cam.r[(1, a)] * d[1];
+            p[a] += cam.r[(0, a)] * d[0] + cam.r[(1, a)] * d[1] + r3[a] * z;
         }
     }
     let mut person = Rig {
@@ -1420,8 +1526,10 @@ fn run(
     free: Vec<usize>,
     opts: &RigOptions,
     lw: &[f64],
+    depth: Option<&DMatrix<f64>>,
 ) -> Result<RigSolve> {
     let frames = track.ncols();
+    let mut tzs = vec![0.0; frames];
     let n = rig.landmarks();
     let mut weights = DMatrix::zeros(rig.k(), frames);
     let (mut cameras, mut rms, mut steps) = (Vec::new(), Vec::new(), Vec::new());
@@ -1436,7 +1544,9 @@ fn run(
         fs.pairs = exclusive_pairs(rig, &fs.free, &fs.ridge);
         for f in clip.clone() {
             let u = frame_points(track, f);
+            fs.depth = frame_depth(depth, f);
             let (it, ok, e) = fs.solve(&u)?;
+            tzs[f] = fs.tz;
             unconverged += usize::from(!ok);
             steps.push(it);
             rms.push((e / n as f64).sqrt());
@@ -1457,9 +1567,9 @@ fn run(
         if offline {
             let (n_sweeps, ok) = temporal::offline_prior(
                 &mut fs,
-                track,
+                (track, depth),
                 clip.clone(),
-                &cameras,
+                (&cameras, &tzs),
                 &mut weights,
                 opts.smooth,
             );

@@ -19,7 +19,7 @@
 //! alike, no lag. The tests check the result's KKT conditions.
 
 use super::camera::Camera;
-use super::{frame_points, FrameSolver};
+use super::{frame_depth, frame_points, FrameSolver};
 use crate::solve::active_set::Bound;
 use crate::solve::Solver;
 use nalgebra::DMatrix;
@@ -37,9 +37,9 @@ pub const MAX_SWEEPS: usize = 2000;
 /// magnitude prior, exclusive pairs). Returns (sweeps, converged).
 pub(super) fn offline_prior(
     fs: &mut FrameSolver,
-    track: &DMatrix<f64>,
+    (track, depth): (&DMatrix<f64>, Option<&DMatrix<f64>>),
     clip: Range<usize>,
-    cameras: &[Camera],
+    (cameras, tzs): (&[Camera], &[f64]),
     weights: &mut DMatrix<f64>,
     lambda: f64,
 ) -> (usize, bool) {
@@ -91,6 +91,8 @@ pub(super) fn offline_prior(
                 };
             }
             let f = clip.start + t;
+            fs.depth = frame_depth(depth, f);
+            fs.tz = tzs[f];
             fs.weights_for(&cameras[f], &frame_points(track, f));
             for (o, n) in w[t * m..(t + 1) * m].iter_mut().zip(&fs.w) {
                 moved = moved.max((n - *o).abs());

@@ -100,6 +100,106 @@ fn noise_free_dense_renders_come_back_exactly() {
     }
 }
 
+/// With MediaPipe's depth (`--dims 3`): a noise-free render with depth (z in x's pixels,
+/// more negative closer, an arbitrary origin) comes back exactly with the priors off, and
+/// on the benchmark depth raises the smooth performance's worst shape (measured 0.944 →
+/// 0.983 at 0.5 px).
+#[test]
+fn depth_rows_are_fitted_and_help() {
+    let rig = dense(468);
+    let st = Settings {
+        noise_px: 0.0,
+        other_person: false,
+        lead_in: 0,
+        frames: 30,
+        depth: true,
+        ..Settings::default()
+    };
+    let track = accuracy::render(&rig, &st).unwrap();
+    assert_eq!(track.points.nrows(), 3 * rig.landmarks());
+    let opts = RigOptions {
+        identity: Identity::None,
+        min_determination: 0.0,
+        ..RigOptions::default()
+    };
+    let r = solve_rig(&rig, &track.points, &[], &opts).unwrap();
+    let worst_rms = r.rms.iter().copied().fold(0.0, f64::max);
+    assert!(worst_rms < 1e-6, "landmark RMS {worst_rms}");
+    let worst = (0..rig.k())
+        .flat_map(|s| (0..30).map(move |f| (s, f)))
+        .map(|(s, f)| (r.weights[(s, f)] - track.truth[(s, f)]).abs())
+        .fold(0.0, f64::max);
+    assert!(worst < 1e-5, "worst weight error {worst}");
+    // The benchmark's default track, with and without depth.
+    let (_, _, _, flat) =
+        accuracy::run(&rig, &Settings::default(), &RigOptions::recommended()).unwrap();
+    let st = Settings {
+        depth: true,
+        ..Settings::default()
+    };
+    let (_, _, _, deep) = accuracy::run(&rig, &st, &RigOptions::recommended()).unwrap();
+    assert!(
+        deep.worst_r > flat.worst_r + 0.02,
+        "{deep:?} against {flat:?}"
+    );
+    assert!(deep.rmse < flat.rmse, "{deep:?} against {flat:?}");
+}
+
+/// `kslab rig --dims 3` reads a MediaPipe track's z and solves with it (other weights than
+/// without), and refuses tracks with no depth.
+#[test]
+fn kslab_rig_reads_depth_with_dims_3() {
+    let d = tempfile::tempdir().unwrap();
+    let track = shared("mediapipe_face_tracks/liveportrait_d18.csv");
+    let (w2, w3) = (d.path().join("w2.csv"), d.path().join("w3.csv"));
+    let r = kslab(&[
+        "rig",
+        track.to_str().unwrap(),
+        "--out",
+        w2.to_str().unwrap(),
+    ]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let r = kslab(&[
+        "rig",
+        track.to_str().unwrap(),
+        "--dims",
+        "3",
+        "--out",
+        w3.to_str().unwrap(),
+    ]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let (a, b) = (
+        std::fs::read_to_string(&w2).unwrap(),
+        std::fs::read_to_string(&w3).unwrap(),
+    );
+    assert_eq!(a.lines().count(), b.lines().count());
+    assert_ne!(a, b);
+    let news = shared("pyfeat_samples/news_sample_compact.csv");
+    let out = d.path().join("x.csv");
+    let r = kslab(&[
+        "rig",
+        news.to_str().unwrap(),
+        "--dims",
+        "3",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(r.code, 1);
+    assert!(
+        r.stderr.contains("--dims 3 needs a column 'z_0'"),
+        "{}",
+        r.stderr
+    );
+    let r = kslab(&["rig", "--dims", "3", "--out", out.to_str().unwrap()]);
+    assert_eq!(r.code, 1);
+    assert!(
+        r.stderr.contains("the built-in sequence has no depth"),
+        "{}",
+        r.stderr
+    );
+    assert!(!out.exists());
+}
+
 /// The goals for MediaPipe 468 (smooth performance, another person with a lead-in,
 /// 0.5 px, default settings): mean r ≥ 0.97, worst ≥ 0.90, RMSE ≤ 0.06 (measured 0.992 /
 /// 0.944 / 0.040); winks: each one-sided shape ≥ 0.85 at its peaks (measured 0.85 at the
