@@ -406,7 +406,7 @@ pub fn render(rig: &Rig, st: &Settings) -> Result<Track> {
             let c = &cameras[f];
             for (i, p) in person.posed(&w).iter().enumerate() {
                 let u = c.project(p);
-                let z = c.s * (c.r[(2, 0)] * p[0] + c.r[(2, 1)] * p[1] + c.r[(2, 2)] * p[2]);
+                let z = c.depth(p);
                 out[(3 * i, f)] = u[0];
                 out[(3 * i + 1, f)] = -u[1];
                 out[(3 * i + 2, f)] = -(z + 40.0);

@@ -26,6 +26,12 @@ impl Camera {
         ]
     }
 
+    /// The depth of a rig point towards the viewer, `s r₃·x` (no offset: a track's depth
+    /// has an origin of its own).
+    pub fn depth(&self, x: &[f64; 3]) -> f64 {
+        self.s * (self.r[(2, 0)] * x[0] + self.r[(2, 1)] * x[1] + self.r[(2, 2)] * x[2])
+    }
+
     /// The camera a fraction `alpha` of the way from this one to `other` (scale and
     /// translation linearly, rotation along the geodesic).
     pub fn toward(&self, other: &Camera, alpha: f64) -> Camera {

@@ -730,11 +730,10 @@ impl<'a> FrameSolver<'a> {
     /// The depth residuals `d − (s r₃·p + tz)` of the posed landmarks `x` under `cam`.
     fn depth_residuals(&self, cam: &Camera, x: &[[f64; 3]]) -> Option<Vec<f64>> {
         let d = self.depth.as_ref()?;
-        let r3 = [cam.r[(2, 0)], cam.r[(2, 1)], cam.r[(2, 2)]];
         Some(
             x.iter()
                 .zip(d)
-                .map(|(p, z)| z - (cam.s * (r3[0] * p[0] + r3[1] * p[1] + r3[2] * p[2]) + self.tz))
+                .map(|(p, z)| z - (cam.depth(p) + self.tz))
                 .collect(),
         )
     }
@@ -1417,11 +1416,7 @@ fn person_rig(
     // With depth, its residual too (after the best depth offset, the mean).
     let r3 = [cam.r[(2, 0)], cam.r[(2, 1)], cam.r[(2, 2)]];
     let dz: Option<Vec<f64>> = frame_depth(depth, n).map(|d| {
-        let r: Vec<f64> = d
-            .iter()
-            .zip(posed)
-            .map(|(z, p)| z - cam.s * (r3[0] * p[0] + r3[1] * p[1] + r3[2] * p[2]))
-            .collect();
+        let r: Vec<f64> = d.iter().zip(posed).map(|(z, p)| z - cam.depth(p)).collect();
         let mean = r.iter().sum::<f64>() / r.len().max(1) as f64;
         r.iter().map(|v| v - mean).collect()
     });

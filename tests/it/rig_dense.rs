@@ -14,6 +14,31 @@ fn dense(layout: usize) -> Rig {
         .2
 }
 
+/// Renders `st` (noise-free, the rig's own face) and solves it back with the priors off and
+/// no identity: every landmark to 1e-6, every weight to 1e-5. Returns the track.
+fn comes_back_exactly(rig: &Rig, st: &Settings) -> accuracy::Track {
+    let track = accuracy::render(rig, st).unwrap();
+    let opts = RigOptions {
+        identity: Identity::None,
+        min_determination: 0.0,
+        ..RigOptions::default()
+    };
+    let r = solve_rig(rig, &track.points, &[], &opts).unwrap();
+    let worst_rms = r.rms.iter().copied().fold(0.0, f64::max);
+    assert!(
+        worst_rms < 1e-6,
+        "{} landmarks: RMS {worst_rms}",
+        rig.landmarks()
+    );
+    let worst = (r.weights.clone() - &track.truth).abs().max();
+    assert!(
+        worst < 1e-5,
+        "{} landmarks: worst weight error {worst}",
+        rig.landmarks()
+    );
+    track
+}
+
 fn obj_vertices(p: &std::path::Path) -> Vec<[f64; 3]> {
     keyshape_lab::io::obj::read_obj(p).unwrap().positions
 }
@@ -83,20 +108,7 @@ fn noise_free_dense_renders_come_back_exactly() {
             frames: 40,
             ..Settings::default()
         };
-        let track = accuracy::render(&rig, &st).unwrap();
-        let opts = RigOptions {
-            identity: Identity::None,
-            min_determination: 0.0,
-            ..RigOptions::default()
-        };
-        let r = solve_rig(&rig, &track.points, &[], &opts).unwrap();
-        let worst_rms = r.rms.iter().copied().fold(0.0, f64::max);
-        assert!(worst_rms < 1e-6, "{layout}: landmark RMS {worst_rms}");
-        let worst = (0..rig.k())
-            .flat_map(|s| (0..40).map(move |f| (s, f)))
-            .map(|(s, f)| (r.weights[(s, f)] - track.truth[(s, f)]).abs())
-            .fold(0.0, f64::max);
-        assert!(worst < 1e-5, "{layout}: worst weight error {worst}");
+        comes_back_exactly(&rig, &st);
     }
 }
 
@@ -115,21 +127,8 @@ fn depth_rows_are_fitted_and_help() {
         depth: true,
         ..Settings::default()
     };
-    let track = accuracy::render(&rig, &st).unwrap();
+    let track = comes_back_exactly(&rig, &st);
     assert_eq!(track.points.nrows(), 3 * rig.landmarks());
-    let opts = RigOptions {
-        identity: Identity::None,
-        min_determination: 0.0,
-        ..RigOptions::default()
-    };
-    let r = solve_rig(&rig, &track.points, &[], &opts).unwrap();
-    let worst_rms = r.rms.iter().copied().fold(0.0, f64::max);
-    assert!(worst_rms < 1e-6, "landmark RMS {worst_rms}");
-    let worst = (0..rig.k())
-        .flat_map(|s| (0..30).map(move |f| (s, f)))
-        .map(|(s, f)| (r.weights[(s, f)] - track.truth[(s, f)]).abs())
-        .fold(0.0, f64::max);
-    assert!(worst < 1e-5, "worst weight error {worst}");
     // The benchmark's default track, with and without depth.
     let (_, _, _, flat) =
         accuracy::run(&rig, &Settings::default(), &RigOptions::recommended()).unwrap();
