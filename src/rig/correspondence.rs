@@ -399,6 +399,10 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("m.csv:3:1") && e.contains("named twice"), "{e}");
+        let e = parse_correspondence(p, "landmark,vertex\n5,1\n6,x\n", 4)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("m.csv:3:2: not an index: 'x'"), "{e}");
         let e = parse_correspondence(p, "landmark,vertex\n5,1\n", 4)
             .unwrap_err()
             .to_string();
