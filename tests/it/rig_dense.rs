@@ -7,6 +7,7 @@ use crate::common::{kslab, shared};
 use keyshape_lab::rig::accuracy::{self, Kind, Settings};
 use keyshape_lab::rig::correspondence::{mediapipe468_to_ict, read_rig};
 use keyshape_lab::rig::{solve_rig, Identity, Rig, RigOptions};
+use keyshape_lab::solve::Solver;
 
 fn dense(layout: usize) -> Rig {
     read_rig(&shared("ict_facekit_face"), layout, None)
@@ -15,27 +16,31 @@ fn dense(layout: usize) -> Rig {
 }
 
 /// Renders `st` (noise-free, the rig's own face) and solves it back with the priors off and
-/// no identity: every landmark to 1e-6, every weight to 1e-5. Returns the track.
+/// no identity, with every solver (bounded, nnls, ls): every landmark to 1e-6, every weight
+/// to 1e-5. Returns the track.
 fn comes_back_exactly(rig: &Rig, st: &Settings) -> accuracy::Track {
     let track = accuracy::render(rig, st).unwrap();
-    let opts = RigOptions {
-        identity: Identity::None,
-        min_determination: 0.0,
-        ..RigOptions::default()
-    };
-    let r = solve_rig(rig, &track.points, &[], &opts).unwrap();
-    let worst_rms = r.rms.iter().copied().fold(0.0, f64::max);
-    assert!(
-        worst_rms < 1e-6,
-        "{} landmarks: RMS {worst_rms}",
-        rig.landmarks()
-    );
-    let worst = (r.weights.clone() - &track.truth).abs().max();
-    assert!(
-        worst < 1e-5,
-        "{} landmarks: worst weight error {worst}",
-        rig.landmarks()
-    );
+    for solver in [Solver::Bounded, Solver::Nnls, Solver::Ls] {
+        let opts = RigOptions {
+            identity: Identity::None,
+            min_determination: 0.0,
+            solver,
+            ..RigOptions::default()
+        };
+        let r = solve_rig(rig, &track.points, &[], &opts).unwrap();
+        let what = format!("{} landmarks, {}", rig.landmarks(), solver.name());
+        let worst_rms = r.rms.iter().copied().fold(0.0, f64::max);
+        assert!(worst_rms < 1e-6, "{what}: RMS {worst_rms}");
+        let worst = (r.weights.clone() - &track.truth).abs().max();
+        // Unconstrained on 68 points, weakly seen shape combinations take rounding further
+        // (measured 1.6e-5).
+        let tol = if solver == Solver::Ls && rig.landmarks() == 68 {
+            1e-4
+        } else {
+            1e-5
+        };
+        assert!(worst < tol, "{what}: worst weight error {worst}");
+    }
     track
 }
 
@@ -94,12 +99,18 @@ fn the_dense_correspondence_keeps_mirror_pairs_it_was_not_told_about() {
 }
 
 /// A noise-free render of the rig itself through the dense landmarks — 462 of the 468, and
-/// with 478 points the two iris centres — comes back exactly with the priors off.
+/// with 478 points the two iris centres — comes back exactly with the priors off, with
+/// every solver; and through the 68 (the iBUG path) with every solver too.
 #[test]
 fn noise_free_dense_renders_come_back_exactly() {
-    for layout in [468, 478] {
+    for layout in [68, 468, 478] {
         let rig = dense(layout);
-        assert_eq!(rig.landmarks(), if layout == 468 { 462 } else { 464 });
+        let expect = match layout {
+            68 => 68,
+            468 => 462,
+            _ => 464,
+        };
+        assert_eq!(rig.landmarks(), expect);
         assert_eq!(rig.sees_pupils(), layout == 478);
         let st = Settings {
             noise_px: 0.0,
@@ -369,4 +380,121 @@ fn bad_correspondences_and_point_counts_are_refused() {
     assert_eq!(r.code, 1);
     assert!(r.stderr.contains("use --landmarks 68"), "{}", r.stderr);
     assert!(!out.exists());
+}
+
+/// The iris centres of a 478-point track, placed on the ICT face (which has no eyeballs):
+/// each at the centroid of its eye's landmarks, moved by its own eye's gaze shapes only —
+/// out of the left eye is +x (the subject's left), out of the right eye −x, up +y — by the
+/// distance `expressions.csv` gives the dropped eyeballs (eyeLookOut_L 0.2348 cm …).
+#[test]
+fn the_iris_centres_sit_in_their_eyes_and_follow_their_own_gaze_shapes() {
+    use keyshape_lab::rig::correspondence::read_gaze_travel;
+    let rig = dense(478);
+    let travel = read_gaze_travel(&shared("ict_facekit_face/expressions.csv")).unwrap();
+    assert_eq!(travel.len(), 8);
+    assert!(
+        travel.contains(&("eyeLookOut_L".to_string(), 0.2348)),
+        "{travel:?}"
+    );
+    let layout = keyshape_lab::sequence::Layout::mediapipe478();
+    for (centre, group, side, out) in [(468, "right_eye", "_R", -1.0), (473, "left_eye", "_L", 1.0)]
+    {
+        let i = rig.points.iter().position(|&p| p == centre).unwrap();
+        let eye: Vec<usize> = layout.groups[group]
+            .points
+            .iter()
+            .filter_map(|p| rig.points.iter().position(|q| q == p))
+            .collect();
+        for a in 0..3 {
+            let mean = eye.iter().map(|&m| rig.neutral[m][a]).sum::<f64>() / eye.len() as f64;
+            assert!((rig.neutral[i][a] - mean).abs() < 1e-9, "{group} axis {a}");
+        }
+        let cm = |n: &str| travel.iter().find(|t| t.0 == n).unwrap().1;
+        for (s, name) in rig.names.iter().enumerate() {
+            let d = rig.deltas[s][i];
+            let want = match name.strip_suffix(side) {
+                Some("eyeLookOut") => [out * cm(name), 0.0, 0.0],
+                Some("eyeLookIn") => [-out * cm(name), 0.0, 0.0],
+                Some("eyeLookUp") => [0.0, cm(name), 0.0],
+                Some("eyeLookDown") => [0.0, -cm(name), 0.0],
+                _ => [0.0; 3],
+            };
+            assert_eq!(d, want, "{name} at iris {centre}");
+        }
+    }
+    // A rig folder whose expressions.csv lacks the column, or has a bad value: refused.
+    let d = tempfile::tempdir().unwrap();
+    let bad = d.path().join("e.csv");
+    std::fs::write(&bad, "shape_id,shape\n0,eyeLookUp_L\n").unwrap();
+    let e = read_gaze_travel(&bad).unwrap_err().to_string();
+    assert!(e.contains("max_abs_offset_outside_cm"), "{e}");
+    std::fs::write(
+        &bad,
+        "shape_id,shape,max_abs_offset_outside_cm\n0,jawOpen,x\n1,eyeLookUp_L,-2\n",
+    )
+    .unwrap();
+    let e = read_gaze_travel(&bad).unwrap_err().to_string();
+    assert!(e.contains("e.csv:3:3: not a distance in cm: '-2'"), "{e}");
+}
+
+/// The layout's contours through a rig's landmarks follow the landmarks, whatever order the
+/// correspondence lists them in: the iBUG rig's are the 68 layout's, and a rig read through
+/// a shuffled list draws the same contours between the same points.
+#[test]
+fn a_rigs_contours_follow_its_landmarks_in_any_order() {
+    use keyshape_lab::retarget::setup::polylines_for;
+    let rig68 = dense(68);
+    let all: Vec<usize> = (0..68).collect();
+    assert_eq!(
+        rig68.polylines(),
+        polylines_for(&keyshape_lab::sequence::Layout::ibug68(), &all)
+    );
+    let dir = shared("ict_facekit_face");
+    let d = tempfile::tempdir().unwrap();
+    let marks = std::fs::read_to_string(dir.join("landmarks_multipie68.csv")).unwrap();
+    let mut rows: Vec<&str> = marks.lines().skip(1).collect();
+    rows.reverse();
+    let csv = d.path().join("rev.csv");
+    std::fs::write(&csv, format!("landmark,vertex\n{}\n", rows.join("\n"))).unwrap();
+    let rev = read_rig(&dir, 68, Some(&csv)).unwrap().2;
+    assert_eq!(rev.points, (0..68).rev().collect::<Vec<_>>());
+    let as_points = |r: &Rig| -> Vec<Vec<usize>> {
+        r.polylines()
+            .iter()
+            .map(|l| l.iter().map(|&i| r.points[i]).collect())
+            .collect()
+    };
+    assert_eq!(as_points(&rev), as_points(&rig68));
+    assert!(!rig68.polylines().is_empty());
+}
+
+/// A MediaPipe track on a rig folder that is not the ICT face needs the folder's own dense
+/// correspondence (the built-in one is for the ICT face's vertices), and uses it when there.
+#[test]
+fn a_rig_folder_that_is_not_ict_needs_its_own_dense_correspondence() {
+    let src = shared("ict_facekit_face");
+    let d = tempfile::tempdir().unwrap();
+    for f in [
+        "neutral_face.obj",
+        "expressions.csv",
+        "expression_deltas.csv",
+    ] {
+        std::fs::copy(src.join(f), d.path().join(f)).unwrap();
+    }
+    // The same mesh, its iBUG nose tip named at another vertex: not the ICT face's list.
+    let marks = std::fs::read_to_string(src.join("landmarks_multipie68.csv")).unwrap();
+    let marks = marks.replace("\n30,4857", "\n30,4858");
+    std::fs::write(d.path().join("landmarks_multipie68.csv"), marks).unwrap();
+    let e = read_rig(d.path(), 468, None).unwrap_err().to_string();
+    assert!(
+        e.contains("needs this rig's landmarks_mediapipe468.csv"),
+        "{e}"
+    );
+    std::fs::write(
+        d.path().join("landmarks_mediapipe468.csv"),
+        "landmark,vertex\n33,100\n263,200\n1,4857\n152,300\n61,400\n",
+    )
+    .unwrap();
+    let rig = read_rig(d.path(), 468, None).unwrap().2;
+    assert_eq!(rig.points, vec![33, 263, 1, 152, 61]);
 }
