@@ -1327,6 +1327,63 @@ fn rig_landmark_weights(rig: &Rig, opts: &RigOptions) -> Result<Vec<f64>> {
     Ok(vec![1.0; rig.landmarks()])
 }
 
+/// Of `frames`, those that look neutral: lips no more parted and brows no higher than the
+/// median of `frames` (each as a fraction of the frame's inter-ocular distance: the inner
+/// lips' gap, iBUG 62–66 / MediaPipe 13–14; each brow's middle above its upper lid, iBUG
+/// 19–37 and 24–44 / MediaPipe 105–159 and 334–386). A frame with parted lips or raised
+/// brows is then never the neutral. All of `frames` when the rig does not read those
+/// points (or the eye corners).
+fn neutral_looking(rig: &Rig, track: &DMatrix<f64>, frames: Vec<usize>) -> Vec<usize> {
+    let (lips, brows): ([usize; 2], [[usize; 2]; 2]) = match rig.layout {
+        68 => ([62, 66], [[19, 37], [24, 44]]),
+        _ => ([13, 14], [[105, 159], [334, 386]]),
+    };
+    let at = |p: usize| rig.points.iter().position(|&q| q == p);
+    let (Some(eyes), Some(l0), Some(l1)) = (rig.eyes(), at(lips[0]), at(lips[1])) else {
+        return frames;
+    };
+    let brows: Option<Vec<[usize; 2]>> = brows
+        .iter()
+        .map(|[b, e]| Some([at(*b)?, at(*e)?]))
+        .collect();
+    let Some(brows) = brows else { return frames };
+    let pt = |i: usize, f: usize| [track[(2 * i, f)], track[(2 * i + 1, f)]];
+    let dist = |a: [f64; 2], b: [f64; 2]| ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt();
+    let measure = |f: usize| {
+        let iod = dist(pt(eyes[0], f), pt(eyes[1], f)).max(f64::MIN_POSITIVE);
+        let gap = dist(pt(l0, f), pt(l1, f)) / iod;
+        let raise = brows
+            .iter()
+            .map(|[b, e]| dist(pt(*b, f), pt(*e, f)))
+            .sum::<f64>()
+            / (2.0 * iod);
+        (gap, raise)
+    };
+    let m: Vec<(f64, f64)> = frames.iter().map(|&f| measure(f)).collect();
+    let median = |mut v: Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    if m.is_empty() {
+        return frames;
+    }
+    let (g, r) = (
+        median(m.iter().map(|x| x.0).collect()),
+        median(m.iter().map(|x| x.1).collect()),
+    );
+    let kept: Vec<usize> = frames
+        .iter()
+        .zip(&m)
+        .filter(|(_, x)| x.0 <= g && x.1 <= r)
+        .map(|(&f, _)| f)
+        .collect();
+    if kept.is_empty() {
+        frames
+    } else {
+        kept
+    }
+}
+
 /// Neutral candidates tried per clip by [`Neutral::Auto`] (all frames of shorter clips).
 pub const NEUTRAL_CANDIDATES: usize = 48;
 /// Frames of a clip each candidate is scored on (all frames of shorter clips).
@@ -1360,7 +1417,7 @@ fn best_explaining(
     lw: &[f64],
 ) -> Result<usize> {
     use rayon::prelude::*;
-    let candidates = evenly_spaced(clip.clone(), NEUTRAL_CANDIDATES);
+    let candidates = neutral_looking(rig, track, evenly_spaced(clip.clone(), NEUTRAL_CANDIDATES));
     let scored = evenly_spaced(clip, NEUTRAL_SCORED_FRAMES);
     let scores: Vec<Result<(usize, f64)>> = candidates
         .par_iter()

@@ -498,3 +498,49 @@ fn a_rig_folder_that_is_not_ict_needs_its_own_dense_correspondence() {
     let rig = read_rig(d.path(), 468, None).unwrap().2;
     assert_eq!(rig.points, vec![33, 263, 1, 152, 61]);
 }
+
+/// The automatic neutral takes no frame with parted lips or raised brows (issue 39): on
+/// LivePortrait's d18 (neutral, then "oo", then a scream) it took frame 156, lips parted at
+/// 0.038 of the inter-ocular distance against the track's median 0.018; its candidates are
+/// now the frames whose lips and brows are at most the candidates' medians (measured: frame
+/// 41, gap 0.014).
+#[test]
+fn the_automatic_neutral_has_closed_lips_and_resting_brows() {
+    let d = tempfile::tempdir().unwrap();
+    let path = shared("mediapipe_face_tracks/liveportrait_d18.csv");
+    let out = d.path().join("w.csv");
+    let r = kslab(&[
+        "rig",
+        path.to_str().unwrap(),
+        "--json",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let v: serde_json::Value = serde_json::from_str(&r.stdout).unwrap();
+    let n = v["neutral_frames"][0].as_u64().unwrap() as usize;
+    let seq = keyshape_lab::io::read_sequence(&path, &Default::default()).unwrap();
+    let at = |p: usize, f: usize| [seq.coords[(2 * p, f)], seq.coords[(2 * p + 1, f)]];
+    let dist = |a: [f64; 2], b: [f64; 2]| ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt();
+    let iod = |f: usize| dist(at(33, f), at(263, f));
+    let gap = |f: usize| dist(at(13, f), at(14, f)) / iod(f);
+    let brow =
+        |f: usize| (dist(at(105, f), at(159, f)) + dist(at(334, f), at(386, f))) / (2.0 * iod(f));
+    let median = |g: &dyn Fn(usize) -> f64| {
+        let mut v: Vec<f64> = (0..seq.n_frames()).map(g).collect();
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    assert!(
+        gap(n) <= median(&gap) * 1.1,
+        "frame {n}: lip gap {} against {}",
+        gap(n),
+        median(&gap)
+    );
+    assert!(
+        brow(n) <= median(&brow) * 1.05,
+        "frame {n}: brows {} against {}",
+        brow(n),
+        median(&brow)
+    );
+}
