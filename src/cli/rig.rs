@@ -70,9 +70,12 @@ pub struct RigArgs {
     /// The person's neutral face: `auto` (of up to 48 evenly spaced candidate frames, the
     /// one whose identity best explains the performance: the lowest landmark error of a
     /// solve of up to 64 evenly spaced frames from it), `least-active` (the frame whose
-    /// weights sum lowest in a first pass with the rig as it is) or a frame number of the
-    /// file; refused with --identity none, which uses none. [default: auto].
-    #[arg(long, value_name = "auto|least-active|FRAME")]
+    /// weights sum lowest in a first pass with the rig as it is), a frame number of the
+    /// file, or a recorded neutral lead-in FIRST-LAST (frame numbers, inclusive: each
+    /// frame's difference from the rig's neutral averaged, so no one frame's landmark noise
+    /// becomes the person's face); refused with --identity none, which uses none.
+    /// [default: auto].
+    #[arg(long, value_name = "auto|least-active|FRAME|FIRST-LAST")]
     neutral: Option<String>,
     /// How the person's face differs from the rig's: `offset` (the neutral frame's 2-D
     /// residual, lifted into the rig at that frame's head pose, moves the rig's neutral
@@ -100,6 +103,11 @@ pub struct RigArgs {
     /// Tuned on `kslab rig-accuracy`.
     #[arg(long, default_value_t = keyshape_lab::rig::RECOMMENDED_PRIOR, allow_negative_numbers = true)]
     prior: f64,
+    /// The plain ridge μ‖w‖² instead of the tapered prior (the default: each shape's pull
+    /// 2μw(1 − w)² fades as it comes on, so peaks are reached; see the README, "Rig accuracy
+    /// against ground truth"). Needs a prior.
+    #[arg(long)]
+    no_prior_taper: bool,
     /// The offline, zero-phase temporal prior: each clip's weights smoothed by a Gaussian
     /// of σ frames, no lag (it needs the whole file; --live turns it off). 0 is off.
     /// Tuned on `kslab rig-accuracy` (2 already flattens speech-rate jaw motion).
@@ -245,10 +253,27 @@ pub fn run(a: &RigArgs) -> Result<()> {
         None | Some("auto") => Neutral::Auto,
         Some("least-active") => Neutral::LeastActive,
         Some(f) => {
-            let frame: i64 = f.parse().map_err(|_| {
-                anyhow::anyhow!("--neutral: '{f}' is neither auto, least-active nor a frame number")
-            })?;
-            Neutral::Column(seq.column_of_frame(frame)?)
+            let bad = || {
+                anyhow::anyhow!(
+                    "--neutral: '{f}' is neither auto, least-active, a frame number nor a stretch of frames FIRST-LAST"
+                )
+            };
+            match f.split_once('-') {
+                // FIRST-LAST (frame numbers ≥ 0, so '-' is never a sign here but for a
+                // lone negative frame, which is refused by the file's frame lookup).
+                Some((x, y)) if !x.is_empty() => {
+                    let (x, y): (i64, i64) = (
+                        x.trim().parse().map_err(|_| bad())?,
+                        y.trim().parse().map_err(|_| bad())?,
+                    );
+                    let (cx, cy) = (seq.column_of_frame(x)?, seq.column_of_frame(y)?);
+                    if cx > cy {
+                        anyhow::bail!("--neutral {f}: frame {x} comes after frame {y} in the file");
+                    }
+                    Neutral::Span(cx, cy + 1)
+                }
+                _ => Neutral::Column(seq.column_of_frame(f.parse().map_err(|_| bad())?)?),
+            }
         }
     };
     let zero_phase = match (a.live, a.zero_phase) {
@@ -268,6 +293,9 @@ pub fn run(a: &RigArgs) -> Result<()> {
     if a.smooth_mode.is_some() && a.smooth.unwrap_or(0.0) == 0.0 {
         anyhow::bail!("--smooth-mode applies to the temporal prior: give --smooth λ > 0");
     }
+    if a.no_prior_taper && a.prior == 0.0 {
+        anyhow::bail!("--no-prior-taper: there is no prior to taper (--prior 0)");
+    }
     let opts = RigOptions {
         solver: a.solver,
         identity: a.identity,
@@ -278,6 +306,7 @@ pub fn run(a: &RigArgs) -> Result<()> {
         landmark_weights: keyshape_lab::rig::landmark_weights(&a.landmark_weight)?,
         prior: a.prior,
         zero_phase,
+        taper: !a.no_prior_taper,
         ..Default::default()
     };
     let per_clip = match a.identity_per.as_deref() {
@@ -285,7 +314,7 @@ pub fn run(a: &RigArgs) -> Result<()> {
             if seq.segments.is_none() {
                 anyhow::bail!("--identity-per clip: {name} labels no clips");
             }
-            if matches!(neutral, Neutral::Column(_)) {
+            if matches!(neutral, Neutral::Column(_) | Neutral::Span(..)) {
                 anyhow::bail!("--identity-per clip needs --neutral auto or least-active: an explicit neutral frame is one identity for the whole track");
             }
             if a.identity == Identity::None {
@@ -377,6 +406,7 @@ pub fn run(a: &RigArgs) -> Result<()> {
                 (_, Neutral::Auto) => Some("auto".to_string()),
                 (_, Neutral::LeastActive) => Some("least-active".to_string()),
                 (_, Neutral::Column(c)) => Some(seq.frames[c].to_string()),
+                (_, Neutral::Span(x, y)) => Some(format!("{}-{}", seq.frames[x], seq.frames[y - 1])),
             },
             "neutral_frames": neutral_frames,
             "layout": rig.layout,
@@ -388,6 +418,7 @@ pub fn run(a: &RigArgs) -> Result<()> {
             "sweeps": r.sweeps,
             "sweeps_unconverged": r.sweeps_unconverged,
             "prior": opts.prior,
+            "prior_taper": opts.taper,
             "zero_phase": opts.zero_phase,
             "mean_rms": mean_rms,
             "unconverged": r.unconverged,

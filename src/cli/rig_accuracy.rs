@@ -69,8 +69,9 @@ pub struct RigAccuracyArgs {
     /// As `kslab rig --identity`.
     #[arg(long, default_value = "offset", value_parser = super::rig::parse_identity)]
     identity: Identity,
-    /// The neutral frame: `auto` (as `kslab rig`), `least-active`, or `lead-in` (the middle
-    /// of the lead-in, where the truth is neutral: what a user who recorded one would name).
+    /// The neutral: `auto` (as `kslab rig`), `least-active`, or `lead-in` (the whole
+    /// lead-in, where the truth is neutral, averaged: what a user who recorded one names
+    /// with `kslab rig --neutral FIRST-LAST`).
     #[arg(long, default_value = "auto", value_parser = ["auto", "least-active", "lead-in"])]
     neutral: String,
     /// As `kslab rig --min-determination`.
@@ -79,6 +80,11 @@ pub struct RigAccuracyArgs {
     /// As `kslab rig --prior` (the magnitude prior, μ = PRIOR × IOD²).
     #[arg(long, default_value_t = keyshape_lab::rig::RECOMMENDED_PRIOR, allow_negative_numbers = true)]
     prior: f64,
+    /// The plain ridge μ‖w‖² instead of the tapered prior (the default: each shape's pull
+    /// 2μw(1 − w)² fades as it comes on, so peaks are reached; see the README, "Rig accuracy
+    /// against ground truth"). Needs a prior.
+    #[arg(long)]
+    no_prior_taper: bool,
     /// As `kslab rig --zero-phase` (offline Gaussian σ, frames; 0 for the live solve).
     #[arg(long, default_value_t = keyshape_lab::rig::RECOMMENDED_ZERO_PHASE, allow_negative_numbers = true)]
     zero_phase: f64,
@@ -131,9 +137,12 @@ pub fn run(a: &RigAccuracyArgs) -> Result<()> {
     }
     let neutral = match a.neutral.as_str() {
         "least-active" => Neutral::LeastActive,
-        "lead-in" => Neutral::Column(a.lead_in / 2),
+        "lead-in" => Neutral::Span(0, a.lead_in),
         _ => Neutral::Auto,
     };
+    if a.no_prior_taper && a.prior == 0.0 {
+        anyhow::bail!("--no-prior-taper: there is no prior to taper (--prior 0)");
+    }
     let opts = RigOptions {
         neutral,
         solver: a.solver,
@@ -147,6 +156,7 @@ pub fn run(a: &RigAccuracyArgs) -> Result<()> {
         },
         prior: a.prior,
         zero_phase: a.zero_phase,
+        taper: !a.no_prior_taper,
         ..Default::default()
     };
     let mut all: Vec<(Kind, Vec<ShapeAccuracy>, Summary)> = Vec::new();

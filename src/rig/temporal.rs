@@ -3,6 +3,8 @@
 //!
 //! `Σ_t ‖u_t − P_t(N + D w_t)‖² + μ-terms(w_t) + λ Σ_t ‖w_t − w_{t−1}‖²`
 //!
+//! (with the tapered prior, each frame's ridge `μ (1 − w_t)²` from its per-frame weights,
+//! held fixed)
 //! under their bounds — `solve --smooth`'s offline prior (order 1) with a Gram that changes
 //! from frame to frame (each frame's camera sees the shapes differently), so the banded
 //! factorisation of `solve::temporal`, which shares one Gram across frames, does not apply.
@@ -60,6 +62,24 @@ pub(super) fn offline_prior(
     } else {
         f64::INFINITY
     };
+    // Each frame's magnitude prior: with the taper, the ridge the per-frame weights leave,
+    // `μ (1 − w_t)²` (held fixed, so the clip's problem stays a convex QP).
+    let base = fs.ridge.clone();
+    let ridges: Vec<Vec<f64>> = (0..len)
+        .map(|t| {
+            base.iter()
+                .zip(&fs.taper)
+                .zip(&w[t * m..(t + 1) * m])
+                .map(|((mu, &tapers), v)| {
+                    if tapers {
+                        mu * (1.0 - v.clamp(0.0, 1.0)).powi(2)
+                    } else {
+                        *mu
+                    }
+                })
+                .collect()
+        })
+        .collect();
     let mut avg = vec![0.0; m];
     let mut done = (MAX_SWEEPS, false);
     for sweep in 0..MAX_SWEEPS {
@@ -93,6 +113,7 @@ pub(super) fn offline_prior(
             let f = clip.start + t;
             fs.depth = frame_depth(depth, f);
             fs.tz = tzs[f];
+            fs.ridge.clone_from(&ridges[t]);
             fs.weights_for(&cameras[f], &frame_points(track, f));
             for (o, n) in w[t * m..(t + 1) * m].iter_mut().zip(&fs.w) {
                 moved = moved.max((n - *o).abs());
@@ -106,6 +127,7 @@ pub(super) fn offline_prior(
     }
     fs.prev = None;
     fs.lambda = 0.0;
+    fs.ridge = base;
     for (t, f) in clip.enumerate() {
         for (j, &s) in fs.free.iter().enumerate() {
             weights[(s, f)] = w[t * m + j];

@@ -757,7 +757,7 @@ fn bad_rigs_and_tracks_are_refused_with_the_file_and_nothing_is_written() {
     assert_eq!(r.code, 1);
     assert!(
         r.stderr
-            .contains("'sometimes' is neither auto, least-active nor a frame number"),
+            .contains("'sometimes' is neither auto, least-active, a frame number nor a stretch"),
         "{}",
         r.stderr
     );
@@ -947,26 +947,27 @@ fn the_rig_experiment_measures_recovery_and_agreement_with_py_feat() {
         );
         assert_eq!(field(&format!("{identity}/{neutral}"), 1), 19.0);
     }
-    // Measured: the auto neutral lifts agreement (mean r 0.403 → 0.466, median 0.447 →
-    // 0.631; 0.606 before the neutral's candidates were kept to closed lips and resting
-    // brows, issue 39) and nearly halves the landmark error (6.9 → 3.8 px), with either
-    // identity.
+    // Measured: the auto neutral lifts agreement (mean r 0.403 → 0.464, median 0.447 →
+    // 0.594) and nearly halves the landmark error (6.9 → 3.9 px), with either identity.
+    // Issue 39 moved these twice: candidates kept to closed lips and resting brows (median
+    // 0.606 → 0.631), then the candidates' scores centred (frame 263 → 385, another of the
+    // sample's 20 people: mean 0.466 → 0.464, median 0.631 → 0.594). One identity serves
+    // twenty people here, so which person is the neutral is close to arbitrary.
     let (la, auto) = (field("offset/least-active", 2), field("offset/auto", 2));
     assert!(
-        (la - 0.403).abs() < 2e-3 && (auto - 0.466).abs() < 2e-3,
+        (la - 0.403).abs() < 2e-3 && (auto - 0.464).abs() < 2e-3,
         "{la} {auto}"
     );
-    assert!((field("offset/auto", 3) - 0.631).abs() < 2e-3);
+    assert!((field("offset/auto", 3) - 0.594).abs() < 2e-3);
     assert!(field("offset/auto", 5) < 0.6 * field("offset/least-active", 5));
     assert!(field("rbf/auto", 2) > field("rbf/least-active", 2) + 0.1);
     // The references fitted to py-feat (leave one clip out) reach far higher: what the
-    // weights hold is there, arranged over other shapes (measured 0.814 and 0.828; the
-    // weights' 0.855 before the neutral's candidates were kept to closed lips and resting
-    // brows, issue 39).
+    // weights hold is there, arranged over other shapes (measured 0.601 and 0.828; the
+    // weights' 0.855, then 0.814, before the two neutral changes above).
     let ridge_w = field("ridge: the offset/auto weights", 2);
     let ridge_l = field("ridge: aligned landmarks", 2);
     assert!(
-        (ridge_w - 0.814).abs() < 2e-3 && (ridge_l - 0.828).abs() < 2e-3,
+        (ridge_w - 0.601).abs() < 2e-3 && (ridge_l - 0.828).abs() < 2e-3,
         "{ridge_w} {ridge_l}"
     );
 }

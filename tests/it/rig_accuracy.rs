@@ -6,7 +6,8 @@
 use crate::common::{kslab, shared};
 use keyshape_lab::rig::accuracy::{self, Kind, Settings};
 use keyshape_lab::rig::{
-    is_gaze, solve_rig, track_iod, zero_phase, Identity, Rig, RigOptions, EXCLUSIVE, GAZE_DAMPING,
+    is_gaze, solve_rig, track_iod, zero_phase, Identity, Neutral, Rig, RigOptions, EXCLUSIVE,
+    GAZE_DAMPING,
 };
 use keyshape_lab::solve::temporal::SmoothMode;
 use nalgebra::DMatrix;
@@ -17,8 +18,10 @@ fn ict() -> Rig {
 
 /// The goals for 68 points, another person with a lead-in, 0.5 px, default
 /// settings: mean r ≥ 0.96, worst ≥ 0.90, RMSE ≤ 0.08, no unused shape above 0.5 (measured
-/// 0.974 / 0.907 / 0.071 / 0.24). The plain solve of before misses them (0.745 / 0.000 /
-/// 0.156 / 1.00), so the test fails on the old default.
+/// 0.976 / 0.912 / 0.059 / 0.34; 0.974 / 0.907 / 0.071 / 0.24 with the plain ridge). The
+/// plain solve of before misses them (0.745 / 0.000 / 0.156 / 1.00), so the test fails on
+/// the old default. At 1 px: mean ≥ 0.88, worst ≥ 0.5, RMSE ≤ 0.09 (measured 0.952 / 0.848
+/// / 0.079; the plain ridge and the uncentred neutral search left 0.092).
 #[test]
 fn the_default_solve_meets_the_goals_on_a_smooth_performance() {
     let rig = ict();
@@ -30,11 +33,21 @@ fn the_default_solve_meets_the_goals_on_a_smooth_performance() {
     assert!(s.max_idle < 0.5, "{s:?}");
     let (_, _, _, old) = accuracy::run(&rig, &Settings::default(), &RigOptions::default()).unwrap();
     assert!(old.worst_r < 0.5 && old.max_idle > 0.9, "{old:?}");
+    let noisy = Settings {
+        noise_px: 1.0,
+        ..Settings::default()
+    };
+    let (_, _, _, s) = accuracy::run(&rig, &noisy, &RigOptions::recommended()).unwrap();
+    assert!(
+        s.mean_r >= 0.88 && s.worst_r >= 0.5 && s.rmse <= 0.09,
+        "{s:?}"
+    );
 }
 
-/// Winks: every one-sided shape comes through (r ≥ 0.95), its twin stays low and no other
-/// shape rises far (measured twin ≤ 0.15, others ≤ 0.21). Peak reach is below the issue's
-/// 0.85 (measured 0.68): the magnitude prior shrinks peaks — said in the README.
+/// Winks, the goal at 68 points: every one-sided shape comes through (r ≥ 0.95) and
+/// reaches ≥ 0.85 at its peaks, its twin stays < 0.15 and every other shape < 0.4
+/// (measured: lowest peak 0.86, browDown_L; twins ≤ 0.06; others ≤ 0.20). The plain ridge
+/// shrank the peaks to 0.68: the tapered prior is what reaches them.
 #[test]
 fn winks_come_through_one_sided() {
     let rig = ict();
@@ -46,10 +59,36 @@ fn winks_come_through_one_sided() {
     for name in accuracy::WINK_SHAPES {
         let r = rows.iter().find(|r| r.shape == name).unwrap();
         assert!(r.r >= 0.95, "{name}: {r:?}");
-        assert!(r.twin_leakage.unwrap() < 0.2, "{name}: {r:?}");
-        assert!(r.peak_reach.unwrap() > 0.6, "{name}: {r:?}");
+        assert!(r.twin_leakage.unwrap() < 0.15, "{name}: {r:?}");
+        assert!(r.peak_reach.unwrap() >= 0.85, "{name}: {r:?}");
     }
     assert!(s.max_idle < 0.4, "{s:?}");
+    let plain = RigOptions {
+        taper: false,
+        ..RigOptions::recommended()
+    };
+    let (_, _, _, p) = accuracy::run(&rig, &st, &plain).unwrap();
+    assert!(p.min_peak_reach.unwrap() < 0.75, "{p:?}");
+}
+
+/// Blinks under a held smile, with a neutral lead-in: the automatic neutral finds the
+/// lead-in, not a frame inside the smile (measured mean r 0.978 against 0.980 with the
+/// lead-in named; the uncentred search took frame 204, inside the smile: 0.903).
+#[test]
+fn the_automatic_neutral_finds_the_lead_in_under_a_held_smile() {
+    let rig = ict();
+    let st = Settings {
+        kind: Kind::Blinks,
+        ..Settings::default()
+    };
+    let (_, _, _, auto) = accuracy::run(&rig, &st, &RigOptions::recommended()).unwrap();
+    let named = RigOptions {
+        neutral: keyshape_lab::rig::Neutral::Column(st.lead_in / 2),
+        ..RigOptions::recommended()
+    };
+    let (_, _, _, lead) = accuracy::run(&rig, &st, &named).unwrap();
+    assert!(auto.mean_r >= 0.97 && auto.worst_r >= 0.95, "{auto:?}");
+    assert!(auto.mean_r >= lead.mean_r - 0.01, "{auto:?} {lead:?}");
 }
 
 /// A noise-free render of the rig itself (no identity to find, the priors off, every shape
@@ -120,7 +159,7 @@ fn the_prior_optimum_meets_its_kkt_conditions() {
         ..RigOptions::default()
     };
     let r = solve_rig(&rig, &track.points, &[], &opts).unwrap();
-    let worst = worst_kkt(&rig, &track.points, &r, &opts);
+    let worst = worst_kkt(&rig, &track.points, &r, &opts, None);
     // Relative to the largest curvature of one weight: measured 2e-6 (the solve stops at
     // a relative objective change of 1e-12).
     assert!(worst < 1e-3, "worst KKT violation {worst}");
@@ -129,12 +168,15 @@ fn the_prior_optimum_meets_its_kkt_conditions() {
 /// The worst KKT violation of a rig solve's weights (relative to the largest curvature of
 /// one weight), with each frame's camera fixed: the gradient of landmark error + μ‖w‖²
 /// (gaze 100 μ) + the exclusive pairs' γ w_a w_b — plus, with the offline temporal prior,
-/// λ Σ_t ‖w_t − w_{t−1}‖² — must be ≥ 0 at 0, ≤ 0 at 1 and 0 between.
+/// λ Σ_t ‖w_t − w_{t−1}‖² — must be ≥ 0 at 0, ≤ 0 at 1 and 0 between. With `taper_from`
+/// (per-frame weights), each frame's ridge of a non-gaze shape is the tapered `μ (1 − w)²`
+/// of those weights instead of μ.
 fn worst_kkt(
     rig: &Rig,
     points: &DMatrix<f64>,
     r: &keyshape_lab::rig::RigSolve,
     opts: &RigOptions,
+    taper_from: Option<&DMatrix<f64>>,
 ) -> f64 {
     let k = rig.k();
     let mu = opts.prior * track_iod(points, [36, 45]).powi(2);
@@ -172,7 +214,13 @@ fn worst_kkt(
             }
         }
         for (s, g) in grad.iter_mut().enumerate() {
-            *g += 2.0 * ridge[s] * w[s];
+            let mu = match taper_from {
+                Some(w0) if !is_gaze(&rig.names[s]) => {
+                    ridge[s] * (1.0 - w0[(s, f)].clamp(0.0, 1.0)).powi(2)
+                }
+                _ => ridge[s],
+            };
+            *g += 2.0 * mu * w[s];
         }
         if opts.smooth > 0.0 && opts.smooth_mode == SmoothMode::Offline {
             let frames = points.ncols();
@@ -256,6 +304,21 @@ fn bad_priors_and_settings_are_refused() {
             vec!["rig-accuracy", "--frames", "1", "--out", &o],
             "frames 1 is not allowed",
         ),
+        (
+            vec!["rig", "--prior", "0", "--no-prior-taper", "--out", &o],
+            "--no-prior-taper: there is no prior to taper (--prior 0)",
+        ),
+        (
+            vec![
+                "rig-accuracy",
+                "--prior",
+                "0",
+                "--no-prior-taper",
+                "--out",
+                &o,
+            ],
+            "--no-prior-taper: there is no prior to taper (--prior 0)",
+        ),
     ] {
         let r = kslab(&args);
         assert_eq!(r.code, 1, "{args:?}: {}", r.stderr);
@@ -325,7 +388,7 @@ fn the_offline_temporal_prior_meets_its_kkt_conditions() {
         "{} sweeps",
         r.sweeps
     );
-    let worst = worst_kkt(&rig, &track.points, &r, &opts);
+    let worst = worst_kkt(&rig, &track.points, &r, &opts, None);
     // Measured 1.2e-7 after 67 sweeps (they stop when no weight moves by more than 1e-6).
     assert!(worst < 1e-3, "worst KKT violation {worst}");
     // Smoother than the per-frame solve, and no lag on the performance's shapes.
@@ -349,5 +412,163 @@ fn the_offline_temporal_prior_meets_its_kkt_conditions() {
     assert!(recovered.len() >= 8, "{rows:?}");
     for row in recovered {
         assert!(row.lag.unwrap().abs() <= 1, "{row:?}");
+    }
+}
+
+/// With the tapered prior, the offline temporal prior holds each frame's ridge where the
+/// per-frame solve left it, `μ (1 − w_t)²`, and its optimum meets the KKT conditions of
+/// that clip-wide problem.
+#[test]
+fn the_offline_prior_with_the_taper_meets_its_kkt_conditions() {
+    let rig = ict();
+    let st = Settings {
+        frames: 60,
+        lead_in: 0,
+        other_person: false,
+        noise_px: 1.0,
+        ..Settings::default()
+    };
+    let track = accuracy::render(&rig, &st).unwrap();
+    let opts = RigOptions {
+        identity: Identity::None,
+        min_determination: 0.0,
+        prior: 0.0026,
+        taper: true,
+        smooth: 300.0,
+        smooth_mode: SmoothMode::Offline,
+        max_steps: 200,
+        ..RigOptions::default()
+    };
+    let per_frame = solve_rig(
+        &rig,
+        &track.points,
+        &[],
+        &RigOptions {
+            smooth: 0.0,
+            ..opts
+        },
+    )
+    .unwrap();
+    let r = solve_rig(&rig, &track.points, &[], &opts).unwrap();
+    assert!(r.sweeps > 1 && r.sweeps_unconverged == 0, "{}", r.sweeps);
+    let worst = worst_kkt(&rig, &track.points, &r, &opts, Some(&per_frame.weights));
+    assert!(worst < 1e-3, "worst KKT violation {worst}");
+    // And not of the plain ridge's problem: the taper changed the weights.
+    let plain = worst_kkt(&rig, &track.points, &r, &opts, None);
+    assert!(plain > 10.0 * worst.max(1e-9), "{plain} against {worst}");
+}
+
+/// `--no-prior-taper` takes effect: the JSON says which prior solved, and the weights
+/// differ (the taper lifts the largest weights).
+#[test]
+fn no_prior_taper_takes_effect() {
+    let d = tempfile::tempdir().unwrap();
+    let mut largest = Vec::new();
+    for (flag, taper) in [(None, true), (Some("--no-prior-taper"), false)] {
+        let out = d.path().join(format!("w{taper}.csv"));
+        let o = out.display().to_string();
+        let mut args = vec!["rig", "--json", "--out", &o];
+        args.extend(flag);
+        let r = kslab(&args);
+        assert_eq!(r.code, 0, "{}", r.stderr);
+        let v: serde_json::Value = serde_json::from_str(&r.stdout).unwrap();
+        assert_eq!(v["prior_taper"], serde_json::json!(taper), "{}", r.stdout);
+        let text = std::fs::read_to_string(&out).unwrap();
+        let max = text
+            .lines()
+            .skip(1)
+            .flat_map(|l| {
+                l.split(',')
+                    .skip(1)
+                    .filter_map(|x| x.parse::<f64>().ok())
+                    .collect::<Vec<_>>()
+            })
+            .fold(0.0f64, f64::max);
+        largest.push(max);
+    }
+    assert!(largest[0] > largest[1], "{largest:?}");
+}
+
+/// A recorded lead-in named as a stretch (`--neutral FIRST-LAST`) is averaged into one
+/// identity, so no single frame's landmark noise becomes the person's face: at 1 px the
+/// weights come back closer than from the lead-in's middle frame alone (measured RMSE 0.059
+/// against 0.081), and with no noise the stretch and one of its frames agree (every
+/// lead-in frame is the same face, up to the 2-D identity's missing depth as the head
+/// turns).
+#[test]
+fn a_lead_in_named_as_a_stretch_is_averaged_into_the_identity() {
+    let rig = ict();
+    let noisy = Settings {
+        noise_px: 1.0,
+        ..Settings::default()
+    };
+    let with = |st: &Settings, neutral| {
+        let opts = RigOptions {
+            neutral,
+            ..RigOptions::recommended()
+        };
+        accuracy::run(&rig, st, &opts).unwrap().3
+    };
+    let span = with(&noisy, Neutral::Span(0, noisy.lead_in));
+    let one = with(&noisy, Neutral::Column(noisy.lead_in / 2));
+    eprintln!("span {span:?}\none {one:?}");
+    assert!(
+        span.rmse < 0.85 * one.rmse,
+        "{} against {}",
+        span.rmse,
+        one.rmse
+    );
+    let clean = Settings {
+        noise_px: 0.0,
+        ..Settings::default()
+    };
+    let (a, b) = (
+        with(&clean, Neutral::Span(0, clean.lead_in)),
+        with(&clean, Neutral::Column(clean.lead_in / 2)),
+    );
+    assert!((a.rmse - b.rmse).abs() < 0.01, "{a:?} {b:?}");
+    // A stretch that is empty or runs past the track is refused by value.
+    let track = accuracy::render(&rig, &clean).unwrap();
+    for (x, y) in [(5, 5), (6, 2), (0, track.points.ncols() + 1)] {
+        let opts = RigOptions {
+            neutral: Neutral::Span(x, y),
+            ..RigOptions::recommended()
+        };
+        let e = solve_rig(&rig, &track.points, &[], &opts)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains(&format!("neutral frame columns {x}..{y}")),
+            "{e}"
+        );
+    }
+}
+
+/// `kslab rig --neutral FIRST-LAST` names a recorded lead-in by frame numbers (inclusive);
+/// the JSON reports it, and a reversed or unreadable stretch is refused by value with
+/// nothing written.
+#[test]
+fn the_rig_command_takes_a_neutral_stretch() {
+    let d = tempfile::tempdir().unwrap();
+    let out = d.path().join("w.csv");
+    let o = out.display().to_string();
+    let r = kslab(&["rig", "--neutral", "0-9", "--json", "--out", &o]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let v: serde_json::Value = serde_json::from_str(&r.stdout).unwrap();
+    assert_eq!(v["neutral"], serde_json::json!("0-9"), "{}", r.stdout);
+    assert_eq!(v["neutral_frames"], serde_json::json!([5]), "{}", r.stdout);
+    std::fs::remove_file(&out).unwrap();
+    for (arg, needle) in [
+        ("9-0", "--neutral 9-0: frame 9 comes after frame 0"),
+        (
+            "a-9",
+            "'a-9' is neither auto, least-active, a frame number nor a stretch",
+        ),
+        ("0-99999", "99999"),
+    ] {
+        let r = kslab(&["rig", "--neutral", arg, "--out", &o]);
+        assert_eq!(r.code, 1, "{arg}: {}", r.stderr);
+        assert!(r.stderr.contains(needle), "{arg}: {}", r.stderr);
+        assert!(!out.exists(), "{arg} wrote its output");
     }
 }
