@@ -99,8 +99,9 @@ pub struct RigArgs {
     /// The magnitude prior (≥ 0): each frame minimises its landmark error plus μ‖w‖², with
     /// μ = PRIOR × IOD² (IOD: the track's median outer-eye-corner distance), gaze shapes
     /// (eyeLook*) held 100× harder — 68 points have no pupils — and mutually exclusive pairs
-    /// (smile/frown, blink/wide, jawLeft/jawRight …) paying for being on together. 0 is off.
-    /// Tuned on `kslab rig-accuracy`.
+    /// (smile/frown, blink/wide, jawLeft/jawRight …) paying for being on together; tapered
+    /// (its pull fades as a shape comes on) unless --no-prior-taper. 0 is off. Tuned on
+    /// `kslab rig-accuracy`.
     #[arg(long, default_value_t = keyshape_lab::rig::RECOMMENDED_PRIOR, allow_negative_numbers = true)]
     prior: f64,
     /// The plain ridge μ‖w‖² instead of the tapered prior (the default: each shape's pull
