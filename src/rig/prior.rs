@@ -102,3 +102,56 @@ pub(super) fn tapering(rig: &Rig, opts: &RigOptions, free: &[usize], ridge: &[f6
         .map(|(&s, &mu)| opts.taper && mu > 0.0 && !(damped && is_gaze(&rig.names[s])))
         .collect()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::tapering;
+    use crate::rig::{Rig, RigOptions};
+
+    fn rig(layout: usize, points: Vec<usize>) -> Rig {
+        let names = ["eyeLookIn_L", "jawOpen", "mouthSmile_L"];
+        let n = points.len();
+        Rig {
+            names: names.iter().map(|s| s.to_string()).collect(),
+            neutral: vec![[0.0; 3]; n],
+            deltas: vec![vec![[0.0; 3]; n]; names.len()],
+            points,
+            layout,
+        }
+    }
+
+    /// The taper frees every shape with a prior but the gaze shapes the damping holds (no
+    /// iris in the track); with the iris centres the gaze shapes taper too; a shape with no
+    /// prior (μ = 0) has nothing to taper; and `taper: false` tapers none.
+    #[test]
+    fn the_taper_spares_the_held_gaze_and_shapes_without_a_prior() {
+        let opts = RigOptions {
+            taper: true,
+            ..RigOptions::default()
+        };
+        let free = [0, 1, 2];
+        let no_iris = rig(68, (0..68).collect());
+        assert_eq!(
+            tapering(&no_iris, &opts, &free, &[100.0, 1.0, 1.0]),
+            [false, true, true]
+        );
+        assert_eq!(
+            tapering(&no_iris, &opts, &free, &[100.0, 0.0, 1.0]),
+            [false, false, true]
+        );
+        let irises = rig(478, (0..468).chain([468, 473]).collect());
+        assert!(irises.sees_pupils());
+        assert_eq!(
+            tapering(&irises, &opts, &free, &[1.0, 1.0, 1.0]),
+            [true, true, true]
+        );
+        let off = RigOptions {
+            taper: false,
+            ..opts
+        };
+        assert_eq!(
+            tapering(&irises, &off, &free, &[1.0, 1.0, 1.0]),
+            [false, false, false]
+        );
+    }
+}
