@@ -25,6 +25,7 @@ pub mod temporal;
 
 use frame::{frame_depth, frame_points, FrameSolver};
 pub use identifiability::{identifiability, identifiability_weighted};
+pub use neutral::{NEUTRAL_CANDIDATES, NEUTRAL_SCORED_FRAMES};
 pub use prior::{is_gaze, track_iod, EXCLUSIVE, GAZE_DAMPING};
 pub use solve::{solve_rig, zero_phase};
 

@@ -69,7 +69,7 @@ pub(super) fn neutral_looking(rig: &Rig, track: &DMatrix<f64>, frames: Vec<usize
     }
 }
 
-/// Neutral candidates tried per clip by [`Neutral::Auto`] (all frames of shorter clips).
+/// Neutral candidates tried per clip by [`Neutral::Auto`](super::Neutral::Auto) (all frames of shorter clips).
 pub const NEUTRAL_CANDIDATES: usize = 48;
 /// Frames of a clip each candidate is scored on (all frames of shorter clips).
 pub const NEUTRAL_SCORED_FRAMES: usize = 64;
