@@ -15,7 +15,7 @@ if [ ! -e "$tmp/shared" ]; then
 fi
 files=(
   src/solve/active_set.rs src/solve/mod.rs src/solve/lstsq.rs src/solve/chol.rs
-  src/solve/jacobi.rs src/solve/textbook.rs src/solve/temporal.rs src/solve/filters.rs
+  src/solve/jacobi.rs src/solve/textbook.rs src/solve/temporal/*.rs src/solve/filters.rs
   src/decompose.rs src/keyshapes/mod.rs src/keyshapes/spread.rs src/keyshapes/kmeans.rs
   src/keyshapes/hull.rs src/keyshapes/greedy.rs src/keyshapes/random.rs
   src/keyshapes/curves.rs
