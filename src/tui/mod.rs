@@ -3,8 +3,10 @@
 //! ([`compute`]); the loop is generic over the ratatui backend so tests drive it with
 //! `TestBackend`.
 
+mod charts;
 pub mod compute;
 pub mod export;
+mod face_panels;
 pub mod mesh;
 pub mod request;
 pub mod rig;
