@@ -359,12 +359,9 @@ fn the_benchmark_command_writes_per_shape_measures() {
     );
 }
 
-/// The offline temporal prior's optimum (the whole clip at once, with the magnitude prior)
-/// meets the KKT conditions of the whole-clip problem, is smoother than the per-frame solve,
-/// and lags no shape it recovers.
-#[test]
-fn the_offline_temporal_prior_meets_its_kkt_conditions() {
-    let rig = ict();
+/// The offline prior's KKT tests' case: 60 frames of the rig's own face at 1 px, and the
+/// options (no identity, nothing frozen, prior 0.0026, offline λ 300), tapered or not.
+fn offline_case(rig: &Rig, taper: bool) -> (accuracy::Track, RigOptions) {
     let st = Settings {
         frames: 60,
         lead_in: 0,
@@ -372,16 +369,26 @@ fn the_offline_temporal_prior_meets_its_kkt_conditions() {
         noise_px: 1.0,
         ..Settings::default()
     };
-    let track = accuracy::render(&rig, &st).unwrap();
     let opts = RigOptions {
         identity: Identity::None,
         min_determination: 0.0,
         prior: 0.0026,
+        taper,
         smooth: 300.0,
         smooth_mode: SmoothMode::Offline,
         max_steps: 200,
         ..RigOptions::default()
     };
+    (accuracy::render(rig, &st).unwrap(), opts)
+}
+
+/// The offline temporal prior's optimum (the whole clip at once, with the magnitude prior)
+/// meets the KKT conditions of the whole-clip problem, is smoother than the per-frame solve,
+/// and lags no shape it recovers.
+#[test]
+fn the_offline_temporal_prior_meets_its_kkt_conditions() {
+    let rig = ict();
+    let (track, opts) = offline_case(&rig, false);
     let r = solve_rig(&rig, &track.points, &[], &opts).unwrap();
     assert!(
         r.sweeps > 1 && r.sweeps_unconverged == 0,
@@ -421,24 +428,7 @@ fn the_offline_temporal_prior_meets_its_kkt_conditions() {
 #[test]
 fn the_offline_prior_with_the_taper_meets_its_kkt_conditions() {
     let rig = ict();
-    let st = Settings {
-        frames: 60,
-        lead_in: 0,
-        other_person: false,
-        noise_px: 1.0,
-        ..Settings::default()
-    };
-    let track = accuracy::render(&rig, &st).unwrap();
-    let opts = RigOptions {
-        identity: Identity::None,
-        min_determination: 0.0,
-        prior: 0.0026,
-        taper: true,
-        smooth: 300.0,
-        smooth_mode: SmoothMode::Offline,
-        max_steps: 200,
-        ..RigOptions::default()
-    };
+    let (track, opts) = offline_case(&rig, true);
     let per_frame = solve_rig(
         &rig,
         &track.points,
