@@ -77,30 +77,7 @@ pub fn polyfit_smooth(x: &[f64], degree: usize) -> Vec<f64> {
     }
 }
 
-/// Paper 002 Eq. (10): the correlation coefficient of two signals (Pearson; 0 when either
-/// is constant).
-pub fn correlation(a: &[f64], b: &[f64]) -> f64 {
-    let n = a.len().min(b.len());
-    if n < 2 {
-        return 0.0;
-    }
-    let (ma, mb) = (
-        a[..n].iter().sum::<f64>() / n as f64,
-        b[..n].iter().sum::<f64>() / n as f64,
-    );
-    let (mut sab, mut saa, mut sbb) = (0.0, 0.0, 0.0);
-    for i in 0..n {
-        let (da, db) = (a[i] - ma, b[i] - mb);
-        sab += da * db;
-        saa += da * da;
-        sbb += db * db;
-    }
-    if saa <= 0.0 || sbb <= 0.0 {
-        0.0
-    } else {
-        sab / (saa * sbb).sqrt()
-    }
-}
+use crate::stats::correlation;
 
 /// Actions scored in the study, each the mean of its ARKit-style columns.
 pub const STUDY_ACTIONS: [(&str, &[&str]); 3] = [

@@ -21,10 +21,12 @@
 use crate::decompose::Prepared;
 use crate::error::{Error, Result};
 use crate::keyshapes::{Analysis, KeyOptions, Method};
-use crate::solve::filters::PostFilter;
+use crate::solve::filters::{Lowpass, PostFilter};
+use crate::solve::jitter::jitter;
 use crate::solve::temporal::{segments, smooth_from, SmoothMode, Smoothing};
 use crate::solve::{solve_batch, SolveOptions, Solver};
-use nalgebra::{DMatrix, DVector};
+use crate::stats::lag;
+use nalgebra::DMatrix;
 use serde::{Deserialize, Serialize};
 use std::ops::Range;
 
@@ -234,96 +236,6 @@ pub struct SmoothRow {
     pub kkt: Option<f64>,
 }
 
-/// Zero-phase Gaussian low-pass of every row within segments (σ in frames, truncated at
-/// 3σ, renormalised at the ends).
-pub fn gaussian_lowpass(x: &DMatrix<f64>, segs: &[Range<usize>], sigma: f64) -> DMatrix<f64> {
-    let lp = Lowpass::new(sigma);
-    let mut out = x.clone();
-    for r in segs {
-        for t in r.clone() {
-            out.set_column(t, &lp.frame(x, r, t));
-        }
-    }
-    out
-}
-
-/// The Gaussian low-pass of one frame at a time (what [`gaussian_lowpass`] computes for
-/// each frame), so a caller can filter a chunk of a long track without a filtered copy
-/// of it all.
-struct Lowpass {
-    h: i64,
-    kern: Vec<f64>,
-}
-
-impl Lowpass {
-    fn new(sigma: f64) -> Self {
-        let h = (3.0 * sigma).ceil() as i64;
-        let kern = (-h..=h)
-            .map(|d| (-(d * d) as f64 / (2.0 * sigma * sigma)).exp())
-            .collect();
-        Lowpass { h, kern }
-    }
-
-    /// Frame `t` of `x` filtered within its segment `r`.
-    fn frame(&self, x: &DMatrix<f64>, r: &Range<usize>, t: usize) -> DVector<f64> {
-        let h = self.h;
-        let (mut acc, mut wsum) = (vec![0.0; x.nrows()], 0.0);
-        for d in -h..=h {
-            let u = t as i64 + d;
-            if u < r.start as i64 || u >= r.end as i64 {
-                continue;
-            }
-            let w = self.kern[(d + h) as usize];
-            wsum += w;
-            for (i, a) in acc.iter_mut().enumerate() {
-                *a += w * x[(i, u as usize)];
-            }
-        }
-        DVector::from_iterator(x.nrows(), acc.into_iter().map(|a| a / wsum))
-    }
-}
-
-pub use crate::solve::jitter::jitter;
-
-/// The shift in −`max`..=`max` frames maximising the cross-correlation of `a` with `b`
-/// (rows mean-removed, summed over rows, within segments): positive when `a` trails `b`.
-pub fn lag(a: &DMatrix<f64>, b: &DMatrix<f64>, segs: &[Range<usize>], max: i64) -> i64 {
-    // Each row's mean in each segment, subtracted where the products are taken (no
-    // mean-removed copies of the two series).
-    let means = |m: &DMatrix<f64>| -> Vec<Vec<f64>> {
-        segs.iter()
-            .map(|r| {
-                (0..m.nrows())
-                    .map(|i| {
-                        (r.start..r.end).map(|t| m[(i, t)]).sum::<f64>() / r.len().max(1) as f64
-                    })
-                    .collect()
-            })
-            .collect()
-    };
-    let (ma, mb) = (means(a), means(b));
-    let mut best = (f64::NEG_INFINITY, 0i64);
-    for d in -max..=max {
-        let mut acc = 0.0;
-        for (r, (ma, mb)) in segs.iter().zip(ma.iter().zip(&mb)) {
-            for t in r.clone() {
-                let u = t as i64 - d;
-                if u < r.start as i64 || u >= r.end as i64 {
-                    continue;
-                }
-                for i in 0..a.nrows() {
-                    acc += (a[(i, t)] - ma[i]) * (b[(i, u as usize)] - mb[i]);
-                }
-            }
-        }
-        // Ties go to the smaller shift.
-        if acc > best.0 + 1e-12 * acc.abs() || (acc >= best.0 && d.abs() < best.1.abs()) {
-            best = (acc, d);
-        }
-    }
-    best.1
-}
-
 /// Runs the study on a prepared 2-D sequence with a known layout (the built-in target needs
 /// one). `seq` is the sequence `prep` came from.
 pub fn smoothing_study(
@@ -514,7 +426,7 @@ fn frame_errors(
     lowpass: &Lowpass,
     s: &DMatrix<f64>,
     b: &DMatrix<f64>,
-    g: &crate::retarget::rbf::Rbf,
+    g: &crate::rbf::Rbf,
     sets: &[(String, String, DMatrix<f64>, Option<f64>)],
     segs: &[Range<usize>],
     points: usize,

@@ -344,7 +344,7 @@ fn follow_contours(coords: &mut [f64], orig: &[f64], loose: &[usize]) {
             ]
         })
         .collect();
-    let Ok(rbf) = crate::retarget::rbf::Rbf::fit(&src, &disp, 2) else {
+    let Ok(rbf) = crate::rbf::Rbf::fit(&src, &disp, 2) else {
         return;
     };
     let mut d = [0.0; 2];

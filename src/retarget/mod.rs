@@ -3,16 +3,15 @@
 //! optionally per face region with linear blending, and the head motion removed by
 //! alignment is put back.
 
-pub mod rbf;
 pub mod regions;
 pub mod setup;
 pub mod target;
 
 use crate::align::Similarity;
 use crate::error::{Error, Result};
+use crate::rbf::Rbf;
 use crate::solve::{solve_batch, SolveOptions, Solver};
 use nalgebra::{DMatrix, DVector};
-use rbf::Rbf;
 use regions::RegionPlan;
 
 /// Where the target key shapes come from.

@@ -1,46 +1,13 @@
 //! The glue a retargeting run needs around [`super::retarget`]: drawing contours for a point
 //! selection and the built-in target for a sequence.
 
-use super::rbf::Rbf;
 use super::target::{cartoon_warp, iod};
 use crate::decompose::{prepare, PrepareOptions, Prepared};
 use crate::error::{Error, Result};
-use crate::sequence::{Layout, Sequence};
+use crate::rbf::Rbf;
+use crate::sequence::Sequence;
 
-/// The layout's polylines restricted to the selected points, renumbered to selection
-/// indices (a polyline is cut where it leaves the selection).
-pub fn polylines_for(layout: &Layout, selected: &[usize]) -> Vec<Vec<usize>> {
-    named_polylines_for(layout, selected)
-        .into_iter()
-        .map(|(_, l)| l)
-        .collect()
-}
-
-/// [`polylines_for`] with the name of the layout group each polyline comes from.
-pub fn named_polylines_for(layout: &Layout, selected: &[usize]) -> Vec<(String, Vec<usize>)> {
-    let pos = |p: usize| selected.binary_search(&p).ok();
-    let mut out = Vec::new();
-    for (name, g) in &layout.groups {
-        for line in &g.polylines {
-            let mut run = Vec::new();
-            for &p in line {
-                match pos(p) {
-                    Some(i) => run.push(i),
-                    None => {
-                        if run.len() > 1 {
-                            out.push((name.clone(), std::mem::take(&mut run)));
-                        }
-                        run.clear();
-                    }
-                }
-            }
-            if run.len() > 1 {
-                out.push((name.clone(), run));
-            }
-        }
-    }
-    out
-}
+pub use crate::sequence::{named_polylines_for, polylines_for};
 
 /// The built-in cartoon target for `seq` and the mean inter-ocular distance: the warp is
 /// fitted on the mean of the whole face aligned exactly as `prep` was, so it maps `prep`'s

@@ -2,8 +2,8 @@
 //! dimension, read from JSON (or from an SVG template, see [`crate::io::svg`]), or made by
 //! the built-in cartoon warp.
 
-use super::rbf::Rbf;
 use crate::error::{Error, Result};
+use crate::rbf::Rbf;
 use crate::sequence::Layout;
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};

@@ -8,8 +8,8 @@
 
 use super::camera::Camera;
 use super::{solve_rig, Rig, RigOptions};
-use crate::cosker::intensity::correlation;
 use crate::error::{Error, Result};
+use crate::stats::correlation;
 use nalgebra::DMatrix;
 use rand::{Rng, SeedableRng};
 use serde::Serialize;
@@ -507,7 +507,7 @@ fn lag(got: &[f64], truth: &[f64], max: i64) -> i64 {
         DMatrix::from_row_slice(1, got.len(), got),
         DMatrix::from_row_slice(1, truth.len(), truth),
     );
-    crate::experiment::smoothing::lag(&a, &b, std::slice::from_ref(&(0..got.len())), max)
+    crate::stats::lag(&a, &b, std::slice::from_ref(&(0..got.len())), max)
 }
 
 /// Every shape's accuracy of `solved` against `truth` (both k × frames, rig order), and the

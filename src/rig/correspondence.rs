@@ -249,7 +249,7 @@ impl super::Rig {
         let mut order: Vec<usize> = (0..self.points.len()).collect();
         order.sort_by_key(|&i| self.points[i]);
         let sorted: Vec<usize> = order.iter().map(|&i| self.points[i]).collect();
-        crate::retarget::setup::polylines_for(&layout, &sorted)
+        crate::sequence::polylines_for(&layout, &sorted)
             .into_iter()
             .map(|l| l.into_iter().map(|i| order[i]).collect())
             .collect()

@@ -8,7 +8,7 @@ use super::identifiability::identifiability_weighted;
 use super::prior::{exclusive_pairs, magnitude_prior};
 use super::{Identity, Rig, RigOptions};
 use crate::error::Result;
-use crate::retarget::rbf::Rbf;
+use crate::rbf::Rbf;
 use nalgebra::DMatrix;
 use std::ops::Range;
 

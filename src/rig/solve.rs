@@ -221,7 +221,7 @@ pub(super) fn rig_landmark_weights(rig: &Rig, opts: &RigOptions) -> Result<Vec<f
 pub fn zero_phase(w: &mut DMatrix<f64>, clip: Range<usize>, sigma: f64) {
     // The smoothing study's zero-phase low-pass, over this one clip.
     let part = w.columns(clip.start, clip.len()).into_owned();
-    let smooth = crate::experiment::smoothing::gaussian_lowpass(
+    let smooth = crate::solve::filters::gaussian_lowpass(
         &part,
         std::slice::from_ref(&(0..clip.len())),
         sigma,

@@ -5,9 +5,9 @@
 use super::camera::Camera;
 use super::livelink::arkit_name;
 use super::{solve_rig, Identity, Neutral, Rig, RigOptions};
-use crate::cosker::intensity::correlation;
 use crate::error::{Error, Result};
 use crate::solve::Solver;
+use crate::stats::correlation;
 use nalgebra::DMatrix;
 use rand::{Rng, SeedableRng};
 use serde::{Deserialize, Serialize};

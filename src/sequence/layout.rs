@@ -203,6 +203,41 @@ impl Layout {
     }
 }
 
+/// The layout's polylines restricted to the selected points, renumbered to selection
+/// indices (a polyline is cut where it leaves the selection).
+pub fn polylines_for(layout: &Layout, selected: &[usize]) -> Vec<Vec<usize>> {
+    named_polylines_for(layout, selected)
+        .into_iter()
+        .map(|(_, l)| l)
+        .collect()
+}
+
+/// [`polylines_for`] with the name of the layout group each polyline comes from.
+pub fn named_polylines_for(layout: &Layout, selected: &[usize]) -> Vec<(String, Vec<usize>)> {
+    let pos = |p: usize| selected.binary_search(&p).ok();
+    let mut out = Vec::new();
+    for (name, g) in &layout.groups {
+        for line in &g.polylines {
+            let mut run = Vec::new();
+            for &p in line {
+                match pos(p) {
+                    Some(i) => run.push(i),
+                    None => {
+                        if run.len() > 1 {
+                            out.push((name.clone(), std::mem::take(&mut run)));
+                        }
+                        run.clear();
+                    }
+                }
+            }
+            if run.len() > 1 {
+                out.push((name.clone(), run));
+            }
+        }
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -3,7 +3,7 @@
 mod layout;
 pub mod synthetic;
 
-pub use layout::{mediapipe_to_ibug68, Group, Layout};
+pub use layout::{mediapipe_to_ibug68, named_polylines_for, polylines_for, Group, Layout};
 
 use crate::error::{Error, Result};
 use nalgebra::DMatrix;

@@ -5,7 +5,7 @@
 
 use super::Solver;
 use crate::error::{Error, Result};
-use nalgebra::DMatrix;
+use nalgebra::{DMatrix, DVector};
 use std::ops::Range;
 
 /// A post-filter.
@@ -175,5 +175,55 @@ impl PostFilter {
             }
         }
         Ok(out)
+    }
+}
+
+/// Zero-phase Gaussian low-pass of every row within segments (σ in frames, truncated at
+/// 3σ, renormalised at the ends).
+pub fn gaussian_lowpass(x: &DMatrix<f64>, segs: &[Range<usize>], sigma: f64) -> DMatrix<f64> {
+    let lp = Lowpass::new(sigma);
+    let mut out = x.clone();
+    for r in segs {
+        for t in r.clone() {
+            out.set_column(t, &lp.frame(x, r, t));
+        }
+    }
+    out
+}
+
+/// The Gaussian low-pass of one frame at a time (what [`gaussian_lowpass`] computes for
+/// each frame), so a caller can filter a chunk of a long track without a filtered copy
+/// of it all.
+pub struct Lowpass {
+    h: i64,
+    kern: Vec<f64>,
+}
+
+impl Lowpass {
+    /// The kernel for σ `sigma` frames (truncated at 3σ).
+    pub fn new(sigma: f64) -> Self {
+        let h = (3.0 * sigma).ceil() as i64;
+        let kern = (-h..=h)
+            .map(|d| (-(d * d) as f64 / (2.0 * sigma * sigma)).exp())
+            .collect();
+        Lowpass { h, kern }
+    }
+
+    /// Frame `t` of `x` filtered within its segment `r`.
+    pub fn frame(&self, x: &DMatrix<f64>, r: &Range<usize>, t: usize) -> DVector<f64> {
+        let h = self.h;
+        let (mut acc, mut wsum) = (vec![0.0; x.nrows()], 0.0);
+        for d in -h..=h {
+            let u = t as i64 + d;
+            if u < r.start as i64 || u >= r.end as i64 {
+                continue;
+            }
+            let w = self.kern[(d + h) as usize];
+            wsum += w;
+            for (i, a) in acc.iter_mut().enumerate() {
+                *a += w * x[(i, u as usize)];
+            }
+        }
+        DVector::from_iterator(x.nrows(), acc.into_iter().map(|a| a / wsum))
     }
 }

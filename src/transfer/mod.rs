@@ -8,7 +8,7 @@ pub mod skin;
 
 use crate::error::{Error, Result};
 use crate::io::obj::Mesh;
-use crate::retarget::rbf::Rbf;
+use crate::rbf::Rbf;
 use features::Features;
 use nalgebra::DMatrix;
 use skin::Skin;

@@ -9,7 +9,7 @@ use crate::error::{Error, Result};
 use crate::io::{builtin_sequence, read_sequence, ReadOptions};
 use crate::keyshapes::curves::sweep;
 use crate::keyshapes::{axes_needed, Analysis, KeyOptions, Method};
-use crate::retarget::rbf::Rbf;
+use crate::rbf::Rbf;
 use crate::retarget::setup::{builtin_target, polylines_for};
 use crate::retarget::target::TargetSet;
 use crate::retarget::{retarget_smoothed, KeyPlan, Target};
@@ -308,7 +308,7 @@ fn solver_view(
         )));
     }
     let points = r.target.nrows() / dims.max(1);
-    let target_jitter = crate::experiment::smoothing::jitter(&r.target, &segs, points.max(1));
+    let target_jitter = crate::solve::jitter::jitter(&r.target, &segs, points.max(1));
     Ok(SolverView {
         target_jitter,
         solver: s,

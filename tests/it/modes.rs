@@ -326,7 +326,8 @@ fn table_2_on_d6_is_a_measurement_with_blended_regions() {
 
 #[test]
 fn median_polynomial_and_correlation_on_known_signals() {
-    use keyshape_lab::cosker::intensity::{correlation, median3, polyfit_smooth, soft_knn};
+    use keyshape_lab::cosker::intensity::{median3, polyfit_smooth, soft_knn};
+    use keyshape_lab::stats::correlation;
     assert_eq!(
         median3(&[0.0, 0.0, 9.0, 0.0, 1.0, 1.0]),
         vec![0.0, 0.0, 0.0, 1.0, 1.0, 1.0]
@@ -476,7 +477,8 @@ fn study_settings_left_out_of_a_file_are_the_defaults() {
 
 #[test]
 fn leave_one_clip_out_holds_out_every_person_once() {
-    use keyshape_lab::cosker::intensity::{correlation, study, Evaluation, StudySettings};
+    use keyshape_lab::cosker::intensity::{study, Evaluation, StudySettings};
+    use keyshape_lab::stats::correlation;
     let st = StudySettings {
         evaluation: Evaluation::LeaveOneClipOut,
         ..Default::default()

@@ -4,7 +4,7 @@
 use keyshape_lab::cosker::intensity::median3;
 use keyshape_lab::decompose::decompose;
 use keyshape_lab::keyshapes::{Analysis, KeyOptions, Method};
-use keyshape_lab::retarget::rbf::Rbf;
+use keyshape_lab::rbf::Rbf;
 use keyshape_lab::solve::{SolveOptions, Solver};
 use nalgebra::{DMatrix, DVector};
 
@@ -342,7 +342,8 @@ fn soft_knn_refuses_mismatched_inputs() {
 /// Correlation of two points is ±1; K may equal the training count.
 #[test]
 fn polyfit_is_least_squares_and_correlation_handles_two_points() {
-    use keyshape_lab::cosker::intensity::{correlation, polyfit_smooth, soft_knn};
+    use keyshape_lab::cosker::intensity::{polyfit_smooth, soft_knn};
+    use keyshape_lab::stats::correlation;
     let x = [1.0, 3.0, 2.0, 5.0, 4.0, 7.0, 5.5];
     let fit = polyfit_smooth(&x, 1);
     assert_eq!(fit.len(), x.len());
@@ -964,7 +965,7 @@ fn residuals_past_the_first_chunk_are_each_frames_own() {
 /// frames) maps to an empty one of the same shape.
 #[test]
 fn rbf_apply_all_is_apply_per_column_and_takes_empty_matrices() {
-    use keyshape_lab::retarget::rbf::Rbf;
+    use keyshape_lab::rbf::Rbf;
     let src = [0.0, 0.0, 1.0, 0.0, 0.0, 1.0, 1.0, 1.0];
     let dst = [0.0, 0.0, 2.0, 0.1, 0.1, 2.0, 2.2, 2.1];
     let f = Rbf::fit(&src, &dst, 2).unwrap();

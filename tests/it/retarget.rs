@@ -5,7 +5,7 @@ use crate::common::shared;
 use keyshape_lab::decompose::{prepare, PrepareOptions};
 use keyshape_lab::io::builtin_sequence;
 use keyshape_lab::io::svg::{read_template, write_template};
-use keyshape_lab::retarget::rbf::Rbf;
+use keyshape_lab::rbf::Rbf;
 use keyshape_lab::retarget::regions::{plan, Regions};
 use keyshape_lab::retarget::setup::{builtin_target, polylines_for};
 use keyshape_lab::retarget::target::{TargetKey, TargetSet};

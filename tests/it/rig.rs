@@ -573,7 +573,7 @@ fn kslab_rig_writes_weights_pose_and_live_link_and_its_options_take_effect() {
         .into_iter()
         .enumerate()
     {
-        let r = keyshape_lab::cosker::intensity::correlation(&ours[i], &theirs[i]);
+        let r = keyshape_lab::stats::correlation(&ours[i], &theirs[i]);
         assert!(sign * r > lo, "angle {i}: r = {r}");
     }
     // Each option changes the weights.

@@ -277,7 +277,7 @@ fn iris_points_make_gaze_visible() {
             .map(|&s| {
                 let a: Vec<f64> = r.weights.row(s).iter().copied().collect();
                 let b: Vec<f64> = truth.row(s).iter().copied().collect();
-                keyshape_lab::cosker::intensity::correlation(&a, &b)
+                keyshape_lab::stats::correlation(&a, &b)
             })
             .collect();
         if layout == 478 {

@@ -6,11 +6,11 @@
 // One segment is written `&[0..t]`: a slice holding one range, as the API takes.
 #![allow(clippy::single_range_in_vec_init)]
 
-use keyshape_lab::experiment::smoothing::{
-    at_equal_jitter, gaussian_lowpass, jitter, lag, SmoothRow,
-};
-use keyshape_lab::solve::filters::PostFilter;
+use keyshape_lab::experiment::smoothing::{at_equal_jitter, SmoothRow};
+use keyshape_lab::solve::filters::{gaussian_lowpass, PostFilter};
+use keyshape_lab::solve::jitter::jitter;
 use keyshape_lab::solve::Solver;
+use keyshape_lab::stats::lag;
 use nalgebra::DMatrix;
 
 fn close(a: &[f64], b: &[f64], tol: f64) {
