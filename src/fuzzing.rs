@@ -46,7 +46,7 @@ pub fn gzip(data: &[u8]) {
 /// The SVG template reader (usvg underneath).
 pub fn svg(data: &[u8]) {
     if let Ok(text) = std::str::from_utf8(data) {
-        if let Ok(set) = crate::io::svg::parse_template(Path::new("fuzz.svg"), text) {
+        if let Ok(set) = crate::retarget::svg::parse_template(Path::new("fuzz.svg"), text) {
             assert!(set
                 .keys
                 .iter()

@@ -1,7 +1,7 @@
 //! `kslab curves`: paper 000 Fig. 6 — reconstruction error against k for each method.
 
 use super::input::InputArgs;
-use super::keys::{parse_method, HeuristicArgs};
+use super::keys::HeuristicArgs;
 use super::progress::Progress;
 use anyhow::Result;
 use clap::Args;
@@ -17,13 +17,17 @@ pub struct CurvesArgs {
     #[command(flatten)]
     input: InputArgs,
     /// Comma-separated methods.
-    #[arg(long, value_delimiter = ',', value_parser = parse_method, default_value = "spread,kmeans2,kmeans3,hull,greedy,random")]
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "spread,kmeans2,kmeans3,hull,greedy,random"
+    )]
     methods: Vec<Method>,
     /// k range, `A..B` (inclusive) or a single k.
     #[arg(long, default_value = "2..24", value_parser = parse_range)]
     k: (usize, usize),
     /// Solvers, comma-separated (ls, nnls, bounded).
-    #[arg(long = "solver", value_delimiter = ',', default_value = "nnls", value_parser = super::solve::parse_solver)]
+    #[arg(long = "solver", value_delimiter = ',', default_value = "nnls")]
     solvers: Vec<Solver>,
     #[command(flatten)]
     heuristic: HeuristicArgs,

@@ -15,7 +15,7 @@ pub struct InputArgs {
     pub file: Option<PathBuf>,
     /// Force the input format instead of detecting it: mediapipe, openface, pyfeat, pts,
     /// json or csv [default: detected from the file's name and first line].
-    #[arg(long, value_parser = parse_format)]
+    #[arg(long)]
     pub format: Option<Format>,
     /// 2 for (x, y), 3 for (x, y, z).
     #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u8).range(2..=3))]
@@ -33,10 +33,6 @@ pub struct InputArgs {
     /// in pixels. Refused for a track in pixels. [default: the coordinates as read]
     #[arg(long, value_name = "WxH", value_parser = parse_image_size)]
     pub image_size: Option<(f64, f64)>,
-}
-
-fn parse_format(s: &str) -> Result<Format, String> {
-    Format::parse(s).map_err(|e| e.to_string())
 }
 
 /// `WIDTHxHEIGHT` in pixels.

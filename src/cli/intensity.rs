@@ -17,7 +17,7 @@ pub struct IntensityArgs {
     /// Force the input format instead of detecting it (the study needs a py-feat table:
     /// `--format pyfeat` reads a file whose header looks like another tracker's).
     /// [default: detected from the file's name and first line].
-    #[arg(long, value_parser = parse_format)]
+    #[arg(long)]
     format: Option<keyshape_lab::sequence::Format>,
     /// Clips used for training (the rest are tested), `A..B` inclusive [default: 1..14].
     /// Split evaluation only.
@@ -25,11 +25,11 @@ pub struct IntensityArgs {
     train_clips: Option<(usize, usize)>,
     /// `split` (train on --train-clips, test the rest) or `leave-one-clip-out` (each clip,
     /// a different person, tested by a model trained on all the others).
-    #[arg(long, default_value = "split", value_parser = parse_evaluation)]
+    #[arg(long, default_value = "split")]
     evaluation: Evaluation,
     /// The reference shape subtracted per clip: `clip-mean` (all its frames: offline),
     /// `causal` (its frames so far) or `neutral` (its first --neutral-frames frames).
-    #[arg(long, default_value = "clip-mean", value_parser = parse_centring)]
+    #[arg(long, default_value = "clip-mean")]
     centring: Centring,
     /// Frames of the neutral segment at the start of each clip (`--centring neutral`).
     /// [default: none; needed by --centring neutral].
@@ -51,27 +51,6 @@ pub struct IntensityArgs {
     /// Also print each test clip's correlations.
     #[arg(long)]
     clips: bool,
-}
-
-fn parse_format(s: &str) -> std::result::Result<keyshape_lab::sequence::Format, String> {
-    keyshape_lab::sequence::Format::parse(s).map_err(|e| e.to_string())
-}
-
-fn parse_evaluation(s: &str) -> std::result::Result<Evaluation, String> {
-    match s {
-        "split" => Ok(Evaluation::Split),
-        "leave-one-clip-out" => Ok(Evaluation::LeaveOneClipOut),
-        _ => Err(format!("'{s}': choose split or leave-one-clip-out")),
-    }
-}
-
-fn parse_centring(s: &str) -> std::result::Result<Centring, String> {
-    match s {
-        "clip-mean" => Ok(Centring::ClipMean),
-        "causal" => Ok(Centring::Causal),
-        "neutral" => Ok(Centring::Neutral),
-        _ => Err(format!("'{s}': choose clip-mean, causal or neutral")),
-    }
 }
 
 pub fn run(a: &IntensityArgs) -> Result<()> {

@@ -89,13 +89,13 @@ pub struct KeysArgs {
     /// spread, kmeans2, kmeans3, kmeansN (N principal components), kmeansN-mean (the
     /// clusters' mean shapes, the paper's "center of mass", which are not frames), hull,
     /// greedy or random.
-    #[arg(long, value_parser = parse_method)]
+    #[arg(long)]
     method: Method,
     /// Number of key shapes [default: none: required, except with hull, which gives its own k].
     #[arg(long)]
     k: Option<usize>,
     /// Solver for the reported error and for greedy's choices.
-    #[arg(long, default_value = "nnls", value_parser = super::solve::parse_solver)]
+    #[arg(long, default_value = "nnls")]
     solver: Solver,
     #[command(flatten)]
     heuristic: HeuristicArgs,
@@ -103,10 +103,6 @@ pub struct KeysArgs {
     /// the error, and k-means centres in PCA coordinates.
     #[arg(long)]
     json: bool,
-}
-
-pub fn parse_method(s: &str) -> Result<Method, String> {
-    Method::parse(s).map_err(|e| e.to_string())
 }
 
 pub fn run(a: &KeysArgs) -> Result<()> {
@@ -195,7 +191,7 @@ pub struct KeyChoiceArgs {
     )]
     pub keys: Vec<i64>,
     /// Heuristic choosing the key frames [default: spread].
-    #[arg(long, value_parser = parse_method)]
+    #[arg(long)]
     pub method: Option<Method>,
     /// Number of key shapes for --method [default: 12; hull gives its own k].
     #[arg(long, conflicts_with = "keys")]

@@ -6,11 +6,12 @@ use super::modes::RegionArgs;
 use anyhow::{Context, Result};
 use clap::Args;
 use keyshape_lab::cosker::modes::Actions;
-use keyshape_lab::cosker::morph::{MorphMapping, MorphTargets};
+use keyshape_lab::cosker::morph::MorphMapping;
 use keyshape_lab::cosker::trajectory::{
     person_model, synthesise, trajectories, ModeAlignment, Normalisation, PersonModel,
 };
 use keyshape_lab::decompose::{prepare, PrepareOptions, Prepared};
+use keyshape_lab::io::morph::MorphTargets;
 use keyshape_lab::io::obj::{read_obj, write_obj};
 use keyshape_lab::io::{read_sequence, write_atomic, ReadOptions};
 use keyshape_lab::render::face::{bounds_of, col, render_panels, Layer, Panel};
@@ -35,7 +36,7 @@ pub struct MapArgs {
     /// How trajectories are normalised to [-1, 1] and scaled onto the target: `two-sided`
     /// (the paper's: positive values by the training maximum, negative by the minimum's
     /// magnitude, so both extremes map to ±1) or `one-sided` (both by the largest magnitude).
-    #[arg(long, default_value = "two-sided", value_parser = parse_normalisation)]
+    #[arg(long, default_value = "two-sided")]
     normalisation: Normalisation,
     /// A second person's sequence, whose model the trajectories drive.
     /// [default: none: only the source person's trajectories].
@@ -87,14 +88,6 @@ pub struct MapArgs {
     /// Only every N-th frame for the per-frame outputs.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..))]
     every: u64,
-}
-
-fn parse_normalisation(s: &str) -> std::result::Result<Normalisation, String> {
-    match s {
-        "two-sided" => Ok(Normalisation::TwoSided),
-        "one-sided" => Ok(Normalisation::OneSided),
-        _ => Err(format!("'{s}': choose two-sided or one-sided")),
-    }
 }
 
 fn model_of(prep: &Prepared, actions: &Actions, a: &MapArgs) -> Result<PersonModel> {

@@ -18,21 +18,13 @@ pub struct RegionArgs {
     /// Region boundaries: `blended` (the paper's: offsets fade out across a band of points,
     /// so regions overlap) or `disjoint` (hard edges; non-overlapping regions then score 0
     /// against each other in Table 2 by construction).
-    #[arg(long, default_value = "blended", value_parser = parse_boundary)]
+    #[arg(long, default_value = "blended")]
     boundary: Boundary,
     /// Radius of the averaging filter that blends region boundaries, as a fraction of the
     /// face's size (RMS distance of the mean shape's points from their centroid) [default:
     /// 0.15]. Refused with `--boundary disjoint`.
     #[arg(long)]
     blend_radius: Option<f64>,
-}
-
-fn parse_boundary(s: &str) -> std::result::Result<Boundary, String> {
-    match s {
-        "blended" => Ok(Boundary::Blended),
-        "disjoint" => Ok(Boundary::Disjoint),
-        _ => Err(format!("'{s}': choose blended or disjoint")),
-    }
 }
 
 impl RegionArgs {

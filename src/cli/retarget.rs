@@ -29,7 +29,7 @@ pub struct RetargetArgs {
     #[command(flatten)]
     choice: KeyChoiceArgs,
     /// ls, nnls or bounded.
-    #[arg(long, default_value = "nnls", value_parser = super::solve::parse_solver)]
+    #[arg(long, default_value = "nnls")]
     solver: Solver,
     /// Target key shapes: a JSON target set or an SVG from `kslab template` [default: the
     /// built-in cartoon face, a smooth warp of the source, which also gives a ground truth].
@@ -89,7 +89,7 @@ fn read_target(a: &RetargetArgs) -> Result<Option<TargetSet>> {
             .extension()
             .is_some_and(|e| e.eq_ignore_ascii_case("svg"))
         {
-            keyshape_lab::io::svg::read_template(path)?
+            keyshape_lab::retarget::svg::read_template(path)?
         } else {
             TargetSet::read_json(path)?
         },

@@ -2,7 +2,6 @@
 //! default), with a per-frame head pose; weights, pose and Live Link Face CSV out.
 
 use super::check_outputs;
-use super::solve::parse_solver;
 use anyhow::{Context, Result};
 use clap::Args;
 use keyshape_lab::io::{fmt_num, read_sequence, shared_data, write_atomic, ReadOptions};
@@ -24,7 +23,7 @@ pub struct RigArgs {
     file: Option<PathBuf>,
     /// Force the input format: mediapipe, openface, pyfeat, pts, json or csv [default:
     /// detected].
-    #[arg(long, value_parser = parse_format)]
+    #[arg(long)]
     format: Option<keyshape_lab::sequence::Format>,
     /// 3: use the track's depth too (MediaPipe's z: relative depth in the x axis's pixels,
     /// more negative closer to the camera — `--image-size` scales it by the width as x).
@@ -65,7 +64,7 @@ pub struct RigArgs {
     #[arg(long, value_name = "dense|68", value_parser = ["dense", "68"])]
     landmarks: Option<String>,
     /// bounded (0 ≤ w ≤ 1, as rigs expect), nnls (w ≥ 0) or ls (unconstrained).
-    #[arg(long, default_value = "bounded", value_parser = parse_solver)]
+    #[arg(long, default_value = "bounded")]
     solver: Solver,
     /// The person's neutral face: `auto` (of up to 48 evenly spaced candidate frames, the
     /// one whose identity best explains the performance: the lowest landmark error of a
@@ -81,7 +80,7 @@ pub struct RigArgs {
     /// residual, lifted into the rig at that frame's head pose, moves the rig's neutral
     /// landmarks), `rbf` (the same neutral, and every shape's landmark offsets carried over
     /// by paper 004's multiquadric RBF from the rig's neutral onto the person's) or `none`.
-    #[arg(long, default_value = "offset", value_parser = parse_identity)]
+    #[arg(long, default_value = "offset")]
     identity: Identity,
     /// `track`: one identity for the whole file; `clip`: each clip of the file (py-feat's
     /// `clip` column) is a person of its own, with its own neutral frame chosen within the
@@ -167,14 +166,6 @@ pub struct RigArgs {
     /// Print a JSON summary: per-shape identifiability, neutral frame, errors, steps.
     #[arg(long)]
     json: bool,
-}
-
-fn parse_format(s: &str) -> Result<keyshape_lab::sequence::Format, String> {
-    keyshape_lab::sequence::Format::parse(s).map_err(|e| e.to_string())
-}
-
-pub fn parse_identity(s: &str) -> Result<Identity, String> {
-    Identity::parse(s).map_err(|e| e.to_string())
 }
 
 /// Runs `kslab rig`.
@@ -528,7 +519,7 @@ fn write_pngs(
     rig: &Rig,
     r: &RigSolve,
     mesh: &keyshape_lab::io::obj::Mesh,
-    morph: &keyshape_lab::cosker::morph::MorphTargets,
+    morph: &keyshape_lab::io::morph::MorphTargets,
 ) -> Result<()> {
     use keyshape_lab::render::face::{bounds_of, col, render_panels, Layer, Panel, ShadedMesh};
     let lines = rig.polylines();

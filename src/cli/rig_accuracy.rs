@@ -2,7 +2,6 @@
 //! through the rig from known weights are solved back with `kslab rig`'s solve, and every
 //! shape is measured against the truth.
 
-use super::solve::parse_solver;
 use anyhow::Result;
 use clap::Args;
 use keyshape_lab::io::{fmt_num, shared_data, write_atomic};
@@ -64,10 +63,10 @@ pub struct RigAccuracyArgs {
     #[arg(long, default_value_t = 7)]
     seed: u64,
     /// The solve's weights: bounded, nnls or ls (as `kslab rig`).
-    #[arg(long, default_value = "bounded", value_parser = parse_solver)]
+    #[arg(long, default_value = "bounded")]
     solver: Solver,
     /// As `kslab rig --identity`.
-    #[arg(long, default_value = "offset", value_parser = super::rig::parse_identity)]
+    #[arg(long, default_value = "offset")]
     identity: Identity,
     /// The neutral: `auto` (as `kslab rig`), `least-active`, or `lead-in` (the whole
     /// lead-in, where the truth is neutral, averaged: what a user who recorded one names

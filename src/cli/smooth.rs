@@ -14,13 +14,13 @@ pub struct SmoothArgs {
     #[command(flatten)]
     input: InputArgs,
     /// Heuristic choosing the key frames (a kmeansN-mean's cluster means work too).
-    #[arg(long, default_value = "spread", value_parser = super::keys::parse_method)]
+    #[arg(long, default_value = "spread")]
     method: Method,
     /// Number of key shapes [default: 12; not with --method hull, which gives its own].
     #[arg(long)]
     k: Option<usize>,
     /// ls, nnls or bounded.
-    #[arg(long, default_value = "nnls", value_parser = super::solve::parse_solver)]
+    #[arg(long, default_value = "nnls")]
     solver: Solver,
     /// λ values of the temporal prior (offline order 1 and 2, causal order 1), in squared
     /// coordinate units (px²) per unit of weight change.

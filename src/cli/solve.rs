@@ -24,7 +24,7 @@ pub struct SolveArgs {
     #[command(flatten)]
     heuristic: super::keys::HeuristicArgs,
     /// ls (Eq. 3), nnls (Eq. 4, w ≥ 0) or bounded (0 ≤ w ≤ 1).
-    #[arg(long, default_value = "nnls", value_parser = parse_solver)]
+    #[arg(long, default_value = "nnls")]
     solver: Solver,
     /// Solve deltas from this neutral frame: q − N = Σ wᵢ (Sᵢ − N).
     /// [default: none: absolute shapes].
@@ -55,7 +55,7 @@ pub struct SolveArgs {
     smooth: Option<f64>,
     /// `offline` (the whole sequence at once) or `causal` (each frame from the past only,
     /// for live use). Needs --smooth [default: offline].
-    #[arg(long, requires = "smooth", value_parser = parse_mode)]
+    #[arg(long, requires = "smooth")]
     smooth_mode: Option<SmoothMode>,
     /// 1 (first difference, penalises motion) or 2 (second difference, penalises
     /// acceleration: lags less). Needs --smooth [default: 1].
@@ -68,18 +68,6 @@ pub struct SolveArgs {
     /// --json and the offline temporal prior (--smooth-mode causal streams).
     #[arg(long, conflicts_with_all = ["png", "json"])]
     stream: bool,
-}
-
-fn parse_mode(s: &str) -> Result<SmoothMode, String> {
-    match s {
-        "offline" => Ok(SmoothMode::Offline),
-        "causal" => Ok(SmoothMode::Causal),
-        _ => Err(format!("'{s}': choose offline or causal")),
-    }
-}
-
-pub fn parse_solver(s: &str) -> Result<Solver, String> {
-    Solver::parse(s).map_err(|e| e.to_string())
 }
 
 pub fn run(a: &SolveArgs) -> Result<()> {

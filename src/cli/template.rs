@@ -4,8 +4,9 @@ use super::input::InputArgs;
 use super::keys::{HeuristicArgs, KeyChoiceArgs};
 use anyhow::Result;
 use clap::Args;
-use keyshape_lab::io::{svg::write_template, write_atomic};
+use keyshape_lab::io::write_atomic;
 use keyshape_lab::retarget::setup::named_polylines_for;
+use keyshape_lab::retarget::svg::write_template;
 use keyshape_lab::solve::Solver;
 use std::path::PathBuf;
 

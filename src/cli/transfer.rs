@@ -181,11 +181,9 @@ pub fn run(a: &TransferArgs) -> Result<()> {
         }
     }
     if let Some(p) = &a.gltf {
-        keyshape_lab::io::gltf::check(&tr)?;
+        tr.check_gltf()?;
         let fps = s.fps().unwrap_or(30.0);
-        write_atomic(p, |w| {
-            keyshape_lab::io::gltf::write_glb(w, &tr, &s.coords, fps)
-        })?;
+        write_atomic(p, |w| tr.write_glb(w, &s.coords, fps))?;
     }
     progress.finish();
     let moved = tr.skin.influences.iter().filter(|i| !i.is_empty()).count();

@@ -57,7 +57,7 @@ pub fn run(a: &TuiArgs) -> Result<()> {
     let target = match &a.target {
         None => None,
         Some(p) if p.extension().is_some_and(|e| e.eq_ignore_ascii_case("svg")) => {
-            Some(keyshape_lab::io::svg::read_template(p)?)
+            Some(keyshape_lab::retarget::svg::read_template(p)?)
         }
         Some(p) => Some(TargetSet::read_json(p)?),
     };

@@ -103,6 +103,22 @@ pub enum Centring {
     Neutral,
 }
 
+impl std::str::FromStr for Centring {
+    type Err = crate::error::Error;
+
+    /// The option's spelling on the command line and in experiment files.
+    fn from_str(s: &str) -> crate::error::Result<Centring> {
+        match s {
+            "clip-mean" => Ok(Centring::ClipMean),
+            "causal" => Ok(Centring::Causal),
+            "neutral" => Ok(Centring::Neutral),
+            _ => Err(crate::error::Error::invalid(format!(
+                "'{s}': choose clip-mean, causal or neutral"
+            ))),
+        }
+    }
+}
+
 impl Centring {
     /// The name used in files and options.
     pub fn name(self) -> &'static str {
@@ -124,6 +140,21 @@ pub enum Evaluation {
     /// Each clip in turn is tested by a model trained on all the other clips: every person
     /// is held out once.
     LeaveOneClipOut,
+}
+
+impl std::str::FromStr for Evaluation {
+    type Err = crate::error::Error;
+
+    /// The option's spelling on the command line and in experiment files.
+    fn from_str(s: &str) -> crate::error::Result<Evaluation> {
+        match s {
+            "split" => Ok(Evaluation::Split),
+            "leave-one-clip-out" => Ok(Evaluation::LeaveOneClipOut),
+            _ => Err(crate::error::Error::invalid(format!(
+                "'{s}': choose split or leave-one-clip-out"
+            ))),
+        }
+    }
 }
 
 /// Settings of the intensity study.

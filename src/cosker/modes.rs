@@ -183,6 +183,21 @@ pub enum Boundary {
     Disjoint,
 }
 
+impl std::str::FromStr for Boundary {
+    type Err = crate::error::Error;
+
+    /// The option's spelling on the command line and in experiment files.
+    fn from_str(s: &str) -> crate::error::Result<Boundary> {
+        match s {
+            "blended" => Ok(Boundary::Blended),
+            "disjoint" => Ok(Boundary::Disjoint),
+            _ => Err(crate::error::Error::invalid(format!(
+                "'{s}': choose blended or disjoint"
+            ))),
+        }
+    }
+}
+
 impl Boundary {
     /// `blended` or `disjoint`.
     pub fn name(self) -> &'static str {

@@ -29,6 +29,21 @@ pub enum Normalisation {
     OneSided,
 }
 
+impl std::str::FromStr for Normalisation {
+    type Err = crate::error::Error;
+
+    /// The option's spelling on the command line and in experiment files.
+    fn from_str(s: &str) -> crate::error::Result<Normalisation> {
+        match s {
+            "two-sided" => Ok(Normalisation::TwoSided),
+            "one-sided" => Ok(Normalisation::OneSided),
+            _ => Err(crate::error::Error::invalid(format!(
+                "'{s}': choose two-sided or one-sided"
+            ))),
+        }
+    }
+}
+
 impl Normalisation {
     /// `two-sided` or `one-sided`.
     pub fn name(self) -> &'static str {

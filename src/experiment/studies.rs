@@ -164,7 +164,7 @@ pub(crate) fn map_study(
         Some(dir) => {
             let dir = base.join(dir);
             let mesh = crate::io::obj::read_obj(&dir.join("neutral_face.obj"))?;
-            let targets = crate::cosker::morph::MorphTargets::read(
+            let targets = crate::io::morph::MorphTargets::read(
                 &dir.join("expressions.csv"),
                 &dir.join("expression_deltas.csv"),
                 mesh.positions.len(),

@@ -1,13 +1,15 @@
-//! glTF 2.0 binary (GLB) export of a feature-point transfer as linear-blend skinning,
-//! which glTF has natively: one joint per feature point (plus a still root joint for
-//! vertices no feature reaches), the skin weights as `JOINTS_0` / `WEIGHTS_0`, and the
-//! performance as translation animation of the joints. A skinned vertex is then
-//! `Σ wᵢ (v + dᵢ) = v + Σ wᵢ dᵢ` — exactly [`crate::transfer::skin::Skin::deform`].
-//! Chosen over baked morph targets because it stays small (joints × frames × 3 floats, not
-//! vertices × frames) and keeps the rig editable in Blender.
+//! glTF 2.0 binary (GLB) export, two kinds:
+//!
+//! * a skinned mesh ([`write_skinned_glb`]), as a feature-point transfer exports it
+//!   (`transfer`): linear-blend skinning, which glTF has natively: one joint per feature
+//!   point (plus a still root joint for vertices no feature reaches), the skin weights as
+//!   `JOINTS_0` / `WEIGHTS_0`, and the performance as translation animation of the joints.
+//!   A skinned vertex is then `Σ wᵢ (v + dᵢ) = v + Σ wᵢ dᵢ` — exactly the transfer's
+//!   skinning. Chosen over baked morph targets because it stays small (joints × frames × 3
+//!   floats, not vertices × frames) and keeps the rig editable in Blender;
+//! * a mesh with morph targets and a weights animation ([`write_morph_glb`]).
 
 use crate::error::{Error, Result};
-use crate::transfer::Transfer;
 use serde_json::{json, Value};
 use std::io::Write;
 
@@ -81,25 +83,40 @@ fn min_max3(vals: &[f32]) -> (Vec<f32>, Vec<f32>) {
     (lo, hi)
 }
 
-/// Writes the transfer of `frames` source shapes (columns, `fps`) as GLB.
-pub fn write_glb(
-    w: &mut dyn Write,
-    tr: &Transfer,
-    frames: &nalgebra::DMatrix<f64>,
-    fps: f64,
-) -> std::io::Result<()> {
+/// A skinned, animated mesh in plain data: what [`write_skinned_glb`] writes.
+#[derive(Debug, Clone, Copy)]
+pub struct Skinned<'a> {
+    /// The mesh at rest.
+    pub positions: &'a [[f64; 3]],
+    /// Its faces (polygons, triangulated as fans).
+    pub faces: &'a [Vec<usize>],
+    /// Per vertex: (joint, weight) pairs, at most 4 used; none binds the vertex to the
+    /// still root joint.
+    pub influences: &'a [Vec<(usize, f64)>],
+    /// Joint names.
+    pub names: &'a [&'a str],
+    /// Joint positions at rest.
+    pub rest: &'a [[f64; 3]],
+    /// Per frame, each joint's position (frames × joints).
+    pub tracks: &'a [Vec<[f64; 3]>],
+    /// Frames per second.
+    pub fps: f64,
+}
+
+/// Writes a skinned mesh animated by its joints' translations as GLB.
+pub fn write_skinned_glb(w: &mut dyn Write, sk: &Skinned) -> std::io::Result<()> {
     let mut bin = Bin {
         data: Vec::new(),
         views: Vec::new(),
         accessors: Vec::new(),
     };
-    let nv = tr.mesh.positions.len();
-    let nf = tr.t0.len();
+    let nv = sk.positions.len();
+    let nf = sk.rest.len();
     // Geometry.
-    let (a_pos, a_idx) = bin.geometry(&tr.mesh.positions, &tr.mesh.faces);
+    let (a_pos, a_idx) = bin.geometry(sk.positions, sk.faces);
     let mut joints = Vec::with_capacity(nv * 8);
     let mut weights = Vec::with_capacity(nv * 4);
-    for inf in &tr.skin.influences {
+    for inf in sk.influences {
         let mut j = [0u16; 4];
         let mut wt = [0f32; 4];
         if inf.is_empty() {
@@ -132,7 +149,7 @@ pub fn write_glb(
     // Skin: inverse bind matrices (column-major), identity for the root, −t0 for features.
     let mut ibm = Vec::new();
     for f in 0..=nf {
-        let t = if f == 0 { [0.0; 3] } else { tr.t0[f - 1] };
+        let t = if f == 0 { [0.0; 3] } else { sk.rest[f - 1] };
         let m = [
             1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, -t[0], -t[1], -t[2], 1.0,
         ];
@@ -144,19 +161,13 @@ pub fn write_glb(
         json!({ "componentType": 5126, "count": nf + 1, "type": "MAT4" }),
     );
     // Animation: per frame, each joint's translation t0 + d.
-    let n = frames.ncols();
-    let times: Vec<f32> = (0..n).map(|t| (t as f64 / fps) as f32).collect();
+    let n = sk.tracks.len();
+    let times: Vec<f32> = (0..n).map(|t| (t as f64 / sk.fps) as f32).collect();
     let tb: Vec<u8> = times.iter().flat_map(|x| x.to_le_bytes()).collect();
     let a_time = bin.push(&tb, None, json!({ "componentType": 5126, "count": n, "type": "SCALAR", "min": [times[0]], "max": [times[n - 1]] }));
-    let disp: Vec<Vec<[f64; 3]>> = (0..n)
-        .map(|t| tr.displacements(frames.column(t).as_slice()))
-        .collect();
     let (mut samplers, mut channels) = (Vec::new(), Vec::new());
     for f in 0..nf {
-        let (bytes, _) = f32s(
-            disp.iter()
-                .flat_map(|d| (0..3).map(move |k| tr.t0[f][k] + d[f][k])),
-        );
+        let (bytes, _) = f32s(sk.tracks.iter().flat_map(|p| p[f]));
         let a = bin.push(
             &bytes,
             None,
@@ -169,8 +180,10 @@ pub fn write_glb(
         json!({ "name": "face", "mesh": 0, "skin": 0 }),
         json!({ "name": "root", "children": (2..nf + 2).collect::<Vec<_>>() }),
     ];
-    for (i, f) in tr.features.features.iter().enumerate() {
-        nodes.push(json!({ "name": f.name, "translation": tr.t0[i].iter().map(|x| *x as f32).collect::<Vec<_>>() }));
+    for (name, t) in sk.names.iter().zip(sk.rest) {
+        nodes.push(
+            json!({ "name": name, "translation": t.iter().map(|x| *x as f32).collect::<Vec<_>>() }),
+        );
     }
     let doc = json!({
         "asset": { "version": "2.0", "generator": concat!("keyshape-lab ", env!("CARGO_PKG_VERSION")) },
@@ -187,9 +200,9 @@ pub fn write_glb(
     write_glb_chunks(w, doc, bin.data)
 }
 
-/// Checks that the joint count fits glTF's 16-bit joint indices.
-pub fn check(tr: &Transfer) -> Result<()> {
-    if tr.t0.len() + 1 > u16::MAX as usize {
+/// Checks that `joints` (plus the root) fit glTF's 16-bit joint indices.
+pub fn check_joints(joints: usize) -> Result<()> {
+    if joints + 1 > u16::MAX as usize {
         return Err(Error::invalid("too many feature points for glTF joints"));
     }
     Ok(())

@@ -5,9 +5,11 @@ pub mod atomic;
 mod builtin;
 pub mod gltf;
 pub mod json;
+pub mod morph;
 pub mod obj;
 mod pts;
-pub mod svg;
+
+pub mod synthetic;
 pub mod table;
 
 pub use atomic::{check_output, check_output_dir, create_dir_all, write_atomic, OutputSet};

@@ -124,6 +124,15 @@ pub enum Method {
     Random,
 }
 
+impl std::str::FromStr for Method {
+    type Err = crate::error::Error;
+
+    /// As [`Method::parse`].
+    fn from_str(s: &str) -> crate::error::Result<Method> {
+        Method::parse(s)
+    }
+}
+
 impl Method {
     /// The methods of paper 000's Fig. 6 plus ours, in plotting order.
     pub const ALL: [Method; 8] = [

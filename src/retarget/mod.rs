@@ -5,6 +5,7 @@
 
 pub mod regions;
 pub mod setup;
+pub mod svg;
 pub mod target;
 
 use crate::align::Similarity;

@@ -1,5 +1,5 @@
 //! Target key shapes: one target shape Bᵢ per source key frame, any point count and
-//! dimension, read from JSON (or from an SVG template, see [`crate::io::svg`]), or made by
+//! dimension, read from JSON (or from an SVG template, see [`crate::retarget::svg`]), or made by
 //! the built-in cartoon warp.
 
 use crate::error::{Error, Result};

@@ -148,7 +148,7 @@ const ICT_NOSE_TIP: usize = 4857;
 /// A rig read for a track layout: the mesh and morph targets (for exports) and the rig.
 pub type RigParts = (
     crate::io::obj::Mesh,
-    crate::cosker::morph::MorphTargets,
+    crate::io::morph::MorphTargets,
     super::Rig,
 );
 

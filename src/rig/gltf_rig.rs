@@ -2,8 +2,8 @@
 //! Blender, say) and a `landmark,vertex` CSV naming its 68 landmark vertices.
 
 use super::{read_landmark_vertices, Rig};
-use crate::cosker::morph::MorphTargets;
 use crate::error::{Error, Result};
+use crate::io::morph::MorphTargets;
 use std::path::Path;
 
 /// The mesh's positions, faces and morph targets (names from `mesh.extras.targetNames`, as
@@ -133,7 +133,7 @@ pub fn read_gltf_mesh(path: &Path) -> Result<(crate::io::obj::Mesh, MorphTargets
         None => (0..k).map(|i| format!("target{i}")).collect(),
     };
     for (i, n) in names.iter().enumerate() {
-        crate::cosker::morph::check_name(n, &names[..i])
+        crate::io::morph::check_name(n, &names[..i])
             .map_err(|m| Error::file(path, format!("mesh.extras.targetNames: {m}")))?;
     }
     if let Some((i, p)) = positions

@@ -29,8 +29,8 @@ pub use neutral::{NEUTRAL_CANDIDATES, NEUTRAL_SCORED_FRAMES};
 pub use prior::{is_gaze, track_iod, EXCLUSIVE, GAZE_DAMPING};
 pub use solve::{solve_rig, zero_phase};
 
-use crate::cosker::morph::MorphTargets;
 use crate::error::{Error, Result};
+use crate::io::morph::MorphTargets;
 use crate::solve::Solver;
 use camera::Camera;
 use nalgebra::DMatrix;
@@ -245,6 +245,15 @@ pub enum Identity {
     /// identity plus an RBF of the neutral's displacement), so a wider mouth gets a wider
     /// smile.
     Rbf,
+}
+
+impl std::str::FromStr for Identity {
+    type Err = crate::error::Error;
+
+    /// As [`Identity::parse`].
+    fn from_str(s: &str) -> crate::error::Result<Identity> {
+        Identity::parse(s)
+    }
 }
 
 impl Identity {

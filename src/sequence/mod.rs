@@ -1,7 +1,6 @@
 //! Tracked sequences: frames × points × dims, stored as one shape per column.
 
 mod layout;
-pub mod synthetic;
 
 pub use layout::{mediapipe_to_ibug68, named_polylines_for, polylines_for, Group, Layout};
 
@@ -24,6 +23,15 @@ pub enum Format {
     Json,
     /// Plain CSV: `frame,x0,y0,x1,y1,…` (optional `time_s`, optional `z*`).
     Csv,
+}
+
+impl std::str::FromStr for Format {
+    type Err = crate::error::Error;
+
+    /// As [`Format::parse`].
+    fn from_str(s: &str) -> crate::error::Result<Format> {
+        Format::parse(s)
+    }
 }
 
 impl Format {

@@ -38,6 +38,15 @@ pub enum Solver {
     Bounded,
 }
 
+impl std::str::FromStr for Solver {
+    type Err = crate::error::Error;
+
+    /// As [`Solver::parse`].
+    fn from_str(s: &str) -> crate::error::Result<Solver> {
+        Solver::parse(s)
+    }
+}
+
 impl Solver {
     /// All solvers.
     pub const ALL: [Solver; 3] = [Solver::Ls, Solver::Nnls, Solver::Bounded];

@@ -87,6 +87,50 @@ impl Transfer {
         })
     }
 
+    /// Checks that the features fit glTF's 16-bit joint indices ([`Transfer::write_glb`]).
+    pub fn check_gltf(&self) -> Result<()> {
+        crate::io::gltf::check_joints(self.t0.len())
+    }
+
+    /// Writes the transfer of `frames` source shapes (columns, `fps`) as GLB: the skin as
+    /// glTF's linear-blend skinning, one joint per feature point animated by its
+    /// translation (`io::gltf::write_skinned_glb`).
+    pub fn write_glb(
+        &self,
+        w: &mut dyn std::io::Write,
+        frames: &nalgebra::DMatrix<f64>,
+        fps: f64,
+    ) -> std::io::Result<()> {
+        let tracks: Vec<Vec<[f64; 3]>> = (0..frames.ncols())
+            .map(|t| {
+                let d = self.displacements(frames.column(t).as_slice());
+                self.t0
+                    .iter()
+                    .zip(&d)
+                    .map(|(t0, d)| [t0[0] + d[0], t0[1] + d[1], t0[2] + d[2]])
+                    .collect()
+            })
+            .collect();
+        let names: Vec<&str> = self
+            .features
+            .features
+            .iter()
+            .map(|f| f.name.as_str())
+            .collect();
+        crate::io::gltf::write_skinned_glb(
+            w,
+            &crate::io::gltf::Skinned {
+                positions: &self.mesh.positions,
+                faces: &self.mesh.faces,
+                influences: &self.skin.influences,
+                names: &names,
+                rest: &self.t0,
+                tracks: &tracks,
+                fps,
+            },
+        )
+    }
+
     /// Feature displacements `d_i = F(s_i) − t0_i` of one source frame (zero when disabled).
     pub fn displacements(&self, shape: &[f64]) -> Vec<[f64; 3]> {
         let src = source_points(shape, self.dims, &self.features);

@@ -686,7 +686,8 @@ fn trajectories_are_normalised_and_map_between_people() {
 
 #[test]
 fn eq8_with_one_hot_weights_reproduces_each_morph_target() {
-    use keyshape_lab::cosker::morph::{MorphMapping, MorphTargets};
+    use keyshape_lab::cosker::morph::MorphMapping;
+    use keyshape_lab::io::morph::MorphTargets;
     let mesh =
         keyshape_lab::io::obj::read_obj(&shared("ict_facekit_face/neutral_face.obj")).unwrap();
     let t = MorphTargets::read(
@@ -949,7 +950,7 @@ fn orthogonality_picture_has_both_axes_and_a_scale() {
 #[test]
 fn the_block_wise_action_model_is_fit_leadings_on_68_points() {
     let mut text = Vec::new();
-    keyshape_lab::sequence::synthetic::write_long_track(&mut text, 3000, 68, 5).unwrap();
+    keyshape_lab::io::synthetic::write_long_track(&mut text, 3000, 68, 5).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("long.csv");
     std::fs::write(&path, &text).unwrap();
@@ -1013,7 +1014,7 @@ fn block_wise_pca_refuses_what_it_cannot_fit_and_fits_its_edges() {
 /// shape's sparse offsets land on their vertices, zero elsewhere.
 #[test]
 fn used_dense_keeps_the_shapes_with_a_positive_weight() {
-    use keyshape_lab::cosker::morph::MorphTargets;
+    use keyshape_lab::io::morph::MorphTargets;
     let t = MorphTargets {
         names: vec!["a".into(), "b".into(), "c".into(), "d".into()],
         deltas: vec![
@@ -1057,7 +1058,8 @@ fn used_dense_keeps_the_shapes_with_a_positive_weight() {
 /// on gains that are not 1 and two actions sharing a shape; an unknown name is an error.
 #[test]
 fn morph_mapping_weights_are_clamped_gain_sums_of_the_positive_trajectory() {
-    use keyshape_lab::cosker::morph::{MorphMapping, MorphTargets};
+    use keyshape_lab::cosker::morph::MorphMapping;
+    use keyshape_lab::io::morph::MorphTargets;
     let t = MorphTargets {
         names: vec!["a".into(), "b".into()],
         deltas: vec![Vec::new(), Vec::new()],

@@ -4,10 +4,10 @@
 use crate::common::shared;
 use keyshape_lab::decompose::{prepare, PrepareOptions};
 use keyshape_lab::io::builtin_sequence;
-use keyshape_lab::io::svg::{read_template, write_template};
 use keyshape_lab::rbf::Rbf;
 use keyshape_lab::retarget::regions::{plan, Regions};
 use keyshape_lab::retarget::setup::{builtin_target, polylines_for};
+use keyshape_lab::retarget::svg::{read_template, write_template};
 use keyshape_lab::retarget::target::{TargetKey, TargetSet};
 use keyshape_lab::retarget::{jitter, retarget, with_head_motion, KeyPlan, Target};
 use keyshape_lab::sequence::Layout;
@@ -765,7 +765,7 @@ fn retarget_errors_equal_the_full_retarget_bit_for_bit() {
     );
     // Generated: 9,000 frames of 68 points.
     let mut text = Vec::new();
-    keyshape_lab::sequence::synthetic::write_long_track(&mut text, 9000, 68, 3).unwrap();
+    keyshape_lab::io::synthetic::write_long_track(&mut text, 9000, 68, 3).unwrap();
     let path = std::env::temp_dir().join(format!("kslab_retarget_long_{}.csv", std::process::id()));
     std::fs::write(&path, &text).unwrap();
     let long = keyshape_lab::io::read_sequence(&path, &Default::default()).unwrap();

@@ -214,8 +214,7 @@ fn bench_scale_refuses_what_it_cannot_run_and_generates_one_track_on_request() {
 fn blocked_errors_on_long_tracks_equal_the_one_pass_errors() {
     use keyshape_lab::keyshapes::{Heuristic, KMeans, GRAM_LIMIT};
     let mut text = Vec::new();
-    keyshape_lab::sequence::synthetic::write_long_track(&mut text, GRAM_LIMIT + 1500, 68, 3)
-        .unwrap();
+    keyshape_lab::io::synthetic::write_long_track(&mut text, GRAM_LIMIT + 1500, 68, 3).unwrap();
     let seq = keyshape_lab::io::parse_sequence(
         std::path::Path::new("long.csv"),
         std::str::from_utf8(&text).unwrap(),

@@ -232,7 +232,7 @@ fn gltf_export_passes_the_khronos_validator() {
     let dir = tempfile::tempdir().unwrap();
     let p = dir.path().join("news.glb");
     let mut buf = Vec::new();
-    keyshape_lab::io::gltf::write_glb(&mut buf, &t, &seq.coords.columns(0, 40).clone_owned(), 15.0)
+    t.write_glb(&mut buf, &seq.coords.columns(0, 40).clone_owned(), 15.0)
         .unwrap();
     std::fs::write(&p, &buf).unwrap();
     // Structure: GLB header, JSON chunk with one joint per feature plus the root.

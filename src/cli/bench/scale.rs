@@ -1,5 +1,5 @@
 //! `kslab bench scale` (issue 17): wall time and peak memory of whole subcommands on long
-//! generated tracks (`keyshape_lab::sequence::synthetic`), each run as its own process so
+//! generated tracks (`keyshape_lab::io::synthetic`), each run as its own process so
 //! its peak resident set is its own.
 
 use anyhow::{bail, Context, Result};
@@ -227,7 +227,7 @@ pub fn run(a: &ScaleArgs) -> Result<()> {
 fn generate(path: &Path, frames: usize, points: usize, seed: u64) -> Result<()> {
     keyshape_lab::io::write_atomic(path, |w| {
         let mut w = std::io::BufWriter::new(w);
-        keyshape_lab::sequence::synthetic::write_long_track(&mut w, frames, points, seed)
+        keyshape_lab::io::synthetic::write_long_track(&mut w, frames, points, seed)
             .map_err(std::io::Error::other)?;
         std::io::Write::flush(&mut w)
     })?;

@@ -39,6 +39,21 @@ pub enum SmoothMode {
     Causal,
 }
 
+impl std::str::FromStr for SmoothMode {
+    type Err = crate::error::Error;
+
+    /// The option's spelling on the command line and in experiment files.
+    fn from_str(s: &str) -> crate::error::Result<SmoothMode> {
+        match s {
+            "offline" => Ok(SmoothMode::Offline),
+            "causal" => Ok(SmoothMode::Causal),
+            _ => Err(crate::error::Error::invalid(format!(
+                "'{s}': choose offline or causal"
+            ))),
+        }
+    }
+}
+
 impl SmoothMode {
     /// `offline` or `causal`.
     pub fn name(self) -> &'static str {

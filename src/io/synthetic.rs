@@ -16,10 +16,10 @@ const KNOT: usize = 12;
 /// Writes a `frames`-frame track of `points` (68 or 468) points in the plain CSV format
 /// (`frame,time_s,x0,y0,…`, 30 fps) to `w`, seeded.
 pub fn write_long_track(w: &mut dyn Write, frames: usize, points: usize, seed: u64) -> Result<()> {
-    let seq = crate::io::builtin_sequence()?;
+    let seq = super::builtin_sequence()?;
     let pick: Vec<usize> = match points {
         468 => (0..468).collect(),
-        68 => crate::rig::mediapipe_to_ibug68()?,
+        68 => crate::sequence::mediapipe_to_ibug68()?,
         _ => {
             return Err(Error::invalid(format!(
                 "a generated track has 68 or 468 points, not {points}"
@@ -74,7 +74,7 @@ pub fn write_long_track(w: &mut dyn Write, frames: usize, points: usize, seed: u
         let (angle, scale) = (4f64.to_radians() * drift(t, 2), 1.0 + 0.04 * drift(t, 3));
         let (sn, cs) = angle.sin_cos();
         line.clear();
-        line.push_str(&format!("{f},{}", crate::io::fmt_num(t / 30.0)));
+        line.push_str(&format!("{f},{}", super::fmt_num(t / 30.0)));
         for p in 0..points {
             let x = (1.0 - a) * from[p][0] + a * to[p][0] - centre[0];
             let y = (1.0 - a) * from[p][1] + a * to[p][1] - centre[1];
