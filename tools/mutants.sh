@@ -2,7 +2,7 @@
 # Mutation testing of the numeric core (issue 12): one plausible bug at a time, the whole test
 # suite after each. Needs `cargo install cargo-mutants`. Usage:
 #   tools/mutants.sh                      # every file below (3,583 mutants: ~12 hours on 2 cores)
-#   tools/mutants.sh -f src/decompose.rs  # just these files (replaces the list)
+#   tools/mutants.sh -f crates/keyshape-core/src/decompose.rs  # just these files (replaces the list)
 #   tools/mutants.sh --shard 1/8          # one eighth of the full list, to spread over runs
 # Results go to mutants/mutants.out/ (caught.txt, missed.txt, timeout.txt, unviable.txt);
 # mutants/README.md says which survivors are equivalent and which tests killed the rest.
@@ -14,13 +14,13 @@ if [ ! -e "$tmp/shared" ]; then
   ln -s "$(cd ../shared && pwd)" "$tmp/shared"
 fi
 files=(
-  src/solve/active_set.rs src/solve/mod.rs src/solve/lstsq.rs src/solve/chol.rs
-  src/solve/jacobi.rs src/solve/textbook.rs src/solve/temporal/*.rs src/solve/filters.rs
-  src/decompose.rs src/keyshapes/mod.rs src/keyshapes/spread.rs src/keyshapes/kmeans.rs
-  src/keyshapes/hull.rs src/keyshapes/greedy.rs src/keyshapes/random.rs
-  src/keyshapes/curves.rs
-  src/cosker/modes.rs src/cosker/trajectory.rs src/cosker/morph.rs src/cosker/intensity.rs
-  src/retarget/rbf.rs src/transfer/mod.rs src/transfer/skin.rs src/transfer/features.rs
+  crates/keyshape-core/src/solve/active_set.rs crates/keyshape-core/src/solve/mod.rs crates/keyshape-core/src/solve/lstsq.rs crates/keyshape-core/src/solve/chol.rs
+  crates/keyshape-core/src/solve/jacobi.rs crates/keyshape-core/src/solve/textbook.rs crates/keyshape-core/src/solve/temporal/*.rs crates/keyshape-core/src/solve/filters.rs
+  crates/keyshape-core/src/decompose.rs crates/keyshape-core/src/keyshapes/mod.rs crates/keyshape-core/src/keyshapes/spread.rs crates/keyshape-core/src/keyshapes/kmeans.rs
+  crates/keyshape-core/src/keyshapes/hull.rs crates/keyshape-core/src/keyshapes/greedy.rs crates/keyshape-core/src/keyshapes/random.rs
+  crates/keyshape-core/src/keyshapes/curves.rs
+  crates/keyshape-actions/src/modes.rs crates/keyshape-actions/src/trajectory.rs crates/keyshape-io/src/morph.rs crates/keyshape-actions/src/morph.rs crates/keyshape-actions/src/intensity.rs
+  crates/keyshape-core/src/rbf.rs crates/keyshape-transfer/src/lib.rs crates/keyshape-transfer/src/skin.rs crates/keyshape-transfer/src/features.rs
 )
 args=()
 if [[ " $* " != *" -f "* && " $* " != *" --file "* ]]; then
@@ -29,5 +29,8 @@ fi
 # --gitignore false: copy tools/gltf/node_modules too (the glTF tests need the validator).
 # After --: every test target but the doc test, whose recompilation would double each run,
 # and without the fuzz smoke (reader robustness: it kills no numeric mutant).
-exec cargo mutants --profile mutants --gitignore false -o mutants "${args[@]}" "$@" \
+# --test-workspace true: a mutant in a library crate is tested by every crate's tests and
+# the binary's end-to-end tests (tests/it), as before the workspace split, not only by its
+# own crate's unit tests.
+exec cargo mutants --profile mutants --gitignore false --test-workspace true -o mutants "${args[@]}" "$@" \
   -- --all-targets -- --skip fuzz_smoke

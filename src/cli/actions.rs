@@ -3,7 +3,7 @@
 use super::input::InputArgs;
 use anyhow::Result;
 use clap::Args;
-use keyshape_lab::cosker::actions::choose_actions;
+use keyshape_actions::actions::choose_actions;
 use std::path::PathBuf;
 
 /// Arguments of `kslab actions`.
@@ -30,7 +30,7 @@ pub fn run(a: &ActionsArgs) -> Result<()> {
     let text = serde_json::to_string_pretty(&acts)? + "\n";
     let to_stdout = a.out.is_none() || super::is_stdout(a.out.as_ref());
     match &a.out {
-        Some(p) => keyshape_lab::io::write_atomic(p, |w| w.write_all(text.as_bytes()))?,
+        Some(p) => keyshape_io::write_atomic(p, |w| w.write_all(text.as_bytes()))?,
         None => out!("{text}"),
     }
     let picked: Vec<String> = acts

@@ -5,10 +5,10 @@ use super::keys::HeuristicArgs;
 use super::progress::Progress;
 use anyhow::Result;
 use clap::Args;
-use keyshape_lab::keyshapes::curves::sweep;
-use keyshape_lab::keyshapes::{Analysis, Method};
+use keyshape_core::keyshapes::curves::sweep;
+use keyshape_core::keyshapes::{Analysis, Method};
+use keyshape_core::solve::Solver;
 use keyshape_lab::report::write_curves_csv;
-use keyshape_lab::solve::Solver;
 use std::path::PathBuf;
 
 /// Arguments of `kslab curves`.
@@ -85,7 +85,7 @@ pub fn run(a: &CurvesArgs) -> Result<()> {
     let mut prep = a.input.prepare_only()?;
     progress.step("curves: principal axes");
     let methods: Vec<Method> = a.methods.iter().map(|m| a.heuristic.apply(*m)).collect();
-    let axes = keyshape_lab::keyshapes::axes_needed(&methods, a.k.1);
+    let axes = keyshape_core::keyshapes::axes_needed(&methods, a.k.1);
     // The analysis takes the coordinates; only the frame numbers and source are used after.
     let coords = std::mem::replace(&mut prep.seq.coords, nalgebra::DMatrix::zeros(0, 0));
     let an = Analysis::with_axes(coords, prep.seq.points, axes)?;
@@ -97,7 +97,7 @@ pub fn run(a: &CurvesArgs) -> Result<()> {
     })?;
     progress.finish();
     match &a.out {
-        Some(p) => keyshape_lab::io::write_atomic(p, |w| write_curves_csv(w, &rows))?,
+        Some(p) => keyshape_io::write_atomic(p, |w| write_curves_csv(w, &rows))?,
         None => write_curves_csv(&mut std::io::stdout().lock(), &rows)?,
     }
     if let Some(png) = &a.png {
@@ -120,7 +120,7 @@ pub fn run(a: &CurvesArgs) -> Result<()> {
             eprintln!("wrote {}", path.display());
         }
     }
-    if let Some(line) = keyshape_lab::keyshapes::curves::summary(&rows) {
+    if let Some(line) = keyshape_core::keyshapes::curves::summary(&rows) {
         // On standard error when standard output carries the table.
         sayln!(
             a.out.is_none() || super::is_stdout(a.out.as_ref()),

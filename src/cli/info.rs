@@ -3,7 +3,7 @@
 use super::input::InputArgs;
 use anyhow::Result;
 use clap::Args;
-use keyshape_lab::sequence::Layout;
+use keyshape_core::sequence::Layout;
 use serde_json::json;
 
 /// Arguments of `kslab info`.

@@ -2,9 +2,9 @@
 
 use anyhow::Result;
 use clap::Args;
-use keyshape_lab::decompose::{prepare, prepare_owned, PrepareOptions, Prepared};
-use keyshape_lab::io::{builtin_sequence, read_sequence, ReadOptions};
-use keyshape_lab::sequence::{Format, Sequence};
+use keyshape_core::decompose::{prepare, prepare_owned, PrepareOptions, Prepared};
+use keyshape_core::sequence::{Format, Sequence};
+use keyshape_io::{builtin_sequence, read_sequence, ReadOptions};
 use std::path::PathBuf;
 
 /// Where the performance comes from and how to prepare it.

@@ -4,7 +4,7 @@
 
 use anyhow::Result;
 use clap::Args;
-use keyshape_lab::cosker::intensity::{study_with_format, Centring, Evaluation, StudySettings};
+use keyshape_actions::intensity::{study_with_format, Centring, Evaluation, StudySettings};
 use std::path::PathBuf;
 
 /// Arguments of `kslab intensity`.
@@ -18,7 +18,7 @@ pub struct IntensityArgs {
     /// `--format pyfeat` reads a file whose header looks like another tracker's).
     /// [default: detected from the file's name and first line].
     #[arg(long)]
-    format: Option<keyshape_lab::sequence::Format>,
+    format: Option<keyshape_core::sequence::Format>,
     /// Clips used for training (the rest are tested), `A..B` inclusive [default: 1..14].
     /// Split evaluation only.
     #[arg(long, value_parser = super::curves::parse_range)]
@@ -56,7 +56,7 @@ pub struct IntensityArgs {
 pub fn run(a: &IntensityArgs) -> Result<()> {
     let path = match &a.file {
         Some(p) => p.clone(),
-        None => keyshape_lab::io::shared_data("pyfeat_samples/news_sample_compact.csv")?,
+        None => keyshape_io::shared_data("pyfeat_samples/news_sample_compact.csv")?,
     };
     let st = StudySettings {
         train_clips: a.train_clips,

@@ -3,8 +3,8 @@
 use super::input::InputArgs;
 use anyhow::{Context, Result};
 use clap::Args;
-use keyshape_lab::keyshapes::{Analysis, KeyOptions, Method};
-use keyshape_lab::solve::Solver;
+use keyshape_core::keyshapes::{Analysis, KeyOptions, Method};
+use keyshape_core::solve::Solver;
 use nalgebra::DMatrix;
 use serde_json::json;
 
@@ -111,7 +111,7 @@ pub fn run(a: &KeysArgs) -> Result<()> {
     let progress = super::progress::Progress::new("keys");
     let mut prep = a.input.prepare_only()?;
     let method = a.heuristic.apply(a.method);
-    let axes = keyshape_lab::keyshapes::axes_needed(&[method], k);
+    let axes = keyshape_core::keyshapes::axes_needed(&[method], k);
     // The analysis takes the coordinates; only the frame numbers and source are used after.
     let coords = std::mem::replace(&mut prep.seq.coords, nalgebra::DMatrix::zeros(0, 0));
     let an = Analysis::with_axes(coords, prep.seq.points, axes)?;
@@ -211,7 +211,10 @@ impl KeyChoiceArgs {
 
 /// Columns of the key frames `--keys` names by frame number; a frame listed twice, failed
 /// or out of range is an error naming the frame.
-pub fn frame_columns(seq: &keyshape_lab::sequence::Sequence, frames: &[i64]) -> Result<Vec<usize>> {
+pub fn frame_columns(
+    seq: &keyshape_core::sequence::Sequence,
+    frames: &[i64],
+) -> Result<Vec<usize>> {
     let mut seen = std::collections::HashSet::new();
     frames
         .iter()
@@ -241,7 +244,7 @@ impl KeyChoiceArgs {
     /// Key columns of `coords` (a prepared sequence's shapes, `frames` their numbers).
     pub fn columns(
         &self,
-        seq: &keyshape_lab::sequence::Sequence,
+        seq: &keyshape_core::sequence::Sequence,
         coords: DMatrix<f64>,
         points: usize,
         opts: &KeyOptions,
@@ -256,7 +259,7 @@ impl KeyChoiceArgs {
     /// analysis holds them while it chooses and hands them back.
     pub fn columns_in_place(
         &self,
-        seq: &mut keyshape_lab::sequence::Sequence,
+        seq: &mut keyshape_core::sequence::Sequence,
         opts: &KeyOptions,
     ) -> Result<Vec<usize>> {
         if !self.keys.is_empty() {
@@ -287,7 +290,7 @@ impl KeyChoiceArgs {
         let an = match Analysis::with_axes(
             coords,
             points,
-            keyshape_lab::keyshapes::axes_needed(&[m], k),
+            keyshape_core::keyshapes::axes_needed(&[m], k),
         ) {
             Ok(an) => an,
             Err(e) => return (Err(e.into()), DMatrix::zeros(0, 0)),

@@ -5,18 +5,18 @@ use super::input::InputArgs;
 use super::modes::RegionArgs;
 use anyhow::{Context, Result};
 use clap::Args;
-use keyshape_lab::cosker::modes::Actions;
-use keyshape_lab::cosker::morph::MorphMapping;
-use keyshape_lab::cosker::trajectory::{
+use keyshape_actions::modes::Actions;
+use keyshape_actions::morph::MorphMapping;
+use keyshape_actions::trajectory::{
     person_model, synthesise, trajectories, ModeAlignment, Normalisation, PersonModel,
 };
-use keyshape_lab::decompose::{prepare, PrepareOptions, Prepared};
-use keyshape_lab::io::morph::MorphTargets;
-use keyshape_lab::io::obj::{read_obj, write_obj};
-use keyshape_lab::io::{read_sequence, write_atomic, ReadOptions};
+use keyshape_core::decompose::{prepare, PrepareOptions, Prepared};
+use keyshape_io::morph::MorphTargets;
+use keyshape_io::obj::{read_obj, write_obj};
+use keyshape_io::{read_sequence, write_atomic, ReadOptions};
 use keyshape_lab::render::face::{bounds_of, col, render_panels, Layer, Panel};
 use keyshape_lab::render::{apng::write_apng, save_png};
-use keyshape_lab::retarget::setup::polylines_for;
+use keyshape_retarget::setup::polylines_for;
 use nalgebra::DMatrix;
 use std::path::{Path, PathBuf};
 
@@ -187,7 +187,7 @@ pub fn run(a: &MapArgs) -> Result<()> {
             tpath.display(),
             a.normalisation.name()
         );
-        let ex = keyshape_lab::cosker::trajectory::extremes(&src, &tgt, &alignment);
+        let ex = keyshape_actions::trajectory::extremes(&src, &tgt, &alignment);
         let (lo, hi) = ex
             .iter()
             .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), r| {
@@ -268,7 +268,7 @@ fn side_by_side(
         render_panels(&panels, &format!("frame {}", prep.seq.frames[t]), 320)
     };
     if let Some(dir) = &a.png_dir {
-        keyshape_lab::io::create_dir_all(dir)?;
+        keyshape_io::create_dir_all(dir)?;
         for t in (0..shapes.ncols()).step_by(every) {
             progress.tick(t, shapes.ncols());
             save_png(
@@ -310,7 +310,7 @@ fn morph(
     let w = mapping.weights(&targets, names, traj)?;
     let n = w.ncols();
     if let Some(d) = &a.morph_obj_dir {
-        keyshape_lab::io::create_dir_all(d)?;
+        keyshape_io::create_dir_all(d)?;
         let mut out = mesh.positions.clone();
         for t in (0..n).step_by(every) {
             progress.tick(t, n);
@@ -327,7 +327,7 @@ fn morph(
         }
     }
     if let Some(d) = &a.morph_png_dir {
-        keyshape_lab::io::create_dir_all(d)?;
+        keyshape_io::create_dir_all(d)?;
         let mb = keyshape_lab::render::mesh::mesh_bounds(&mesh.positions);
         let mut out = mesh.positions.clone();
         for t in (0..n).step_by(every) {

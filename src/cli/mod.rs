@@ -24,7 +24,7 @@ macro_rules! sayln {
 
 /// Is this output path standard output (`-`)?
 pub(crate) fn is_stdout(p: Option<&PathBuf>) -> bool {
-    p.is_some_and(|p| keyshape_lab::io::atomic::is_stdout(p))
+    p.is_some_and(|p| keyshape_io::atomic::is_stdout(p))
 }
 
 /// Refuses `--json` when `--out -` already sends the data to standard output.
@@ -81,11 +81,11 @@ pub(crate) fn check_outputs(
     let inputs: Vec<&Path> = inputs.iter().flatten().copied().collect();
     let outputs: Vec<&Path> = files.iter().flatten().map(|f| f.as_path()).collect();
     for f in &outputs {
-        keyshape_lab::io::check_output(f, &inputs)?;
+        keyshape_io::check_output(f, &inputs)?;
     }
-    keyshape_lab::io::atomic::check_distinct(&outputs)?;
+    keyshape_io::atomic::check_distinct(&outputs)?;
     for d in dirs.iter().flatten() {
-        keyshape_lab::io::check_output_dir(d)?;
+        keyshape_io::check_output_dir(d)?;
     }
     Ok(())
 }
@@ -148,8 +148,8 @@ fn broken_pipe(e: &anyhow::Error) -> bool {
         c.downcast_ref::<std::io::Error>()
             .is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe)
             || matches!(
-                c.downcast_ref::<keyshape_lab::Error>(),
-                Some(keyshape_lab::Error::Io { err, .. }) if err.kind() == std::io::ErrorKind::BrokenPipe
+                c.downcast_ref::<keyshape_core::Error>(),
+                Some(keyshape_core::Error::Io { err, .. }) if err.kind() == std::io::ErrorKind::BrokenPipe
             )
     })
 }
@@ -164,7 +164,7 @@ pub fn main() -> ExitCode {
     // benchmarks write tracks that the processes they start must read at once.
     let set = match command {
         Command::Tui(_) | Command::Bench(_) => None,
-        _ => Some(keyshape_lab::io::OutputSet::begin()),
+        _ => Some(keyshape_io::OutputSet::begin()),
     };
     let result = match command {
         Command::Tui(a) => tui::run(&a),

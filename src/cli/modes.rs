@@ -3,10 +3,10 @@
 use super::input::InputArgs;
 use anyhow::{Context, Result};
 use clap::Args;
-use keyshape_lab::cosker::modes::{
+use keyshape_actions::modes::{
     orthogonality_study, Actions, Boundary, ModeRegions, OrthogonalityStudy, Region, RegionOptions,
 };
-use keyshape_lab::decompose::Prepared;
+use keyshape_core::decompose::Prepared;
 use std::path::PathBuf;
 
 /// The regions of paper 002 §3.1 and how their boundaries blend (shared by `modes` and `map`).

@@ -4,18 +4,16 @@ use super::input::InputArgs;
 use super::keys::{HeuristicArgs, KeyChoiceArgs};
 use anyhow::{Context, Result};
 use clap::Args;
-use keyshape_lab::decompose::Prepared;
-use keyshape_lab::io::{fmt_num, write_atomic};
+use keyshape_core::decompose::Prepared;
+use keyshape_core::sequence::Sequence;
+use keyshape_core::solve::Solver;
+use keyshape_io::{fmt_num, write_atomic};
 use keyshape_lab::render::face::{bounds_of, col, render_frame, FrameShapes};
 use keyshape_lab::render::{apng::write_apng, save_png};
-use keyshape_lab::retarget::regions::{plan, Regions};
-use keyshape_lab::retarget::setup::{builtin_target, polylines_for};
-use keyshape_lab::retarget::target::TargetSet;
-use keyshape_lab::retarget::{
-    retarget, retarget_errors, with_head_motion, KeyPlan, Retargeted, Target,
-};
-use keyshape_lab::sequence::Sequence;
-use keyshape_lab::solve::Solver;
+use keyshape_retarget::regions::{plan, Regions};
+use keyshape_retarget::setup::{builtin_target, polylines_for};
+use keyshape_retarget::target::TargetSet;
+use keyshape_retarget::{retarget, retarget_errors, with_head_motion, KeyPlan, Retargeted, Target};
 use nalgebra::DMatrix;
 use serde_json::json;
 use std::io::Write;
@@ -89,7 +87,7 @@ fn read_target(a: &RetargetArgs) -> Result<Option<TargetSet>> {
             .extension()
             .is_some_and(|e| e.eq_ignore_ascii_case("svg"))
         {
-            keyshape_lab::retarget::svg::read_template(path)?
+            keyshape_retarget::svg::read_template(path)?
         } else {
             TargetSet::read_json(path)?
         },
@@ -206,11 +204,10 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
         _ => prep.head.as_deref(),
     };
     let s = &prep.seq;
-    let plan_keys = match &a.regions {
+    let plan_keys = match (&a.regions, set.as_ref()) {
         // A target set stands for the frames it was drawn from: those are the keys, unless
         // --keys or --method asks for others (then the frames must match, said below).
-        None if set.is_some() && !chosen => {
-            let set = set.as_ref().expect("checked above");
+        (None, Some(set)) if !chosen => {
             let path = a.target.as_deref().unwrap_or(std::path::Path::new(""));
             let cols = set
                 .keys
@@ -227,8 +224,8 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
                 .collect::<Result<Vec<_>>>()?;
             KeyPlan::Global(cols)
         }
-        None => KeyPlan::Global(global.context("the global key choice")?),
-        Some(r) => {
+        (None, _) => KeyPlan::Global(global.context("the global key choice")?),
+        (Some(r), _) => {
             let layout = prep
                 .layout
                 .as_ref()
@@ -254,7 +251,7 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
                 let sub = s.select_points(members)?;
                 let choice = KeyChoiceArgs {
                     // hull gives each region the k of its hull.
-                    k: (a.choice.method != Some(keyshape_lab::keyshapes::Method::Hull))
+                    k: (a.choice.method != Some(keyshape_core::keyshapes::Method::Hull))
                         .then_some(k),
                     ..a.choice.clone()
                 };
@@ -331,9 +328,9 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
     if let Some(p) = &a.out {
         write_atomic(p, |w| write_csv(w, s, &r, &columns, head))?;
     }
-    let jitter = keyshape_lab::solve::jitter::weight_jitter_all(
+    let jitter = keyshape_core::solve::jitter::weight_jitter_all(
         &r.weights,
-        &keyshape_lab::solve::temporal::segments(&s.frames, s.segments.as_deref()),
+        &keyshape_core::solve::temporal::segments(&s.frames, s.segments.as_deref()),
     );
     let summary = json!({
         "source": s.source,
@@ -407,7 +404,7 @@ fn write_csv(
     s: &Sequence,
     r: &Retargeted,
     columns: &[String],
-    motion: Option<&[keyshape_lab::align::Similarity]>,
+    motion: Option<&[keyshape_core::align::Similarity]>,
 ) -> std::io::Result<()> {
     let mut head = String::from("frame,source_rms,target_rms");
     for c in columns {
@@ -447,7 +444,7 @@ fn write_csv(
 /// Image-space shapes (head motion re-applied when asked for).
 fn image_space(
     m: &DMatrix<f64>,
-    head: Option<&[keyshape_lab::align::Similarity]>,
+    head: Option<&[keyshape_core::align::Similarity]>,
     dims: usize,
 ) -> Result<DMatrix<f64>> {
     Ok(match head {
@@ -483,7 +480,7 @@ fn pictures(
     a: &RetargetArgs,
     seq: &Sequence,
     prep: &Prepared,
-    head: Option<&[keyshape_lab::align::Similarity]>,
+    head: Option<&[keyshape_core::align::Similarity]>,
     r: &Retargeted,
     target_lines: &[Vec<usize>],
     progress: &super::progress::Progress,
@@ -502,7 +499,7 @@ fn pictures(
         (Some(_), true) => image_space(&r.target, head, dims)?,
         (Some(h), false) => {
             let ratio = mean_size(&r.target, dims) / mean_size(&s.coords, dims).max(1e-300);
-            keyshape_lab::retarget::with_relative_head_motion(&r.target, h, dims, ratio)?
+            keyshape_retarget::with_relative_head_motion(&r.target, h, dims, ratio)?
         }
         (None, _) => r.target.clone(),
     };
@@ -519,7 +516,7 @@ fn pictures(
     let mut all_t = vec![&target];
     all_t.extend(truth.iter());
     let tb = bounds_of(&all_t, dims);
-    let frame = |t: usize| -> keyshape_lab::Result<tiny_skia::Pixmap> {
+    let frame = |t: usize| -> keyshape_core::Result<tiny_skia::Pixmap> {
         let shapes = FrameShapes {
             dims,
             tracked: col(&tracked, t),
@@ -548,7 +545,7 @@ fn pictures(
         render_frame(&shapes, &caption, 360)
     };
     if let Some(dir) = &a.png_dir {
-        keyshape_lab::io::create_dir_all(dir)?;
+        keyshape_io::create_dir_all(dir)?;
         progress.step("retarget: PNG frames");
         progress.units("frames");
         for t in 0..s.n_frames() {

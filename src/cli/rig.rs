@@ -4,11 +4,11 @@
 use super::check_outputs;
 use anyhow::{Context, Result};
 use clap::Args;
-use keyshape_lab::io::{fmt_num, read_sequence, shared_data, write_atomic, ReadOptions};
-use keyshape_lab::rig::{livelink, solve_rig, Identity, Neutral, Rig, RigOptions, RigSolve};
-use keyshape_lab::sequence::Sequence;
-use keyshape_lab::solve::temporal::SmoothMode;
-use keyshape_lab::solve::Solver;
+use keyshape_core::sequence::Sequence;
+use keyshape_core::solve::temporal::SmoothMode;
+use keyshape_core::solve::Solver;
+use keyshape_io::{fmt_num, read_sequence, shared_data, write_atomic, ReadOptions};
+use keyshape_rig::{livelink, solve_rig, Identity, Neutral, Rig, RigOptions, RigSolve};
 use serde_json::json;
 use std::io::Write;
 use std::path::PathBuf;
@@ -24,7 +24,7 @@ pub struct RigArgs {
     /// Force the input format: mediapipe, openface, pyfeat, pts, json or csv [default:
     /// detected].
     #[arg(long)]
-    format: Option<keyshape_lab::sequence::Format>,
+    format: Option<keyshape_core::sequence::Format>,
     /// 3: use the track's depth too (MediaPipe's z: relative depth in the x axis's pixels,
     /// more negative closer to the camera — `--image-size` scales it by the width as x).
     /// Each landmark's depth is fitted beside its image position, with a depth offset per
@@ -101,7 +101,7 @@ pub struct RigArgs {
     /// (smile/frown, blink/wide, jawLeft/jawRight …) paying for being on together; tapered
     /// (its pull fades as a shape comes on) unless --no-prior-taper. 0 is off. Tuned on
     /// `kslab rig-accuracy`.
-    #[arg(long, default_value_t = keyshape_lab::rig::RECOMMENDED_PRIOR, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = keyshape_rig::RECOMMENDED_PRIOR, allow_negative_numbers = true)]
     prior: f64,
     /// The plain ridge μ‖w‖² instead of the tapered prior (the default: each shape's pull
     /// 2μw(1 − w)² fades as it comes on, so peaks are reached; see the README, "Rig accuracy
@@ -191,7 +191,7 @@ pub fn run(a: &RigArgs) -> Result<()> {
     let name = a
         .file
         .as_ref()
-        .map_or(keyshape_lab::io::BUILTIN_NAME.to_string(), |p| {
+        .map_or(keyshape_io::BUILTIN_NAME.to_string(), |p| {
             p.display().to_string()
         });
     let seq = match &a.file {
@@ -205,11 +205,11 @@ pub fn run(a: &RigArgs) -> Result<()> {
         None if a.dims == 3 => anyhow::bail!(
             "--dims 3: the built-in sequence has no depth (x and y only); give a MediaPipe track with z"
         ),
-        None => keyshape_lab::io::builtin_sequence()?,
+        None => keyshape_io::builtin_sequence()?,
     };
     let mut seq = seq;
     super::input::apply_image_size(&mut seq, a.image_size)?;
-    keyshape_lab::rig::correspondence::check_layout(seq.points)
+    keyshape_rig::correspondence::check_layout(seq.points)
         .with_context(|| format!("{name}: kslab rig"))?;
     // (A `match` on a moved value: the 468-point track is freed once its 68 points are
     // taken, instead of living on under a shadowed name.)
@@ -218,7 +218,7 @@ pub fn run(a: &RigArgs) -> Result<()> {
             "--landmarks dense applies to MediaPipe tracks; {name} has the 68 iBUG points only"
         ),
         (68, _) | (_, None | Some("dense")) => seq,
-        _ => seq.select_points(&keyshape_lab::rig::mediapipe_to_ibug68()?)?,
+        _ => seq.select_points(&keyshape_rig::mediapipe_to_ibug68()?)?,
     };
     seq.check_geometry()?;
     let dir = match &a.rig {
@@ -232,7 +232,7 @@ pub fn run(a: &RigArgs) -> Result<()> {
         );
     }
     let (mesh, morph, rig) =
-        keyshape_lab::rig::correspondence::read_rig(&dir, seq.points, a.rig_landmarks.as_deref())
+        keyshape_rig::correspondence::read_rig(&dir, seq.points, a.rig_landmarks.as_deref())
             .with_context(|| format!("reading the rig {}", dir.display()))?;
     if seq.points != 68 && a.landmark_weight.iter().any(|_| true) {
         anyhow::bail!(
@@ -273,7 +273,7 @@ pub fn run(a: &RigArgs) -> Result<()> {
             "--live is causal: --zero-phase {z} smooths with frames still to come; drop one of them"
         ),
         (true, _) => 0.0,
-        (false, z) => z.unwrap_or(keyshape_lab::rig::RECOMMENDED_ZERO_PHASE),
+        (false, z) => z.unwrap_or(keyshape_rig::RECOMMENDED_ZERO_PHASE),
     };
     let smooth_mode = match (a.live, a.smooth_mode.as_deref()) {
         (true, Some("offline")) => anyhow::bail!(
@@ -295,7 +295,7 @@ pub fn run(a: &RigArgs) -> Result<()> {
         min_determination: a.min_determination,
         smooth: a.smooth.unwrap_or(0.0),
         smooth_mode,
-        landmark_weights: keyshape_lab::rig::landmark_weights(&a.landmark_weight)?,
+        landmark_weights: keyshape_rig::landmark_weights(&a.landmark_weight)?,
         prior: a.prior,
         zero_phase,
         taper: !a.no_prior_taper,
@@ -518,8 +518,8 @@ fn write_pngs(
     seq: &Sequence,
     rig: &Rig,
     r: &RigSolve,
-    mesh: &keyshape_lab::io::obj::Mesh,
-    morph: &keyshape_lab::io::morph::MorphTargets,
+    mesh: &keyshape_io::obj::Mesh,
+    morph: &keyshape_io::morph::MorphTargets,
 ) -> Result<()> {
     use keyshape_lab::render::face::{bounds_of, col, render_panels, Layer, Panel, ShadedMesh};
     let lines = rig.polylines();
@@ -559,16 +559,15 @@ fn write_pngs(
         ((a0 - px, b0 - py), (a1 + px, b1 + py))
     };
     let mut posed = mesh.positions.clone();
-    keyshape_lab::io::create_dir_all(dir)?;
+    keyshape_io::create_dir_all(dir)?;
     for f in 0..n {
         let [y, p, ro] = r.cameras[f].yaw_pitch_roll();
         morph.blend(&mesh.positions, r.weights.column(f).as_slice(), &mut posed);
-        let top =
-            match keyshape_lab::rig::largest_weights(&rig.names, r.weights.column(f).as_slice(), 2)
-            {
-                t if t.is_empty() => "rig landmarks (no shape active)".to_string(),
-                t => t,
-            };
+        let top = match keyshape_rig::largest_weights(&rig.names, r.weights.column(f).as_slice(), 2)
+        {
+            t if t.is_empty() => "rig landmarks (no shape active)".to_string(),
+            t => t,
+        };
         let panels = [
             Panel {
                 title: format!("track and fitted rig · RMS {:.2}", r.rms[f]),

@@ -4,10 +4,10 @@
 
 use anyhow::Result;
 use clap::Args;
-use keyshape_lab::io::{fmt_num, shared_data, write_atomic};
-use keyshape_lab::rig::accuracy::{self, Kind, Settings, ShapeAccuracy, Summary};
-use keyshape_lab::rig::{Identity, Neutral, Rig, RigOptions};
-use keyshape_lab::solve::Solver;
+use keyshape_core::solve::Solver;
+use keyshape_io::{fmt_num, shared_data, write_atomic};
+use keyshape_rig::accuracy::{self, Kind, Settings, ShapeAccuracy, Summary};
+use keyshape_rig::{Identity, Neutral, Rig, RigOptions};
 use serde_json::json;
 use std::path::PathBuf;
 
@@ -77,7 +77,7 @@ pub struct RigAccuracyArgs {
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     min_determination: f64,
     /// As `kslab rig --prior` (the magnitude prior, μ = PRIOR × IOD²).
-    #[arg(long, default_value_t = keyshape_lab::rig::RECOMMENDED_PRIOR, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = keyshape_rig::RECOMMENDED_PRIOR, allow_negative_numbers = true)]
     prior: f64,
     /// The plain ridge μ‖w‖² instead of the tapered prior (the default: each shape's pull
     /// 2μw(1 − w)² fades as it comes on, so peaks are reached; see the README, "Rig accuracy
@@ -85,7 +85,7 @@ pub struct RigAccuracyArgs {
     #[arg(long)]
     no_prior_taper: bool,
     /// As `kslab rig --zero-phase` (offline Gaussian σ, frames; 0 for the live solve).
-    #[arg(long, default_value_t = keyshape_lab::rig::RECOMMENDED_ZERO_PHASE, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = keyshape_rig::RECOMMENDED_ZERO_PHASE, allow_negative_numbers = true)]
     zero_phase: f64,
     /// As `kslab rig --smooth` (the temporal prior λ).
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
@@ -118,7 +118,7 @@ pub fn run(a: &RigAccuracyArgs) -> Result<()> {
     };
     let depth = a.landmarks.ends_with('z');
     let layout: usize = a.landmarks.trim_end_matches('z').parse()?;
-    let (_, _, rig) = keyshape_lab::rig::correspondence::read_rig(&dir, layout, None)?;
+    let (_, _, rig) = keyshape_rig::correspondence::read_rig(&dir, layout, None)?;
     let noise = match a.noise_iod {
         Some(p) if !(p.is_finite() && (0.0..=100.0).contains(&p)) => {
             anyhow::bail!("--noise-iod {p}: give a percentage in [0, 100]")
@@ -149,9 +149,9 @@ pub fn run(a: &RigAccuracyArgs) -> Result<()> {
         min_determination: a.min_determination,
         smooth: a.smooth,
         smooth_mode: if a.smooth_mode == "causal" {
-            keyshape_lab::solve::temporal::SmoothMode::Causal
+            keyshape_core::solve::temporal::SmoothMode::Causal
         } else {
-            keyshape_lab::solve::temporal::SmoothMode::Offline
+            keyshape_core::solve::temporal::SmoothMode::Offline
         },
         prior: a.prior,
         zero_phase: a.zero_phase,
@@ -237,7 +237,7 @@ pub fn run(a: &RigAccuracyArgs) -> Result<()> {
 
 /// `<kind>_track.csv` and `<kind>_truth.csv` in `dir`.
 fn write_track(dir: &std::path::Path, kind: Kind, rig: &Rig, t: &accuracy::Track) -> Result<()> {
-    keyshape_lab::io::create_dir_all(dir)?;
+    keyshape_io::create_dir_all(dir)?;
     write_atomic(&dir.join(format!("{}_track.csv", kind.name())), |w| {
         let depth = t.points.nrows() == 3 * rig.landmarks();
         let head: Vec<String> = rig

@@ -100,7 +100,7 @@ pub fn run(a: &RunArgs) -> Result<()> {
 fn outcome_summary(o: &keyshape_lab::experiment::Outcome) -> Vec<String> {
     use keyshape_lab::experiment::smoothing;
     let mut out = Vec::new();
-    out.extend(keyshape_lab::keyshapes::curves::summary(&o.rows));
+    out.extend(keyshape_core::keyshapes::curves::summary(&o.rows));
     out.extend(smoothing::summary(&smoothing::at_equal_jitter(
         &o.smoothing,
         &[0.75, 0.5, 0.35],

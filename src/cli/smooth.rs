@@ -3,9 +3,9 @@
 use super::input::InputArgs;
 use anyhow::Result;
 use clap::Args;
+use keyshape_core::keyshapes::Method;
+use keyshape_core::solve::Solver;
 use keyshape_lab::experiment::smoothing::{smoothing_study_in_place, SmoothStudySettings};
-use keyshape_lab::keyshapes::Method;
-use keyshape_lab::solve::Solver;
 use std::path::PathBuf;
 
 /// Arguments of `kslab smooth`.
@@ -88,7 +88,7 @@ pub fn run(a: &SmoothArgs) -> Result<()> {
     };
     let rows = smoothing_study_in_place(raw.as_ref(), &mut prep, &st, &Default::default())?;
     let seq = raw.as_ref().unwrap_or(&prep.seq);
-    keyshape_lab::io::create_dir_all(&a.out)?;
+    keyshape_io::create_dir_all(&a.out)?;
     // The file's name, not its path: a path filled the title and cut what followed.
     let title = format!(
         "{} {} k={} {}",

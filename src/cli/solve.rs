@@ -3,11 +3,11 @@
 use super::input::InputArgs;
 use anyhow::{Context, Result};
 use clap::Args;
-use keyshape_lab::decompose::{decompose_smoothed, Decomposition};
-use keyshape_lab::io::{fmt_num, write_atomic};
-use keyshape_lab::sequence::Sequence;
-use keyshape_lab::solve::temporal::{segments, SmoothMode, Smoothing};
-use keyshape_lab::solve::{SolveOptions, Solver};
+use keyshape_core::decompose::{decompose_smoothed, Decomposition};
+use keyshape_core::sequence::Sequence;
+use keyshape_core::solve::temporal::{segments, SmoothMode, Smoothing};
+use keyshape_core::solve::{SolveOptions, Solver};
+use keyshape_io::{fmt_num, write_atomic};
 use serde_json::json;
 use std::io::Write;
 use std::path::PathBuf;
@@ -123,7 +123,7 @@ pub fn run(a: &SolveArgs) -> Result<()> {
             "keys by {}: {}",
             a.choice
                 .method
-                .unwrap_or(keyshape_lab::keyshapes::Method::Spread),
+                .unwrap_or(keyshape_core::keyshapes::Method::Spread),
             keys.iter()
                 .map(i64::to_string)
                 .collect::<Vec<_>>()
@@ -284,7 +284,7 @@ fn run_stream(a: &SolveArgs, smoothing: Option<Smoothing>) -> Result<()> {
         h
     };
     // The stream's own error, kept while the writer sees only that it stopped.
-    let mut failure: Option<keyshape_lab::error::Error> = None;
+    let mut failure: Option<keyshape_core::error::Error> = None;
     let mut summary = None;
     let mut fill = |w: &mut dyn Write| -> std::io::Result<()> {
         // The header goes out with the first frame: an error found while the passes before
@@ -301,7 +301,7 @@ fn run_stream(a: &SolveArgs, smoothing: Option<Smoothing>) -> Result<()> {
             let r = w.write_all(line.as_bytes()).map_err(|e| {
                 let msg = e.to_string();
                 io_err = Some(e);
-                keyshape_lab::error::Error::invalid(msg)
+                keyshape_core::error::Error::invalid(msg)
             });
             line.clear();
             r
@@ -358,7 +358,7 @@ fn run_stream(a: &SolveArgs, smoothing: Option<Smoothing>) -> Result<()> {
     Ok(())
 }
 
-pub use keyshape_lab::solve::jitter::weight_jitter;
+pub use keyshape_core::solve::jitter::weight_jitter;
 
 fn warn(d: &Decomposition) {
     warn_solve(d.key_columns.len(), d.rank, d.condition, d.unconverged);

@@ -4,10 +4,10 @@ use super::input::InputArgs;
 use super::keys::{HeuristicArgs, KeyChoiceArgs};
 use anyhow::Result;
 use clap::Args;
-use keyshape_lab::io::write_atomic;
-use keyshape_lab::retarget::setup::named_polylines_for;
-use keyshape_lab::retarget::svg::write_template;
-use keyshape_lab::solve::Solver;
+use keyshape_core::solve::Solver;
+use keyshape_io::write_atomic;
+use keyshape_retarget::setup::named_polylines_for;
+use keyshape_retarget::svg::write_template;
 use std::path::PathBuf;
 
 /// Arguments of `kslab template`.

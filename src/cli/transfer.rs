@@ -4,14 +4,14 @@
 use super::input::InputArgs;
 use anyhow::{Context, Result};
 use clap::Args;
-use keyshape_lab::io::obj::{read_obj, write_obj};
-use keyshape_lab::io::write_atomic;
+use keyshape_io::obj::{read_obj, write_obj};
+use keyshape_io::write_atomic;
 use keyshape_lab::render::face::{bounds_of, col};
 use keyshape_lab::render::mesh::{mesh_bounds, transfer_frame, wireframe};
 use keyshape_lab::render::save_png;
-use keyshape_lab::retarget::setup::polylines_for;
-use keyshape_lab::transfer::features::Features;
-use keyshape_lab::transfer::Transfer;
+use keyshape_retarget::setup::polylines_for;
+use keyshape_transfer::features::Features;
+use keyshape_transfer::Transfer;
 use serde_json::json;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -81,7 +81,7 @@ pub fn run(a: &TransferArgs) -> Result<()> {
     let prep = a.input.prepare_only()?;
     let s = &prep.seq;
     let mesh = read_obj(&a.mesh)?;
-    let layout = keyshape_lab::sequence::Layout::for_points(s.points);
+    let layout = keyshape_core::sequence::Layout::for_points(s.points);
     // A 478-point Face Landmarker track takes the Face Mesh 468's correspondences: their
     // points are its first 468.
     let features = Features::choose(
@@ -117,7 +117,7 @@ pub fn run(a: &TransferArgs) -> Result<()> {
     }
     let every = a.every as usize;
     for dir in [&a.obj_dir, &a.png_dir].into_iter().flatten() {
-        keyshape_lab::io::create_dir_all(dir)?;
+        keyshape_io::create_dir_all(dir)?;
     }
     let marks: Vec<usize> = tr.features.features.iter().map(|f| f.target).collect();
     let lines = prep
@@ -197,9 +197,9 @@ pub fn run(a: &TransferArgs) -> Result<()> {
     );
     // Several people (clips) through one transform: what the identity mismatch costs.
     let mismatch = match &s.segments {
-        Some(seg) if seg.iter().any(|c| c != &seg[0]) => Some(
-            keyshape_lab::transfer::person_mismatch(&tr, &s.coords, &s.frames, seg)?,
-        ),
+        Some(seg) if seg.iter().any(|c| c != &seg[0]) => Some(keyshape_transfer::person_mismatch(
+            &tr, &s.coords, &s.frames, seg,
+        )?),
         _ => None,
     };
     let summary = json!({
@@ -236,9 +236,9 @@ pub fn run(a: &TransferArgs) -> Result<()> {
                 .as_ref()
                 .map(|seg| seg[ncol].clone())
                 .unwrap_or_default();
-            let others: Vec<&keyshape_lab::transfer::MismatchRow> =
+            let others: Vec<&keyshape_transfer::MismatchRow> =
                 rows.iter().filter(|r| r.segment != trained).collect();
-            let med = |f: fn(&keyshape_lab::transfer::MismatchRow) -> f64| {
+            let med = |f: fn(&keyshape_transfer::MismatchRow) -> f64| {
                 let mut v: Vec<f64> = others.iter().map(|r| f(r)).collect();
                 v.sort_by(f64::total_cmp);
                 v.get(v.len() / 2).copied().unwrap_or(f64::NAN)

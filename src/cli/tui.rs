@@ -2,7 +2,7 @@
 
 use anyhow::Result;
 use clap::Args;
-use keyshape_lab::retarget::target::TargetSet;
+use keyshape_retarget::target::TargetSet;
 use std::io::IsTerminal;
 use std::path::PathBuf;
 
@@ -49,7 +49,7 @@ pub fn run(a: &TuiArgs) -> Result<()> {
         .file
         .as_ref()
         .map_or("builtin".to_string(), |p| p.display().to_string());
-    let mut seq = keyshape_lab::tui::compute::load(&path)?;
+    let mut seq = kslab_tui::compute::load(&path)?;
     if let Some((w, h)) = a.image_size {
         seq.scale_to_image(w, h)
             .map_err(|e| anyhow::anyhow!("--image-size {w}x{h}: {e}"))?;
@@ -57,33 +57,33 @@ pub fn run(a: &TuiArgs) -> Result<()> {
     let target = match &a.target {
         None => None,
         Some(p) if p.extension().is_some_and(|e| e.eq_ignore_ascii_case("svg")) => {
-            Some(keyshape_lab::retarget::svg::read_template(p)?)
+            Some(keyshape_retarget::svg::read_template(p)?)
         }
         Some(p) => Some(TargetSet::read_json(p)?),
     };
     let mesh = match &a.mesh {
         None => None,
         Some(m) => {
-            let obj = keyshape_lab::io::obj::read_obj(m)?;
-            let layout = keyshape_lab::sequence::Layout::for_points(seq.points);
-            let features = keyshape_lab::transfer::features::Features::choose(
+            let obj = keyshape_io::obj::read_obj(m)?;
+            let layout = keyshape_core::sequence::Layout::for_points(seq.points);
+            let features = keyshape_transfer::features::Features::choose(
                 &a.features,
                 layout.as_ref().map(|l| l.name.as_str()),
                 seq.points,
                 obj.positions.len(),
             )?;
-            Some(keyshape_lab::tui::mesh::mesh_view(&seq, obj, features)?)
+            Some(kslab_tui::mesh::mesh_view(&seq, obj, features)?)
         }
     };
     let rig = match &a.rig {
         None => None,
         Some(d) => {
-            let rig = keyshape_lab::rig::correspondence::RigSource::new(d);
-            let view = keyshape_lab::tui::rig::rig_view(&seq, &rig)?;
+            let rig = keyshape_rig::correspondence::RigSource::new(d);
+            let view = kslab_tui::rig::rig_view(&seq, &rig)?;
             Some((rig, view))
         }
     };
-    keyshape_lab::tui::run_sized(
+    kslab_tui::run_sized(
         seq,
         &path,
         target,

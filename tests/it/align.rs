@@ -1,6 +1,6 @@
 //! Alignment undoes similarity transforms and keeps the head motion it removed.
 
-use keyshape_lab::align::procrustes;
+use keyshape_core::align::procrustes;
 use nalgebra::DMatrix;
 use proptest::prelude::*;
 
@@ -40,7 +40,7 @@ proptest! {
 
 #[test]
 fn three_d_tracks_align_in_the_image_plane_and_round_trip() {
-    use keyshape_lab::io::{read_sequence, ReadOptions};
+    use keyshape_io::{read_sequence, ReadOptions};
     for (rel, points) in [
         ("pyfeat_samples/openface_test.csv", 68),
         ("mediapipe_face_tracks/liveportrait_d18.csv", 468),

@@ -502,8 +502,8 @@ fn a_target_template_brings_its_own_key_frames() {
 /// item 8), checked against the ranges computed here from the built-in sequence.
 #[test]
 fn info_ranges_are_those_of_the_selected_points() {
-    use keyshape_lab::sequence::Layout;
-    let seq = keyshape_lab::io::builtin_sequence().unwrap();
+    use keyshape_core::sequence::Layout;
+    let seq = keyshape_io::builtin_sequence().unwrap();
     let idx = Layout::for_points(seq.points)
         .unwrap()
         .select("lips")
@@ -634,8 +634,8 @@ fn head_motion_is_one_choice_for_every_output() {
     assert_eq!(strip(&a), strip(&n));
     assert_ne!(std::fs::read(&pa).unwrap(), std::fs::read(&pn).unwrap());
 
-    use keyshape_lab::align::Similarity;
-    use keyshape_lab::retarget::with_relative_head_motion;
+    use keyshape_core::align::Similarity;
+    use keyshape_retarget::with_relative_head_motion;
     use nalgebra::DMatrix;
     // a unit square in a target's own coordinates, two frames
     let sq = [0.0, 0.0, 2.0, 0.0, 2.0, 2.0, 0.0, 2.0];

@@ -1,6 +1,6 @@
 //! Helpers shared by the integration tests.
 
-use keyshape_lab::solve::active_set::Gram;
+use keyshape_core::solve::active_set::Gram;
 use nalgebra::{DMatrix, DVector};
 use std::path::PathBuf;
 

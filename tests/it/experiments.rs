@@ -218,13 +218,13 @@ fn smoke_experiment_matches_its_reviewed_snapshots() {
 /// draws them side by side on one y scale.
 #[test]
 fn compare_raw_sweeps_the_unaligned_shapes_beside_the_aligned_ones() {
-    use keyshape_lab::decompose::{prepare, PrepareOptions};
-    use keyshape_lab::keyshapes::{curves::sweep, Analysis, KeyOptions, Method};
-    use keyshape_lab::solve::Solver;
+    use keyshape_core::decompose::{prepare, PrepareOptions};
+    use keyshape_core::keyshapes::{curves::sweep, Analysis, KeyOptions, Method};
+    use keyshape_core::solve::Solver;
     let text = "title = \"t\"\ninput = \"builtin\"\npoints = \"lips\"\nmethods = [\"spread\", \"kmeans2-mean\"]\ncompare_raw = true\nk = \"2..5\"\nsolvers = [\"nnls\"]\n";
     let spec = Spec::from_str(Path::new("c.toml"), text).unwrap();
     let o = run(&spec, Path::new("."), &|_, _| {}).unwrap();
-    let seq = keyshape_lab::io::builtin_sequence().unwrap();
+    let seq = keyshape_io::builtin_sequence().unwrap();
     let methods = [Method::Spread, Method::KMeans { pcs: 2, mean: true }];
     for (align, rows) in [(true, &o.rows), (false, &o.raw_rows)] {
         let p = prepare(

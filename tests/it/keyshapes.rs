@@ -1,7 +1,7 @@
 //! Key-shape heuristics: their defining properties, on random and real shapes.
 
-use keyshape_lab::keyshapes::{greedy_path, Analysis, KeyOptions, Method};
-use keyshape_lab::solve::{SolveOptions, Solver};
+use keyshape_core::keyshapes::{greedy_path, Analysis, KeyOptions, Method};
+use keyshape_core::solve::{SolveOptions, Solver};
 use nalgebra::DMatrix;
 use proptest::prelude::*;
 
@@ -141,7 +141,7 @@ proptest! {
         prop_assume!(an.distinct >= 3);
         let keys = Method::Spread.heuristic(&KeyOptions::default()).select(&an, 3).unwrap().columns;
         let e = an.error(&keys, solver).unwrap();
-        let d = keyshape_lab::decompose::decompose(&q, 1, &keys, None, &SolveOptions::new(solver)).unwrap();
+        let d = keyshape_core::decompose::decompose(&q, 1, &keys, None, &SolveOptions::new(solver)).unwrap();
         let direct = d.total_sq_error();
         let scale = q.norm_squared();
         prop_assert!((e - direct).abs() <= 1e-8 * scale + 1e-9, "gram {e} vs direct {direct}");
@@ -150,8 +150,8 @@ proptest! {
 
 #[test]
 fn kmeans_heuristics_are_named_as_the_cli_names_them() {
-    use keyshape_lab::keyshapes::kmeans::{KMeans, Seeding};
-    use keyshape_lab::keyshapes::Heuristic;
+    use keyshape_core::keyshapes::kmeans::{KMeans, Seeding};
+    use keyshape_core::keyshapes::Heuristic;
     let h = |pcs, mean| KMeans {
         pcs,
         seed: 7,
@@ -167,7 +167,7 @@ fn kmeans_heuristics_are_named_as_the_cli_names_them() {
 
 #[test]
 fn kmeans_is_deterministic_for_a_seed_and_differs_across_seeds() {
-    let seq = keyshape_lab::io::builtin_sequence().unwrap();
+    let seq = keyshape_io::builtin_sequence().unwrap();
     let an = Analysis::new(seq.coords, seq.points).unwrap();
     let pick = |seed| {
         Method::KMeans {
@@ -238,10 +238,10 @@ fn hull_handles_collinear_and_duplicate_projections() {
 
 #[test]
 fn fig6_shape_holds_on_real_lips_spread_is_nested_and_decreasing() {
-    let seq = keyshape_lab::io::builtin_sequence().unwrap();
-    let prep = keyshape_lab::decompose::prepare(
+    let seq = keyshape_io::builtin_sequence().unwrap();
+    let prep = keyshape_core::decompose::prepare(
         &seq,
-        &keyshape_lab::decompose::PrepareOptions {
+        &keyshape_core::decompose::PrepareOptions {
             points: Some("lips".into()),
             align: true,
         },
@@ -310,9 +310,9 @@ fn fig6_shape_holds_on_real_lips_spread_is_nested_and_decreasing() {
 /// divided by the frame count) — there the centres agree to 1e-9.
 #[test]
 fn kmeans_with_linfas_seeding_is_linfas_own_ten_run_fit() {
-    use keyshape_lab::decompose::{prepare, PrepareOptions};
-    use keyshape_lab::io::{read_sequence, ReadOptions};
-    use keyshape_lab::keyshapes::kmeans::{fit_with, Seeding};
+    use keyshape_core::decompose::{prepare, PrepareOptions};
+    use keyshape_core::keyshapes::kmeans::{fit_with, Seeding};
+    use keyshape_io::{read_sequence, ReadOptions};
     use linfa::prelude::*;
     use rand::SeedableRng;
     let files = [
@@ -392,11 +392,11 @@ fn kmeans_with_linfas_seeding_is_linfas_own_ten_run_fit() {
 /// k-means++; with more, the start's potential is lower on average over seeds.
 #[test]
 fn greedy_kmeans_plusplus_keeps_the_best_of_its_candidates() {
-    use keyshape_lab::keyshapes::kmeans::kmeans_plusplus;
+    use keyshape_core::keyshapes::kmeans::kmeans_plusplus;
     use rand::distributions::{Distribution, WeightedIndex};
     use rand::SeedableRng;
     use rand_xoshiro::Xoshiro256Plus;
-    let seq = keyshape_lab::io::builtin_sequence().unwrap();
+    let seq = keyshape_io::builtin_sequence().unwrap();
     let an = Analysis::new(seq.coords, seq.points).unwrap();
     let data = ndarray::Array2::from_shape_fn((an.frames(), 3), |(t, a)| an.proj[(a, t)]);
     let d =
@@ -509,7 +509,7 @@ fn with_projection(pts: &[(f64, f64)]) -> Analysis {
     an
 }
 
-fn hull_of(pts: &[(f64, f64)]) -> keyshape_lab::error::Result<Vec<usize>> {
+fn hull_of(pts: &[(f64, f64)]) -> keyshape_core::error::Result<Vec<usize>> {
     Method::Hull
         .heuristic(&KeyOptions::default())
         .select(&with_projection(pts), 0)
@@ -708,10 +708,10 @@ fn hull_refuses_a_sequence_whose_frames_project_to_one_point() {
 
 /// The builtin sequence's lips, aligned: the analysis the error-curve tests sweep.
 fn builtin_lips() -> Analysis {
-    let seq = keyshape_lab::io::builtin_sequence().unwrap();
-    let prep = keyshape_lab::decompose::prepare(
+    let seq = keyshape_io::builtin_sequence().unwrap();
+    let prep = keyshape_core::decompose::prepare(
         &seq,
-        &keyshape_lab::decompose::PrepareOptions {
+        &keyshape_core::decompose::PrepareOptions {
             points: Some("lips".into()),
             align: true,
         },
@@ -722,7 +722,7 @@ fn builtin_lips() -> Analysis {
 
 #[test]
 fn sweep_refuses_an_empty_k_range_and_sweeps_a_single_k() {
-    use keyshape_lab::keyshapes::curves::sweep;
+    use keyshape_core::keyshapes::curves::sweep;
     let an = builtin_lips();
     let opts = KeyOptions::default();
     let run = |ks| sweep(&an, &[Method::Spread], ks, &[Solver::Ls], &opts, &|_, _| {});
@@ -745,7 +745,7 @@ fn sweep_refuses_an_empty_k_range_and_sweeps_a_single_k() {
 
 #[test]
 fn sweep_ticks_once_per_curve_with_the_count_of_curves() {
-    use keyshape_lab::keyshapes::curves::sweep;
+    use keyshape_core::keyshapes::curves::sweep;
     let an = builtin_lips();
     let ticks = std::sync::Mutex::new(Vec::new());
     let methods = [Method::Spread, Method::Hull, Method::Greedy];
@@ -789,7 +789,7 @@ fn sweep_ticks_once_per_curve_with_the_count_of_curves() {
 
 #[test]
 fn sweep_random_averages_its_seeded_draws_and_reports_the_first_draws_keys() {
-    use keyshape_lab::keyshapes::curves::{sweep, RANDOM_DRAWS};
+    use keyshape_core::keyshapes::curves::{sweep, RANDOM_DRAWS};
     let an = builtin_lips();
     let opts = KeyOptions {
         seed: 11,
@@ -834,7 +834,7 @@ fn sweep_random_averages_its_seeded_draws_and_reports_the_first_draws_keys() {
 
 #[test]
 fn eq5_refuses_no_keys_and_keys_out_of_range_on_both_paths() {
-    use keyshape_lab::keyshapes::{Selection, GRAM_LIMIT};
+    use keyshape_core::keyshapes::{Selection, GRAM_LIMIT};
     // Short (the frames' Gram matrix) and long (block-wise products) tracks.
     for frames in [40, GRAM_LIMIT + 1] {
         let q = DMatrix::from_fn(8, frames, |i, t| ((i * 13 + t * 7) % 17) as f64 + i as f64);
@@ -871,7 +871,7 @@ fn eq5_refuses_no_keys_and_keys_out_of_range_on_both_paths() {
 /// is largest.
 #[test]
 fn greedy_takes_the_brute_force_best_frame_at_each_step_and_ranks_its_shortlist_by_the_bound() {
-    use keyshape_lab::keyshapes::greedy_gram;
+    use keyshape_core::keyshapes::greedy_gram;
     let full = builtin_lips();
     let cols: Vec<usize> = (0..full.frames()).step_by(5).take(30).collect();
     // And the same frames scaled by 1–4, so weights above 1 matter: bounded's bound clips
@@ -951,7 +951,7 @@ fn greedy_takes_the_brute_force_best_frame_at_each_step_and_ranks_its_shortlist_
 /// five keys, the error never rising — and for nnls falling at the fourth.
 #[test]
 fn greedy_least_squares_refuses_more_keys_than_the_frames_span() {
-    use keyshape_lab::keyshapes::{greedy_gram, greedy_ls_feature_space, greedy_subsampled};
+    use keyshape_core::keyshapes::{greedy_gram, greedy_ls_feature_space, greedy_subsampled};
     let base = DMatrix::from_fn(8, 3, |i, j| ((i * 5 + j * 3) % 7) as f64 - 2.5 + j as f64);
     let mut q = DMatrix::zeros(8, 5);
     for j in 0..3 {
@@ -962,7 +962,7 @@ fn greedy_least_squares_refuses_more_keys_than_the_frames_span() {
     let an = Analysis::new(q, 4).unwrap();
     assert_eq!(an.distinct, 5);
     let want = "greedy: only 3 linearly independent shapes, 4 asked for";
-    let check = |r: keyshape_lab::error::Result<(Vec<usize>, Vec<f64>)>, what: &str| {
+    let check = |r: keyshape_core::error::Result<(Vec<usize>, Vec<f64>)>, what: &str| {
         let e = r.unwrap_err().to_string();
         assert!(e.contains(want), "{what}: {e}");
     };
@@ -993,7 +993,7 @@ fn greedy_least_squares_refuses_more_keys_than_the_frames_span() {
 /// appended, and a copy placed before it, under every solver.
 #[test]
 fn greedy_takes_the_earliest_of_identical_frames() {
-    use keyshape_lab::keyshapes::greedy_gram;
+    use keyshape_core::keyshapes::greedy_gram;
     let full = builtin_lips();
     let cols: Vec<usize> = (0..full.frames()).step_by(5).take(30).collect();
     let q = full.coords.select_columns(&cols);
@@ -1028,7 +1028,7 @@ fn greedy_takes_the_earliest_of_identical_frames() {
 /// bounds, and then it must add one of the other two.
 #[test]
 fn constrained_greedy_never_takes_a_key_twice_when_every_step_ties() {
-    use keyshape_lab::keyshapes::greedy_gram;
+    use keyshape_core::keyshapes::greedy_gram;
     let f = [(10.0, 0.0), (30.0, 0.0), (0.0, 10.0), (10.0, 0.1)];
     let q = DMatrix::from_fn(4, 4, |i, t| match i {
         0 => f[t].0,
@@ -1057,7 +1057,7 @@ fn constrained_greedy_never_takes_a_key_twice_when_every_step_ties() {
 /// solver's greedy takes the two real frames and refuses a third.
 #[test]
 fn greedy_treats_a_numerically_zero_frame_as_no_shape() {
-    use keyshape_lab::keyshapes::greedy_gram;
+    use keyshape_core::keyshapes::greedy_gram;
     let q = DMatrix::from_row_slice(3, 3, &[10.0, 0.0, 0.0, 0.0, 10.0, 0.0, 0.0, 0.0, 1e-6]);
     let an = Analysis::new(q, 1).unwrap();
     assert_eq!(an.distinct, 3);
@@ -1071,7 +1071,7 @@ fn greedy_treats_a_numerically_zero_frame_as_no_shape() {
         );
     }
     // The feature-space path (long tracks' least squares) draws the same line.
-    use keyshape_lab::keyshapes::greedy_ls_feature_space;
+    use keyshape_core::keyshapes::greedy_ls_feature_space;
     let (keys, _) = greedy_ls_feature_space(&an, 2).unwrap();
     assert_eq!(sorted(keys), vec![0, 1]);
     let e = greedy_ls_feature_space(&an, 3).unwrap_err().to_string();
@@ -1085,7 +1085,7 @@ fn greedy_treats_a_numerically_zero_frame_as_no_shape() {
 /// nnls/bounded to the subsample (at the limit's size); up to it, the Gram-matrix greedy.
 #[test]
 fn greedy_path_dispatches_on_the_gram_limit_and_the_solver() {
-    use keyshape_lab::keyshapes::{
+    use keyshape_core::keyshapes::{
         greedy_gram, greedy_ls_feature_space, greedy_subsampled, GRAM_LIMIT,
     };
     let q = |n: usize| {
@@ -1120,7 +1120,7 @@ fn greedy_path_dispatches_on_the_gram_limit_and_the_solver() {
 /// again the best key under its bound.
 #[test]
 fn the_shortlist_bound_clips_to_each_solvers_bound() {
-    use keyshape_lab::keyshapes::greedy_gram;
+    use keyshape_core::keyshapes::greedy_gram;
     let f = [(1.0, 0.0), (10.0, 0.5), (10.0, -0.5)];
     let q = DMatrix::from_fn(3, 3, |i, t| match i {
         0 => f[t].0,

@@ -2,12 +2,12 @@
 //! the orthogonality study on a real track.
 
 use crate::common::shared;
-use keyshape_lab::cosker::modes::{
+use keyshape_actions::modes::{
     action_vectors, artificial_set, orthogonality, orthogonality_study, region_weights, shape_size,
     Actions, Boundary, ModeRegions, RegionOptions, DEFAULT_BLEND_RADIUS,
 };
-use keyshape_lab::cosker::trajectory::Normalisation;
-use keyshape_lab::sequence::Layout;
+use keyshape_actions::trajectory::Normalisation;
+use keyshape_core::sequence::Layout;
 use nalgebra::DVector;
 use proptest::prelude::*;
 
@@ -25,15 +25,15 @@ proptest! {
     }
 }
 
-fn d6_prepared() -> keyshape_lab::decompose::Prepared {
-    let seq = keyshape_lab::io::read_sequence(
+fn d6_prepared() -> keyshape_core::decompose::Prepared {
+    let seq = keyshape_io::read_sequence(
         &shared("mediapipe_face_tracks/liveportrait_d6.csv"),
         &Default::default(),
     )
     .unwrap();
-    keyshape_lab::decompose::prepare(
+    keyshape_core::decompose::prepare(
         &seq,
-        &keyshape_lab::decompose::PrepareOptions {
+        &keyshape_core::decompose::PrepareOptions {
             points: None,
             align: true,
         },
@@ -80,7 +80,7 @@ fn the_averaging_filter_ramps_across_a_boundary_on_a_line_of_points() {
 
 #[test]
 fn the_artificial_set_adds_each_regions_weighted_offsets_to_the_mean() {
-    let seq = keyshape_lab::io::builtin_sequence().unwrap();
+    let seq = keyshape_io::builtin_sequence().unwrap();
     let layout = Layout::mediapipe468();
     let q = seq.coords.columns(0, 30).clone_owned();
     let mean = q.column_mean();
@@ -208,14 +208,14 @@ fn table_2_on_d6_is_a_measurement_with_blended_regions() {
     // the full decomposition of the set's matrix, bit for bit; fit_leading's subspace
     // iteration on the matrix agrees with it to its 1e-10 convergence tolerance.
     let art = artificial_set(&prep.seq.coords, &regions, 2);
-    let mut model = keyshape_lab::pca::Pca::fit(&art).unwrap();
+    let mut model = keyshape_core::pca::Pca::fit(&art).unwrap();
     model.truncate(10);
     let blocks =
-        keyshape_lab::cosker::modes::artificial_pca(&prep.seq.coords, &regions, 2, 10).unwrap();
+        keyshape_actions::modes::artificial_pca(&prep.seq.coords, &regions, 2, 10).unwrap();
     assert_eq!(blocks.components, model.components);
     assert_eq!(blocks.variances, model.variances);
     assert_eq!(blocks.mean, model.mean);
-    let iterated = keyshape_lab::pca::Pca::fit_leading(&art, 10).unwrap();
+    let iterated = keyshape_core::pca::Pca::fit_leading(&art, 10).unwrap();
     for (a, b) in iterated.variances.iter().zip(&model.variances) {
         assert!((a - b).abs() <= 1e-9 * model.variances[0], "{a} vs {b}");
     }
@@ -304,7 +304,7 @@ fn table_2_on_d6_is_a_measurement_with_blended_regions() {
         }
     }
     let want = upper.iter().sum::<f64>() / 36.0;
-    let got = keyshape_lab::cosker::modes::OrthogonalityStudy::mean_upper(&blended.action_model);
+    let got = keyshape_actions::modes::OrthogonalityStudy::mean_upper(&blended.action_model);
     assert!((got - want).abs() < 1e-15, "{got} vs {want}");
     // Bad labels are explained.
     let mut bad = actions.clone();
@@ -326,8 +326,8 @@ fn table_2_on_d6_is_a_measurement_with_blended_regions() {
 
 #[test]
 fn median_polynomial_and_correlation_on_known_signals() {
-    use keyshape_lab::cosker::intensity::{median3, polyfit_smooth, soft_knn};
-    use keyshape_lab::stats::correlation;
+    use keyshape_actions::intensity::{median3, polyfit_smooth, soft_knn};
+    use keyshape_core::stats::correlation;
     assert_eq!(
         median3(&[0.0, 0.0, 9.0, 0.0, 1.0, 1.0]),
         vec![0.0, 0.0, 0.0, 1.0, 1.0, 1.0]
@@ -390,7 +390,7 @@ fn intensity_study_on_the_news_sample_finds_smiles() {
 
 #[test]
 fn intensity_centring_and_spread_follow_their_definitions() {
-    use keyshape_lab::cosker::intensity::{centre, spread, Centring, Evaluation, StudySettings};
+    use keyshape_actions::intensity::{centre, spread, Centring, Evaluation, StudySettings};
     // One feature, clip 1 = [1, 2, 6], clip 2 = [10, 20].
     let x0 = nalgebra::DMatrix::from_row_slice(1, 5, &[1.0, 2.0, 6.0, 10.0, 20.0]);
     let clips = [1, 1, 1, 2, 2];
@@ -455,7 +455,7 @@ fn intensity_centring_and_spread_follow_their_definitions() {
 /// degree 5, threshold 0.4, clip-mean centring, the 1–14 split).
 #[test]
 fn study_settings_left_out_of_a_file_are_the_defaults() {
-    use keyshape_lab::cosker::intensity::{Centring, Evaluation, StudySettings};
+    use keyshape_actions::intensity::{Centring, Evaluation, StudySettings};
     for text in ["{}", r#"{"threshold": 0.5}"#] {
         let st: StudySettings = serde_json::from_str(text).unwrap();
         assert_eq!((st.k, st.degree), (10, 5), "{text}");
@@ -477,8 +477,8 @@ fn study_settings_left_out_of_a_file_are_the_defaults() {
 
 #[test]
 fn leave_one_clip_out_holds_out_every_person_once() {
-    use keyshape_lab::cosker::intensity::{study, Evaluation, StudySettings};
-    use keyshape_lab::stats::correlation;
+    use keyshape_actions::intensity::{study, Evaluation, StudySettings};
+    use keyshape_core::stats::correlation;
     let st = StudySettings {
         evaluation: Evaluation::LeaveOneClipOut,
         ..Default::default()
@@ -514,11 +514,11 @@ fn person(
     rel: &str,
     actions: &str,
     normalisation: Normalisation,
-) -> (keyshape_lab::cosker::trajectory::PersonModel, DMatrixF) {
-    let seq = keyshape_lab::io::read_sequence(&shared(rel), &Default::default()).unwrap();
-    let prep = keyshape_lab::decompose::prepare(
+) -> (keyshape_actions::trajectory::PersonModel, DMatrixF) {
+    let seq = keyshape_io::read_sequence(&shared(rel), &Default::default()).unwrap();
+    let prep = keyshape_core::decompose::prepare(
         &seq,
-        &keyshape_lab::decompose::PrepareOptions {
+        &keyshape_core::decompose::PrepareOptions {
             points: None,
             align: true,
         },
@@ -534,7 +534,7 @@ fn person(
         env!("CARGO_MANIFEST_DIR")
     )))
     .unwrap();
-    let m = keyshape_lab::cosker::trajectory::person_model(
+    let m = keyshape_actions::trajectory::person_model(
         &prep.seq.coords,
         &prep.seq.frames,
         2,
@@ -563,7 +563,7 @@ type DMatrixF = nalgebra::DMatrix<f64>;
 
 #[test]
 fn trajectories_are_normalised_and_map_between_people() {
-    use keyshape_lab::cosker::trajectory::{
+    use keyshape_actions::trajectory::{
         extremes, synthesise, trajectories, ModeAlignment, ModePair,
     };
     let d6 = "mediapipe_face_tracks/liveportrait_d6.csv";
@@ -686,10 +686,9 @@ fn trajectories_are_normalised_and_map_between_people() {
 
 #[test]
 fn eq8_with_one_hot_weights_reproduces_each_morph_target() {
-    use keyshape_lab::cosker::morph::MorphMapping;
-    use keyshape_lab::io::morph::MorphTargets;
-    let mesh =
-        keyshape_lab::io::obj::read_obj(&shared("ict_facekit_face/neutral_face.obj")).unwrap();
+    use keyshape_actions::morph::MorphMapping;
+    use keyshape_io::morph::MorphTargets;
+    let mesh = keyshape_io::obj::read_obj(&shared("ict_facekit_face/neutral_face.obj")).unwrap();
     let t = MorphTargets::read(
         &shared("ict_facekit_face/expressions.csv"),
         &shared("ict_facekit_face/expression_deltas.csv"),
@@ -769,7 +768,7 @@ fn morph_gltf_passes_the_khronos_validator() {
 /// region names alone; a region naming a point past the shape is an error, not a panic.
 #[test]
 fn cover_fills_only_the_unnamed_points_with_their_nearest_cover_region() {
-    use keyshape_lab::io::{read_sequence, ReadOptions};
+    use keyshape_io::{read_sequence, ReadOptions};
     let seq = read_sequence(
         &shared("pyfeat_samples/news_sample_compact.csv"),
         &ReadOptions::default(),
@@ -855,7 +854,7 @@ fn shape_size_is_the_rms_distance_from_the_centroid() {
 /// without pairs; Eq. (9) is 0 when either vector is zero (not 0/0).
 #[test]
 fn mean_upper_and_eq9_of_a_zero_vector_by_hand() {
-    use keyshape_lab::cosker::modes::OrthogonalityStudy;
+    use keyshape_actions::modes::OrthogonalityStudy;
     let m =
         nalgebra::DMatrix::from_row_slice(3, 3, &[9.0, 0.2, 0.4, -7.0, 9.0, 0.9, 5.0, 3.0, 9.0]);
     assert!((OrthogonalityStudy::mean_upper(&m) - 0.5).abs() < 1e-15);
@@ -950,14 +949,14 @@ fn orthogonality_picture_has_both_axes_and_a_scale() {
 #[test]
 fn the_block_wise_action_model_is_fit_leadings_on_68_points() {
     let mut text = Vec::new();
-    keyshape_lab::io::synthetic::write_long_track(&mut text, 3000, 68, 5).unwrap();
+    keyshape_io::synthetic::write_long_track(&mut text, 3000, 68, 5).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("long.csv");
     std::fs::write(&path, &text).unwrap();
-    let seq = keyshape_lab::io::read_sequence(&path, &Default::default()).unwrap();
-    let prep = keyshape_lab::decompose::prepare(
+    let seq = keyshape_io::read_sequence(&path, &Default::default()).unwrap();
+    let prep = keyshape_core::decompose::prepare(
         &seq,
-        &keyshape_lab::decompose::PrepareOptions {
+        &keyshape_core::decompose::PrepareOptions {
             points: None,
             align: true,
         },
@@ -970,8 +969,8 @@ fn the_block_wise_action_model_is_fit_leadings_on_68_points() {
         .unwrap();
     let q = &prep.seq.coords;
     assert!(q.ncols() * regions.len() > 4096, "more than one block");
-    let whole = keyshape_lab::pca::Pca::fit_leading(&artificial_set(q, &regions, 2), 10).unwrap();
-    let blocks = keyshape_lab::cosker::modes::artificial_pca(q, &regions, 2, 10).unwrap();
+    let whole = keyshape_core::pca::Pca::fit_leading(&artificial_set(q, &regions, 2), 10).unwrap();
+    let blocks = keyshape_actions::modes::artificial_pca(q, &regions, 2, 10).unwrap();
     assert_eq!(blocks.components, whole.components);
     assert_eq!(blocks.variances, whole.variances);
     assert_eq!(blocks.mean, whole.mean);
@@ -986,7 +985,7 @@ fn the_block_wise_action_model_is_fit_leadings_on_68_points() {
 /// `Pca::fit` fits the same matrix.
 #[test]
 fn block_wise_pca_refuses_what_it_cannot_fit_and_fits_its_edges() {
-    use keyshape_lab::pca::Pca;
+    use keyshape_core::pca::Pca;
     let m = nalgebra::DMatrix::from_fn(3, 5, |i, j| {
         ((i * 7 + j * 3) % 5) as f64 + 0.1 * (i * j) as f64
     });
@@ -1014,7 +1013,7 @@ fn block_wise_pca_refuses_what_it_cannot_fit_and_fits_its_edges() {
 /// shape's sparse offsets land on their vertices, zero elsewhere.
 #[test]
 fn used_dense_keeps_the_shapes_with_a_positive_weight() {
-    use keyshape_lab::io::morph::MorphTargets;
+    use keyshape_io::morph::MorphTargets;
     let t = MorphTargets {
         names: vec!["a".into(), "b".into(), "c".into(), "d".into()],
         deltas: vec![
@@ -1058,8 +1057,8 @@ fn used_dense_keeps_the_shapes_with_a_positive_weight() {
 /// on gains that are not 1 and two actions sharing a shape; an unknown name is an error.
 #[test]
 fn morph_mapping_weights_are_clamped_gain_sums_of_the_positive_trajectory() {
-    use keyshape_lab::cosker::morph::MorphMapping;
-    use keyshape_lab::io::morph::MorphTargets;
+    use keyshape_actions::morph::MorphMapping;
+    use keyshape_io::morph::MorphTargets;
     let t = MorphTargets {
         names: vec!["a".into(), "b".into()],
         deltas: vec![Vec::new(), Vec::new()],
@@ -1096,7 +1095,7 @@ fn morph_mapping_weights_are_clamped_gain_sums_of_the_positive_trajectory() {
 /// The normalisation's name is the one its option and the experiment files spell.
 #[test]
 fn normalisation_names_are_the_spelling_the_options_read() {
-    use keyshape_lab::cosker::trajectory::Normalisation;
+    use keyshape_actions::trajectory::Normalisation;
     for n in [Normalisation::TwoSided, Normalisation::OneSided] {
         let spelled = serde_json::to_string(&n).unwrap();
         assert_eq!(spelled, format!("\"{}\"", n.name()));
@@ -1114,7 +1113,7 @@ fn normalisation_names_are_the_spelling_the_options_read() {
     }
     assert_eq!(Boundary::Blended.name(), "blended");
     assert_eq!(Boundary::Disjoint.name(), "disjoint");
-    use keyshape_lab::cosker::intensity::Centring;
+    use keyshape_actions::intensity::Centring;
     for c in [Centring::ClipMean, Centring::Causal, Centring::Neutral] {
         assert_eq!(
             serde_json::to_string(&c).unwrap(),

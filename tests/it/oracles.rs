@@ -1,11 +1,11 @@
 //! Oracles for numbers the other tests did not pin down (issue 12 items 3–5): each test
 //! here fails on a plausible one-line bug that the suite used to let through.
 
-use keyshape_lab::cosker::intensity::median3;
-use keyshape_lab::decompose::decompose;
-use keyshape_lab::keyshapes::{Analysis, KeyOptions, Method};
-use keyshape_lab::rbf::Rbf;
-use keyshape_lab::solve::{SolveOptions, Solver};
+use keyshape_actions::intensity::median3;
+use keyshape_core::decompose::decompose;
+use keyshape_core::keyshapes::{Analysis, KeyOptions, Method};
+use keyshape_core::rbf::Rbf;
+use keyshape_core::solve::{SolveOptions, Solver};
 use nalgebra::{DMatrix, DVector};
 
 /// A frame whose weights are finite but whose squared error overflows is refused, not
@@ -138,7 +138,7 @@ fn the_rbf_between_its_centres_is_the_paper_multiquadric() {
 /// kmeans3 and kmeans5.
 #[test]
 fn kmeans_keys_are_the_frames_nearest_the_centres_over_all_axes() {
-    let seq = keyshape_lab::io::builtin_sequence().unwrap();
+    let seq = keyshape_io::builtin_sequence().unwrap();
     let an = Analysis::with_axes(seq.coords, seq.points, 8).unwrap();
     for pcs in [2usize, 3, 5] {
         let sel = Method::KMeans { pcs, mean: false }
@@ -172,8 +172,8 @@ fn kmeans_keys_are_the_frames_nearest_the_centres_over_all_axes() {
 /// checked by brute force, with Eq. 5 checked against the textbook NNLS frame by frame.
 #[test]
 fn kmeans_mean_keys_are_the_clusters_mean_shapes() {
-    use keyshape_lab::solve::textbook;
-    let seq = keyshape_lab::io::builtin_sequence().unwrap();
+    use keyshape_core::solve::textbook;
+    let seq = keyshape_io::builtin_sequence().unwrap();
     let an = Analysis::with_axes(seq.coords.clone(), seq.points, 8).unwrap();
     for pcs in [2usize, 3] {
         let m = Method::KMeans { pcs, mean: true };
@@ -255,7 +255,7 @@ fn kmeans_mean_keys_are_the_clusters_mean_shapes() {
 /// Survivors of the first mutation run (mutants/README.md), each killed here.
 #[test]
 fn negative_share_tolerance_scales_with_the_largest_weight() {
-    use keyshape_lab::decompose::Decomposition;
+    use keyshape_core::decompose::Decomposition;
     let d = |w: Vec<f64>| Decomposition {
         key_columns: vec![0, 1],
         neutral: None,
@@ -322,7 +322,7 @@ fn decompose_takes_every_frame_as_a_key_and_solves_deltas_exactly() {
 /// soft KNN refuses mismatched inputs (labels or query rows) instead of reading past them.
 #[test]
 fn soft_knn_refuses_mismatched_inputs() {
-    use keyshape_lab::cosker::intensity::soft_knn;
+    use keyshape_actions::intensity::soft_knn;
     let train = DMatrix::from_column_slice(2, 3, &[0.0, 0.0, 1.0, 0.0, 0.0, 1.0]);
     let query = DMatrix::from_column_slice(2, 1, &[0.1, 0.1]);
     assert!(soft_knn(&train, &[0, 1, 1], 2, &query, 2).is_ok());
@@ -342,8 +342,8 @@ fn soft_knn_refuses_mismatched_inputs() {
 /// Correlation of two points is ±1; K may equal the training count.
 #[test]
 fn polyfit_is_least_squares_and_correlation_handles_two_points() {
-    use keyshape_lab::cosker::intensity::{polyfit_smooth, soft_knn};
-    use keyshape_lab::stats::correlation;
+    use keyshape_actions::intensity::{polyfit_smooth, soft_knn};
+    use keyshape_core::stats::correlation;
     let x = [1.0, 3.0, 2.0, 5.0, 4.0, 7.0, 5.5];
     let fit = polyfit_smooth(&x, 1);
     assert_eq!(fit.len(), x.len());
@@ -382,7 +382,7 @@ fn polyfit_is_least_squares_and_correlation_handles_two_points() {
 /// of frames, a bad frame named exactly, and the method table's edges.
 #[test]
 fn batch_solves_over_many_chunks_match_frame_by_frame_solves() {
-    use keyshape_lab::solve::{solve_batch, textbook, CHUNK};
+    use keyshape_core::solve::{solve_batch, textbook, CHUNK};
     // 3 key shapes of 5 values, 3 chunks and a bit of frames.
     let s = DMatrix::from_fn(5, 3, |i, j| {
         ((i * 7 + j * 3) % 5) as f64 + if i == j { 2.0 } else { 0.5 }
@@ -416,7 +416,7 @@ fn batch_solves_over_many_chunks_match_frame_by_frame_solves() {
 
 #[test]
 fn the_method_table_and_its_edges() {
-    use keyshape_lab::keyshapes::axes_needed;
+    use keyshape_core::keyshapes::axes_needed;
     assert_eq!(
         Method::parse("kmeans").unwrap(),
         Method::KMeans {
@@ -471,8 +471,8 @@ fn the_method_table_and_its_edges() {
 /// there equals the residual computed frame by frame, and the frames' Gram matrix is refused.
 #[test]
 fn long_sequences_evaluate_errors_without_the_frames_gram_matrix() {
-    use keyshape_lab::keyshapes::GRAM_LIMIT;
-    use keyshape_lab::solve::textbook;
+    use keyshape_core::keyshapes::GRAM_LIMIT;
+    use keyshape_core::solve::textbook;
     let frames = GRAM_LIMIT + 1;
     let coords = DMatrix::from_fn(6, frames, |i, t| {
         ((t * (i + 3)) % 17) as f64 * 0.1 + i as f64
@@ -503,7 +503,7 @@ fn long_sequences_evaluate_errors_without_the_frames_gram_matrix() {
 /// `frame_gram` refused it at exactly `GRAM_LIMIT` frames, where `error` still asks for it).
 #[test]
 fn the_frames_gram_matrix_is_formed_at_exactly_the_limit() {
-    use keyshape_lab::keyshapes::GRAM_LIMIT;
+    use keyshape_core::keyshapes::GRAM_LIMIT;
     let coords = DMatrix::from_fn(4, GRAM_LIMIT, |i, t| ((t * (i + 2)) % 13) as f64 + i as f64);
     let an = Analysis::new(coords.clone(), 2).unwrap();
     let g = an.frame_gram().unwrap();
@@ -522,7 +522,7 @@ fn the_frames_gram_matrix_is_formed_at_exactly_the_limit() {
 /// `unconverged > 0` → `<` all survived, since no test could reach the cap).
 #[test]
 fn an_iteration_cap_makes_the_error_an_error_that_counts_the_stopped_frames() {
-    use keyshape_lab::keyshapes::{Selection, GRAM_LIMIT};
+    use keyshape_core::keyshapes::{Selection, GRAM_LIMIT};
     for frames in [40, GRAM_LIMIT + 5] {
         let coords = DMatrix::from_fn(6, frames, |i, t| {
             1.0 + ((t * (i + 3)) % 17) as f64 * 0.1 + i as f64
@@ -559,7 +559,7 @@ fn an_iteration_cap_makes_the_error_an_error_that_counts_the_stopped_frames() {
 /// `&&` → `||`, `==` → `!=` or `true`, sent them into a dimension mismatch).
 #[test]
 fn mean_shapes_of_the_wrong_size_are_refused_on_every_path() {
-    use keyshape_lab::keyshapes::{Selection, GRAM_LIMIT};
+    use keyshape_core::keyshapes::{Selection, GRAM_LIMIT};
     for frames in [40, GRAM_LIMIT + 5] {
         let coords = DMatrix::from_fn(6, frames, |i, t| {
             ((t * (i + 3)) % 17) as f64 * 0.1 + i as f64
@@ -615,7 +615,7 @@ fn rbf_refuses_each_malformed_input_and_nearly_coincident_points() {
 /// `maxᵢ |bᵢ| / ‖Sᵢ‖`: columns (3, 4) and (0, 1), norms 5 and 1.
 #[test]
 fn gram_norms_are_the_column_norms_and_the_tolerance_follows_them() {
-    use keyshape_lab::solve::active_set::Gram;
+    use keyshape_core::solve::active_set::Gram;
     let s = DMatrix::from_column_slice(2, 2, &[3.0, 4.0, 0.0, 1.0]);
     let g = Gram::new(&s, f64::INFINITY);
     assert_eq!(g.norms, vec![5.0, 1.0]);
@@ -630,7 +630,7 @@ fn gram_norms_are_the_column_norms_and_the_tolerance_follows_them() {
 /// 5 are interpolated exactly by the quadratic through them.
 #[test]
 fn polyfit_caps_the_degree_at_the_clip_length() {
-    use keyshape_lab::cosker::intensity::polyfit_smooth;
+    use keyshape_actions::intensity::polyfit_smooth;
     let x = [1.0, 5.0, 2.0];
     let y = polyfit_smooth(&x, 5);
     for (a, b) in x.iter().zip(&y) {
@@ -648,7 +648,7 @@ fn polyfit_caps_the_degree_at_the_clip_length() {
 /// bound refused on its own side; a train range must leave both training and test clips.
 #[test]
 fn intensity_study_refuses_thresholds_outside_the_open_unit_interval_and_empty_splits() {
-    use keyshape_lab::cosker::intensity::{study, Evaluation, StudySettings};
+    use keyshape_actions::intensity::{study, Evaluation, StudySettings};
     for bad in [0.0, -0.5, 1.0, 1.5, f64::NAN, f64::INFINITY] {
         let st = StudySettings {
             threshold: bad,
@@ -683,7 +683,7 @@ fn intensity_study_refuses_thresholds_outside_the_open_unit_interval_and_empty_s
 /// study action (mean of its columns; the first in `STUDY_ACTIONS` order on a tie) when
 /// that score is strictly above the threshold.
 fn brute_force_labels(path: &std::path::Path, threshold: f64) -> [usize; 3] {
-    use keyshape_lab::cosker::intensity::STUDY_ACTIONS;
+    use keyshape_actions::intensity::STUDY_ACTIONS;
     let mut rd = csv::Reader::from_path(path).unwrap();
     let header = rd.headers().unwrap().clone();
     let col = |name: &str| header.iter().position(|h| h == name).unwrap();
@@ -742,7 +742,7 @@ fn edited_news(
 /// leave-one-clip-out trains on every frame 19 times (20 clips).
 #[test]
 fn intensity_study_counts_the_labelled_training_frames() {
-    use keyshape_lab::cosker::intensity::{study, Evaluation, StudySettings, STUDY_ACTIONS};
+    use keyshape_actions::intensity::{study, Evaluation, StudySettings, STUDY_ACTIONS};
     let path = crate::common::shared("pyfeat_samples/news_sample_compact.csv");
     let st = StudySettings {
         evaluation: Evaluation::LeaveOneClipOut,
@@ -763,7 +763,7 @@ fn intensity_study_counts_the_labelled_training_frames() {
 /// out of the spread), and leave-one-clip-out runs on two clips and refuses one.
 #[test]
 fn intensity_study_ties_thresholds_and_undefined_clips() {
-    use keyshape_lab::cosker::intensity::{study, Evaluation, StudySettings, STUDY_ACTIONS};
+    use keyshape_actions::intensity::{study, Evaluation, StudySettings, STUDY_ACTIONS};
     let dir = tempfile::tempdir().unwrap();
     let set = |col: &dyn Fn(&str) -> usize, r: &mut Vec<String>, name: &str, v: &str| {
         r[col(name)] = v.to_string();
@@ -867,12 +867,12 @@ fn intensity_study_ties_thresholds_and_undefined_clips() {
 /// the batch does within a chunk) give the same weights and the same totals.
 #[test]
 fn batch_iteration_counts_are_the_per_frame_reports_summed() {
-    use keyshape_lab::solve::active_set::{solve_frame, Bound, Gram, Workspace};
-    use keyshape_lab::solve::{solve_batch, SolveOptions, Solver};
-    let seq = keyshape_lab::io::builtin_sequence().unwrap();
-    let prep = keyshape_lab::decompose::prepare(
+    use keyshape_core::solve::active_set::{solve_frame, Bound, Gram, Workspace};
+    use keyshape_core::solve::{solve_batch, SolveOptions, Solver};
+    let seq = keyshape_io::builtin_sequence().unwrap();
+    let prep = keyshape_core::decompose::prepare(
         &seq,
-        &keyshape_lab::decompose::PrepareOptions {
+        &keyshape_core::decompose::PrepareOptions {
             points: Some("lips".into()),
             align: true,
         },
@@ -912,7 +912,7 @@ fn batch_iteration_counts_are_the_per_frame_reports_summed() {
 /// of its first steps, and the batch counts them; a cap of exactly 3 converges.
 #[test]
 fn the_iteration_cap_stops_frames_feasibly_and_the_batch_counts_them() {
-    use keyshape_lab::solve::solve_batch;
+    use keyshape_core::solve::solve_batch;
     let s = DMatrix::<f64>::identity(3, 3);
     let kinds = [[1.0, 2.0, 3.0], [5.0, 0.0, 0.0], [-1.0, -1.0, -1.0]];
     let q = DMatrix::from_fn(3, 600, |i, j| kinds[j % 3][i]);
@@ -953,7 +953,7 @@ fn residuals_past_the_first_chunk_are_each_frames_own() {
     let s = DMatrix::from_fn(10, 3, |i, j| ((i * 7 + j * 3) % 11) as f64 - 5.0);
     let w = DMatrix::from_fn(3, 600, |i, f| ((i + f) % 5) as f64 * 0.25);
     let q = DMatrix::from_fn(10, 600, |i, f| ((i * 13 + f * 17) % 23) as f64 * 0.1);
-    let got = keyshape_lab::solve::residuals(&s, &w, &q);
+    let got = keyshape_core::solve::residuals(&s, &w, &q);
     assert_eq!(got.len(), 600);
     for f in 0..600 {
         let want = (q.column(f) - &s * w.column(f)).norm_squared();
@@ -965,7 +965,7 @@ fn residuals_past_the_first_chunk_are_each_frames_own() {
 /// frames) maps to an empty one of the same shape.
 #[test]
 fn rbf_apply_all_is_apply_per_column_and_takes_empty_matrices() {
-    use keyshape_lab::rbf::Rbf;
+    use keyshape_core::rbf::Rbf;
     let src = [0.0, 0.0, 1.0, 0.0, 0.0, 1.0, 1.0, 1.0];
     let dst = [0.0, 0.0, 2.0, 0.1, 0.1, 2.0, 2.2, 2.1];
     let f = Rbf::fit(&src, &dst, 2).unwrap();

@@ -308,15 +308,15 @@ fn a_degenerate_frame_is_refused_by_name_on_every_path_that_fits_it() {
     assert!(!d.path().join("w.csv").exists());
     // The lab's rig view (`kslab tui FILE --rig DIR` at start-up) and the library's rig
     // solve refuse it too, instead of panicking in the camera's SVD.
-    let seq = keyshape_lab::io::read_sequence(Path::new(&tiny), &Default::default()).unwrap();
-    let rig = keyshape_lab::rig::Rig::read_ict(&shared("ict_facekit_face")).unwrap();
-    let source = keyshape_lab::rig::correspondence::RigSource::new(shared("ict_facekit_face"));
-    let e = keyshape_lab::tui::rig::rig_view(&seq, &source)
+    let seq = keyshape_io::read_sequence(Path::new(&tiny), &Default::default()).unwrap();
+    let rig = keyshape_rig::Rig::read_ict(&shared("ict_facekit_face")).unwrap();
+    let source = keyshape_rig::correspondence::RigSource::new(shared("ict_facekit_face"));
+    let e = kslab_tui::rig::rig_view(&seq, &source)
         .err()
         .unwrap()
         .to_string();
     assert!(e.contains("frame 5: all 68 points coincide"), "{e}");
-    let e = keyshape_lab::rig::solve_rig(&rig, &seq.coords, &[], &Default::default())
+    let e = keyshape_rig::solve_rig(&rig, &seq.coords, &[], &Default::default())
         .err()
         .unwrap()
         .to_string();
@@ -325,6 +325,6 @@ fn a_degenerate_frame_is_refused_by_name_on_every_path_that_fits_it() {
         "{e}"
     );
     let pts = vec![[1e-300, 2e-300]; 68];
-    let e = keyshape_lab::rig::camera::fit_camera(&rig.neutral, &pts);
+    let e = keyshape_rig::camera::fit_camera(&rig.neutral, &pts);
     assert!(e.is_err());
 }

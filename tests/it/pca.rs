@@ -1,7 +1,7 @@
 //! PCA and the Jacobi SVD against their defining properties.
 
-use keyshape_lab::pca::Pca;
-use keyshape_lab::solve::jacobi;
+use keyshape_core::pca::Pca;
+use keyshape_core::solve::jacobi;
 use nalgebra::DMatrix;
 use proptest::prelude::*;
 
@@ -54,10 +54,10 @@ proptest! {
 
 #[test]
 fn pca_on_a_real_track_explains_most_variance_in_few_axes() {
-    let seq = keyshape_lab::io::builtin_sequence().unwrap();
-    let prep = keyshape_lab::decompose::prepare(
+    let seq = keyshape_io::builtin_sequence().unwrap();
+    let prep = keyshape_core::decompose::prepare(
         &seq,
-        &keyshape_lab::decompose::PrepareOptions {
+        &keyshape_core::decompose::PrepareOptions {
             points: Some("lips".into()),
             align: true,
         },
@@ -78,11 +78,11 @@ fn leading_axes_by_subspace_iteration_match_the_full_decomposition() {
         "mediapipe_face_tracks/liveportrait_d6.csv",
         "mediapipe_face_tracks/pyfeat_wolfganglanger_pexels.csv",
     ] {
-        let seq = keyshape_lab::io::read_sequence(&crate::common::shared(rel), &Default::default())
-            .unwrap();
-        let prep = keyshape_lab::decompose::prepare(
+        let seq =
+            keyshape_io::read_sequence(&crate::common::shared(rel), &Default::default()).unwrap();
+        let prep = keyshape_core::decompose::prepare(
             &seq,
-            &keyshape_lab::decompose::PrepareOptions {
+            &keyshape_core::decompose::PrepareOptions {
                 points: None,
                 align: true,
             },
@@ -122,7 +122,7 @@ fn leading_axes_by_subspace_iteration_match_the_full_decomposition() {
 /// fewer) and for the block-wise fit.
 #[test]
 fn every_axis_is_a_unit_vector_with_a_positive_largest_coordinate() {
-    let seq = keyshape_lab::io::read_sequence(
+    let seq = keyshape_io::read_sequence(
         &crate::common::shared("pyfeat_samples/news_sample_compact.csv"),
         &Default::default(),
     )

@@ -1,10 +1,10 @@
 //! Every reader on the real files in ../shared/data, plus round trips through JSON and .pts.
 
 use crate::common::shared;
-use keyshape_lab::io::{builtin_sequence, json, read_sequence, ReadOptions};
-use keyshape_lab::sequence::{Format, Layout};
+use keyshape_core::sequence::{Format, Layout};
+use keyshape_io::{builtin_sequence, json, read_sequence, ReadOptions};
 
-fn read(rel: &str, dims: usize) -> keyshape_lab::sequence::Sequence {
+fn read(rel: &str, dims: usize) -> keyshape_core::sequence::Sequence {
     let opts = ReadOptions { format: None, dims };
     read_sequence(&shared(rel), &opts).unwrap_or_else(|e| panic!("{rel}: {e}"))
 }
@@ -182,7 +182,7 @@ fn duplicate_frames_name_their_first_line_inside_and_across_runs() {
 /// and the same error where that fails.
 #[test]
 fn tables_read_from_the_file_equal_the_whole_text_parse() {
-    use keyshape_lab::io::{parse_sequence, read_text};
+    use keyshape_io::{parse_sequence, read_text};
     use std::io::Write;
     let same = |path: &std::path::Path, opts: &ReadOptions| {
         let streamed = read_sequence(path, opts);
@@ -270,14 +270,14 @@ fn tables_read_from_the_file_equal_the_whole_text_parse() {
 /// errors relative to its scale — and a coordinate past the bound is refused by name.
 #[test]
 fn results_are_scale_free_up_to_the_coordinate_bound() {
-    use keyshape_lab::decompose::{decompose, prepare, PrepareOptions};
-    use keyshape_lab::solve::{SolveOptions, Solver};
+    use keyshape_core::decompose::{decompose, prepare, PrepareOptions};
+    use keyshape_core::solve::{SolveOptions, Solver};
     let base = read("pyfeat_samples/openface_test.csv", 2);
     let opts = PrepareOptions {
         points: None,
         align: true,
     };
-    let solve = |seq: &keyshape_lab::sequence::Sequence| {
+    let solve = |seq: &keyshape_core::sequence::Sequence| {
         let prep = prepare(seq, &opts).unwrap();
         let d = decompose(
             &prep.seq.coords,
@@ -292,7 +292,7 @@ fn results_are_scale_free_up_to_the_coordinate_bound() {
     let (c0, r0) = solve(&base);
     for e in [10, 20, 30] {
         let s = 10f64.powi(e);
-        assert!(s <= keyshape_lab::sequence::MAX_COORD);
+        assert!(s <= keyshape_core::sequence::MAX_COORD);
         let scaled = base.with_coords(&base.coords * s);
         let (c, r) = solve(&scaled);
         assert!(
@@ -308,7 +308,7 @@ fn results_are_scale_free_up_to_the_coordinate_bound() {
     let d = tempfile::tempdir().unwrap();
     let p = d.path().join("big.csv");
     std::fs::write(&p, "frame,x0,y0,x1,y1\n0,1e31,2,3,4\n1,1,2,3,5\n").unwrap();
-    let e = keyshape_lab::io::read_sequence(&p, &Default::default())
+    let e = keyshape_io::read_sequence(&p, &Default::default())
         .unwrap_err()
         .to_string();
     assert!(
@@ -341,7 +341,7 @@ fn a_coordinate_or_frame_column_given_twice_is_refused() {
     ] {
         let p = d.path().join(name);
         std::fs::write(&p, text).unwrap();
-        let e = keyshape_lab::io::read_sequence(&p, &Default::default())
+        let e = keyshape_io::read_sequence(&p, &Default::default())
             .unwrap_err()
             .to_string();
         assert!(e.contains(want), "{e}");
@@ -350,7 +350,7 @@ fn a_coordinate_or_frame_column_given_twice_is_refused() {
     let p = d.path().join("ok.csv");
     std::fs::write(&p, "frame,note,x0,y0,x1,y1,note\n0,a,1,2,3,4,b\n").unwrap();
     assert_eq!(
-        keyshape_lab::io::read_sequence(&p, &Default::default())
+        keyshape_io::read_sequence(&p, &Default::default())
             .unwrap()
             .points,
         2

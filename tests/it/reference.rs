@@ -2,8 +2,8 @@
 //! the numbers come from `tools/nnls_reference.py` and are committed in `tests/data/`.
 
 use crate::common::shared;
-use keyshape_lab::io::{read_sequence, ReadOptions};
-use keyshape_lab::solve::{solve_batch, SolveOptions, Solver};
+use keyshape_core::solve::{solve_batch, SolveOptions, Solver};
+use keyshape_io::{read_sequence, ReadOptions};
 use nalgebra::DMatrix;
 use serde_json::Value;
 

@@ -2,16 +2,16 @@
 //! metrics, pictures, and the Figs. 4–5 finding on real lips.
 
 use crate::common::shared;
-use keyshape_lab::decompose::{prepare, PrepareOptions};
-use keyshape_lab::io::builtin_sequence;
-use keyshape_lab::rbf::Rbf;
-use keyshape_lab::retarget::regions::{plan, Regions};
-use keyshape_lab::retarget::setup::{builtin_target, polylines_for};
-use keyshape_lab::retarget::svg::{read_template, write_template};
-use keyshape_lab::retarget::target::{TargetKey, TargetSet};
-use keyshape_lab::retarget::{jitter, retarget, with_head_motion, KeyPlan, Target};
-use keyshape_lab::sequence::Layout;
-use keyshape_lab::solve::Solver;
+use keyshape_core::decompose::{prepare, PrepareOptions};
+use keyshape_core::rbf::Rbf;
+use keyshape_core::sequence::Layout;
+use keyshape_core::solve::Solver;
+use keyshape_io::builtin_sequence;
+use keyshape_retarget::regions::{plan, Regions};
+use keyshape_retarget::setup::{builtin_target, polylines_for};
+use keyshape_retarget::svg::{read_template, write_template};
+use keyshape_retarget::target::{TargetKey, TargetSet};
+use keyshape_retarget::{jitter, retarget, with_head_motion, KeyPlan, Target};
 use nalgebra::DMatrix;
 use proptest::prelude::*;
 
@@ -57,8 +57,8 @@ fn jitter_is_the_rms_second_difference() {
 }
 
 fn builtin_lips() -> (
-    keyshape_lab::sequence::Sequence,
-    keyshape_lab::decompose::Prepared,
+    keyshape_core::sequence::Sequence,
+    keyshape_core::decompose::Prepared,
 ) {
     let seq = builtin_sequence().unwrap();
     let prep = prepare(
@@ -272,7 +272,7 @@ fn target_sets_check_counts_and_point_counts() {
 }
 
 fn template_of(
-    prep: &keyshape_lab::decompose::Prepared,
+    prep: &keyshape_core::decompose::Prepared,
     cols: &[usize],
 ) -> (String, Vec<(i64, Vec<f64>)>) {
     let s = &prep.seq;
@@ -280,7 +280,7 @@ fn template_of(
         .iter()
         .map(|&c| (s.frames[c], s.coords.column(c).iter().copied().collect()))
         .collect();
-    let lines = keyshape_lab::retarget::setup::named_polylines_for(
+    let lines = keyshape_retarget::setup::named_polylines_for(
         prep.layout.as_ref().unwrap(),
         &prep.point_indices,
     );
@@ -395,7 +395,7 @@ fn nnls_removes_the_distortion_ls_shows_with_traced_targets_on_real_lips() {
     // Paper 000 Figs. 4–5 on liveportrait_d6: 21 spread keys, built-in cartoon target with
     // hand-tracing noise of 1 % IOD. What the data shows (README): with noise LS distorts
     // and NNLS does not; with an exact smooth warp LS is the more accurate of the two.
-    let seq = keyshape_lab::io::read_sequence(
+    let seq = keyshape_io::read_sequence(
         &shared("mediapipe_face_tracks/liveportrait_d6.csv"),
         &Default::default(),
     )
@@ -409,8 +409,8 @@ fn nnls_removes_the_distortion_ls_shows_with_traced_targets_on_real_lips() {
     )
     .unwrap();
     let an =
-        keyshape_lab::keyshapes::Analysis::new(prep.seq.coords.clone(), prep.seq.points).unwrap();
-    let keys = keyshape_lab::keyshapes::Method::Spread
+        keyshape_core::keyshapes::Analysis::new(prep.seq.coords.clone(), prep.seq.points).unwrap();
+    let keys = keyshape_core::keyshapes::Method::Spread
         .heuristic(&Default::default())
         .select(&an, 21)
         .unwrap()
@@ -579,7 +579,7 @@ fn the_face_template_is_grouped_captioned_and_its_dots_follow_the_contours() {
 /// through the warp G — negative when a point crosses it. MediaPipe: every point off the
 /// face oval is inside the oval polygon. iBUG 68 has no closed outline (the jaw stops at the
 /// ears): every brow and eye point lies between the jaw's ends (points 0 and 16) in x.
-fn cartoon_outline_margin(seq: &keyshape_lab::sequence::Sequence, align: bool, warp: bool) -> f64 {
+fn cartoon_outline_margin(seq: &keyshape_core::sequence::Sequence, align: bool, warp: bool) -> f64 {
     let prep = prepare(
         seq,
         &PrepareOptions {
@@ -648,7 +648,7 @@ fn cartoon_outline_margin(seq: &keyshape_lab::sequence::Sequence, align: bool, w
 /// (yaw brings a brow end within 0.3 % of an IOD of the oval in two MediaPipe tracks).
 #[test]
 fn the_cartoon_target_stays_inside_its_outline_on_every_real_frame() {
-    use keyshape_lab::io::{read_sequence, ReadOptions};
+    use keyshape_io::{read_sequence, ReadOptions};
     let mut tracks = vec![("built-in".to_string(), builtin_sequence().unwrap())];
     for rel in [
         "mediapipe_face_tracks/liveportrait_d6.csv",
@@ -677,7 +677,7 @@ fn the_cartoon_target_stays_inside_its_outline_on_every_real_frame() {
 /// generated track of 9,000 frames (three reconstruction chunks).
 #[test]
 fn retarget_errors_equal_the_full_retarget_bit_for_bit() {
-    use keyshape_lab::retarget::retarget_errors;
+    use keyshape_retarget::retarget_errors;
     let check = |q: &DMatrix<f64>, plan_keys: &KeyPlan, target: &Target, neutral, what: &str| {
         for solver in [Solver::Nnls, Solver::Ls] {
             let full = retarget(q, 2, plan_keys, target, neutral, solver).unwrap();
@@ -706,7 +706,7 @@ fn retarget_errors_equal_the_full_retarget_bit_for_bit() {
         }
     };
     // Real: d6, whole face and lips, with the built-in target.
-    let seq = keyshape_lab::io::read_sequence(
+    let seq = keyshape_io::read_sequence(
         &shared("mediapipe_face_tracks/liveportrait_d6.csv"),
         &Default::default(),
     )
@@ -765,10 +765,10 @@ fn retarget_errors_equal_the_full_retarget_bit_for_bit() {
     );
     // Generated: 9,000 frames of 68 points.
     let mut text = Vec::new();
-    keyshape_lab::io::synthetic::write_long_track(&mut text, 9000, 68, 3).unwrap();
+    keyshape_io::synthetic::write_long_track(&mut text, 9000, 68, 3).unwrap();
     let path = std::env::temp_dir().join(format!("kslab_retarget_long_{}.csv", std::process::id()));
     std::fs::write(&path, &text).unwrap();
-    let long = keyshape_lab::io::read_sequence(&path, &Default::default()).unwrap();
+    let long = keyshape_io::read_sequence(&path, &Default::default()).unwrap();
     std::fs::remove_file(&path).unwrap();
     let lp = prepare(
         &long,

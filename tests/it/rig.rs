@@ -2,12 +2,12 @@
 //! known weights solved back, identity, identifiability, Live Link Face CSV, bad rigs.
 
 use crate::common::{kslab, shared};
-use keyshape_lab::rig::camera::{fit_camera, Camera};
-use keyshape_lab::rig::livelink::{arkit_name, column_sources, timecode, COLUMNS};
-use keyshape_lab::rig::{
+use keyshape_core::solve::Solver;
+use keyshape_rig::camera::{fit_camera, Camera};
+use keyshape_rig::livelink::{arkit_name, column_sources, timecode, COLUMNS};
+use keyshape_rig::{
     identifiability, landmark_weights, solve_rig, Identity, Neutral, Rig, RigOptions,
 };
-use keyshape_lab::solve::Solver;
 use nalgebra::DMatrix;
 
 fn ict() -> Rig {
@@ -77,7 +77,7 @@ fn known_weights_rendered_under_a_moving_head_are_solved_back_exactly() {
     let rig = ict();
     let frames = 80;
     let cams = head_sweep(frames);
-    let names = keyshape_lab::rig::study::default_shapes();
+    let names = keyshape_rig::study::default_shapes();
     let mut truth = DMatrix::zeros(rig.k(), frames);
     for (j, n) in names.iter().enumerate() {
         let s = shape(&rig, n);
@@ -198,7 +198,7 @@ fn the_auto_neutral_is_the_frame_that_explains_the_performance() {
     assert_eq!(auto.neutrals, vec![23]);
     assert_eq!(auto.weights, solve(Neutral::Column(23)).weights);
     let least = solve(Neutral::LeastActive);
-    let rmse = |r: &keyshape_lab::rig::RigSolve| {
+    let rmse = |r: &keyshape_rig::RigSolve| {
         ((&r.weights - &truth).norm_squared() / (frames * names.len()) as f64).sqrt()
     };
     eprintln!("auto: weight RMSE {:.4}", rmse(&auto));
@@ -300,7 +300,7 @@ fn a_landmark_of_weight_zero_is_ignored_and_exact_fits_stay_exact() {
 #[test]
 fn the_person_rig_of_each_frame_reproduces_the_reported_error() {
     let rig = ict();
-    let seq = keyshape_lab::io::read_sequence(
+    let seq = keyshape_io::read_sequence(
         &shared("pyfeat_samples/news_sample_compact.csv"),
         &Default::default(),
     )
@@ -360,7 +360,7 @@ fn the_person_rig_of_each_frame_reproduces_the_reported_error() {
 /// predicts the other groups' mean.
 #[test]
 fn leave_one_group_out_ridge_predicts_affine_outputs_exactly() {
-    use keyshape_lab::rig::study::leave_one_group_out_ridge;
+    use keyshape_rig::study::leave_one_group_out_ridge;
     let n = 60;
     let x = DMatrix::from_fn(n, 3, |f, j| ((f * (j + 2)) as f64 * 0.37).sin() + j as f64);
     let x = x.insert_column(3, 5.0); // a constant feature is dropped, not divided by 0
@@ -404,7 +404,7 @@ fn identifiability_freezes_shapes_a_view_cannot_tell_apart() {
     // Determinations are shares in [0, 1]; the threshold takes effect.
     assert!(rep.iter().all(|s| (0.0..=1.0).contains(&s.determination)));
     let strict = identifiability(&rig, &frontal, 0.2);
-    let count = |r: &[keyshape_lab::rig::ShapeReport]| r.iter().filter(|s| s.frozen).count();
+    let count = |r: &[keyshape_rig::ShapeReport]| r.iter().filter(|s| s.frozen).count();
     assert!(
         count(&strict) > count(&rep),
         "{} vs {}",
@@ -563,17 +563,17 @@ fn kslab_rig_writes_weights_pose_and_live_link_and_its_options_take_effect() {
     // pitch, 0.925 roll with the plain solve; 0.969 pitch with issue 39's default priors,
     // which let fewer shapes stand in for head pitch; py-feat's yaw has the opposite sign,
     // and py-feat is another estimator, not the truth).
-    let ours = keyshape_lab::io::read_columns(
+    let ours = keyshape_io::read_columns(
         &d.path().join("p.csv"),
         &["yaw_deg", "pitch_deg", "roll_deg"],
     )
     .unwrap();
-    let theirs = keyshape_lab::io::read_columns(&track, &["Yaw", "Pitch", "Roll"]).unwrap();
+    let theirs = keyshape_io::read_columns(&track, &["Yaw", "Pitch", "Roll"]).unwrap();
     for (i, (lo, sign)) in [(0.97, -1.0), (0.96, 1.0), (0.92, 1.0)]
         .into_iter()
         .enumerate()
     {
-        let r = keyshape_lab::stats::correlation(&ours[i], &theirs[i]);
+        let r = keyshape_core::stats::correlation(&ours[i], &theirs[i]);
         assert!(sign * r > lo, "angle {i}: r = {r}");
     }
     // Each option changes the weights.
@@ -800,7 +800,7 @@ fn the_rig_experiment_measures_recovery_and_agreement_with_py_feat() {
         &d.path().display().to_string(),
     ]);
     assert_eq!(r.code, 0, "{}", r.stderr);
-    let rows = keyshape_lab::io::read_text(&d.path().join("rig_recovery.csv")).unwrap();
+    let rows = keyshape_io::read_text(&d.path().join("rig_recovery.csv")).unwrap();
     let mut by: std::collections::BTreeMap<(String, String), Vec<(f64, f64)>> = Default::default();
     for l in rows.lines().skip(1) {
         let v: Vec<&str> = l.split(',').collect();
@@ -845,7 +845,7 @@ fn the_rig_experiment_measures_recovery_and_agreement_with_py_feat() {
         assert!(c > b + 0.1, "noise {noise}: bounded {b}, causal {c}");
     }
     assert!((median(("bounded+causal λ=100", "1")) - 0.914).abs() < 0.01);
-    let peer = keyshape_lab::io::read_text(&d.path().join("rig_vs_input_scores.csv")).unwrap();
+    let peer = keyshape_io::read_text(&d.path().join("rig_vs_input_scores.csv")).unwrap();
     // The least-active neutral reproduces `tools/rig_vs_pyfeat.py`'s numbers of the
     // earlier sessions (median pooled r 0.221 / 0.181 / 0.299 for none / offset / rbf).
     let key = |identity: &str| match identity {
@@ -886,7 +886,7 @@ fn the_rig_experiment_measures_recovery_and_agreement_with_py_feat() {
     // The summary's set, recomputed from the news sample itself: the py-feat scores whose
     // standard deviation is at least 0.02, eye gaze left out (19 of 51).
     let news = shared("pyfeat_samples/news_sample_compact.csv");
-    let text = keyshape_lab::io::read_text(&news).unwrap();
+    let text = keyshape_io::read_text(&news).unwrap();
     let header: Vec<&str> = text.lines().next().unwrap().split(',').collect();
     let rows: Vec<Vec<f64>> = text
         .lines()
@@ -915,7 +915,7 @@ fn the_rig_experiment_measures_recovery_and_agreement_with_py_feat() {
         .map(|(_, h)| *h)
         .collect();
     assert_eq!(set.len(), 19, "{set:?}");
-    let summary = keyshape_lab::io::read_text(&d.path().join("rig_vs_input_summary.csv")).unwrap();
+    let summary = keyshape_io::read_text(&d.path().join("rig_vs_input_summary.csv")).unwrap();
     let field = |setting: &str, col: usize| -> f64 {
         let l = summary
             .lines()
@@ -977,14 +977,13 @@ fn the_rig_experiment_measures_recovery_and_agreement_with_py_feat() {
 /// and every midline point on the midline — an oracle the derivation did not use.
 #[test]
 fn the_mediapipe_correspondence_is_distinct_and_mirror_symmetric() {
-    let m = keyshape_lab::rig::mediapipe_to_ibug68().unwrap();
+    let m = keyshape_rig::mediapipe_to_ibug68().unwrap();
     let distinct: std::collections::BTreeSet<usize> = m.iter().copied().collect();
     assert_eq!(distinct.len(), 68);
-    let canon = keyshape_lab::io::obj::read_obj(&shared(
-        "mediapipe_canonical_face/canonical_face_model.obj",
-    ))
-    .unwrap()
-    .positions;
+    let canon =
+        keyshape_io::obj::read_obj(&shared("mediapipe_canonical_face/canonical_face_model.obj"))
+            .unwrap()
+            .positions;
     let mut pairs: Vec<(usize, usize)> = (0..8).map(|i| (i, 16 - i)).collect();
     pairs.extend([
         (17, 26),
@@ -1057,7 +1056,7 @@ fn a_gltf_rig_with_a_landmark_list_solves_like_the_folder_it_came_from() {
     let glb = d.path().join("ict.glb");
     let mut f = std::fs::File::create(&glb).unwrap();
     // The OBJ's quads as triangles (the GLB writer takes any polygon and fans it).
-    keyshape_lab::io::gltf::write_morph_glb(
+    keyshape_io::gltf::write_morph_glb(
         &mut f,
         &mesh.positions,
         &mesh.faces,
@@ -1283,7 +1282,7 @@ fn a_gltf_rig_with_positions_of_the_wrong_type_is_refused() {
     let faces = vec![vec![0, 1, 2], vec![0, 2, 3]];
     let dense = vec![("a".to_string(), vec![[0.1, 0.0, 0.0]; 4])];
     let mut glb = Vec::new();
-    keyshape_lab::io::gltf::write_morph_glb(
+    keyshape_io::gltf::write_morph_glb(
         &mut glb,
         &positions,
         &faces,
@@ -1323,7 +1322,7 @@ fn a_gltf_rig_with_positions_of_the_wrong_type_is_refused() {
         bytes[20..20 + json_len].copy_from_slice(edited.as_bytes());
         let p = d.path().join(format!("{what}.glb"));
         std::fs::write(&p, &bytes).unwrap();
-        let e = keyshape_lab::rig::gltf_rig::read_gltf_mesh(&p)
+        let e = keyshape_rig::gltf_rig::read_gltf_mesh(&p)
             .unwrap_err()
             .to_string();
         assert!(

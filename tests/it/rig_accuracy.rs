@@ -4,12 +4,12 @@
 //! meet its KKT conditions, and a noise-free render must come back exactly.
 
 use crate::common::{kslab, shared};
-use keyshape_lab::rig::accuracy::{self, Kind, Settings};
-use keyshape_lab::rig::{
+use keyshape_core::solve::temporal::SmoothMode;
+use keyshape_rig::accuracy::{self, Kind, Settings};
+use keyshape_rig::{
     is_gaze, solve_rig, track_iod, zero_phase, Identity, Neutral, Rig, RigOptions, EXCLUSIVE,
     GAZE_DAMPING,
 };
-use keyshape_lab::solve::temporal::SmoothMode;
 use nalgebra::DMatrix;
 
 fn ict() -> Rig {
@@ -83,7 +83,7 @@ fn the_automatic_neutral_finds_the_lead_in_under_a_held_smile() {
     };
     let (_, _, _, auto) = accuracy::run(&rig, &st, &RigOptions::recommended()).unwrap();
     let named = RigOptions {
-        neutral: keyshape_lab::rig::Neutral::Column(st.lead_in / 2),
+        neutral: keyshape_rig::Neutral::Column(st.lead_in / 2),
         ..RigOptions::recommended()
     };
     let (_, _, _, lead) = accuracy::run(&rig, &st, &named).unwrap();
@@ -174,7 +174,7 @@ fn the_prior_optimum_meets_its_kkt_conditions() {
 fn worst_kkt(
     rig: &Rig,
     points: &DMatrix<f64>,
-    r: &keyshape_lab::rig::RigSolve,
+    r: &keyshape_rig::RigSolve,
     opts: &RigOptions,
     taper_from: Option<&DMatrix<f64>>,
 ) -> f64 {
@@ -410,7 +410,7 @@ fn the_offline_temporal_prior_meets_its_kkt_conditions() {
     )
     .unwrap();
     let jit = |w: &DMatrix<f64>| {
-        keyshape_lab::solve::jitter::weight_jitter(w, std::slice::from_ref(&(0..60)))
+        keyshape_core::solve::jitter::weight_jitter(w, std::slice::from_ref(&(0..60)))
     };
     assert!(jit(&r.weights) < 0.8 * jit(&plain.weights));
     let (rows, _) = accuracy::measure(&rig.names, &track.truth, &r.weights);

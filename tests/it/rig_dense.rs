@@ -4,10 +4,10 @@
 //! back exactly, the benchmark's goals hold, and bad correspondences are refused.
 
 use crate::common::{kslab, shared};
-use keyshape_lab::rig::accuracy::{self, Kind, Settings};
-use keyshape_lab::rig::correspondence::{mediapipe468_to_ict, read_rig};
-use keyshape_lab::rig::{solve_rig, Identity, Rig, RigOptions};
-use keyshape_lab::solve::Solver;
+use keyshape_core::solve::Solver;
+use keyshape_rig::accuracy::{self, Kind, Settings};
+use keyshape_rig::correspondence::{mediapipe468_to_ict, read_rig};
+use keyshape_rig::{solve_rig, Identity, Rig, RigOptions};
 
 fn dense(layout: usize) -> Rig {
     read_rig(&shared("ict_facekit_face"), layout, None)
@@ -45,7 +45,7 @@ fn comes_back_exactly(rig: &Rig, st: &Settings) -> accuracy::Track {
 }
 
 fn obj_vertices(p: &std::path::Path) -> Vec<[f64; 3]> {
-    keyshape_lab::io::obj::read_obj(p).unwrap().positions
+    keyshape_io::obj::read_obj(p).unwrap().positions
 }
 
 /// MediaPipe's canonical face is left/right symmetric and the derivation never used that:
@@ -261,13 +261,7 @@ fn iris_points_make_gaze_visible() {
         }
         let cams: Vec<_> = (0..frames)
             .map(|_| {
-                keyshape_lab::rig::camera::Camera::from_angles(
-                    30.0,
-                    0.1,
-                    0.05,
-                    0.0,
-                    [320.0, -240.0],
-                )
+                keyshape_rig::camera::Camera::from_angles(30.0, 0.1, 0.05, 0.0, [320.0, -240.0])
             })
             .collect();
         let track = rig.render(&truth, &cams);
@@ -277,7 +271,7 @@ fn iris_points_make_gaze_visible() {
             .map(|&s| {
                 let a: Vec<f64> = r.weights.row(s).iter().copied().collect();
                 let b: Vec<f64> = truth.row(s).iter().copied().collect();
-                keyshape_lab::stats::correlation(&a, &b)
+                keyshape_core::stats::correlation(&a, &b)
             })
             .collect();
         if layout == 478 {
@@ -388,7 +382,7 @@ fn bad_correspondences_and_point_counts_are_refused() {
 /// distance `expressions.csv` gives the dropped eyeballs (eyeLookOut_L 0.2348 cm …).
 #[test]
 fn the_iris_centres_sit_in_their_eyes_and_follow_their_own_gaze_shapes() {
-    use keyshape_lab::rig::correspondence::read_gaze_travel;
+    use keyshape_rig::correspondence::read_gaze_travel;
     let rig = dense(478);
     let travel = read_gaze_travel(&shared("ict_facekit_face/expressions.csv")).unwrap();
     assert_eq!(travel.len(), 8);
@@ -396,7 +390,7 @@ fn the_iris_centres_sit_in_their_eyes_and_follow_their_own_gaze_shapes() {
         travel.contains(&("eyeLookOut_L".to_string(), 0.2348)),
         "{travel:?}"
     );
-    let layout = keyshape_lab::sequence::Layout::mediapipe478();
+    let layout = keyshape_core::sequence::Layout::mediapipe478();
     for (centre, group, side, out) in [(468, "right_eye", "_R", -1.0), (473, "left_eye", "_L", 1.0)]
     {
         let i = rig.points.iter().position(|&p| p == centre).unwrap();
@@ -442,12 +436,12 @@ fn the_iris_centres_sit_in_their_eyes_and_follow_their_own_gaze_shapes() {
 /// a shuffled list draws the same contours between the same points.
 #[test]
 fn a_rigs_contours_follow_its_landmarks_in_any_order() {
-    use keyshape_lab::retarget::setup::polylines_for;
+    use keyshape_retarget::setup::polylines_for;
     let rig68 = dense(68);
     let all: Vec<usize> = (0..68).collect();
     assert_eq!(
         rig68.polylines(),
-        polylines_for(&keyshape_lab::sequence::Layout::ibug68(), &all)
+        polylines_for(&keyshape_core::sequence::Layout::ibug68(), &all)
     );
     let dir = shared("ict_facekit_face");
     let d = tempfile::tempdir().unwrap();
@@ -519,7 +513,7 @@ fn the_automatic_neutral_has_closed_lips_and_resting_brows() {
     assert_eq!(r.code, 0, "{}", r.stderr);
     let v: serde_json::Value = serde_json::from_str(&r.stdout).unwrap();
     let n = v["neutral_frames"][0].as_u64().unwrap() as usize;
-    let seq = keyshape_lab::io::read_sequence(&path, &Default::default()).unwrap();
+    let seq = keyshape_io::read_sequence(&path, &Default::default()).unwrap();
     let at = |p: usize, f: usize| [seq.coords[(2 * p, f)], seq.coords[(2 * p + 1, f)]];
     let dist = |a: [f64; 2], b: [f64; 2]| ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt();
     let iod = |f: usize| dist(at(33, f), at(263, f));

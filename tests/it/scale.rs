@@ -2,10 +2,10 @@
 //! peak memory through the real binary.
 
 use crate::common::shared;
-use keyshape_lab::decompose::{prepare, PrepareOptions};
-use keyshape_lab::io::{read_sequence, ReadOptions};
-use keyshape_lab::keyshapes::{greedy_gram, greedy_ls_feature_space, greedy_subsampled, Analysis};
-use keyshape_lab::solve::Solver;
+use keyshape_core::decompose::{prepare, PrepareOptions};
+use keyshape_core::keyshapes::{greedy_gram, greedy_ls_feature_space, greedy_subsampled, Analysis};
+use keyshape_core::solve::Solver;
+use keyshape_io::{read_sequence, ReadOptions};
 
 fn analysis(file: &str, points: Option<&str>) -> Analysis {
     let seq = read_sequence(&shared(file), &ReadOptions::default()).unwrap();
@@ -212,10 +212,10 @@ fn bench_scale_refuses_what_it_cannot_run_and_generates_one_track_on_request() {
 /// for key frames and for k-means' mean shapes.
 #[test]
 fn blocked_errors_on_long_tracks_equal_the_one_pass_errors() {
-    use keyshape_lab::keyshapes::{Heuristic, KMeans, GRAM_LIMIT};
+    use keyshape_core::keyshapes::{Heuristic, KMeans, GRAM_LIMIT};
     let mut text = Vec::new();
-    keyshape_lab::io::synthetic::write_long_track(&mut text, GRAM_LIMIT + 1500, 68, 3).unwrap();
-    let seq = keyshape_lab::io::parse_sequence(
+    keyshape_io::synthetic::write_long_track(&mut text, GRAM_LIMIT + 1500, 68, 3).unwrap();
+    let seq = keyshape_io::parse_sequence(
         std::path::Path::new("long.csv"),
         std::str::from_utf8(&text).unwrap(),
         &ReadOptions::default(),
@@ -244,7 +244,7 @@ fn blocked_errors_on_long_tracks_equal_the_one_pass_errors() {
             pcs: 2,
             seed: 1,
             mean: true,
-            seeding: keyshape_lab::keyshapes::kmeans::Seeding::LAB,
+            seeding: keyshape_core::keyshapes::kmeans::Seeding::LAB,
         }
         .select(&an, 6)
         .unwrap();

@@ -6,11 +6,11 @@
 // One segment is written `&[0..t]`: a slice holding one range, as the API takes.
 #![allow(clippy::single_range_in_vec_init)]
 
+use keyshape_core::solve::filters::{gaussian_lowpass, PostFilter};
+use keyshape_core::solve::jitter::jitter;
+use keyshape_core::solve::Solver;
+use keyshape_core::stats::lag;
 use keyshape_lab::experiment::smoothing::{at_equal_jitter, SmoothRow};
-use keyshape_lab::solve::filters::{gaussian_lowpass, PostFilter};
-use keyshape_lab::solve::jitter::jitter;
-use keyshape_lab::solve::Solver;
-use keyshape_lab::stats::lag;
 use nalgebra::DMatrix;
 
 fn close(a: &[f64], b: &[f64], tol: f64) {

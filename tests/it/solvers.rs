@@ -2,7 +2,7 @@
 //! invariance under frame permutation, finite weights on duplicate key shapes.
 
 use crate::common::{brute_force, kkt_violation, objective};
-use keyshape_lab::solve::{lstsq, solve_batch, textbook, SolveOptions, Solver};
+use keyshape_core::solve::{lstsq, solve_batch, textbook, SolveOptions, Solver};
 use nalgebra::{DMatrix, DVector};
 use proptest::prelude::*;
 
@@ -192,10 +192,10 @@ fn nan_in_frames_is_an_error_not_nan_weights() {
 
 #[test]
 fn nnls_meets_kkt_on_every_frame_of_a_real_track_including_key_frames() {
-    let seq = keyshape_lab::io::builtin_sequence().unwrap();
-    let prep = keyshape_lab::decompose::prepare(
+    let seq = keyshape_io::builtin_sequence().unwrap();
+    let prep = keyshape_core::decompose::prepare(
         &seq,
-        &keyshape_lab::decompose::PrepareOptions {
+        &keyshape_core::decompose::PrepareOptions {
             points: None,
             align: true,
         },
@@ -339,7 +339,7 @@ proptest! {
         dup in any::<bool>(),
         size in prop::sample::select(vec![1e-10, 1.0, 1e10]),
     ) {
-        use keyshape_lab::solve::jacobi::svd;
+        use keyshape_core::solve::jacobi::svd;
         // Far from unit scale too: the rotations' stopping test must be relative.
         let mut a = DMatrix::from_fn(n, k, |i, j| size * (vals[(i * 7 + j * 13) % vals.len()] + if i == j { 0.5 } else { 0.0 }));
         if dup && k > 1 {
@@ -445,7 +445,7 @@ fn pseudo_inverses_know_rank_condition_and_null_directions() {
 /// counts below, on and across the chunk size (the last chunk partial).
 #[test]
 fn the_batch_normal_equations_equal_the_whole_matrix_solve() {
-    use keyshape_lab::solve::CHUNK;
+    use keyshape_core::solve::CHUNK;
     let s = DMatrix::from_fn(9, 4, |i, j| {
         ((i * 5 + j * 3) % 7) as f64 - 3.0 + if i == j { 4.0 } else { 0.0 }
     });
@@ -554,7 +554,7 @@ fn the_gram_pseudo_inverse_takes_rcond_squared_and_maps_zero_to_zero() {
 /// optimum and the KKT conditions, with some weight at `u`.
 #[test]
 fn the_active_set_solves_a_box_other_than_the_unit_box() {
-    use keyshape_lab::solve::active_set::{solve_frame, Bound, Gram, Workspace};
+    use keyshape_core::solve::active_set::{solve_frame, Bound, Gram, Workspace};
     let s = DMatrix::from_fn(7, 4, |r, c| {
         ((r * 5 + c * 3) as f64 * 0.9).sin() + 0.2 * c as f64
     });
@@ -601,7 +601,7 @@ fn the_active_set_solves_a_box_other_than_the_unit_box() {
 /// every mutant of the fallback's assembly survived, because no test reached it).
 #[test]
 fn a_singular_free_set_is_solved_through_the_ridge() {
-    use keyshape_lab::solve::active_set::{solve_frame, Bound, Gram, Workspace};
+    use keyshape_core::solve::active_set::{solve_frame, Bound, Gram, Workspace};
     let a = DVector::from_vec(vec![1.0, 2.0, 3.0, 4.0, 5.0, 7.0, 2.5]);
     let c = DVector::from_vec(vec![0.5, -1.0, 0.0, 2.0, 1.0, -0.5, 3.0]);
     let s = DMatrix::from_columns(&[a.clone(), a.clone(), c.clone()]);
@@ -638,7 +638,7 @@ fn a_singular_free_set_is_solved_through_the_ridge() {
 /// when p = 4).
 #[test]
 fn the_ridge_reaches_the_last_diagonals_of_a_singular_free_set() {
-    use keyshape_lab::solve::active_set::{solve_frame, Bound, Gram, Workspace};
+    use keyshape_core::solve::active_set::{solve_frame, Bound, Gram, Workspace};
     let a = DVector::from_vec(vec![1.0, 2.0, 3.0, 4.0, 5.0, 7.0, 2.5, -1.0]);
     let c = DVector::from_vec(vec![0.5, -1.0, 0.0, 2.0, 1.0, -0.5, 3.0, 0.0]);
     let d = DVector::from_vec(vec![0.0, 1.0, -2.0, 0.5, 0.0, 1.5, 1.0, 2.0]);

@@ -3,8 +3,8 @@
 //! read as if it were not there). Checked on hand-made edits with exact expectations and on
 //! a file saved by Inkscape 1.2.2 (tests/data/README.md says how it was made).
 
-use keyshape_lab::retarget::svg::{parse_template, read_template};
-use keyshape_lab::retarget::target::TargetSet;
+use keyshape_retarget::svg::{parse_template, read_template};
+use keyshape_retarget::target::TargetSet;
 use std::path::{Path, PathBuf};
 
 fn data(name: &str) -> PathBuf {

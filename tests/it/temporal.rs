@@ -7,8 +7,8 @@
 // One segment is written `&[0..t]`: a slice holding one range, as the API takes.
 #![allow(clippy::single_range_in_vec_init)]
 
-use keyshape_lab::solve::temporal::{segments, solve_smooth, SmoothMode, Smoothing};
-use keyshape_lab::solve::{solve_batch, SolveOptions, Solver};
+use keyshape_core::solve::temporal::{segments, solve_smooth, SmoothMode, Smoothing};
+use keyshape_core::solve::{solve_batch, SolveOptions, Solver};
 use nalgebra::{DMatrix, DVector};
 use proptest::prelude::*;
 
@@ -397,7 +397,7 @@ proptest! {
         ridge in prop::sample::select(vec![1e-12, 0.5]),
         fixed_bits in prop::collection::vec(any::<bool>(), 160),
     ) {
-        use keyshape_lab::solve::temporal::{difference_bands, SegmentSystem};
+        use keyshape_core::solve::temporal::{difference_bands, SegmentSystem};
         let (s, _) = problem(8, k, 2, &seed, false);
         let g = s.transpose() * &s;
         let bands = difference_bands(order, t);
@@ -439,7 +439,7 @@ proptest! {
         weight in prop::sample::select(vec![1.0, 0.5, 3.0]),
         fixed_bits in prop::collection::vec(any::<bool>(), 70),
     ) {
-        use keyshape_lab::solve::temporal::{difference_bands, SegmentSystem};
+        use keyshape_core::solve::temporal::{difference_bands, SegmentSystem};
         let (s, _) = problem(8, k, 2, &seed, false);
         let g = s.transpose() * &s;
         let ridge = 1e-12;
@@ -513,7 +513,7 @@ proptest! {
         bits_a in prop::collection::vec(any::<bool>(), 160),
         changed in prop::collection::vec(0usize..160, 0..6),
     ) {
-        use keyshape_lab::solve::temporal::{difference_bands, SegmentSystem};
+        use keyshape_core::solve::temporal::{difference_bands, SegmentSystem};
         let (s, _) = problem(8, k, 2, &seed, false);
         let g = s.transpose() * &s;
         let bands = difference_bands(order, t);
@@ -555,7 +555,7 @@ proptest! {
 /// do not line up): the result is the fresh one and nothing is copied.
 #[test]
 fn an_incompatible_earlier_factorisation_is_not_reused() {
-    use keyshape_lab::solve::temporal::{difference_bands, SegmentSystem};
+    use keyshape_core::solve::temporal::{difference_bands, SegmentSystem};
     let seed: Vec<f64> = (0..40)
         .map(|i| ((i * 37 % 17) as f64 - 8.0) / 9.0)
         .collect();
@@ -615,7 +615,7 @@ fn an_incompatible_earlier_factorisation_is_not_reused() {
 /// copying stopped at the change for good, and no test counted the rows after it.
 #[test]
 fn reuse_resumes_copying_once_a_changed_mask_has_died_out() {
-    use keyshape_lab::solve::temporal::{difference_bands, SegmentSystem};
+    use keyshape_core::solve::temporal::{difference_bands, SegmentSystem};
     let seed: Vec<f64> = (0..40)
         .map(|i| ((i * 37 % 17) as f64 - 8.0) / 9.0)
         .collect();
@@ -691,15 +691,15 @@ fn segments_find_the_step_of_a_track_that_does_not_start_at_zero() {
 }
 
 /// liveportrait_d6's lips, aligned.
-fn d6_lips() -> keyshape_lab::decompose::Prepared {
-    let seq = keyshape_lab::io::read_sequence(
+fn d6_lips() -> keyshape_core::decompose::Prepared {
+    let seq = keyshape_io::read_sequence(
         &crate::common::shared("mediapipe_face_tracks/liveportrait_d6.csv"),
         &Default::default(),
     )
     .unwrap();
-    keyshape_lab::decompose::prepare(
+    keyshape_core::decompose::prepare(
         &seq,
-        &keyshape_lab::decompose::PrepareOptions {
+        &keyshape_core::decompose::PrepareOptions {
             points: Some("lips".into()),
             align: true,
         },
@@ -711,7 +711,7 @@ fn d6_lips() -> keyshape_lab::decompose::Prepared {
 /// factorised into NaNs (the prior's callers never build one; the guard is for the rest).
 #[test]
 fn an_indefinite_banded_system_is_refused() {
-    use keyshape_lab::solve::temporal::{difference_bands, SegmentSystem};
+    use keyshape_core::solve::temporal::{difference_bands, SegmentSystem};
     // One variable per frame: frame 0's pivot is −1 + 0.1 < 0.
     let g = -DMatrix::<f64>::identity(1, 1);
     let fixed = vec![false; 5];
@@ -746,7 +746,7 @@ proptest! {
         order in 1usize..4,
         fixed_bits in prop::collection::vec(any::<bool>(), 97),
     ) {
-        use keyshape_lab::solve::temporal::{difference_bands, BandedSystem, WINDOW_BLOCK};
+        use keyshape_core::solve::temporal::{difference_bands, BandedSystem, WINDOW_BLOCK};
         let (s, _) = problem(8, k, 2, &seed, false);
         let g = s.transpose() * &s;
         // Order 3 (a third difference, built here: `difference_bands` makes orders 1 and 2)
@@ -792,7 +792,7 @@ proptest! {
 /// A windowed factorisation reports a failed pivot at the frame the whole one does.
 #[test]
 fn a_windowed_factor_refuses_what_the_whole_one_refuses() {
-    use keyshape_lab::solve::temporal::{difference_bands, BandedSystem};
+    use keyshape_core::solve::temporal::{difference_bands, BandedSystem};
     // G = 0 and no ridge: H = λ·DᵀD is singular (constant weights are its null space),
     // and the last pivot of a chain is the one that reaches zero.
     let g = DMatrix::<f64>::zeros(1, 1);
@@ -815,7 +815,7 @@ fn a_windowed_factor_refuses_what_the_whole_one_refuses() {
 /// frame, as a short segment's does.
 #[test]
 fn a_segment_long_enough_to_be_windowed_meets_the_kkt_conditions() {
-    use keyshape_lab::solve::temporal::WINDOW_FRAMES;
+    use keyshape_core::solve::temporal::WINDOW_FRAMES;
     let seed: Vec<f64> = (0..40)
         .map(|i| ((i * 37 % 17) as f64 / 8.5) - 1.0)
         .collect();
@@ -850,7 +850,7 @@ fn a_segment_long_enough_to_be_windowed_meets_the_kkt_conditions() {
 /// nothing fixed every row of frame s ≥ p holds `k(k+1)/2 + (p − 1)k²` values.
 #[test]
 fn a_windowed_factor_holds_one_window_and_its_checkpoints() {
-    use keyshape_lab::solve::temporal::{difference_bands, BandedSystem, WINDOW_BLOCK};
+    use keyshape_core::solve::temporal::{difference_bands, BandedSystem, WINDOW_BLOCK};
     let (k, t) = (3, 3 * WINDOW_BLOCK + 28);
     let g = DMatrix::from_fn(k, k, |i, j| if i == j { 2.0 } else { 0.3 });
     for p in [1usize, 2] {
@@ -885,7 +885,7 @@ fn a_windowed_factor_holds_one_window_and_its_checkpoints() {
 /// the tests compute their own KKT conditions; a point off the optimum must be reported.
 #[test]
 fn the_kkt_residual_is_the_worst_violation_of_a_point_off_the_optimum() {
-    use keyshape_lab::solve::temporal::kkt_residual;
+    use keyshape_core::solve::temporal::kkt_residual;
     let g = DMatrix::from_row_slice(2, 2, &[2.0, 0.5, 0.5, 1.0]);
     let (k, t, lambda) = (2, 4, 0.75);
     let b = [1.0, -2.0, 0.5, 3.0, -1.5, 0.25, 2.0, 1.0];
@@ -1066,7 +1066,7 @@ fn causal_iterations_are_counted_per_frame_and_the_kkt_is_each_frames() {
 /// number of frames but solves one twice and another never) and an empty segment.
 #[test]
 fn segments_that_do_not_cover_the_frames_are_refused() {
-    use keyshape_lab::solve::temporal::smooth_from;
+    use keyshape_core::solve::temporal::smooth_from;
     let (s, q) = one_shape_two_frames([1.0, 1.0]);
     let q = DMatrix::from_fn(2, 4, |i, j| q[(i, j % 2)]);
     let plain = solve_batch(&s, &q, &SolveOptions::new(Solver::Nnls)).unwrap();

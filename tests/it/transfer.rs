@@ -2,13 +2,13 @@
 //! target meshes in ../shared/data.
 
 use crate::common::shared;
-use keyshape_lab::io::obj::{parse_obj, read_obj, write_obj};
-use keyshape_lab::transfer::features::Features;
-use keyshape_lab::transfer::skin::{radii, Skin};
-use keyshape_lab::transfer::Transfer;
+use keyshape_io::obj::{parse_obj, read_obj, write_obj};
+use keyshape_transfer::features::Features;
+use keyshape_transfer::skin::{radii, Skin};
+use keyshape_transfer::Transfer;
 use std::path::Path;
 
-fn ict() -> keyshape_lab::io::obj::Mesh {
+fn ict() -> keyshape_io::obj::Mesh {
     read_obj(&shared("ict_facekit_face/neutral_face.obj")).unwrap()
 }
 
@@ -87,15 +87,15 @@ fn skin_weights_are_nonnegative_sum_to_one_and_far_vertices_stay() {
     assert_eq!(out[far], m.positions[far]);
 }
 
-fn news_transfer(groups: Option<&[String]>) -> (Transfer, keyshape_lab::sequence::Sequence) {
-    let seq = keyshape_lab::io::read_sequence(
+fn news_transfer(groups: Option<&[String]>) -> (Transfer, keyshape_core::sequence::Sequence) {
+    let seq = keyshape_io::read_sequence(
         &shared("pyfeat_samples/news_sample_compact.csv"),
         &Default::default(),
     )
     .unwrap();
-    let prep = keyshape_lab::decompose::prepare(
+    let prep = keyshape_core::decompose::prepare(
         &seq,
-        &keyshape_lab::decompose::PrepareOptions {
+        &keyshape_core::decompose::PrepareOptions {
             points: None,
             align: true,
         },
@@ -250,9 +250,9 @@ fn gltf_export_passes_the_khronos_validator() {
 
 #[test]
 fn the_lab_gets_a_mesh_view_per_frame() {
-    let seq = keyshape_lab::io::builtin_sequence().unwrap();
+    let seq = keyshape_io::builtin_sequence().unwrap();
     let mesh = read_obj(&shared("mediapipe_canonical_face/canonical_face_model.obj")).unwrap();
-    let mv = keyshape_lab::tui::mesh::mesh_view(
+    let mv = kslab_tui::mesh::mesh_view(
         &seq,
         mesh,
         Features::builtin("mediapipe_to_canonical").unwrap(),
@@ -262,11 +262,11 @@ fn the_lab_gets_a_mesh_view_per_frame() {
     assert!(mv.frames.iter().all(|f| f.len() == 468));
     // Each triangle edge once: 898 triangles share edges, so fewer than 3 × 898.
     assert!(mv.edges.len() > 898 && mv.edges.len() < 3 * 898);
-    let mut s = keyshape_lab::tui::State::new("builtin", 216, 30.0);
-    keyshape_lab::tui::update(&mut s, keyshape_lab::tui::Action::Mesh);
+    let mut s = kslab_tui::State::new("builtin", 216, 30.0);
+    kslab_tui::update(&mut s, kslab_tui::Action::Mesh);
     assert!(s.status.contains("--mesh"));
     s.mesh = Some(std::sync::Arc::new(mv));
-    keyshape_lab::tui::update(&mut s, keyshape_lab::tui::Action::Mesh);
+    kslab_tui::update(&mut s, kslab_tui::Action::Mesh);
     assert!(s.show_mesh);
 }
 
@@ -405,24 +405,23 @@ fn painted_weights_override_the_automatic_ones() {
 /// feature displacements, computed here through `Transfer` itself.
 #[test]
 fn person_mismatch_is_the_gap_to_a_transform_trained_on_each_person() {
-    use keyshape_lab::transfer::{features::Features, person_mismatch, Transfer};
-    let raw = keyshape_lab::io::read_sequence(
+    use keyshape_transfer::{features::Features, person_mismatch, Transfer};
+    let raw = keyshape_io::read_sequence(
         &shared("pyfeat_samples/news_sample_compact.csv"),
         &Default::default(),
     )
     .unwrap();
     // Aligned, as `kslab transfer` prepares it.
-    let seq = keyshape_lab::decompose::prepare(
+    let seq = keyshape_core::decompose::prepare(
         &raw,
-        &keyshape_lab::decompose::PrepareOptions {
+        &keyshape_core::decompose::PrepareOptions {
             points: None,
             align: true,
         },
     )
     .unwrap()
     .seq;
-    let mesh =
-        keyshape_lab::io::obj::read_obj(&shared("ict_facekit_face/neutral_face.obj")).unwrap();
+    let mesh = keyshape_io::obj::read_obj(&shared("ict_facekit_face/neutral_face.obj")).unwrap();
     let features = Features::choose("builtin", Some("ibug68"), 68, mesh.positions.len()).unwrap();
     let seg = seq.segments.clone().unwrap();
     let tr = Transfer::new(
@@ -497,7 +496,7 @@ fn all_frames_deforms_every_frame_as_frame_does() {
 /// `||`, passed.
 #[test]
 fn a_misfit_correspondence_names_the_built_in_that_fits_all_three() {
-    use keyshape_lab::transfer::features::Features;
+    use keyshape_transfer::features::Features;
     let all: Vec<(&str, Features)> = Features::BUILTIN
         .iter()
         .map(|b| (*b, Features::builtin(b).unwrap()))

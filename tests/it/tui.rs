@@ -1,10 +1,10 @@
 //! The lab: pure update, screens on ratatui's TestBackend (text snapshots), the generic loop
 //! driven by scripted keys, and the real binary in tmux.
 
-use keyshape_lab::io::builtin_sequence;
-use keyshape_lab::tui::compute::Engine;
-use keyshape_lab::tui::state::{Prompt, Settings};
-use keyshape_lab::tui::{update, view, Action, Effect, Events, State};
+use keyshape_io::builtin_sequence;
+use kslab_tui::compute::Engine;
+use kslab_tui::state::{Prompt, Settings};
+use kslab_tui::{update, view, Action, Effect, Events, State};
 use ratatui::backend::TestBackend;
 use ratatui::Terminal;
 use std::path::Path;
@@ -195,13 +195,13 @@ fn the_generic_loop_runs_on_a_test_backend_with_scripted_keys() {
     );
     let seq = builtin_sequence().unwrap();
     let mut s = State::new(&seq.source, seq.n_frames(), 30.0);
-    let (jobs, results) = keyshape_lab::tui::compute::spawn(seq, None);
+    let (jobs, results) = kslab_tui::compute::spawn(seq, None);
     let mut t = Terminal::new(TestBackend::new(100, 30)).unwrap();
-    keyshape_lab::tui::run_loop(&mut t, &mut script, &mut s, &jobs, &results, "builtin").unwrap();
+    kslab_tui::run_loop(&mut t, &mut script, &mut s, &jobs, &results, "builtin").unwrap();
     assert!(s.quit);
     assert_eq!(s.frame, 2);
     assert_eq!(s.settings.k, 13);
-    assert_eq!(s.settings.solver, keyshape_lab::solve::Solver::Ls);
+    assert_eq!(s.settings.solver, keyshape_core::solve::Solver::Ls);
 }
 
 /// The real binary in tmux: start, step, change k, toggle solver, quit.
@@ -347,8 +347,8 @@ fn clicking_the_error_chart_picks_the_nearest_method_and_k() {
 /// answered (issue 11 item 14: a dead worker left "computing…" spinning forever).
 #[test]
 fn a_panicking_job_does_not_kill_the_worker() {
-    use keyshape_lab::tui::compute::{spawn, Job};
-    use keyshape_lab::tui::state::Action;
+    use kslab_tui::compute::{spawn, Job};
+    use kslab_tui::state::Action;
     use std::time::Duration;
     let seq = builtin_sequence().unwrap();
     let (jobs, results) = spawn(seq, None);
@@ -388,9 +388,9 @@ fn export_applies_head_motion_or_not_and_names_mean_keys() {
     let dir = tempfile::tempdir().unwrap();
     let read =
         |sub: &str| std::fs::read_to_string(dir.path().join(sub).join("weights.csv")).unwrap();
-    keyshape_lab::tui::export::export(&s, "builtin", &dir.path().join("apply")).unwrap();
+    kslab_tui::export::export(&s, "builtin", &dir.path().join("apply")).unwrap();
     s.export_head_motion = false;
-    keyshape_lab::tui::export::export(&s, "builtin", &dir.path().join("none")).unwrap();
+    kslab_tui::export::export(&s, "builtin", &dir.path().join("none")).unwrap();
     let (a, n) = (read("apply"), read("none"));
     assert!(a
         .lines()
@@ -417,12 +417,12 @@ fn export_applies_head_motion_or_not_and_names_mean_keys() {
     );
     // kmeans2-mean: weights belong to cluster means, not to frames.
     let m = Settings {
-        method: keyshape_lab::keyshapes::Method::parse("kmeans2-mean").unwrap(),
+        method: keyshape_core::keyshapes::Method::parse("kmeans2-mean").unwrap(),
         ..Settings::default()
     };
     s.computed = Some(engine.compute(2, &m).unwrap());
     s.settings = m;
-    keyshape_lab::tui::export::export(&s, "builtin", &dir.path().join("mean")).unwrap();
+    kslab_tui::export::export(&s, "builtin", &dir.path().join("mean")).unwrap();
     let header = read("mean").lines().next().unwrap().to_string();
     assert!(
         header.contains(",w_mean0,") && !header.contains(",w_1"),
@@ -442,7 +442,7 @@ fn export_applies_head_motion_or_not_and_names_mean_keys() {
 // One segment is written `&[0..t]`: a slice holding one range, as the API takes.
 #[allow(clippy::single_range_in_vec_init)]
 fn the_lambda_knob_smooths_the_weights_and_the_export_reproduces_them() {
-    use keyshape_lab::tui::state::SMOOTH_STEPS;
+    use kslab_tui::state::SMOOTH_STEPS;
     let mut s = state();
     s.start();
     assert!(
@@ -485,23 +485,23 @@ fn the_lambda_knob_smooths_the_weights_and_the_export_reproduces_them() {
     );
     assert!(q.source_rms > p.source_rms);
     // The same keys through the library's smoothed solve.
-    let prep = keyshape_lab::decompose::prepare(
+    let prep = keyshape_core::decompose::prepare(
         &builtin_sequence().unwrap(),
-        &keyshape_lab::decompose::PrepareOptions {
+        &keyshape_core::decompose::PrepareOptions {
             points: Some("lips".into()),
             align: true,
         },
     )
     .unwrap();
     let sk = prep.seq.coords.select_columns(&smooth.keys);
-    let r = keyshape_lab::solve::temporal::solve_smooth(
+    let r = keyshape_core::solve::temporal::solve_smooth(
         &sk,
         &prep.seq.coords,
-        keyshape_lab::solve::Solver::Nnls,
-        &keyshape_lab::solve::temporal::Smoothing {
+        keyshape_core::solve::Solver::Nnls,
+        &keyshape_core::solve::temporal::Smoothing {
             lambda: 1e4,
             order: 1,
-            mode: keyshape_lab::solve::temporal::SmoothMode::Offline,
+            mode: keyshape_core::solve::temporal::SmoothMode::Offline,
         },
         &[0..prep.seq.coords.ncols()],
     )
@@ -522,7 +522,7 @@ fn the_lambda_knob_smooths_the_weights_and_the_export_reproduces_them() {
         assert!(head.contains(part), "{part} not in {head:?}");
     }
     let dir = tempfile::tempdir().unwrap();
-    keyshape_lab::tui::export::export(&t, "builtin", dir.path()).unwrap();
+    kslab_tui::export::export(&t, "builtin", dir.path()).unwrap();
     let out = dir.path().join("run");
     let o = std::process::Command::new(env!("CARGO_BIN_EXE_kslab"))
         .args(["run", dir.path().join("experiment.toml").to_str().unwrap()])
@@ -568,7 +568,7 @@ fn keys_that_do_not_apply_say_why_and_the_hull_shows_its_k() {
     for a in [
         Action::Method(true),
         Action::K(1),
-        Action::Pick(keyshape_lab::keyshapes::Method::Random, 5),
+        Action::Pick(keyshape_core::keyshapes::Method::Random, 5),
     ] {
         s.status.clear();
         assert!(update(&mut s, a).is_empty());
@@ -576,7 +576,7 @@ fn keys_that_do_not_apply_say_why_and_the_hull_shows_its_k() {
     }
     assert_eq!(s.settings, Settings::default());
     let hull = Settings {
-        method: keyshape_lab::keyshapes::Method::Hull,
+        method: keyshape_core::keyshapes::Method::Hull,
         ..Settings::default()
     };
     let mut h = computed_state(hull.clone());
@@ -600,10 +600,9 @@ fn keys_that_do_not_apply_say_why_and_the_hull_shows_its_k() {
 /// `r` says how to get one.
 #[test]
 fn the_rig_view_names_the_largest_weights_and_r_toggles_it() {
-    let rig = keyshape_lab::rig::correspondence::RigSource::new(crate::common::shared(
-        "ict_facekit_face",
-    ));
-    let view = keyshape_lab::tui::rig::rig_view(&builtin_sequence().unwrap(), &rig).unwrap();
+    let rig =
+        keyshape_rig::correspondence::RigSource::new(crate::common::shared("ict_facekit_face"));
+    let view = kslab_tui::rig::rig_view(&builtin_sequence().unwrap(), &rig).unwrap();
     let mut s = computed_state(Settings::default());
     update(&mut s, Action::Rig);
     assert!(s.status.contains("open the lab with --rig"), "{}", s.status);
@@ -656,7 +655,7 @@ fn the_rig_view_names_the_largest_weights_and_r_toggles_it() {
 #[test]
 fn a_space_in_the_open_prompt_is_part_of_the_path() {
     use crossterm::event::{KeyCode, KeyEvent, KeyModifiers};
-    use keyshape_lab::tui::interpret;
+    use kslab_tui::interpret;
     let mut s = State::new("builtin", 216, 30.0);
     let key = |c: KeyCode| KeyEvent::new(c, KeyModifiers::NONE);
     // Outside a prompt, space plays.
@@ -682,8 +681,8 @@ fn a_space_in_the_open_prompt_is_part_of_the_path() {
 /// (issue 41, item 8: the rig was forgotten), and a track the rig cannot take says why.
 #[test]
 fn the_rig_stays_with_the_lab_when_another_sequence_is_opened() {
-    use keyshape_lab::tui::compute::{spawn_with_rig, Job};
-    let rig = std::sync::Arc::new(keyshape_lab::rig::correspondence::RigSource::new(
+    use kslab_tui::compute::{spawn_with_rig, Job};
+    let rig = std::sync::Arc::new(keyshape_rig::correspondence::RigSource::new(
         crate::common::shared("ict_facekit_face"),
     ));
     let (jobs, results) = spawn_with_rig(builtin_sequence().unwrap(), None, Some(rig));
@@ -725,12 +724,12 @@ fn the_rig_stays_with_the_lab_when_another_sequence_is_opened() {
 /// which prior it shows; an older request's rig is dropped.
 #[test]
 fn l_solves_the_rig_view_again_with_the_offline_prior() {
-    use keyshape_lab::tui::compute::{spawn_with_rig, Job};
-    let rig = std::sync::Arc::new(keyshape_lab::rig::correspondence::RigSource::new(
+    use kslab_tui::compute::{spawn_with_rig, Job};
+    let rig = std::sync::Arc::new(keyshape_rig::correspondence::RigSource::new(
         crate::common::shared("ict_facekit_face"),
     ));
     let (jobs, results) = spawn_with_rig(builtin_sequence().unwrap(), None, Some(rig.clone()));
-    let plain = keyshape_lab::tui::rig::rig_view(&builtin_sequence().unwrap(), &rig).unwrap();
+    let plain = kslab_tui::rig::rig_view(&builtin_sequence().unwrap(), &rig).unwrap();
     let mut s = State::new("builtin", 216, 30.0);
     s.rig = Some(std::sync::Arc::new(plain.clone()));
     s.show_rig = true;
@@ -758,9 +757,9 @@ fn l_solves_the_rig_view_again_with_the_offline_prior() {
             }
         }
     };
-    let jitter = |r: &keyshape_lab::tui::rig::RigView| {
+    let jitter = |r: &kslab_tui::rig::RigView| {
         let w = nalgebra::DMatrix::from_fn(r.names.len(), r.weights.len(), |i, f| r.weights[f][i]);
-        keyshape_lab::solve::jitter::weight_jitter(&w, std::slice::from_ref(&(0..r.weights.len())))
+        keyshape_core::solve::jitter::weight_jitter(&w, std::slice::from_ref(&(0..r.weights.len())))
     };
     let (_, v100) = solve_at(&mut s, 3);
     assert_eq!(v100.smooth, 100.0);

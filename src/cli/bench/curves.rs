@@ -4,11 +4,11 @@
 use super::nnls::short;
 use anyhow::Result;
 use clap::Args;
-use keyshape_lab::decompose::{prepare, PrepareOptions};
-use keyshape_lab::io::{builtin_sequence, read_sequence, ReadOptions};
-use keyshape_lab::keyshapes::curves::sweep;
-use keyshape_lab::keyshapes::{Analysis, KeyOptions, Method};
-use keyshape_lab::solve::{textbook, Solver};
+use keyshape_core::decompose::{prepare, PrepareOptions};
+use keyshape_core::keyshapes::curves::sweep;
+use keyshape_core::keyshapes::{Analysis, KeyOptions, Method};
+use keyshape_core::solve::{textbook, Solver};
+use keyshape_io::{builtin_sequence, read_sequence, ReadOptions};
 use rayon::prelude::*;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -42,7 +42,7 @@ fn textbook_error(an: &Analysis, keys: &[usize]) -> f64 {
 
 pub fn run(a: &CurvesBenchArgs) -> Result<()> {
     let t0 = Instant::now();
-    let default = keyshape_lab::io::shared_data("mediapipe_face_tracks/liveportrait_d6.csv")
+    let default = keyshape_io::shared_data("mediapipe_face_tracks/liveportrait_d6.csv")
         .unwrap_or_else(|_| PathBuf::from("builtin"));
     let seq = match (&a.file, default.exists()) {
         (Some(f), _) => read_sequence(f, &ReadOptions::default())?,

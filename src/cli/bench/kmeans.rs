@@ -5,11 +5,11 @@
 use super::nnls::short;
 use anyhow::{bail, Result};
 use clap::Args;
-use keyshape_lab::decompose::{prepare, PrepareOptions};
-use keyshape_lab::io::{read_sequence, shared_data, ReadOptions};
-use keyshape_lab::keyshapes::kmeans::{KMeans, Seeding};
-use keyshape_lab::keyshapes::{Analysis, Heuristic};
-use keyshape_lab::solve::Solver;
+use keyshape_core::decompose::{prepare, PrepareOptions};
+use keyshape_core::keyshapes::kmeans::{KMeans, Seeding};
+use keyshape_core::keyshapes::{Analysis, Heuristic};
+use keyshape_core::solve::Solver;
+use keyshape_io::{read_sequence, shared_data, ReadOptions};
 use std::path::PathBuf;
 use std::time::Instant;
 

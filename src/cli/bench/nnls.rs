@@ -3,10 +3,10 @@
 
 use anyhow::Result;
 use clap::Args;
-use keyshape_lab::decompose::{prepare, PrepareOptions};
-use keyshape_lab::io::{read_sequence, ReadOptions};
-use keyshape_lab::sequence::Sequence;
-use keyshape_lab::solve::{lstsq, solve_batch, textbook, SolveOptions, Solver};
+use keyshape_core::decompose::{prepare, PrepareOptions};
+use keyshape_core::sequence::Sequence;
+use keyshape_core::solve::{lstsq, solve_batch, textbook, SolveOptions, Solver};
+use keyshape_io::{read_sequence, ReadOptions};
 use nalgebra::DMatrix;
 use rayon::prelude::*;
 use std::path::PathBuf;
@@ -37,8 +37,8 @@ fn inputs(a: &NnlsArgs) -> Result<Vec<Sequence>> {
             .map(|f| Ok(read_sequence(f, &ReadOptions::default())?))
             .collect();
     }
-    let mut v = vec![keyshape_lab::io::builtin_sequence()?];
-    match keyshape_lab::io::shared_data("pyfeat_samples/news_sample_compact.csv") {
+    let mut v = vec![keyshape_io::builtin_sequence()?];
+    match keyshape_io::shared_data("pyfeat_samples/news_sample_compact.csv") {
         Ok(news) => v.push(read_sequence(&news, &ReadOptions::default())?),
         Err(e) => eprintln!("note: {e}; 68-point case skipped"),
     }

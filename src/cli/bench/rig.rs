@@ -4,9 +4,9 @@
 
 use anyhow::Result;
 use clap::Args;
-use keyshape_lab::io::{read_sequence, shared_data, ReadOptions};
-use keyshape_lab::rig::{solve_rig, Identity, Neutral, Rig, RigOptions};
-use keyshape_lab::solve::Solver;
+use keyshape_core::solve::Solver;
+use keyshape_io::{read_sequence, shared_data, ReadOptions};
+use keyshape_rig::{solve_rig, Identity, Neutral, Rig, RigOptions};
 use nalgebra::DMatrix;
 use std::time::Instant;
 
@@ -59,7 +59,7 @@ pub fn run(a: &RigBenchArgs) -> Result<()> {
             identity,
             ..Default::default()
         };
-        let time = |opts: &RigOptions| -> Result<(f64, keyshape_lab::rig::RigSolve)> {
+        let time = |opts: &RigOptions| -> Result<(f64, keyshape_rig::RigSolve)> {
             let mut best = f64::INFINITY;
             let mut last = None;
             for _ in 0..a.repeats.max(1) {

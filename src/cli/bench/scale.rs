@@ -1,5 +1,5 @@
 //! `kslab bench scale` (issue 17): wall time and peak memory of whole subcommands on long
-//! generated tracks (`keyshape_lab::io::synthetic`), each run as its own process so
+//! generated tracks (`keyshape_io::synthetic`), each run as its own process so
 //! its peak resident set is its own.
 
 use anyhow::{bail, Context, Result};
@@ -163,7 +163,7 @@ pub fn run(a: &ScaleArgs) -> Result<()> {
                         "transfer".into(),
                         t.clone(),
                         "--mesh".into(),
-                        keyshape_lab::io::shared_data(mesh)?.display().to_string(),
+                        keyshape_io::shared_data(mesh)?.display().to_string(),
                         "--features".into(),
                         features.into(),
                         "--json".into(),
@@ -225,9 +225,9 @@ pub fn run(a: &ScaleArgs) -> Result<()> {
 }
 
 fn generate(path: &Path, frames: usize, points: usize, seed: u64) -> Result<()> {
-    keyshape_lab::io::write_atomic(path, |w| {
+    keyshape_io::write_atomic(path, |w| {
         let mut w = std::io::BufWriter::new(w);
-        keyshape_lab::io::synthetic::write_long_track(&mut w, frames, points, seed)
+        keyshape_io::synthetic::write_long_track(&mut w, frames, points, seed)
             .map_err(std::io::Error::other)?;
         std::io::Write::flush(&mut w)
     })?;
@@ -273,6 +273,7 @@ fn measure(
 
 /// Waits for `child`; whether it succeeded and its peak resident set in bytes.
 #[cfg(unix)]
+#[allow(unsafe_code)] // two libc calls, each under its SAFETY comment
 fn wait_with_peak(child: std::process::Child) -> Result<(bool, Option<u64>)> {
     let pid = child.id() as libc::pid_t;
     let mut status: libc::c_int = 0;

@@ -4,10 +4,10 @@
 use super::nnls::{tile, time};
 use anyhow::{Context, Result};
 use clap::Args;
-use keyshape_lab::decompose::{prepare, PrepareOptions};
-use keyshape_lab::io::{read_sequence, ReadOptions};
-use keyshape_lab::solve::temporal::{smooth_from, SmoothMode, Smoothing};
-use keyshape_lab::solve::{solve_batch, SolveOptions, Solver};
+use keyshape_core::decompose::{prepare, PrepareOptions};
+use keyshape_core::solve::temporal::{smooth_from, SmoothMode, Smoothing};
+use keyshape_core::solve::{solve_batch, SolveOptions, Solver};
+use keyshape_io::{read_sequence, ReadOptions};
 use std::path::PathBuf;
 
 /// Arguments of `kslab bench smooth`.
@@ -37,7 +37,7 @@ fn peak_mb() -> Option<f64> {
 pub fn run(a: &SmoothBenchArgs) -> Result<()> {
     let path = match &a.file {
         Some(p) => p.clone(),
-        None => keyshape_lab::io::shared_data("pyfeat_samples/news_sample_compact.csv")?,
+        None => keyshape_io::shared_data("pyfeat_samples/news_sample_compact.csv")?,
     };
     let seq = read_sequence(&path, &ReadOptions::default())?;
     let prep = prepare(

@@ -2,11 +2,11 @@
 
 use anyhow::Result;
 use clap::Args;
-use keyshape_lab::decompose::{prepare, PrepareOptions};
-use keyshape_lab::io::obj::read_obj;
-use keyshape_lab::io::{read_sequence, ReadOptions};
-use keyshape_lab::transfer::features::Features;
-use keyshape_lab::transfer::Transfer;
+use keyshape_core::decompose::{prepare, PrepareOptions};
+use keyshape_io::obj::read_obj;
+use keyshape_io::{read_sequence, ReadOptions};
+use keyshape_transfer::features::Features;
+use keyshape_transfer::Transfer;
 use std::time::Instant;
 
 /// Arguments of `kslab bench transfer`.
@@ -19,7 +19,7 @@ pub struct TransferBenchArgs {
 
 pub fn run(a: &TransferBenchArgs) -> Result<()> {
     let seq = read_sequence(
-        &keyshape_lab::io::shared_data("pyfeat_samples/news_sample_compact.csv")?,
+        &keyshape_io::shared_data("pyfeat_samples/news_sample_compact.csv")?,
         &ReadOptions::default(),
     )?;
     let prep = prepare(
@@ -29,7 +29,7 @@ pub fn run(a: &TransferBenchArgs) -> Result<()> {
             align: true,
         },
     )?;
-    let mesh = read_obj(&keyshape_lab::io::shared_data(
+    let mesh = read_obj(&keyshape_io::shared_data(
         "ict_facekit_face/neutral_face.obj",
     )?)?;
     let (nv, nfaces) = (mesh.positions.len(), mesh.faces.len());

@@ -2,9 +2,9 @@
 
 use anyhow::Result;
 use clap::Args;
-use keyshape_lab::tui::compute::Engine;
-use keyshape_lab::tui::state::Settings;
-use keyshape_lab::tui::{update, view, Action, State};
+use kslab_tui::compute::Engine;
+use kslab_tui::state::Settings;
+use kslab_tui::{update, view, Action, State};
 use ratatui::backend::TestBackend;
 use ratatui::Terminal;
 use std::path::PathBuf;
@@ -22,7 +22,7 @@ pub struct TuiBenchArgs {
 }
 
 pub fn run(a: &TuiBenchArgs) -> Result<()> {
-    let default = keyshape_lab::io::shared_data("mediapipe_face_tracks/liveportrait_d6.csv")
+    let default = keyshape_io::shared_data("mediapipe_face_tracks/liveportrait_d6.csv")
         .unwrap_or_else(|_| PathBuf::from("builtin"));
     let path = a.file.clone().unwrap_or_else(|| {
         if default.exists() {
@@ -31,7 +31,7 @@ pub fn run(a: &TuiBenchArgs) -> Result<()> {
             PathBuf::from("builtin")
         }
     });
-    let seq = keyshape_lab::tui::compute::load(&path.display().to_string())?;
+    let seq = kslab_tui::compute::load(&path.display().to_string())?;
     let (frames, points) = (seq.n_frames(), seq.points);
     let mut engine = Engine::new(seq);
     let mut s = State::new(&path.display().to_string(), frames, 30.0);

@@ -1,0 +1,357 @@
+//! Plot descriptions as plain data: what to draw, not how. The PNG renderer
+//! ([`crate::render`]) and the terminal chart both draw from a [`PlotSpec`].
+
+use keyshape_core::keyshapes::curves::CurveRow;
+
+/// How a series is drawn.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Style {
+    /// A solid polyline with small markers.
+    Line,
+    /// A dashed polyline with small markers.
+    Dashed,
+    /// Markers only (a single large dot for one point, like the paper's hull).
+    Marker,
+    /// A shaded interval: the points run along its upper edge and back along its lower
+    /// edge, and the closed polygon is filled lightly in the colour. Not in the legend.
+    Band,
+    /// A thin polyline without markers, one of many (one per person, say). Not in the
+    /// legend.
+    Thin,
+}
+
+/// One named series.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Series {
+    /// Legend label.
+    pub name: String,
+    /// (x, y) points in drawing order.
+    pub points: Vec<(f64, f64)>,
+    /// Line style.
+    pub style: Style,
+    /// RGB colour.
+    pub color: [u8; 3],
+}
+
+/// A 2-D line plot.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlotSpec {
+    /// Title above the plot.
+    pub title: String,
+    /// x-axis title.
+    pub x_label: String,
+    /// y-axis title.
+    pub y_label: String,
+    /// The series, drawn in order; the legend lists them in order.
+    pub series: Vec<Series>,
+    /// Start the y axis at zero.
+    pub y_from_zero: bool,
+    /// Extend the y axis to at least this value (to share an axis between panels).
+    pub y_at_least: Option<f64>,
+}
+
+impl PlotSpec {
+    /// Data bounds over all series: ((xmin, xmax), (ymin, ymax)).
+    pub fn bounds(&self) -> Option<((f64, f64), (f64, f64))> {
+        let pts = self
+            .series
+            .iter()
+            .flat_map(|s| s.points.iter())
+            .filter(|p| p.0.is_finite() && p.1.is_finite());
+        let mut b: Option<((f64, f64), (f64, f64))> = None;
+        for &(x, y) in pts {
+            b = Some(match b {
+                None => ((x, x), (y, y)),
+                Some(((x0, x1), (y0, y1))) => ((x0.min(x), x1.max(x)), (y0.min(y), y1.max(y))),
+            });
+        }
+        b.map(|(x, (y0, y1))| {
+            let y1 = self.y_at_least.map_or(y1, |m| y1.max(m));
+            (x, (if self.y_from_zero { y0.min(0.0) } else { y0 }, y1))
+        })
+    }
+
+    /// The y axis is logarithmic when the data (all positive) span two decades or more, as
+    /// LS error curves do: on a linear axis everything past the first few k sits on the
+    /// floor. Then the axis runs over the data, not from zero.
+    pub fn log_y(&self) -> bool {
+        let ys = self
+            .series
+            .iter()
+            .flat_map(|s| s.points.iter())
+            .map(|p| p.1)
+            .filter(|y| y.is_finite());
+        let (lo, hi) = ys.fold((f64::INFINITY, 0.0f64), |(a, b), y| (a.min(y), b.max(y)));
+        let hi = self.y_at_least.map_or(hi, |m| hi.max(m));
+        lo > 0.0 && lo.is_finite() && hi / lo >= 100.0
+    }
+}
+
+/// Colour and style of each key-shape method, after paper 000 Fig. 6 (spread solid blue,
+/// k-means dashed green / magenta, hull a red dot) plus ours; the k-means centre-of-mass
+/// variants (`kmeansN-mean`) solid in a darker shade of their k-means colour.
+pub fn method_style(method: &str) -> ([u8; 3], Style) {
+    match method {
+        "spread" => ([31, 90, 200], Style::Line),
+        "kmeans2" => ([30, 150, 60], Style::Dashed),
+        "kmeans3" => ([190, 40, 190], Style::Dashed),
+        "kmeans2-mean" => ([10, 90, 30], Style::Line),
+        "kmeans3-mean" => ([110, 20, 120], Style::Line),
+        "hull" => ([220, 30, 30], Style::Marker),
+        "greedy" => ([20, 20, 20], Style::Line),
+        "random" => ([150, 150, 150], Style::Dashed),
+        _ => ([230, 140, 20], Style::Dashed),
+    }
+}
+
+/// The error-curve plot (per-point RMS against k) for one solver's rows.
+pub fn curves_plot(rows: &[CurveRow], solver: &str, title: &str, units: &str) -> PlotSpec {
+    let mut methods: Vec<&str> = Vec::new();
+    for r in rows.iter().filter(|r| r.solver == solver) {
+        if !methods.contains(&r.method.as_str()) {
+            methods.push(&r.method);
+        }
+    }
+    let series = methods
+        .iter()
+        .map(|m| {
+            let (color, style) = method_style(m);
+            let mut points: Vec<(f64, f64)> = rows
+                .iter()
+                .filter(|r| r.solver == solver && r.method == *m)
+                .map(|r| (r.k as f64, r.rms))
+                .collect();
+            points.sort_by(|a, b| a.0.total_cmp(&b.0));
+            let style = if points.len() == 1 {
+                Style::Marker
+            } else {
+                style
+            };
+            Series {
+                name: m.to_string(),
+                points,
+                style,
+                color,
+            }
+        })
+        .collect();
+    PlotSpec {
+        title: title.to_string(),
+        x_label: "number of key shapes k".into(),
+        y_label: format!("RMS error per point ({units}), {solver}"),
+        series,
+        y_from_zero: true,
+        y_at_least: None,
+    }
+}
+
+/// Colour and style of each smoothing approach.
+pub fn approach_style(approach: &str) -> ([u8; 3], Style) {
+    match approach {
+        "none" => ([20, 20, 20], Style::Marker),
+        "prior offline order 1" => ([31, 90, 200], Style::Line),
+        // Cyan, not a second blue beside order 1's.
+        "prior offline order 2" => ([0, 190, 200], Style::Line),
+        "prior causal order 1" => ([110, 20, 120], Style::Line),
+        "moving-average" => ([30, 150, 60], Style::Dashed),
+        "ema" => ([230, 140, 20], Style::Dashed),
+        a if a.starts_with("one-euro") => {
+            // One colour per beta band.
+            let beta: f64 = a
+                .rsplit(' ')
+                .next()
+                .and_then(|b| b.parse().ok())
+                .unwrap_or(0.0);
+            let colour = if beta < 0.1 {
+                [220, 30, 30]
+            } else if beta < 1.0 {
+                // Olive, not a second red beside beta < 0.1's.
+                [150, 150, 0]
+            } else {
+                [230, 60, 160]
+            };
+            (colour, Style::Dashed)
+        }
+        _ => ([150, 150, 150], Style::Dashed),
+    }
+}
+
+/// The jitter-against-error trade-off of the smoothing study: one series per approach,
+/// x the target jitter, y the target error against the clean reference (`clean`) or
+/// against the warp of the tracked points.
+pub fn smoothing_plot(
+    rows: &[crate::experiment::smoothing::SmoothRow],
+    title: &str,
+    clean: bool,
+) -> PlotSpec {
+    let mut names: Vec<&str> = Vec::new();
+    for r in rows {
+        if !names.contains(&r.approach.as_str()) {
+            names.push(&r.approach);
+        }
+    }
+    // Nothing jitters more than no smoothing and is better for it: a setting past the
+    // unsmoothed jitter (One Euro at a high β) is cut at 5 % beyond it, so it does not
+    // squash the band where the approaches compete; its legend says how far it went.
+    let x_cap = rows
+        .iter()
+        .find(|r| r.approach == "none")
+        .map_or(f64::INFINITY, |r| 1.05 * r.jitter_target);
+    let series = names
+        .iter()
+        .map(|n| {
+            let (color, style) = approach_style(n);
+            // Every curve starts at no smoothing, then its settings in their order (weakest
+            // first), not sorted by jitter: a filter whose jitter does not fall with
+            // strength shows it.
+            let start = rows
+                .iter()
+                .find(|r| r.approach == "none")
+                .filter(|_| *n != "none");
+            let points: Vec<(f64, f64)> = start
+                .into_iter()
+                .chain(rows.iter().filter(|r| r.approach == *n))
+                .map(|r| {
+                    let y = if clean {
+                        r.target_rms_clean
+                    } else {
+                        r.target_rms_tracked
+                    };
+                    (r.jitter_target, y)
+                })
+                .collect();
+            let (points, left) = cut_at_x(points, x_cap);
+            Series {
+                name: match left {
+                    Some(top) => format!("{n} (off right: jitter to {top:.2})"),
+                    None => n.to_string(),
+                },
+                points,
+                style,
+                color,
+            }
+        })
+        .collect();
+    PlotSpec {
+        title: title.to_string(),
+        x_label: "jitter of the retargeted points: RMS second difference (px/frame²)".into(),
+        y_label: if clean {
+            "target RMS error vs the clean reference G(low-passed q) (px)".into()
+        } else {
+            "target RMS error vs the tracked reference G(q) (px)".into()
+        },
+        series,
+        y_from_zero: true,
+        y_at_least: None,
+    }
+}
+
+/// A polyline cut where it first passes `x = cap` (the crossing kept, interpolated), and the
+/// largest x it reached beyond the cap, if it passed it.
+pub fn cut_at_x(points: Vec<(f64, f64)>, cap: f64) -> (Vec<(f64, f64)>, Option<f64>) {
+    let Some(i) = points.iter().position(|p| p.0 > cap) else {
+        return (points, None);
+    };
+    let top = points[i..]
+        .iter()
+        .map(|p| p.0)
+        .fold(f64::NEG_INFINITY, f64::max);
+    let mut kept = points[..i].to_vec();
+    if let Some(&(x0, y0)) = kept.last() {
+        let (x1, y1) = points[i];
+        let u = (cap - x0) / (x1 - x0);
+        kept.push((cap, y0 + u * (y1 - y0)));
+    }
+    (kept, Some(top))
+}
+
+/// One method's mean curve across a corpus with its 95 % interval: `(k, mean, lo, hi)`.
+pub type IntervalCurve = (String, Vec<(f64, f64, f64, f64)>);
+
+/// Mean curves across a corpus, each over its shaded 95 % interval (bands first, so no band
+/// hides a line).
+pub fn interval_plot(
+    curves: &[IntervalCurve],
+    title: &str,
+    x_label: &str,
+    y_label: &str,
+) -> PlotSpec {
+    let mut bands = Vec::new();
+    let mut lines = Vec::new();
+    for (name, pts) in curves {
+        let (color, style) = method_style(name);
+        let mut pts = pts.clone();
+        pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let mut edge: Vec<(f64, f64)> = pts.iter().map(|p| (p.0, p.3)).collect();
+        edge.extend(pts.iter().rev().map(|p| (p.0, p.2)));
+        bands.push(Series {
+            name: format!("{name} 95 %"),
+            points: edge,
+            style: Style::Band,
+            color,
+        });
+        lines.push(Series {
+            name: name.clone(),
+            points: pts.iter().map(|p| (p.0, p.1)).collect(),
+            style: if pts.len() == 1 { Style::Marker } else { style },
+            color,
+        });
+    }
+    bands.extend(lines);
+    PlotSpec {
+        title: title.to_string(),
+        x_label: x_label.to_string(),
+        y_label: y_label.to_string(),
+        series: bands,
+        y_from_zero: true,
+        y_at_least: None,
+    }
+}
+
+#[cfg(test)]
+mod cut_tests {
+    use super::cut_at_x;
+
+    /// A curve that runs past the cap stops at the crossing; one that does not is whole.
+    #[test]
+    fn a_curve_is_cut_where_it_first_passes_the_cap() {
+        let (kept, top) = cut_at_x(vec![(1.0, 1.0), (0.5, 2.0), (2.0, 5.0), (3.0, 9.0)], 1.0);
+        assert_eq!(kept, vec![(1.0, 1.0), (0.5, 2.0), (1.0, 3.0)]);
+        assert_eq!(top, Some(3.0));
+        let whole = vec![(1.0, 1.0), (0.5, 2.0)];
+        assert_eq!(cut_at_x(whole.clone(), 1.0), (whole, None));
+    }
+
+    /// The smoothing plot ends 5 % past the unsmoothed jitter (issue 41, item 9): One Euro
+    /// at β = 0.5 jittering more than no smoothing no longer squashes the band where the
+    /// approaches compete, and its legend says where it went.
+    #[test]
+    fn the_smoothing_plot_ends_past_the_unsmoothed_jitter() {
+        use crate::experiment::smoothing::SmoothRow;
+        let row = |approach: &str, jitter: f64, err: f64| SmoothRow {
+            approach: approach.into(),
+            setting: String::new(),
+            source_rms: 0.0,
+            target_rms_tracked: err,
+            target_rms_clean: err,
+            jitter_target: jitter,
+            jitter_weights: 0.0,
+            lag_frames: 0,
+            kkt: None,
+        };
+        let rows = [
+            row("none", 1.4, 1.0),
+            row("ema", 0.5, 2.0),
+            row("one-euro beta 0.5", 1.2, 1.5),
+            row("one-euro beta 0.5", 2.0, 8.0),
+        ];
+        let spec = super::smoothing_plot(&rows, "t", false);
+        let ((_, x1), _) = spec.bounds().unwrap();
+        assert!((x1 - 1.05 * 1.4).abs() < 1e-12, "{x1}");
+        assert_eq!(
+            spec.series[2].name,
+            "one-euro beta 0.5 (off right: jitter to 2.00)"
+        );
+        assert_eq!(spec.series[1].name, "ema");
+    }
+}

@@ -1,0 +1,482 @@
+//! A streamed solve (issue 17): the weights of a landmark table of any length, written
+//! while it is read, in memory independent of its length.
+//!
+//! The whole-sequence steps are done in passes over the file instead of in memory: one pass
+//! finds the key frames' columns and the segment step; with alignment, the generalised
+//! Procrustes mean takes one pass for the shapes' sizes and one per round
+//! ([`keyshape_core::align::procrustes_mean`]); one pass collects the aligned key shapes (and the
+//! neutral); the last pass aligns, solves and hands each frame's weights to the caller. The
+//! frames are solved in chunks of [`keyshape_core::solve::CHUNK`] counted from the first frame,
+//! exactly as the in-memory solve chunks them, and every step is the in-memory code, so the
+//! weights are bit for bit the ones `kslab solve` writes without `--stream` (tested).
+//!
+//! Memory: one chunk of frames, the key shapes, and the Procrustes mean. Reads CSV landmark
+//! tables (MediaPipe, OpenFace, py-feat, plain CSV), gzipped or not. The offline temporal
+//! prior needs the whole sequence and is refused; the causal one streams.
+
+use keyshape_core::align::{align_to, centre, procrustes_mean};
+use keyshape_core::error::{Error, Result};
+use keyshape_core::sequence::{Format, Layout};
+use keyshape_core::solve::temporal::{CausalShared, SmoothMode, Smoothing};
+use keyshape_core::solve::{lstsq, residuals, solve_batch, SolveOptions, CHUNK};
+use keyshape_io::detect_format;
+use keyshape_io::table::TableRows;
+use nalgebra::DMatrix;
+use std::io::{BufRead, BufReader, Read};
+use std::path::Path;
+
+/// What to solve.
+#[derive(Debug, Clone)]
+pub struct StreamOptions {
+    /// The table's format (None: detected from the name and header, as the readers do).
+    pub format: Option<Format>,
+    /// 2 or 3 values per point.
+    pub dims: usize,
+    /// A point-group selection (`lips`, `eyes,brows`), applied after alignment.
+    pub points: Option<String>,
+    /// Remove 2-D head motion (generalised Procrustes over the whole track).
+    pub align: bool,
+    /// Key frames, by frame number.
+    pub keys: Vec<i64>,
+    /// Solve deltas from this frame.
+    pub neutral: Option<i64>,
+    /// The solver and its options.
+    pub solve: SolveOptions,
+    /// A causal temporal prior (the offline one is refused).
+    pub smoothing: Option<Smoothing>,
+}
+
+/// What a streamed solve did.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct StreamSummary {
+    /// Tracked frames solved.
+    pub frames: usize,
+    /// Frames the tracker marked as failed (skipped).
+    pub failed: usize,
+    /// Points per shape solved.
+    pub points: usize,
+    /// Passes over the file.
+    pub passes: usize,
+    /// Procrustes rounds (0 without alignment).
+    pub align_rounds: usize,
+    /// Numerical rank of the key-shape matrix.
+    pub rank: usize,
+    /// Its condition number.
+    pub condition: f64,
+    /// Frames the active-set solver stopped early on.
+    pub unconverged: usize,
+    /// Total squared error (paper 000 Eq. 5).
+    pub total_sq_error: f64,
+    /// Mean of the per-frame RMS (as [`keyshape_core::decompose::Decomposition::mean_rms`]).
+    pub mean_rms: f64,
+    /// Largest |w|.
+    pub max_abs_weight: f64,
+}
+
+/// One frame's result, handed to the caller in frame order.
+pub struct FrameWeights<'a> {
+    /// The frame number.
+    pub frame: i64,
+    /// Its RMS error per point.
+    pub rms: f64,
+    /// Its weights, one per key.
+    pub weights: &'a [f64],
+}
+
+/// Opens `path` for one pass: a regular file, un-gzipped when it ends in `.gz`.
+fn open(path: &Path) -> Result<Box<dyn Read>> {
+    let meta = std::fs::metadata(path).map_err(|e| Error::io(path, e))?;
+    if !meta.is_file() {
+        return Err(Error::file(
+            path,
+            "is not a regular file; --stream reads a file (several times)",
+        ));
+    }
+    keyshape_io::open_input(path)
+}
+
+/// The format: as given, or detected from the name and the first line.
+fn format_of(path: &Path, given: Option<Format>) -> Result<Format> {
+    let format = match given {
+        Some(f) => f,
+        None => {
+            let mut first = String::new();
+            BufReader::new(open(path)?)
+                .read_line(&mut first)
+                .map_err(|e| Error::file(path, format!("cannot read the first line: {e}")))?;
+            if first.trim().is_empty() {
+                return Err(Error::file(path, "file is empty"));
+            }
+            detect_format(path, &first)?
+        }
+    };
+    if matches!(format, Format::Json | Format::Pts) {
+        return Err(Error::file(
+            path,
+            format!("--stream reads CSV landmark tables (MediaPipe, OpenFace, py-feat, plain CSV); a {format} file is read whole: drop --stream"),
+        ));
+    }
+    Ok(format)
+}
+
+/// Every tracked row of one pass, in order: `f(column, frame, segment label, coords)`.
+/// The file must still hold the `n` tracked frames, with the same width, that the first
+/// pass found: a file changed between passes is an error, not a mix of two tracks.
+fn pass<F>(
+    path: &Path,
+    format: Format,
+    dims: usize,
+    n: usize,
+    values: usize,
+    mut f: F,
+) -> Result<()>
+where
+    F: FnMut(usize, i64, Option<&str>, &[f64]) -> Result<()>,
+{
+    let changed = || {
+        Error::file(
+            path,
+            "changed while it was read: --stream reads the file several times; let the tracker finish writing it first",
+        )
+    };
+    let mut rows = TableRows::new(path, open(path)?, format, dims)?;
+    if rows.values() != values {
+        return Err(changed());
+    }
+    let mut col = 0;
+    while let Some(r) = rows.next_row()? {
+        if r.tracked {
+            if col == n {
+                return Err(changed());
+            }
+            f(col, r.frame, r.segment, r.coords)?;
+            col += 1;
+        }
+    }
+    if col != n {
+        return Err(changed());
+    }
+    Ok(())
+}
+
+/// Solves every frame of the table at `path`, calling `sink` with each frame's weights in
+/// order as soon as its chunk is solved. See the module's description.
+pub fn stream_solve(
+    path: &Path,
+    opts: &StreamOptions,
+    sink: &mut dyn FnMut(FrameWeights<'_>) -> Result<()>,
+) -> Result<StreamSummary> {
+    if let Some(sm) = &opts.smoothing {
+        sm.check()?;
+        if sm.mode == SmoothMode::Offline && sm.lambda > 0.0 {
+            return Err(Error::invalid(
+                "the offline temporal prior solves the whole sequence at once and cannot stream: use --smooth-mode causal, or drop --stream",
+            ));
+        }
+    }
+    if opts.keys.is_empty() {
+        return Err(Error::invalid("no key shapes given"));
+    }
+    let format = format_of(path, opts.format)?;
+    let dims = opts.dims;
+    let src = path.display().to_string();
+
+    // Pass 1: columns of the key frames and the neutral, the segment step, the checks the
+    // in-memory path makes when it reads and prepares.
+    let mut passes = 1;
+    let (mut n, mut failed) = (0usize, 0usize);
+    let mut key_cols: Vec<Option<usize>> = vec![None; opts.keys.len()];
+    let mut neutral_col = None;
+    let mut step: Option<i64> = None;
+    let (mut lo, mut hi) = (i64::MAX, i64::MIN);
+    let mut failed_keys = Vec::new();
+    let values;
+    {
+        let mut rows = TableRows::new(path, open(path)?, format, dims)?;
+        values = rows.values();
+        let mut last: Option<i64> = None;
+        while let Some(r) = rows.next_row()? {
+            let wanted = opts.keys.contains(&r.frame) || opts.neutral == Some(r.frame);
+            if !r.tracked {
+                failed += 1;
+                if wanted {
+                    failed_keys.push(r.frame);
+                }
+                continue;
+            }
+            if opts.align && keyshape_core::sequence::degenerate_shape(r.coords, dims) {
+                return Err(Error::file(
+                    &src,
+                    keyshape_core::sequence::degenerate_message(r.frame, r.coords.len() / dims),
+                ));
+            }
+            for (slot, k) in key_cols.iter_mut().zip(&opts.keys) {
+                if *k == r.frame {
+                    *slot = Some(n);
+                }
+            }
+            if opts.neutral == Some(r.frame) {
+                neutral_col = Some(n);
+            }
+            if let Some(p) = last {
+                let d = r.frame - p;
+                if d > 0 {
+                    step = Some(step.map_or(d, |s| s.min(d)));
+                }
+            }
+            last = Some(r.frame);
+            lo = lo.min(r.frame);
+            hi = hi.max(r.frame);
+            n += 1;
+        }
+    }
+    if n == 0 {
+        return Err(Error::file(
+            &src,
+            if failed == 0 {
+                "no frames".to_string()
+            } else {
+                format!("every frame failed ({failed} frames, none tracked)")
+            },
+        ));
+    }
+    let points = values / dims;
+    let missing = |f: i64, what: &str| -> Error {
+        if failed_keys.contains(&f) {
+            Error::invalid(format!(
+                "{what} {f}: frame {f} is a failed frame (the tracker found no face there); pick a tracked frame"
+            ))
+        } else if (lo..=hi).contains(&f) {
+            Error::invalid(format!(
+                "{what} {f}: frame {f} is not in the file (frames run {lo}..={hi} with gaps)"
+            ))
+        } else {
+            Error::invalid(format!(
+                "{what} {f}: frame {f} is out of range: frames run {lo}..={hi}"
+            ))
+        }
+    };
+    let mut seen = std::collections::HashSet::new();
+    let mut cols = Vec::with_capacity(opts.keys.len());
+    for (c, &k) in key_cols.iter().zip(&opts.keys) {
+        if !seen.insert(k) {
+            return Err(Error::invalid(format!("--keys: frame {k} is listed twice")));
+        }
+        cols.push(c.ok_or_else(|| missing(k, "--keys"))?);
+    }
+    let neutral = match opts.neutral {
+        Some(f) => Some(neutral_col.ok_or_else(|| missing(f, "--neutral"))?),
+        None => None,
+    };
+    if cols.len() > n {
+        return Err(Error::invalid(format!(
+            "{} key shapes asked for, but the sequence has only {n} valid frames",
+            cols.len()
+        )));
+    }
+    if let Some(nc) = neutral {
+        if cols.contains(&nc) {
+            return Err(Error::invalid(
+                "the neutral frame cannot also be a key shape (its delta is zero)",
+            ));
+        }
+    }
+    let layout = Layout::for_points(points);
+    let selected: Vec<usize> = match (&opts.points, &layout) {
+        (None, _) => (0..points).collect(),
+        (Some(spec), Some(l)) => l.select(spec)?,
+        (Some(spec), None) => {
+            return Err(Error::invalid(format!(
+            "--points {spec}: no built-in layout has {points} points (MediaPipe has 468, iBUG 68)"
+        )))
+        }
+    };
+    let select = |v: &[f64]| -> Vec<f64> {
+        selected
+            .iter()
+            .flat_map(|&p| v[p * dims..(p + 1) * dims].iter().copied())
+            .collect()
+    };
+
+    // The Procrustes mean: one pass for the sizes, one per round.
+    let (mean, rounds) = if opts.align {
+        let mut buf = vec![0.0; values];
+        let (mean, rounds) = procrustes_mean(n, dims, |f| {
+            passes += 1;
+            pass(path, format, dims, n, values, |c, _, _, v| {
+                buf.copy_from_slice(v);
+                centre(&mut buf, dims);
+                f(c, &buf)
+            })
+        })
+        .map_err(|e| Error::file(&src, e.to_string()))?;
+        (Some(mean), rounds)
+    } else {
+        (None, 0)
+    };
+    // A frame as the solve sees it: aligned (when asked), points selected.
+    let prepare = |c: usize, v: &[f64], buf: &mut Vec<f64>| -> Result<Vec<f64>> {
+        buf.clear();
+        buf.extend_from_slice(v);
+        if let Some(m) = &mean {
+            let cen = centre(buf, dims);
+            align_to(buf, m, dims, cen, c).map_err(|e| Error::file(&src, e.to_string()))?;
+        }
+        Ok(select(buf))
+    };
+
+    // The key shapes (and the neutral).
+    passes += 1;
+    let rows = selected.len() * dims;
+    let mut s = DMatrix::zeros(rows, cols.len());
+    let mut base: Option<Vec<f64>> = None;
+    let mut buf = Vec::with_capacity(values);
+    pass(path, format, dims, n, values, |c, _, _, v| {
+        let is_key = cols.contains(&c);
+        if is_key || neutral == Some(c) {
+            let shape = prepare(c, v, &mut buf)?;
+            for (j, _) in cols.iter().enumerate().filter(|(_, &k)| k == c) {
+                s.column_mut(j).copy_from_slice(&shape);
+            }
+            if neutral == Some(c) {
+                base = Some(shape);
+            }
+        }
+        Ok(())
+    })?;
+    if let Some(b) = &base {
+        for mut col in s.column_iter_mut() {
+            for (x, y) in col.iter_mut().zip(b) {
+                *x -= y;
+            }
+        }
+    }
+    if s.iter().any(|v| !v.is_finite()) {
+        return Err(Error::invalid("key shapes contain NaN or infinity"));
+    }
+    let pinv = lstsq::pseudo_inverse(&s, opts.solve.rcond)?;
+    let causal = match &opts.smoothing {
+        Some(sm) if sm.lambda > 0.0 => {
+            Some(CausalShared::new(&s.tr_mul(&s), opts.solve.solver, sm)?)
+        }
+        _ => None,
+    };
+    let st = s.transpose();
+
+    // The solve, chunk by chunk.
+    passes += 1;
+    let k = cols.len();
+    let step = step.unwrap_or(1);
+    let mut chunk = DMatrix::zeros(rows, CHUNK);
+    let mut frames: Vec<i64> = Vec::with_capacity(CHUNK);
+    let mut labels: Vec<Option<String>> = Vec::with_capacity(CHUNK);
+    let mut state = causal.as_ref().map(|c| c.start());
+    let mut last: Option<(i64, Option<String>)> = None;
+    let (mut unconverged, mut total) = (0usize, 0.0f64);
+    let (mut rms_sum, mut wmax) = (0.0f64, 0.0f64);
+    let mut wbuf = vec![0.0; k];
+    let mut flush = |chunk: &DMatrix<f64>,
+                     frames: &[i64],
+                     labels: &[Option<String>],
+                     last: &mut Option<(i64, Option<String>)>|
+     -> Result<()> {
+        let m = frames.len();
+        let q = chunk.columns(0, m).clone_owned();
+        let mut sol = solve_batch(&s, &q, &opts.solve)?;
+        if let (Some(cs), Some(stt)) = (&causal, state.as_mut()) {
+            let b = &st * &q;
+            for t in 0..m {
+                let here = (frames[t], labels[t].clone());
+                let new_segment = match last.as_ref() {
+                    None => false,
+                    Some((f, l)) => *l != here.1 || frames[t] - f != step,
+                };
+                if new_segment {
+                    *stt = cs.start();
+                }
+                let before = stt.unconverged;
+                cs.step(stt, b.column(t).as_slice(), &mut wbuf);
+                unconverged += stt.unconverged - before;
+                sol.weights.column_mut(t).copy_from_slice(&wbuf);
+                *last = Some(here);
+            }
+        } else {
+            unconverged += sol.unconverged;
+        }
+        let err = residuals(&s, &sol.weights, &q);
+        for t in 0..m {
+            let w = sol.weights.column(t);
+            if !err[t].is_finite() || w.iter().any(|x| !x.is_finite()) {
+                return Err(Error::invalid(format!(
+                    "the solve gave non-finite weights or error at frame {} (coordinates too large or degenerate key shapes); nothing written",
+                    frames[t]
+                )));
+            }
+            total += err[t];
+            let rms = (err[t] / selected.len() as f64).sqrt();
+            rms_sum += rms;
+            wmax = w.iter().fold(wmax, |m, x| m.max(x.abs()));
+            sink(FrameWeights {
+                frame: frames[t],
+                rms,
+                weights: w.as_slice(),
+            })?;
+        }
+        Ok(())
+    };
+    pass(path, format, dims, n, values, |c, frame, label, v| {
+        let mut shape = prepare(c, v, &mut buf)?;
+        if let Some(b) = &base {
+            for (x, y) in shape.iter_mut().zip(b) {
+                *x -= y;
+            }
+        }
+        chunk.column_mut(frames.len()).copy_from_slice(&shape);
+        frames.push(frame);
+        labels.push(label.map(str::to_string));
+        if frames.len() == CHUNK {
+            flush(&chunk, &frames, &labels, &mut last)?;
+            frames.clear();
+            labels.clear();
+        }
+        Ok(())
+    })?;
+    if !frames.is_empty() {
+        flush(&chunk, &frames, &labels, &mut last)?;
+    }
+    Ok(StreamSummary {
+        frames: n,
+        failed,
+        points: selected.len(),
+        passes,
+        align_rounds: rounds,
+        rank: pinv.rank,
+        condition: pinv.condition,
+        unconverged,
+        total_sq_error: total,
+        mean_rms: rms_sum / n as f64,
+        max_abs_weight: wmax,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A pass that finds another number of tracked frames, or another width, than the first
+    /// pass is refused: the file changed between passes.
+    #[test]
+    fn a_file_changed_between_passes_is_refused() {
+        let d = std::env::temp_dir().join(format!("kslab-stream-{}", std::process::id()));
+        std::fs::create_dir_all(&d).unwrap();
+        let p = d.join("t.csv");
+        std::fs::write(&p, "frame,x0,y0,x1,y1\n0,0,0,1,0\n1,0,0,1,1\n2,0,0,2,1\n").unwrap();
+        let ok = pass(&p, Format::Csv, 2, 3, 4, |_, _, _, _| Ok(()));
+        assert!(ok.is_ok());
+        for (n, values) in [(2, 4), (4, 4), (3, 6)] {
+            let e = pass(&p, Format::Csv, 2, n, values, |_, _, _, _| Ok(())).unwrap_err();
+            assert!(e.to_string().contains("changed while it was read"), "{e}");
+        }
+        let _ = std::fs::remove_dir_all(&d);
+    }
+}

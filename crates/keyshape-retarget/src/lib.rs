@@ -1,0 +1,544 @@
+//! Retargeting (paper 000 §4.1 Eq. 2 and §5): the weights solved on the source key shapes
+//! drive target key shapes, `B_t = Σ wᵢ Bᵢ` (absolute) or `N_B + Σ wᵢ (Bᵢ − N_B)` (delta),
+//! optionally per face region with linear blending, and the head motion removed by
+//! alignment is put back.
+
+pub mod regions;
+pub mod setup;
+pub mod svg;
+pub mod target;
+
+use keyshape_core::align::Similarity;
+use keyshape_core::error::{Error, Result};
+use keyshape_core::rbf::Rbf;
+use keyshape_core::solve::{solve_batch, SolveOptions, Solver};
+use nalgebra::{DMatrix, DVector};
+use regions::RegionPlan;
+
+/// Where the target key shapes come from.
+#[derive(Debug, Clone)]
+pub enum Target {
+    /// A smooth warp G of source points (the built-in cartoon): `Bᵢ = G(Sᵢ) + εᵢ`, and
+    /// `G(Q_t)` is a ground truth in the target domain. `εᵢ` models an artist tracing each
+    /// key shape by hand (paper 000 §4.1: "the traced shapes closely match the tracked
+    /// contours, \[but\] they are not identical"): independent Gaussian offsets of standard
+    /// deviation `trace_noise` (input units) per coordinate, seeded by the key's frame
+    /// column, so the same key always gets the same tracing.
+    Warp {
+        /// The warp G.
+        g: Rbf,
+        /// Tracing noise σ (0 = exact G(Sᵢ)).
+        trace_noise: f64,
+    },
+    /// Given shapes, one column per key (in key order), with an optional neutral.
+    Shapes {
+        /// n_t × k.
+        keys: DMatrix<f64>,
+        /// The target neutral, for delta mode.
+        neutral: Option<DVector<f64>>,
+    },
+}
+
+/// Which key shapes, with which weights.
+#[derive(Debug, Clone)]
+pub enum KeyPlan {
+    /// One set of key columns for every point.
+    Global(Vec<usize>),
+    /// Per region: its key columns, with the region plan.
+    Regions(RegionPlan, Vec<Vec<usize>>),
+    /// Key shapes that are not frames (`kmeansN-mean`: cluster means), one per column, for
+    /// every point; only a [`Target::Warp`] can map them (a drawn target has shapes for
+    /// frames). [`Retargeted::keys`] is then empty.
+    Shapes(DMatrix<f64>),
+}
+
+/// Everything a retargeting run produced.
+#[derive(Debug, Clone)]
+pub struct Retargeted {
+    /// Key columns per region (one entry without regions).
+    pub keys: Vec<Vec<usize>>,
+    /// Weights per region, k × frames.
+    pub weights: Vec<DMatrix<f64>>,
+    /// Source reconstruction (aligned), n × frames.
+    pub source: DMatrix<f64>,
+    /// Retargeted target (aligned frame), n_t × frames.
+    pub target: DMatrix<f64>,
+    /// `G(Q_t)` when the target is a warp.
+    pub truth: Option<DMatrix<f64>>,
+    /// Per frame `‖q − q̂‖²`.
+    pub source_sq: Vec<f64>,
+    /// Per frame `‖B_t − G(Q_t)‖²` when there is a truth.
+    pub target_sq: Option<Vec<f64>>,
+    /// Points per source shape.
+    pub points: usize,
+    /// Points per target shape.
+    pub target_points: usize,
+    /// Frames (summed over regions) where NNLS/bounded hit its iteration cap.
+    pub unconverged: usize,
+}
+
+impl Retargeted {
+    /// Source RMS per point.
+    pub fn source_rms(&self) -> f64 {
+        rms(&self.source_sq, self.points)
+    }
+
+    /// Target-domain RMS per point against `G(Q_t)`.
+    pub fn target_rms(&self) -> Option<f64> {
+        self.target_sq.as_ref().map(|e| rms(e, self.target_points))
+    }
+
+    /// Per-frame target-domain RMS.
+    pub fn target_rms_per_frame(&self) -> Option<Vec<f64>> {
+        self.target_sq.as_ref().map(|e| {
+            e.iter()
+                .map(|v| (v / self.target_points as f64).sqrt())
+                .collect()
+        })
+    }
+
+    /// Jitter: RMS second difference of the weights over time (all regions, the whole
+    /// sequence as one segment; see [`keyshape_core::solve::jitter`]).
+    pub fn jitter(&self) -> f64 {
+        jitter(&self.weights)
+    }
+
+    /// Share of negative weights.
+    pub fn negative_share(&self) -> f64 {
+        let max = self
+            .weights
+            .iter()
+            .flat_map(|w| w.iter())
+            .fold(0.0f64, |m, v| m.max(v.abs()));
+        let tol = keyshape_core::decompose::NEGATIVE_TOLERANCE * max;
+        let (neg, all) = self.weights.iter().fold((0usize, 0usize), |(n, a), w| {
+            (n + w.iter().filter(|v| **v < -tol).count(), a + w.len())
+        });
+        neg as f64 / all.max(1) as f64
+    }
+}
+
+fn rms(sq: &[f64], points: usize) -> f64 {
+    (sq.iter().sum::<f64>() / (sq.len() * points).max(1) as f64).sqrt()
+}
+
+/// RMS second difference over time of every weight track, the whole sequence as one
+/// segment ([`keyshape_core::solve::jitter::weight_jitter_all`] takes clips into account).
+pub fn jitter(weights: &[DMatrix<f64>]) -> f64 {
+    let frames = weights.first().map_or(0, |w| w.ncols());
+    keyshape_core::solve::jitter::weight_jitter_all(weights, std::slice::from_ref(&(0..frames)))
+}
+
+/// Applies per-frame head motion to every column (paper 000 §5: "only scaled 2D translation
+/// and rotation are applied to the output motion").
+pub fn with_head_motion(
+    shapes: &DMatrix<f64>,
+    head: &[Similarity],
+    dims: usize,
+) -> Result<DMatrix<f64>> {
+    if head.len() != shapes.ncols() {
+        return Err(Error::invalid("head motion and frames differ in count"));
+    }
+    let cols: Vec<f64> = (0..shapes.ncols())
+        .flat_map(|c| head[c].apply(shapes.column(c).as_slice(), dims))
+        .collect();
+    Ok(DMatrix::from_vec(shapes.nrows(), shapes.ncols(), cols))
+}
+
+/// Applies the source's head motion to shapes in another coordinate frame (a target face
+/// with its own points): each frame's rotation and scale *relative to the first frame*
+/// about the target's own centroid, and its translation relative to the first frame,
+/// in units of the source's image size turned into the target's: × `size_ratio` (target
+/// size / aligned source size) / the first frame's scale. Paper 000 §5: "only scaled 2D
+/// translation and rotation are applied to the output motion".
+pub fn with_relative_head_motion(
+    shapes: &DMatrix<f64>,
+    head: &[Similarity],
+    dims: usize,
+    size_ratio: f64,
+) -> Result<DMatrix<f64>> {
+    if head.len() != shapes.ncols() || head.is_empty() {
+        return Err(Error::invalid("head motion and frames differ in count"));
+    }
+    let h0 = head[0];
+    let mut out = shapes.clone();
+    for (c, mut col) in out.column_iter_mut().enumerate() {
+        let h = head[c];
+        let rel = Similarity {
+            scale: h.scale / h0.scale,
+            angle: h.angle - h0.angle,
+            t: [0.0; 3],
+        };
+        let n = (col.len() / dims).max(1);
+        let mut centre = [0.0; 3];
+        for p in col.as_slice().chunks(dims) {
+            for d in 0..dims {
+                centre[d] += p[d] / n as f64;
+            }
+        }
+        let centred: Vec<f64> = col
+            .as_slice()
+            .chunks(dims)
+            .flat_map(|p| (0..dims).map(move |d| p[d] - centre[d]))
+            .collect();
+        let moved = rel.apply(&centred, dims);
+        for (i, v) in col.iter_mut().enumerate() {
+            let d = i % dims;
+            *v = moved[i] + centre[d] + size_ratio * (h.t[d] - h0.t[d]) / h0.scale;
+        }
+    }
+    Ok(out)
+}
+
+/// Retargets every frame of `q` (aligned shapes, `dims` per point).
+pub fn retarget(
+    q: &DMatrix<f64>,
+    dims: usize,
+    plan: &KeyPlan,
+    target: &Target,
+    neutral: Option<usize>,
+    solver: Solver,
+) -> Result<Retargeted> {
+    retarget_with_truth(q, dims, plan, target, neutral, solver, None)
+}
+
+/// As [`retarget`], with `G(Q)` already computed for a warp target (it costs a pass of the
+/// RBF over every point of every frame, which an interactive caller computes once).
+pub fn retarget_with_truth(
+    q: &DMatrix<f64>,
+    dims: usize,
+    plan: &KeyPlan,
+    target: &Target,
+    neutral: Option<usize>,
+    solver: Solver,
+    truth: Option<&DMatrix<f64>>,
+) -> Result<Retargeted> {
+    retarget_smoothed(q, dims, plan, target, neutral, solver, truth, None)
+}
+
+/// As [`retarget_with_truth`], with the weights solved under a temporal prior
+/// ([`keyshape_core::solve::temporal`]) over the given segments (frame column ranges) when
+/// `smoothing` is given; λ = 0 is the plain solve.
+#[allow(clippy::too_many_arguments)]
+pub fn retarget_smoothed(
+    q: &DMatrix<f64>,
+    dims: usize,
+    plan: &KeyPlan,
+    target: &Target,
+    neutral: Option<usize>,
+    solver: Solver,
+    truth: Option<&DMatrix<f64>>,
+    smoothing: Option<(
+        &keyshape_core::solve::temporal::Smoothing,
+        &[std::ops::Range<usize>],
+    )>,
+) -> Result<Retargeted> {
+    retarget_impl(
+        q, dims, plan, target, neutral, solver, truth, smoothing, true,
+    )
+}
+
+/// As [`retarget`], keeping only the weights and the per-frame errors: [`Retargeted::source`]
+/// and [`Retargeted::target`] are 0 × frames and [`Retargeted::truth`] is `None`. The
+/// frames are reconstructed (and `G(Q)` evaluated) a chunk at a time, so on a long track
+/// this holds the weights and one chunk instead of three more copies of the sequence. The
+/// weights and errors are those [`retarget`] gives, bit for bit (tested).
+pub fn retarget_errors(
+    q: &DMatrix<f64>,
+    dims: usize,
+    plan: &KeyPlan,
+    target: &Target,
+    neutral: Option<usize>,
+    solver: Solver,
+) -> Result<Retargeted> {
+    retarget_impl(q, dims, plan, target, neutral, solver, None, None, false)
+}
+
+#[allow(clippy::too_many_arguments)]
+fn retarget_impl(
+    q: &DMatrix<f64>,
+    dims: usize,
+    plan: &KeyPlan,
+    target: &Target,
+    neutral: Option<usize>,
+    solver: Solver,
+    truth: Option<&DMatrix<f64>>,
+    smoothing: Option<(
+        &keyshape_core::solve::temporal::Smoothing,
+        &[std::ops::Range<usize>],
+    )>,
+    keep: bool,
+) -> Result<Retargeted> {
+    let (n, frames) = q.shape();
+    let points = n / dims;
+    let (regions, key_sets): (Option<&RegionPlan>, Vec<Vec<usize>>) = match plan {
+        KeyPlan::Global(k) => (None, vec![k.clone()]),
+        KeyPlan::Regions(p, k) => (Some(p), k.clone()),
+        KeyPlan::Shapes(m) => {
+            if !matches!(target, Target::Warp { .. }) {
+                return Err(Error::invalid(
+                    "key shapes that are not frames (cluster means) need the built-in target: a drawn target has shapes for key frames",
+                ));
+            }
+            if m.nrows() != n || m.ncols() == 0 {
+                return Err(Error::invalid(format!(
+                    "{} key shapes of {} values for frames of {n}",
+                    m.ncols(),
+                    m.nrows()
+                )));
+            }
+            (None, vec![(0..m.ncols()).collect()])
+        }
+    };
+    let given = match plan {
+        KeyPlan::Shapes(m) => Some(m),
+        _ => None,
+    };
+    if let (Some(_), Target::Shapes { keys, .. }) = (regions, target) {
+        if keys.nrows() != n {
+            return Err(Error::invalid(
+                "regions need target shapes with the source's points",
+            ));
+        }
+    }
+    let n_t = match target {
+        Target::Warp { .. } => n,
+        Target::Shapes { keys, .. } => keys.nrows(),
+    };
+    // Per region: its rows, weights and (delta-mode) key shapes; then the frames are
+    // reconstructed in chunks, so only what the caller keeps is ever whole.
+    let mut parts: Vec<Part> = Vec::with_capacity(key_sets.len());
+    let mut unconverged = 0;
+    for keys in key_sets.iter() {
+        let r = parts.len();
+        let rows: Vec<usize> = match regions {
+            None => (0..n).collect(),
+            Some(p) => p.members[r]
+                .iter()
+                .flat_map(|&i| (0..dims).map(move |d| i * dims + d))
+                .collect(),
+        };
+        let s_full = match given {
+            Some(m) => m.clone(),
+            None => q.select_columns(keys),
+        };
+        let b_full = match target {
+            Target::Warp { g, trace_noise } => {
+                let mut b = g.apply_all(&s_full);
+                for (j, &c) in keys.iter().enumerate() {
+                    add_tracing(b.column_mut(j).as_mut_slice(), *trace_noise, c);
+                }
+                b
+            }
+            Target::Shapes { keys: b, .. } => {
+                if b.ncols() != keys.len() {
+                    return Err(Error::invalid(format!(
+                        "{} target shapes for {} key shapes",
+                        b.ncols(),
+                        keys.len()
+                    )));
+                }
+                b.clone()
+            }
+        };
+        let (src_base, tgt_base) = match neutral {
+            None => (None, None),
+            Some(c) => {
+                let nq = q.column(c).clone_owned();
+                let nb = match target {
+                    Target::Warp { g, trace_noise } => {
+                        let mut v = g.apply(nq.as_slice());
+                        add_tracing(&mut v, *trace_noise, c);
+                        DVector::from_vec(v)
+                    }
+                    Target::Shapes {
+                        neutral: Some(v), ..
+                    } => v.clone(),
+                    Target::Shapes { neutral: None, .. } => {
+                        return Err(Error::invalid(
+                            "delta mode (--neutral) needs a neutral shape in the target set",
+                        ))
+                    }
+                };
+                (Some(nq), Some(nb))
+            }
+        };
+        let delta = |m: &DMatrix<f64>, base: &Option<DVector<f64>>| -> DMatrix<f64> {
+            let mut m = m.clone();
+            if let Some(b) = base {
+                for mut c in m.column_iter_mut() {
+                    c -= b;
+                }
+            }
+            m
+        };
+        let s_d = delta(&s_full, &src_base);
+        let b_d = delta(&b_full, &tgt_base);
+        // The frames as solved: borrowed when they need no change (no neutral, every row).
+        let q_d: std::borrow::Cow<DMatrix<f64>> = match &src_base {
+            None => std::borrow::Cow::Borrowed(q),
+            Some(_) => std::borrow::Cow::Owned(delta(q, &src_base)),
+        };
+        let s_r = s_d.select_rows(&rows);
+        let q_r: std::borrow::Cow<DMatrix<f64>> = if regions.is_none() {
+            q_d
+        } else {
+            std::borrow::Cow::Owned(q_d.select_rows(&rows))
+        };
+        let sol = solve_batch(&s_r, &q_r, &SolveOptions::new(solver))?;
+        let w = match smoothing {
+            Some((sm, segs)) if sm.lambda > 0.0 => {
+                let r = keyshape_core::solve::temporal::smooth_from(
+                    &s_r, &q_r, &sol, solver, sm, segs,
+                )?;
+                unconverged += r.unconverged;
+                r.weights
+            }
+            _ => {
+                unconverged += sol.unconverged;
+                sol.weights
+            }
+        };
+        parts.push(Part {
+            s_d,
+            b_d,
+            bases: src_base.zip(tgt_base),
+            w,
+        });
+    }
+    let mut source = DMatrix::zeros(if keep { n } else { 0 }, frames);
+    let mut out = DMatrix::zeros(if keep { n_t } else { 0 }, frames);
+    let mut source_sq = vec![0.0; frames];
+    let warp = match target {
+        Target::Warp { g, .. } => Some(g),
+        Target::Shapes { .. } => None,
+    };
+    let given_truth = truth.filter(|t| warp.is_some() && t.shape() == q.shape());
+    // The whole G(Q) only when it is kept; otherwise chunk by chunk.
+    let truth = match (keep, given_truth, warp) {
+        (true, Some(t), _) => Some(t.clone()),
+        (true, None, Some(g)) => Some(g.apply_all(q)),
+        _ => None,
+    };
+    let mut target_sq = warp.map(|_| vec![0.0; frames]);
+    for c0 in (0..frames).step_by(RECON_CHUNK) {
+        let len = RECON_CHUNK.min(frames - c0);
+        let (rec_s, rec_t) = reconstruct(&parts, regions, dims, n, n_t, c0, len);
+        for t in 0..len {
+            source_sq[c0 + t] = (q.column(c0 + t) - rec_s.column(t)).norm_squared();
+        }
+        if let Some(sq) = target_sq.as_mut() {
+            let chunk_truth;
+            let tr = match (&truth, given_truth, warp) {
+                (Some(tr), _, _) => tr.columns(c0, len),
+                (None, Some(tr), _) => tr.columns(c0, len),
+                (None, None, Some(g)) => {
+                    chunk_truth = g.apply_all(&q.columns(c0, len).clone_owned());
+                    chunk_truth.columns(0, len)
+                }
+                (None, None, None) => unreachable!("target_sq exists only for a warp"),
+            };
+            for t in 0..len {
+                sq[c0 + t] = (tr.column(t) - rec_t.column(t)).norm_squared();
+            }
+        }
+        if keep {
+            source.columns_mut(c0, len).copy_from(&rec_s);
+            out.columns_mut(c0, len).copy_from(&rec_t);
+        }
+    }
+    Ok(Retargeted {
+        unconverged,
+        keys: if given.is_some() {
+            Vec::new()
+        } else {
+            key_sets
+        },
+        weights: parts.into_iter().map(|p| p.w).collect(),
+        source,
+        target: out,
+        truth,
+        source_sq,
+        target_sq,
+        points,
+        target_points: n_t / dims,
+    })
+}
+
+/// Frames reconstructed per chunk (source and target), so a run that keeps only the
+/// errors holds a chunk of them, not the whole sequence.
+const RECON_CHUNK: usize = 4096;
+
+/// One region's solve: its key shapes (minus the neutral in delta mode), the neutrals,
+/// and the weights.
+struct Part {
+    s_d: DMatrix<f64>,
+    b_d: DMatrix<f64>,
+    bases: Option<(DVector<f64>, DVector<f64>)>,
+    w: DMatrix<f64>,
+}
+
+/// Source and target reconstructions of frames `c0..c0 + len`: each region's
+/// `S_d w + base`, blended over regions (or the one region's, whole).
+fn reconstruct(
+    parts: &[Part],
+    regions: Option<&RegionPlan>,
+    dims: usize,
+    n: usize,
+    n_t: usize,
+    c0: usize,
+    len: usize,
+) -> (DMatrix<f64>, DMatrix<f64>) {
+    let one = |p: &Part| {
+        let w = p.w.columns(c0, len);
+        let mut rec_s = &p.s_d * w;
+        let mut rec_t = &p.b_d * w;
+        if let Some((sb, tb)) = &p.bases {
+            for mut c in rec_s.column_iter_mut() {
+                c += sb;
+            }
+            for mut c in rec_t.column_iter_mut() {
+                c += tb;
+            }
+        }
+        (rec_s, rec_t)
+    };
+    let Some(plan) = regions else {
+        return one(&parts[0]);
+    };
+    let mut source = DMatrix::zeros(n, len);
+    let mut out = DMatrix::zeros(n_t, len);
+    for (r, p) in parts.iter().enumerate() {
+        let (rec_s, rec_t) = one(p);
+        for i in 0..n / dims {
+            let bw = plan.blend[(i, r)];
+            if bw == 0.0 {
+                continue;
+            }
+            for d in 0..dims {
+                let row = i * dims + d;
+                for t in 0..len {
+                    source[(row, t)] += bw * rec_s[(row, t)];
+                    out[(row, t)] += bw * rec_t[(row, t)];
+                }
+            }
+        }
+    }
+    (source, out)
+}
+
+/// Adds the seeded tracing offsets of key column `key` (see [`Target::Warp`]).
+fn add_tracing(shape: &mut [f64], sigma: f64, key: usize) {
+    use rand::{Rng, SeedableRng};
+    if sigma <= 0.0 {
+        return;
+    }
+    let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(
+        0x7ACE ^ (key as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15),
+    );
+    for v in shape.iter_mut() {
+        // Box–Muller.
+        let (u1, u2): (f64, f64) = (rng.gen_range(f64::EPSILON..1.0), rng.gen());
+        *v += sigma * (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos();
+    }
+}

@@ -1,0 +1,610 @@
+//! The rig accuracy benchmark (issue 39): performances rendered through a rig from known
+//! weights — another person's neutral, a neutral lead-in, a moving head, landmark noise — are
+//! solved back, and every shape's weights are measured against the truth: Pearson r, MAE,
+//! RMSE, peak reach, twin leakage, idle activation, jitter and lag.
+//!
+//! Ground truth is the yardstick: nobody publishes per-blendshape accuracy against it, and
+//! agreement with another estimator (py-feat) is not it.
+
+use super::camera::Camera;
+use super::{solve_rig, Rig, RigOptions};
+use keyshape_core::error::{Error, Result};
+use keyshape_core::stats::correlation;
+use nalgebra::DMatrix;
+use rand::{Rng, SeedableRng};
+use serde::Serialize;
+
+/// The kind of performance rendered.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Kind {
+    /// A dozen shapes active as smooth bumps of random width, height and time, overlapping.
+    Smooth,
+    /// One-sided expressions and winks: each one-sided shape alone to 1.0 in turn.
+    Winks,
+    /// Both eyes blinking to 1.0, briefly and often, over a mild smile.
+    Blinks,
+    /// Fast jaw motion like speech (3–6 opening cycles a second), with lip rounding.
+    Speech,
+}
+
+impl Kind {
+    /// Every kind, in the order reports list them.
+    pub const ALL: [Kind; 4] = [Kind::Smooth, Kind::Winks, Kind::Blinks, Kind::Speech];
+
+    /// The kind's name on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Kind::Smooth => "smooth",
+            Kind::Winks => "winks",
+            Kind::Blinks => "blinks",
+            Kind::Speech => "speech",
+        }
+    }
+
+    /// Parses a kind's name.
+    pub fn parse(s: &str) -> Result<Kind> {
+        Kind::ALL
+            .into_iter()
+            .find(|k| k.name() == s)
+            .ok_or_else(|| {
+                Error::invalid(format!(
+                    "'{s}' is not a performance kind (smooth, winks, blinks, speech)"
+                ))
+            })
+    }
+}
+
+/// The shapes the smooth performance drives: among them those a 2-D solve most often loses
+/// (jawRight, mouthFrown_L, mouthLowerDown_L, mouthUpperUp_L, eyeWide_L, mouthPucker).
+pub const SMOOTH_SHAPES: [&str; 12] = [
+    "jawOpen",
+    "jawRight",
+    "mouthSmile_L",
+    "mouthSmile_R",
+    "mouthFrown_L",
+    "mouthLowerDown_L",
+    "mouthUpperUp_L",
+    "mouthPucker",
+    "eyeBlink_R",
+    "eyeWide_L",
+    "browDown_R",
+    "browInnerUp_L",
+];
+
+/// The one-sided shapes the wink performance raises alone, in turn.
+pub const WINK_SHAPES: [&str; 6] = [
+    "eyeBlink_L",
+    "mouthSmile_L",
+    "browDown_L",
+    "eyeBlink_R",
+    "mouthSmile_R",
+    "browDown_R",
+];
+
+/// A benchmark track's settings.
+#[derive(Debug, Clone, Serialize)]
+pub struct Settings {
+    /// The performance.
+    pub kind: Kind,
+    /// Frames of performance (after the lead-in).
+    pub frames: usize,
+    /// Neutral frames before the performance (the head moves; no shape is active).
+    pub lead_in: usize,
+    /// Landmark noise σ in pixels.
+    pub noise_px: f64,
+    /// The inter-ocular distance (outer eye corners) the face is drawn at, in pixels.
+    pub iod_px: f64,
+    /// Another person's neutral face (a seeded deformation of the rig's), or the rig's own.
+    pub other_person: bool,
+    /// Head yaw and pitch ranges, ± degrees.
+    pub yaw_deg: f64,
+    /// See `yaw_deg`.
+    pub pitch_deg: f64,
+    /// Seed of the performance, the person and the noise.
+    pub seed: u64,
+    /// Render each landmark's depth too, as MediaPipe gives it: a third row per landmark,
+    /// in the x axis's pixels, more negative closer to the camera, its origin an arbitrary
+    /// offset (here 40 px), with the same noise as x and y.
+    pub depth: bool,
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Settings {
+            kind: Kind::Smooth,
+            frames: 300,
+            lead_in: 20,
+            noise_px: 0.5,
+            iod_px: 107.0,
+            other_person: true,
+            yaw_deg: 18.0,
+            pitch_deg: 9.0,
+            seed: 7,
+            depth: false,
+        }
+    }
+}
+
+impl Settings {
+    /// Refuses settings no track can be made from.
+    pub fn check(&self) -> Result<()> {
+        let bad = |what: &str, v: f64| Error::invalid(format!("{what} {v} is not allowed"));
+        if self.frames < 2 || self.frames > 1_000_000 {
+            return Err(bad("frames", self.frames as f64));
+        }
+        if self.lead_in > 1_000_000 {
+            return Err(bad("lead-in", self.lead_in as f64));
+        }
+        for (what, v, hi) in [
+            ("noise (px)", self.noise_px, 1e3),
+            ("inter-ocular distance (px)", self.iod_px, 1e6),
+            ("yaw (°)", self.yaw_deg, 80.0),
+            ("pitch (°)", self.pitch_deg, 80.0),
+        ] {
+            if v.is_nan() || v < 0.0 || v > hi {
+                return Err(Error::invalid(format!(
+                    "{what} {v} is not allowed: give a number in [0, {hi}]"
+                )));
+            }
+        }
+        if self.iod_px <= 0.0 {
+            return Err(bad("inter-ocular distance (px)", self.iod_px));
+        }
+        Ok(())
+    }
+}
+
+/// A rendered benchmark track: the truth and what a tracker would see.
+#[derive(Debug, Clone)]
+pub struct Track {
+    /// True weights, k × frames (rig order), the lead-in first.
+    pub truth: DMatrix<f64>,
+    /// The landmarks (image axes, y down), 2 rows each (x, y) or with `depth` 3 (x, y, z),
+    /// noise included.
+    pub points: DMatrix<f64>,
+    /// The person whose face was rendered (the rig with another neutral, or the rig).
+    pub person: Rig,
+    /// Per frame, the camera.
+    pub cameras: Vec<Camera>,
+}
+
+fn index(rig: &Rig, name: &str) -> Result<usize> {
+    rig.names
+        .iter()
+        .position(|n| n == name)
+        .ok_or_else(|| Error::invalid(format!("the rig has no shape '{name}'")))
+}
+
+/// A raised-cosine bump of `height` centred at `c`, `width` frames wide at its base.
+fn bump(t: f64, c: f64, width: f64, height: f64) -> f64 {
+    let x = (t - c) / (width / 2.0);
+    if x.abs() >= 1.0 {
+        0.0
+    } else {
+        height * 0.5 * (1.0 + (std::f64::consts::PI * x).cos())
+    }
+}
+
+/// The true weights of a performance (without lead-in), k × frames.
+pub fn performance(
+    rig: &Rig,
+    kind: Kind,
+    frames: usize,
+    rng: &mut impl Rng,
+) -> Result<DMatrix<f64>> {
+    let mut w: DMatrix<f64> = DMatrix::zeros(rig.k(), frames);
+    let n = frames as f64;
+    match kind {
+        Kind::Smooth => {
+            for name in SMOOTH_SHAPES {
+                let s = index(rig, name)?;
+                // About one bump per 100 frames per shape, at least two.
+                let bumps = ((n / 100.0).round() as usize).max(2);
+                for _ in 0..bumps {
+                    let (c, width, h) = (
+                        rng.gen_range(0.0..n),
+                        rng.gen_range(20.0..80.0),
+                        rng.gen_range(0.3..1.0),
+                    );
+                    for f in 0..frames {
+                        w[(s, f)] = (w[(s, f)] + bump(f as f64, c, width, h)).min(1.0);
+                    }
+                }
+            }
+            // A weight that two bumps carry past 1 is held at 1: a flat top is a peak too.
+        }
+        Kind::Winks => {
+            let ids: Vec<usize> = WINK_SHAPES
+                .iter()
+                .map(|s| index(rig, s))
+                .collect::<Result<_>>()?;
+            let slot = n / ids.len() as f64;
+            for (j, &s) in ids.iter().enumerate() {
+                let c = slot * (j as f64 + 0.5);
+                for f in 0..frames {
+                    // A plateau at 1.0 for a third of the bump, so peaks are held.
+                    let v = bump(f as f64, c, 0.8 * slot, 1.5).min(1.0);
+                    w[(s, f)] = v;
+                }
+            }
+        }
+        Kind::Blinks => {
+            let (l, r, sl, sr) = (
+                index(rig, "eyeBlink_L")?,
+                index(rig, "eyeBlink_R")?,
+                index(rig, "mouthSmile_L")?,
+                index(rig, "mouthSmile_R")?,
+            );
+            let mut c = rng.gen_range(10.0..30.0);
+            while c < n {
+                for f in 0..frames {
+                    let v = bump(f as f64, c, 10.0, 1.6).min(1.0);
+                    if v > 0.0 {
+                        w[(l, f)] = v;
+                        w[(r, f)] = v;
+                    }
+                }
+                c += rng.gen_range(25.0..70.0);
+            }
+            for f in 0..frames {
+                let v = 0.3 + 0.1 * (f as f64 / 40.0).sin();
+                w[(sl, f)] = v;
+                w[(sr, f)] = v;
+            }
+        }
+        Kind::Speech => {
+            let (jaw, funnel, pucker) = (
+                index(rig, "jawOpen")?,
+                index(rig, "mouthFunnel")?,
+                index(rig, "mouthPucker")?,
+            );
+            let mut phase = 0.0f64;
+            let mut rate = rng.gen_range(3.0..6.0);
+            for f in 0..frames {
+                if f % 30 == 0 {
+                    rate = rng.gen_range(3.0..6.0);
+                }
+                phase += std::f64::consts::TAU * rate / 30.0;
+                w[(jaw, f)] = 0.35 * (1.0 - phase.cos());
+            }
+            for (s, every) in [(funnel, 90.0), (pucker, 130.0)] {
+                let mut c = rng.gen_range(0.0..every);
+                while c < n {
+                    for f in 0..frames {
+                        w[(s, f)] = (w[(s, f)] + bump(f as f64, c, 24.0, 0.7)).min(1.0);
+                    }
+                    c += every;
+                }
+            }
+        }
+    }
+    Ok(w)
+}
+
+/// Another person's neutral face: the rig's landmarks with a seeded, documented deformation —
+/// the face 8 % wider, the mouth 3 % of the face height lower, the eyes 4 % of the
+/// inter-ocular distance further apart, and three smooth bumps of up to 2 % of the face
+/// width over the face. The rig's shape offsets are kept (the person moves as the rig does).
+pub fn other_person(rig: &Rig, seed: u64) -> Rig {
+    let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(seed ^ 0x5eed_face);
+    let n = &rig.neutral;
+    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+    for p in n {
+        for a in 0..3 {
+            lo[a] = lo[a].min(p[a]);
+            hi[a] = hi[a].max(p[a]);
+        }
+    }
+    let (width, height) = (hi[0] - lo[0], hi[1] - lo[1]);
+    let cx = (lo[0] + hi[0]) / 2.0;
+    let iod = rig
+        .eyes()
+        .map_or(0.3 * width, |[a, b]| (n[b][0] - n[a][0]).abs());
+    let (mouth, eyes) = parts(rig);
+    let bumps: Vec<([f64; 2], f64, f64)> = (0..3)
+        .map(|_| {
+            (
+                [rng.gen_range(lo[0]..hi[0]), rng.gen_range(lo[1]..hi[1])],
+                rng.gen_range(0.15..0.3) * width,
+                rng.gen_range(-0.02..0.02) * width,
+            )
+        })
+        .collect();
+    let mut neutral = n.clone();
+    for (i, p) in neutral.iter_mut().enumerate() {
+        p[0] = cx + 1.08 * (p[0] - cx);
+        if mouth[i] {
+            p[1] -= 0.03 * height;
+        }
+        if eyes[i] {
+            p[0] += 0.02 * iod * (p[0] - cx).signum();
+        }
+        for (c, r, a) in &bumps {
+            let d2 = ((p[0] - c[0]).powi(2) + (p[1] - c[1]).powi(2)) / (r * r);
+            let g = a * (-d2).exp();
+            p[0] += g;
+            p[1] += 0.5 * g;
+        }
+    }
+    Rig {
+        neutral,
+        ..rig.clone()
+    }
+}
+
+/// Per landmark of `rig`: is it on the lips, is it on an eye (lids, corners, irises)? From
+/// the track layout: iBUG 48–67 and 36–47; MediaPipe's `lips`, eye and iris groups.
+fn parts(rig: &Rig) -> (Vec<bool>, Vec<bool>) {
+    let layout = keyshape_core::sequence::Layout::for_points(rig.layout);
+    let group = |names: &[&str]| -> Vec<usize> {
+        layout.as_ref().map_or(Vec::new(), |l| {
+            names
+                .iter()
+                .filter_map(|n| l.groups.get(*n))
+                .flat_map(|g| g.points.iter().copied())
+                .collect()
+        })
+    };
+    let (lips, eyes) = if rig.layout == 68 {
+        ((48..68).collect(), (36..48).collect())
+    } else {
+        (
+            group(&["lips"]),
+            group(&["left_eye", "right_eye", "left_iris", "right_iris"]),
+        )
+    };
+    (
+        rig.points.iter().map(|p| lips.contains(p)).collect(),
+        rig.points.iter().map(|p| eyes.contains(p)).collect(),
+    )
+}
+
+/// Renders the benchmark track of `st` through `rig`.
+pub fn render(rig: &Rig, st: &Settings) -> Result<Track> {
+    st.check()?;
+    let Some([ea, eb]) = rig.eyes() else {
+        return Err(Error::invalid(
+            "the benchmark draws the face at an inter-ocular distance: the rig must read both outer eye corners",
+        ));
+    };
+    let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(st.seed);
+    let perf = performance(rig, st.kind, st.frames, &mut rng)?;
+    let total = st.lead_in + st.frames;
+    let mut truth = DMatrix::zeros(rig.k(), total);
+    truth.columns_mut(st.lead_in, st.frames).copy_from(&perf);
+    let person = if st.other_person {
+        other_person(rig, st.seed)
+    } else {
+        rig.clone()
+    };
+    let iod = {
+        let (a, b) = (rig.neutral[ea], rig.neutral[eb]);
+        ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt()
+    };
+    if iod.is_nan() || iod <= 0.0 {
+        return Err(Error::invalid("the rig's outer eye corners coincide"));
+    }
+    let scale = st.iod_px / iod;
+    let cameras: Vec<Camera> = (0..total)
+        .map(|f| {
+            let t = f as f64 / 30.0;
+            Camera::from_angles(
+                scale,
+                st.yaw_deg.to_radians() * (std::f64::consts::TAU * t / 7.3).sin(),
+                st.pitch_deg.to_radians() * (std::f64::consts::TAU * t / 5.1 + 1.0).sin(),
+                4f64.to_radians() * (std::f64::consts::TAU * t / 9.7 + 2.0).sin(),
+                [320.0, -240.0],
+            )
+        })
+        .collect();
+    let mut points = if st.depth {
+        let n = person.landmarks();
+        let mut out = DMatrix::zeros(3 * n, total);
+        for f in 0..total {
+            let w: Vec<f64> = truth.column(f).iter().copied().collect();
+            let c = &cameras[f];
+            for (i, p) in person.posed(&w).iter().enumerate() {
+                let u = c.project(p);
+                let z = c.depth(p);
+                out[(3 * i, f)] = u[0];
+                out[(3 * i + 1, f)] = -u[1];
+                out[(3 * i + 2, f)] = -(z + 40.0);
+            }
+        }
+        out
+    } else {
+        person.render(&truth, &cameras)
+    };
+    if st.noise_px > 0.0 {
+        for v in points.iter_mut() {
+            let (u1, u2): (f64, f64) = (rng.gen_range(f64::EPSILON..1.0), rng.gen());
+            *v += st.noise_px * (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos();
+        }
+    }
+    Ok(Track {
+        truth,
+        points,
+        person,
+        cameras,
+    })
+}
+
+/// One shape's accuracy on one track.
+#[derive(Debug, Clone, Serialize)]
+pub struct ShapeAccuracy {
+    /// The rig's name.
+    pub shape: String,
+    /// Does the truth use it?
+    pub active: bool,
+    /// Pearson r of solved against true weights (active shapes; NaN otherwise).
+    pub r: f64,
+    /// Mean absolute error.
+    pub mae: f64,
+    /// RMS error.
+    pub rmse: f64,
+    /// Mean solved weight where the truth is ≥ 0.99 (None: the truth never gets there).
+    pub peak_reach: Option<f64>,
+    /// The other side's mean solved weight on frames where this shape is ≥ 0.5 and the other
+    /// side's truth is 0 (None: no twin, or no such frame).
+    pub twin_leakage: Option<f64>,
+    /// The largest solved weight of a shape the truth never uses (None: active).
+    pub idle_activation: Option<f64>,
+    /// RMS second difference of the solved weight, against the truth's.
+    pub jitter: f64,
+    /// The truth's jitter.
+    pub true_jitter: f64,
+    /// Frames by which the solved weight trails the truth (cross-correlation peak, ±10).
+    pub lag: Option<i64>,
+}
+
+/// A track's summary: what a user reads first.
+#[derive(Debug, Clone, Serialize)]
+pub struct Summary {
+    /// Mean Pearson r over the active shapes.
+    pub mean_r: f64,
+    /// The lowest r among the active shapes, and its shape.
+    pub worst_r: f64,
+    /// See `worst_r`.
+    pub worst_shape: String,
+    /// RMS weight error over every shape and frame.
+    pub rmse: f64,
+    /// The largest weight of any shape the truth never uses, and its shape.
+    pub max_idle: f64,
+    /// See `max_idle`.
+    pub max_idle_shape: String,
+    /// The largest twin leakage.
+    pub max_twin_leakage: f64,
+    /// The lowest peak reach.
+    pub min_peak_reach: Option<f64>,
+    /// The largest lag (frames, either way) of an active shape.
+    pub max_abs_lag: i64,
+}
+
+/// The left/right twin of a shape name (`_L` ↔ `_R`), if the rig has it.
+pub fn twin(rig_names: &[String], s: usize) -> Option<usize> {
+    let n = &rig_names[s];
+    let other = if let Some(b) = n.strip_suffix("_L") {
+        format!("{b}_R")
+    } else if let Some(b) = n.strip_suffix("_R") {
+        format!("{b}_L")
+    } else {
+        return None;
+    };
+    rig_names.iter().position(|m| *m == other)
+}
+
+/// The RMS second difference of one series (the house's jitter, one segment).
+fn rms2(x: &[f64]) -> f64 {
+    let m = DMatrix::from_row_slice(1, x.len(), x);
+    keyshape_core::solve::jitter::weight_jitter(&m, std::slice::from_ref(&(0..x.len())))
+}
+
+/// The shift in −`max`..=`max` frames by which `got` trails `truth` (the smoothing study's
+/// cross-correlation lag, one segment).
+fn lag(got: &[f64], truth: &[f64], max: i64) -> i64 {
+    let (a, b) = (
+        DMatrix::from_row_slice(1, got.len(), got),
+        DMatrix::from_row_slice(1, truth.len(), truth),
+    );
+    keyshape_core::stats::lag(&a, &b, std::slice::from_ref(&(0..got.len())), max)
+}
+
+/// Every shape's accuracy of `solved` against `truth` (both k × frames, rig order), and the
+/// summary.
+pub fn measure(
+    names: &[String],
+    truth: &DMatrix<f64>,
+    solved: &DMatrix<f64>,
+) -> (Vec<ShapeAccuracy>, Summary) {
+    let frames = truth.ncols();
+    let mut rows = Vec::new();
+    for s in 0..names.len() {
+        let t: Vec<f64> = truth.row(s).iter().copied().collect();
+        let g: Vec<f64> = solved.row(s).iter().copied().collect();
+        let active = t.iter().any(|v| *v > 1e-9);
+        let err: Vec<f64> = g.iter().zip(&t).map(|(a, b)| a - b).collect();
+        let mae = err.iter().map(|e| e.abs()).sum::<f64>() / frames as f64;
+        let rmse = (err.iter().map(|e| e * e).sum::<f64>() / frames as f64).sqrt();
+        let at_peak: Vec<f64> = (0..frames)
+            .filter(|&f| t[f] >= 0.99)
+            .map(|f| g[f])
+            .collect();
+        let peak_reach =
+            (!at_peak.is_empty()).then(|| at_peak.iter().sum::<f64>() / at_peak.len() as f64);
+        let twin_leakage = twin(names, s).and_then(|o| {
+            let on: Vec<f64> = (0..frames)
+                .filter(|&f| t[f] >= 0.5 && truth[(o, f)] <= 1e-9)
+                .map(|f| solved[(o, f)])
+                .collect();
+            (!on.is_empty()).then(|| on.iter().sum::<f64>() / on.len() as f64)
+        });
+        rows.push(ShapeAccuracy {
+            shape: names[s].clone(),
+            active,
+            r: if active {
+                correlation(&g, &t)
+            } else {
+                f64::NAN
+            },
+            mae,
+            rmse,
+            peak_reach,
+            twin_leakage,
+            idle_activation: (!active).then(|| g.iter().copied().fold(0.0, f64::max)),
+            jitter: rms2(&g),
+            true_jitter: rms2(&t),
+            lag: active.then(|| lag(&g, &t, 10)),
+        });
+    }
+    let act: Vec<&ShapeAccuracy> = rows.iter().filter(|r| r.active).collect();
+    let mean_r = act
+        .iter()
+        .map(|r| if r.r.is_nan() { 0.0 } else { r.r })
+        .sum::<f64>()
+        / act.len().max(1) as f64;
+    let worst = act
+        .iter()
+        .min_by(|a, b| a.r.total_cmp(&b.r))
+        .map_or((f64::NAN, String::new()), |r| (r.r, r.shape.clone()));
+    let all_sq: f64 = (truth - solved).iter().map(|e| e * e).sum();
+    let idle = rows
+        .iter()
+        .filter_map(|r| r.idle_activation.map(|v| (v, r.shape.clone())))
+        .max_by(|a, b| a.0.total_cmp(&b.0))
+        .unwrap_or((0.0, String::new()));
+    let summary = Summary {
+        mean_r,
+        worst_r: worst.0,
+        worst_shape: worst.1,
+        rmse: (all_sq / truth.len().max(1) as f64).sqrt(),
+        max_idle: idle.0,
+        max_idle_shape: idle.1,
+        max_twin_leakage: rows
+            .iter()
+            .filter_map(|r| r.twin_leakage)
+            .fold(0.0, f64::max),
+        min_peak_reach: rows
+            .iter()
+            .filter_map(|r| r.peak_reach)
+            .min_by(f64::total_cmp),
+        max_abs_lag: rows
+            .iter()
+            .filter_map(|r| r.lag.map(i64::abs))
+            .max()
+            .unwrap_or(0),
+    };
+    (rows, summary)
+}
+
+/// Renders the track of `st`, solves it with `opts` and measures every shape.
+pub fn run(
+    rig: &Rig,
+    st: &Settings,
+    opts: &RigOptions,
+) -> Result<(Track, DMatrix<f64>, Vec<ShapeAccuracy>, Summary)> {
+    let track = render(rig, st)?;
+    let solved = solve_rig(rig, &track.points, &[], opts)?;
+    let (rows, summary) = measure(&rig.names, &track.truth, &solved.weights);
+    Ok((track, solved.weights, rows, summary))
+}

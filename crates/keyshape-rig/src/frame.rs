@@ -1,0 +1,697 @@
+//! One frame's rig solve: the per-frame Gram blocks a rig reuses, and the solver state
+//! carried from frame to frame (camera and weights by Gauss–Newton with the camera's
+//! Schur complement, the weights under their bounds and priors).
+
+use super::camera::{fit_camera, Camera};
+use super::{Rig, TAPER_STEPS, TAPER_TOLERANCE};
+use keyshape_core::error::Result;
+use keyshape_core::solve::active_set::{self, Bound, Gram, Workspace};
+use keyshape_core::solve::chol::solve_spd;
+use keyshape_core::solve::Solver;
+use nalgebra::DMatrix;
+
+/// The per-frame Gram blocks `Σᵢ D_{k,i,a} D_{l,i,b}` of a rig, reused by every frame.
+pub(super) struct Blocks {
+    pub(super) k: usize,
+    /// (a, a) blocks, then (a, b) + (b, a) for a < b: (0,1), (0,2), (1,2).
+    pub(super) g: [Vec<f64>; 6],
+    /// Flat deltas, k × (68·3), row-major.
+    pub(super) d: Vec<f64>,
+    /// Per landmark, the weight of its squared error.
+    pub(super) lw: Vec<f64>,
+}
+
+impl Blocks {
+    /// `lw`: per landmark, the weight of its squared error.
+    pub(super) fn new(deltas: &[Vec<[f64; 3]>], lw: &[f64]) -> Blocks {
+        let k = deltas.len();
+        let n = deltas.first().map_or(0, Vec::len);
+        let mut d = vec![0.0; k * n * 3];
+        for (s, ds) in deltas.iter().enumerate() {
+            for (i, o) in ds.iter().enumerate() {
+                d[s * n * 3 + i * 3..s * n * 3 + i * 3 + 3].copy_from_slice(o);
+            }
+        }
+        let pair = |a: usize, b: usize| {
+            let mut m = vec![0.0; k * k];
+            for p in 0..k {
+                for q in 0..k {
+                    let mut v = 0.0;
+                    for (i, wi) in lw.iter().enumerate().take(n) {
+                        v += wi * d[p * n * 3 + i * 3 + a] * d[q * n * 3 + i * 3 + b];
+                    }
+                    m[p * k + q] = v;
+                }
+            }
+            m
+        };
+        let sym = |a: usize, b: usize| {
+            let (x, y) = (pair(a, b), pair(b, a));
+            x.iter().zip(&y).map(|(u, v)| u + v).collect::<Vec<f64>>()
+        };
+        Blocks {
+            k,
+            g: [
+                pair(0, 0),
+                pair(1, 1),
+                pair(2, 2),
+                sym(0, 1),
+                sym(0, 2),
+                sym(1, 2),
+            ],
+            d,
+            lw: lw.to_vec(),
+        }
+    }
+
+    /// `AᵀWA` for camera `c`: `s² Σ M_ab G^{ab}` with `M = R₂ᵀ R₂ + wz r₃ r₃ᵀ` (`wz` the
+    /// weight of the depth rows, 0 for a 2-D track).
+    pub(super) fn gram(&self, c: &Camera, wz: f64, out: &mut [f64]) {
+        let r = &c.r;
+        let m = |a: usize, b: usize| {
+            r[(0, a)] * r[(0, b)] + r[(1, a)] * r[(1, b)] + wz * r[(2, a)] * r[(2, b)]
+        };
+        let coef = [m(0, 0), m(1, 1), m(2, 2), m(0, 1), m(0, 2), m(1, 2)];
+        let s2 = c.s * c.s;
+        let f = coef.map(|cf| s2 * cf);
+        let [g0, g1, g2, g3, g4, g5] = &self.g;
+        for (i, o) in out.iter_mut().enumerate() {
+            *o = f[0] * g0[i]
+                + f[1] * g1[i]
+                + f[2] * g2[i]
+                + f[3] * g3[i]
+                + f[4] * g4[i]
+                + f[5] * g5[i];
+        }
+    }
+
+    /// `AᵀWr` for camera `c` and per-landmark image residuals `res` (y up), with the depth
+    /// residuals `dres` weighted by `wz` when the track has depth.
+    pub(super) fn rhs(
+        &self,
+        c: &Camera,
+        res: &[[f64; 2]],
+        dres: Option<(&[f64], f64)>,
+        out: &mut [f64],
+    ) {
+        let n = res.len();
+        let r = &c.r;
+        let mut v = vec![0.0; n * 3];
+        for (i, e) in res.iter().enumerate() {
+            let ez = dres.map_or(0.0, |(d, wz)| wz * d[i]);
+            for a in 0..3 {
+                v[i * 3 + a] =
+                    self.lw[i] * c.s * (r[(0, a)] * e[0] + r[(1, a)] * e[1] + r[(2, a)] * ez);
+            }
+        }
+        for (p, o) in out.iter_mut().enumerate().take(self.k) {
+            *o = dot(&self.d[p * n * 3..(p + 1) * n * 3], &v);
+        }
+    }
+}
+
+/// `Σ aᵢ bᵢ` over equal-length slices, in four running sums (which the compiler keeps in
+/// vector registers; one running sum would serialise every addition).
+pub(super) fn dot(a: &[f64], b: &[f64]) -> f64 {
+    let (ca, cb) = (a.chunks_exact(4), b.chunks_exact(4));
+    let tail: f64 = ca
+        .remainder()
+        .iter()
+        .zip(cb.remainder())
+        .map(|(x, y)| x * y)
+        .sum();
+    let mut acc = [0.0; 4];
+    for (x, y) in ca.zip(cb) {
+        for k in 0..4 {
+            acc[k] += x[k] * y[k];
+        }
+    }
+    (acc[0] + acc[1]) + (acc[2] + acc[3]) + tail
+}
+
+/// Frame `f` of a depth track (one row per landmark, towards the viewer), if there is one.
+pub(super) fn frame_depth(depth: Option<&DMatrix<f64>>, f: usize) -> Option<Vec<f64>> {
+    depth.map(|d| d.column(f).iter().copied().collect())
+}
+
+/// The track's frame `f` as image points with y up.
+pub(super) fn frame_points(track: &DMatrix<f64>, f: usize) -> Vec<[f64; 2]> {
+    (0..track.nrows() / 2)
+        .map(|i| [track[(2 * i, f)], -track[(2 * i + 1, f)]])
+        .collect()
+}
+
+/// One frame's solver state, reused from frame to frame (the warm start).
+pub(super) struct FrameSolver<'a> {
+    pub(super) rig: &'a Rig,
+    pub(super) blocks: Blocks,
+    /// Shapes solved for (not frozen), in rig order.
+    pub(super) free: Vec<usize>,
+    pub(super) solver: Solver,
+    pub(super) max_steps: usize,
+    pub(super) w: Vec<f64>,
+    pub(super) state: Vec<Bound>,
+    pub(super) ws: Workspace,
+    pub(super) cam: Option<Camera>,
+    /// The causal temporal prior: λ and the previous frame's weights (free shapes), which
+    /// each frame's weights are pulled towards (`λ‖w − w_prev‖²` added to the error).
+    pub(super) lambda: f64,
+    pub(super) prev: Option<Vec<f64>>,
+    /// The magnitude prior: per free shape, μᵢ in `Σ μᵢ wᵢ²` added to the error.
+    pub(super) ridge: Vec<f64>,
+    /// Mutually exclusive pairs (free indices a, b) and γ in `γ w_a w_b` added to the error:
+    /// with γ = 2√(μ_a μ_b) the pair's prior is `(√μ_a w_a + √μ_b w_b)²`, convex, and shapes
+    /// that undo each other (smile and frown) pay for being on together.
+    pub(super) pairs: Vec<(usize, usize, f64)>,
+    /// The frame's depth observations (towards the viewer, track units) when the track has
+    /// depth (`--dims 3`): each landmark's third row, `s r₃·p + tz`, is fitted too.
+    pub(super) depth: Option<Vec<f64>>,
+    /// The depth offset (MediaPipe's z has its origin near the head's centre).
+    pub(super) tz: f64,
+    /// The weight of a depth row's squared error against an image row's.
+    pub(super) depth_weight: f64,
+    /// Per free shape, does the magnitude prior taper off ([`RigOptions::taper`])?
+    pub(super) taper: Vec<bool>,
+}
+
+impl<'a> FrameSolver<'a> {
+    pub(super) fn new(
+        rig: &'a Rig,
+        free: Vec<usize>,
+        solver: Solver,
+        max_steps: usize,
+        lw: &[f64],
+    ) -> Self {
+        let sub: Vec<Vec<[f64; 3]>> = free.iter().map(|&s| rig.deltas[s].clone()).collect();
+        let m = free.len();
+        FrameSolver {
+            rig,
+            blocks: Blocks::new(&sub, lw),
+            free,
+            solver,
+            max_steps,
+            w: vec![0.0; m],
+            state: vec![Bound::Lower; m],
+            ws: Workspace::new(m),
+            cam: None,
+            lambda: 0.0,
+            prev: None,
+            ridge: vec![0.0; m],
+            pairs: Vec::new(),
+            depth: None,
+            tz: 0.0,
+            depth_weight: 1.0,
+            taper: vec![false; m],
+        }
+    }
+
+    /// The depth rows' weight: `depth_weight` with depth, 0 without.
+    pub(super) fn wz(&self) -> f64 {
+        if self.depth.is_some() {
+            self.depth_weight
+        } else {
+            0.0
+        }
+    }
+
+    /// The depth residuals `d − (s r₃·p + tz)` of the posed landmarks `x` under `cam`.
+    pub(super) fn depth_residuals(&self, cam: &Camera, x: &[[f64; 3]]) -> Option<Vec<f64>> {
+        let d = self.depth.as_ref()?;
+        Some(
+            x.iter()
+                .zip(d)
+                .map(|(p, z)| z - (cam.depth(p) + self.tz))
+                .collect(),
+        )
+    }
+
+    /// The depth offset that best fits the current weights under `cam` (the mean residual).
+    pub(super) fn fit_tz(&mut self, cam: &Camera) {
+        self.tz = 0.0;
+        let x = self.rig.posed(&self.full_weights());
+        if let Some(r) = self.depth_residuals(cam, &x) {
+            self.tz = r.iter().sum::<f64>() / r.len().max(1) as f64;
+        }
+    }
+
+    pub(super) fn full_weights(&self) -> Vec<f64> {
+        let mut w = vec![0.0; self.rig.k()];
+        for (j, &s) in self.free.iter().enumerate() {
+            w[s] = self.w[j];
+        }
+        w
+    }
+
+    /// The squared landmark error of the current weights under `cam`, each landmark's
+    /// term weighted by `lw` (all 1: the plain error).
+    pub(super) fn sq_error_with(&self, cam: &Camera, u: &[[f64; 2]], lw: &[f64]) -> f64 {
+        let posed = self.rig.posed(&self.full_weights());
+        let image: f64 = posed
+            .iter()
+            .zip(u)
+            .zip(lw)
+            .map(|((p, q), wi)| {
+                let e = cam.project(p);
+                wi * ((e[0] - q[0]).powi(2) + (e[1] - q[1]).powi(2))
+            })
+            .sum();
+        let depth = self.depth_residuals(cam, &posed).map_or(0.0, |r| {
+            self.depth_weight * r.iter().zip(lw).map(|(e, wi)| wi * e * e).sum::<f64>()
+        });
+        image + depth
+    }
+
+    /// The plain squared landmark error (what is reported).
+    pub(super) fn sq_error(&self, cam: &Camera, u: &[[f64; 2]]) -> f64 {
+        let posed = self.rig.posed(&self.full_weights());
+        posed
+            .iter()
+            .zip(u)
+            .map(|(p, q)| {
+                let e = cam.project(p);
+                (e[0] - q[0]).powi(2) + (e[1] - q[1]).powi(2)
+            })
+            .sum()
+    }
+
+    /// What the steps minimise: the weighted squared landmark error plus the prior's term.
+    pub(super) fn objective(&self, cam: &Camera, u: &[[f64; 2]]) -> f64 {
+        let prior = match &self.prev {
+            Some(p) if self.lambda > 0.0 => {
+                self.lambda
+                    * self
+                        .w
+                        .iter()
+                        .zip(p)
+                        .map(|(a, b)| (a - b).powi(2))
+                        .sum::<f64>()
+            }
+            _ => 0.0,
+        };
+        let magnitude: f64 = self
+            .w
+            .iter()
+            .zip(&self.ridge)
+            .map(|(w, r)| r * w * w)
+            .sum::<f64>()
+            + self
+                .pairs
+                .iter()
+                .map(|&(a, b, g)| g * self.w[a] * self.w[b])
+                .sum::<f64>();
+        self.sq_error_with(cam, u, &self.blocks.lw) + prior + magnitude
+    }
+
+    /// One Gauss–Newton step of camera and weights together, linearised at the current
+    /// camera `cam` and weights: the camera's six parameters (scale, a small rotation ω with
+    /// `R ← R exp([ω]×)`, translation) are eliminated by their Schur complement, the weights
+    /// solved under their bounds on what is left (warm-started active set), then the camera
+    /// step recovered. Returns the camera the full step reaches.
+    pub(super) fn step(&mut self, cam: &Camera, u: &[[f64; 2]]) -> (Camera, f64) {
+        let m = self.free.len();
+        let x = self.rig.posed(&self.full_weights());
+        let n = u.len();
+        let r = &cam.r;
+        let lw = &self.blocks.lw;
+        // With depth, a third row per landmark (`s r₃·p + tz`) and a seventh camera
+        // parameter, the depth offset tz.
+        let dres = self.depth_residuals(cam, &self.rig.neutral);
+        let (rows, np) = if dres.is_some() { (3, 7) } else { (2, 6) };
+        let wz = self.wz();
+        // The model is linear in w: the right side is the residual plus A·w, and with
+        // A·w = s R (x − N) that is the residual of the neutral, u − proj(N).
+        //
+        // Hcw = Jᵀ W A and bw = Aᵀ W r never form A (rows per landmark × m): each of the
+        // camera's Jacobian rows, and the right side, is pulled back through s R onto the
+        // rig's coordinates (`v`, np + 1 rows of 3 per landmark), and then met with every
+        // shape's deltas in one contiguous dot product.
+        let mut hcc = DMatrix::<f64>::zeros(np, np);
+        let mut bc = nalgebra::DVector::<f64>::zeros(np);
+        let len = 3 * n;
+        let mut v = vec![0.0; (np + 1) * len];
+        for i in 0..n {
+            let p = x[i];
+            let e = cam.project(&self.rig.neutral[i]);
+            for row in 0..rows {
+                let (rhs, wi) = match row {
+                    0 | 1 => (u[i][row] - e[row], lw[i]),
+                    _ => (dres.as_ref().map_or(0.0, |d| d[i]), wz * lw[i]),
+                };
+                let rr = [r[(row, 0)], r[(row, 1)], r[(row, 2)]];
+                // ∂/∂ω of s·rr·(I + [ω]×)p = s·rr·(ω × p) = s·(p × rr)·ω.
+                let c = [
+                    p[1] * rr[2] - p[2] * rr[1],
+                    p[2] * rr[0] - p[0] * rr[2],
+                    p[0] * rr[1] - p[1] * rr[0],
+                ];
+                let proj = rr[0] * p[0] + rr[1] * p[1] + rr[2] * p[2];
+                let j = [
+                    proj,
+                    cam.s * c[0],
+                    cam.s * c[1],
+                    cam.s * c[2],
+                    if row == 0 { 1.0 } else { 0.0 },
+                    if row == 1 { 1.0 } else { 0.0 },
+                    if row == 2 { 1.0 } else { 0.0 },
+                ];
+                for a in 0..np {
+                    bc[a] += wi * j[a] * rhs;
+                    for b in 0..np {
+                        hcc[(a, b)] += wi * j[a] * j[b];
+                    }
+                    let f = wi * cam.s * j[a];
+                    if f != 0.0 {
+                        let at = a * len + 3 * i;
+                        for (o, q) in v[at..at + 3].iter_mut().zip(&rr) {
+                            *o += f * q;
+                        }
+                    }
+                }
+                let f = wi * cam.s * rhs;
+                let at = np * len + 3 * i;
+                for (o, q) in v[at..at + 3].iter_mut().zip(&rr) {
+                    *o += f * q;
+                }
+            }
+        }
+        let d = &self.blocks.d;
+        let mut hcw_flat = vec![0.0; np * m];
+        let mut bw = vec![0.0; m];
+        for jj in 0..m {
+            let dj = &d[jj * len..(jj + 1) * len];
+            for p in 0..np {
+                hcw_flat[p * m + jj] = dot(&v[p * len..(p + 1) * len], dj);
+            }
+            bw[jj] = dot(&v[np * len..(np + 1) * len], dj);
+        }
+        let hcw = DMatrix::from_row_slice(np, m, &hcw_flat);
+        let mut g = vec![0.0; m * m];
+        self.blocks.gram(cam, wz, &mut g);
+        let Some(hinv) = hcc.try_inverse() else {
+            return (*cam, self.tz);
+        };
+        // Schur complement: G' = Hww − Hcwᵀ Hcc⁻¹ Hcw, b' = bw − Hcwᵀ Hcc⁻¹ bc.
+        let t = &hinv * &hcw; // np × m
+        let tb = &hinv * &bc;
+        for p in 0..m {
+            for q in 0..m {
+                let mut v = 0.0;
+                for c in 0..np {
+                    v += hcw[(c, p)] * t[(c, q)];
+                }
+                g[p * m + q] -= v;
+            }
+            let mut v = 0.0;
+            for c in 0..np {
+                v += hcw[(c, p)] * tb[c];
+            }
+            bw[p] -= v;
+        }
+        if m > 0 {
+            self.solve_weights(g, bw);
+        }
+        // Camera step: Hcc δ = bc − Hcw w.
+        let hw = &hcw * nalgebra::DVector::from_column_slice(&self.w);
+        let delta = &hinv * (bc - hw);
+        let omega = nalgebra::Vector3::new(delta[1], delta[2], delta[3]);
+        let rot = nalgebra::Rotation3::new(omega);
+        let tz = if np == 7 { self.tz + delta[6] } else { self.tz };
+        (
+            Camera {
+                s: cam.s + delta[0],
+                r: cam.r * rot.matrix(),
+                t: [cam.t[0] + delta[4], cam.t[1] + delta[5]],
+            },
+            tz,
+        )
+    }
+
+    /// The best weights for camera `cam` (the model is linear in them: exact), warm-started
+    /// from the current ones, under the plain magnitude prior.
+    pub(super) fn weights_for(&mut self, cam: &Camera, u: &[[f64; 2]]) {
+        if let Some((g, b)) = self.normal_equations(cam, u) {
+            self.solve_weights(g, b);
+        }
+    }
+
+    /// [`FrameSolver::weights_for`] with the magnitude prior tapered where it does
+    /// ([`RigOptions::taper`]; the plain solve where it does not).
+    pub(super) fn tapered_weights_for(&mut self, cam: &Camera, u: &[[f64; 2]]) {
+        if let Some((g, b)) = self.normal_equations(cam, u) {
+            if self.taper.iter().any(|&t| t) {
+                self.solve_tapered(g, b);
+            } else {
+                self.solve_weights(g, b);
+            }
+        }
+    }
+
+    /// The weights' normal equations `G w = b` at camera `cam` (without the priors), or
+    /// `None` when no shape is free.
+    pub(super) fn normal_equations(
+        &self,
+        cam: &Camera,
+        u: &[[f64; 2]],
+    ) -> Option<(Vec<f64>, Vec<f64>)> {
+        let m = self.free.len();
+        if m == 0 {
+            return None;
+        }
+        let res: Vec<[f64; 2]> = self
+            .rig
+            .neutral
+            .iter()
+            .zip(u)
+            .map(|(p, q)| {
+                let e = cam.project(p);
+                [q[0] - e[0], q[1] - e[1]]
+            })
+            .collect();
+        let mut g = vec![0.0; m * m];
+        let wz = self.wz();
+        self.blocks.gram(cam, wz, &mut g);
+        let mut b = vec![0.0; m];
+        let dres = self.depth_residuals(cam, &self.rig.neutral);
+        self.blocks
+            .rhs(cam, &res, dres.as_deref().map(|d| (d, wz)), &mut b);
+        Some((g, b))
+    }
+
+    /// [`FrameSolver::solve_weights`] with the tapered magnitude prior: the ridge of each
+    /// tapering shape reweighted to `μ (1 − w)²` from the current weights and the weights
+    /// solved again, [`TAPER_STEPS`] times (fewer when no weight moves by more than
+    /// [`TAPER_TOLERANCE`]). Each step is the local linear approximation of the tapered
+    /// penalty `μ w² (1 − 4w/3 + w²/2)`, whose gradient is `2μ w (1 − w)²`, at the last
+    /// weights. Returns the ridge of the last solve (the weights meet its KKT conditions).
+    pub(super) fn solve_tapered(&mut self, g: Vec<f64>, b: Vec<f64>) -> Vec<f64> {
+        let base = self.ridge.clone();
+        let mut used = base.clone();
+        for _ in 0..TAPER_STEPS {
+            for ((r, mu), (w, t)) in self
+                .ridge
+                .iter_mut()
+                .zip(&base)
+                .zip(self.w.iter().zip(&self.taper))
+            {
+                if *t {
+                    *r = mu * (1.0 - w.clamp(0.0, 1.0)).powi(2);
+                }
+            }
+            let before = self.w.clone();
+            used.clone_from(&self.ridge);
+            self.solve_weights(g.clone(), b.clone());
+            let moved = before
+                .iter()
+                .zip(&self.w)
+                .map(|(a, b)| (a - b).abs())
+                .fold(0.0, f64::max);
+            if moved <= TAPER_TOLERANCE {
+                break;
+            }
+        }
+        self.ridge = base;
+        used
+    }
+
+    /// Solves `G w = b` under the solver's bounds into `self.w` (G gets a whisper of ridge,
+    /// 1e-9 of its mean diagonal, far below any taken shape's curvature, so nearly dependent
+    /// shapes stay solvable).
+    pub(super) fn solve_weights(&mut self, mut g: Vec<f64>, mut b: Vec<f64>) {
+        let m = self.free.len();
+        let ridge = 1e-9 * (0..m).map(|i| g[i * m + i]).sum::<f64>() / m as f64;
+        for i in 0..m {
+            g[i * m + i] += ridge + self.ridge[i];
+        }
+        for &(a, b, gamma) in &self.pairs {
+            g[a * m + b] += gamma / 2.0;
+            g[b * m + a] += gamma / 2.0;
+        }
+        if let (Some(p), true) = (&self.prev, self.lambda > 0.0) {
+            for i in 0..m {
+                g[i * m + i] += self.lambda;
+                b[i] += self.lambda * p[i];
+            }
+        }
+
+        match self.solver {
+            Solver::Ls => {
+                if solve_spd(&mut g, m, &mut b) {
+                    self.w.copy_from_slice(&b);
+                }
+            }
+            Solver::Nnls | Solver::Bounded => {
+                let upper = if self.solver == Solver::Bounded {
+                    1.0
+                } else {
+                    f64::INFINITY
+                };
+                let gram = Gram::from_row_major(m, g, upper);
+                // Each call has its own Gram: the workspace's cached factor is stale.
+                self.ws.forget_factor();
+                active_set::solve_frame(&gram, &b, &mut self.w, &mut self.state, &mut self.ws);
+            }
+        }
+    }
+
+    /// Camera and weights of frame `u` to convergence: from the previous frame's weights and
+    /// a fresh camera fit, each step takes the camera's Gauss–Newton step of the joint
+    /// problem ([`FrameSolver::step`]), backtracked until the error falls, with the weights
+    /// solved exactly for each trial camera (variable projection: the error never rises);
+    /// then, at the camera reached, the weights under the tapered prior where it tapers.
+    /// Returns (steps, converged, squared error).
+    pub(super) fn solve(&mut self, u: &[[f64; 2]]) -> Result<(u32, bool, f64)> {
+        let (cam, it, ok) = self.gauss_newton(u)?;
+        if self.taper.iter().any(|&t| t) {
+            self.tapered_weights_for(&cam, u);
+        }
+        self.cam = Some(cam);
+        Ok((it, ok, self.sq_error(&cam, u)))
+    }
+
+    /// [`FrameSolver::solve`]'s Gauss–Newton steps, under the plain magnitude prior:
+    /// (camera, steps, converged).
+    pub(super) fn gauss_newton(&mut self, u: &[[f64; 2]]) -> Result<(Camera, u32, bool)> {
+        let mut cam = fit_camera(&self.rig.posed(&self.full_weights()), u)?;
+        self.fit_tz(&cam);
+        self.weights_for(&cam, u);
+        let mut err = self.objective(&cam, u);
+        for it in 1..=self.max_steps {
+            let (w0, state0, tz0) = (self.w.clone(), self.state.clone(), self.tz);
+            let (full, tz_full) = self.step(&cam, u);
+            let mut accepted = None;
+            let mut alpha = 1.0;
+            for _ in 0..12 {
+                let trial = cam.toward(&full, alpha);
+                self.w.copy_from_slice(&w0);
+                self.state.copy_from_slice(&state0);
+                self.tz = tz0 + alpha * (tz_full - tz0);
+                self.weights_for(&trial, u);
+                let e = self.objective(&trial, u);
+                if e < err {
+                    accepted = Some((trial, e));
+                    break;
+                }
+                alpha *= 0.5;
+            }
+            let Some((next, e)) = accepted else {
+                self.w = w0;
+                self.state = state0;
+                self.tz = tz0;
+                return Ok((cam, it as u32, true));
+            };
+            let small = err - e <= 1e-12 * err;
+            cam = next;
+            err = e;
+            if small {
+                return Ok((cam, it as u32, true));
+            }
+        }
+        Ok((cam, self.max_steps as u32, false))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    /// The tapered prior's weights meet the KKT conditions of the bounded problem with the
+    /// ridge its last step used; that ridge is `μ (1 − w)²` of weights in [0, 1] for the
+    /// tapering shapes (so never above μ) and μ for the others; and a shape the data clearly
+    /// turns on comes nearer its full weight than under the plain ridge.
+    #[test]
+    fn the_tapered_prior_meets_its_kkt_conditions() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(39);
+        let (n, m) = (8, 5);
+        let rig = crate::Rig {
+            names: (0..m).map(|s| format!("s{s}")).collect(),
+            neutral: vec![[0.0; 3]; n],
+            deltas: (0..m)
+                .map(|_| (0..n).map(|_| [rng.gen_range(-1.0..1.0); 3]).collect())
+                .collect(),
+            points: (0..n).collect(),
+            layout: n,
+        };
+        for trial in 0..200 {
+            let mut fs = super::FrameSolver::new(
+                &rig,
+                (0..m).collect(),
+                keyshape_core::solve::Solver::Bounded,
+                50,
+                &vec![1.0; n],
+            );
+            let a = nalgebra::DMatrix::<f64>::from_fn(2 * m, m, |_, _| rng.gen_range(-1.0..1.0));
+            let gram = a.transpose() * &a;
+            let g: Vec<f64> = (0..m * m).map(|k| gram[(k / m, k % m)]).collect();
+            let truth: Vec<f64> = (0..m).map(|_| rng.gen_range(-0.3..1.3)).collect();
+            let b: Vec<f64> = (0..m)
+                .map(|i| (0..m).map(|j| gram[(i, j)] * truth[j]).sum())
+                .collect();
+            let mu = rng.gen_range(0.05..2.0);
+            fs.ridge = vec![mu; m];
+            fs.taper = (0..m).map(|j| j != m - 1).collect();
+            fs.pairs = vec![(0, 1, 2.0 * mu)];
+            let used = fs.solve_tapered(g.clone(), b.clone());
+            assert_eq!(fs.ridge, vec![mu; m], "the base ridge is restored");
+            assert_eq!(used[m - 1], mu, "a shape that does not taper keeps μ");
+            for &r in &used[..m - 1] {
+                assert!((0.0..=mu).contains(&r), "trial {trial}: {r} against μ {mu}");
+            }
+            // KKT of (G + diag(used) + pairs) w = b in the unit box.
+            let w = fs.w.clone();
+            let whisper = 1e-9 * (0..m).map(|i| g[i * m + i]).sum::<f64>() / m as f64;
+            for i in 0..m {
+                let mut h = -b[i] + (used[i] + whisper) * w[i];
+                for j in 0..m {
+                    h += g[i * m + j] * w[j];
+                }
+                h += match i {
+                    0 => mu * w[1],
+                    1 => mu * w[0],
+                    _ => 0.0,
+                };
+                let v = if w[i] <= 1e-12 {
+                    (-h).max(0.0)
+                } else if w[i] >= 1.0 - 1e-12 {
+                    h.max(0.0)
+                } else {
+                    h.abs()
+                };
+                assert!(v < 1e-9, "trial {trial}: shape {i} KKT violation {v}");
+            }
+        }
+        // One shape the data puts at 1 (curvature 2, μ 1): the plain ridge leaves 2/3, the
+        // taper's two steps μ(1 − 2/3)² → 0.947 and then 0.9986.
+        let mut one = super::FrameSolver::new(
+            &rig,
+            vec![0],
+            keyshape_core::solve::Solver::Bounded,
+            50,
+            &[1.0; 8],
+        );
+        one.ridge = vec![1.0];
+        one.taper = vec![true];
+        one.solve_weights(vec![2.0], vec![2.0]);
+        assert!((one.w[0] - 2.0 / 3.0).abs() < 1e-6, "{}", one.w[0]);
+        one.solve_tapered(vec![2.0], vec![2.0]);
+        assert!((one.w[0] - 0.9986).abs() < 1e-3, "{}", one.w[0]);
+    }
+}

@@ -1,0 +1,157 @@
+//! Live Link Face CSV (Epic's iOS app's recording format): `Timecode,BlendShapeCount,`
+//! then 61 values per frame in the app's own order — the 52 ARKit shapes (Unreal's
+//! `EARFaceBlendShape` order, EyeBlinkLeft … TongueOut), HeadYaw, HeadPitch, HeadRoll and
+//! the two eyes' yaw, pitch and roll.
+
+use super::Rig;
+use std::io::Write;
+
+/// The 61 value columns, in Live Link Face's order.
+pub const COLUMNS: [&str; 61] = [
+    "EyeBlinkLeft",
+    "EyeLookDownLeft",
+    "EyeLookInLeft",
+    "EyeLookOutLeft",
+    "EyeLookUpLeft",
+    "EyeSquintLeft",
+    "EyeWideLeft",
+    "EyeBlinkRight",
+    "EyeLookDownRight",
+    "EyeLookInRight",
+    "EyeLookOutRight",
+    "EyeLookUpRight",
+    "EyeSquintRight",
+    "EyeWideRight",
+    "JawForward",
+    "JawLeft",
+    "JawRight",
+    "JawOpen",
+    "MouthClose",
+    "MouthFunnel",
+    "MouthPucker",
+    "MouthLeft",
+    "MouthRight",
+    "MouthSmileLeft",
+    "MouthSmileRight",
+    "MouthFrownLeft",
+    "MouthFrownRight",
+    "MouthDimpleLeft",
+    "MouthDimpleRight",
+    "MouthStretchLeft",
+    "MouthStretchRight",
+    "MouthRollLower",
+    "MouthRollUpper",
+    "MouthShrugLower",
+    "MouthShrugUpper",
+    "MouthPressLeft",
+    "MouthPressRight",
+    "MouthLowerDownLeft",
+    "MouthLowerDownRight",
+    "MouthUpperUpLeft",
+    "MouthUpperUpRight",
+    "BrowDownLeft",
+    "BrowDownRight",
+    "BrowInnerUp",
+    "BrowOuterUpLeft",
+    "BrowOuterUpRight",
+    "CheekPuff",
+    "CheekSquintLeft",
+    "CheekSquintRight",
+    "NoseSneerLeft",
+    "NoseSneerRight",
+    "TongueOut",
+    "HeadYaw",
+    "HeadPitch",
+    "HeadRoll",
+    "LeftEyeYaw",
+    "LeftEyePitch",
+    "LeftEyeRoll",
+    "RightEyeYaw",
+    "RightEyePitch",
+    "RightEyeRoll",
+];
+
+/// The ARKit name of a rig shape name: ICT's `mouthSmile_L` → `MouthSmileLeft`, `jawOpen` →
+/// `JawOpen`; ARKit names (`mouthSmileLeft`, `MouthSmileLeft`) map to themselves.
+pub fn arkit_name(rig_name: &str) -> String {
+    let (stem, side) = match rig_name.rsplit_once('_') {
+        Some((s, "L")) | Some((s, "l")) => (s, "Left"),
+        Some((s, "R")) | Some((s, "r")) => (s, "Right"),
+        _ => (rig_name, ""),
+    };
+    let mut c = stem.chars();
+    let head: String = c
+        .next()
+        .map(|h| h.to_uppercase().collect())
+        .unwrap_or_default();
+    format!("{head}{}{side}", c.as_str())
+}
+
+/// For each of the 52 ARKit columns, the rig shapes averaged into it: one shape usually;
+/// both halves where the rig splits a shape ARKit keeps whole (ICT's `browInnerUp_L/_R`,
+/// `cheekPuff_L/_R`); none where the rig lacks it (written as 0). Rig shapes ARKit lacks
+/// (ICT's `cheekRaiser_L/_R`) are in no column.
+pub fn column_sources(rig: &Rig) -> Vec<Vec<usize>> {
+    let names: Vec<String> = rig.names.iter().map(|n| arkit_name(n)).collect();
+    COLUMNS[..52]
+        .iter()
+        .map(|col| {
+            let exact: Vec<usize> = (0..names.len()).filter(|&i| names[i] == *col).collect();
+            if !exact.is_empty() {
+                return exact;
+            }
+            (0..names.len())
+                .filter(|&i| names[i] == format!("{col}Left") || names[i] == format!("{col}Right"))
+                .collect()
+        })
+        .collect()
+}
+
+/// `HH:MM:SS:FF.mmm` for time `t` seconds at `fps` frames per second (Live Link Face's
+/// timecode: frame within the second, then the fraction of a frame in thousandths).
+pub fn timecode(t: f64, fps: f64) -> String {
+    let t = t.max(0.0);
+    let whole = t.floor();
+    let secs = whole as u64;
+    let frames = (t - whole) * fps;
+    let ff = frames.floor();
+    let milli = ((frames - ff) * 1000.0).round().min(999.0) as u64;
+    format!(
+        "{:02}:{:02}:{:02}:{:02}.{milli:03}",
+        secs / 3600,
+        (secs / 60) % 60,
+        secs % 60,
+        ff as u64
+    )
+}
+
+/// Writes the CSV: per frame, its time (seconds), the rig weights (rig order) and the head's
+/// yaw, pitch and roll (radians).
+pub fn write(
+    out: &mut dyn Write,
+    rig: &Rig,
+    times: &[f64],
+    fps: f64,
+    weights: &nalgebra::DMatrix<f64>,
+    head: &[[f64; 3]],
+) -> std::io::Result<()> {
+    let sources = column_sources(rig);
+    writeln!(out, "Timecode,BlendShapeCount,{}", COLUMNS.join(","))?;
+    for (f, &t) in times.iter().enumerate() {
+        write!(out, "{},{}", timecode(t, fps), COLUMNS.len())?;
+        for src in &sources {
+            let v = if src.is_empty() {
+                0.0
+            } else {
+                src.iter().map(|&s| weights[(s, f)]).sum::<f64>() / src.len() as f64
+            };
+            write!(out, ",{}", keyshape_io::fmt_num(v))?;
+        }
+        for a in head[f] {
+            write!(out, ",{}", keyshape_io::fmt_num(a))?;
+        }
+        write!(out, ",0,0,0,0,0,0")?;
+        writeln!(out)?;
+    }
+    Ok(())
+}

@@ -1,0 +1,339 @@
+//! The whole track's rig solve: the neutral and identity per clip, the identifiability
+//! check, the frame-by-frame pass, and the temporal priors after or inside it.
+
+use super::camera::{fit_camera, Camera};
+use super::frame::{frame_depth, frame_points, FrameSolver};
+use super::identifiability::identifiability_weighted;
+use super::neutral::{best_explaining, person_rig};
+use super::prior::{exclusive_pairs, magnitude_prior, tapering};
+use super::{correspondence, temporal, Identity, Neutral, Rig, RigOptions, RigSolve, LANDMARKS};
+use keyshape_core::error::{Error, Result};
+use nalgebra::DMatrix;
+use std::ops::Range;
+
+/// Solves every frame of `track` (iBUG-68 2-D points, 136 × frames, image axes) onto `rig`.
+/// `clips` (consecutive column ranges covering the track, or empty for one clip) may hold
+/// different people: with `Neutral::Auto` each clip takes its identity from its own least
+/// active frame; an explicit neutral column gives every clip that frame's identity.
+pub fn solve_rig(
+    rig: &Rig,
+    track: &DMatrix<f64>,
+    clips: &[Range<usize>],
+    opts: &RigOptions,
+) -> Result<RigSolve> {
+    let n = rig.landmarks();
+    if track.nrows() != 2 * n && track.nrows() != 3 * n {
+        return Err(Error::invalid(format!(
+            "the rig reads {n} landmarks (2 or 3 rows each), but the track has {} rows: select the rig's points (Rig::points) from the track first",
+            track.nrows(),
+        )));
+    }
+    // A track with depth (x, y, z per landmark): its image rows, and its depth rows with
+    // the sign turned to point towards the viewer (MediaPipe's z is more negative closer).
+    let (image, depth) = if track.nrows() == 3 * n {
+        let xy: Vec<usize> = (0..n).flat_map(|i| [3 * i, 3 * i + 1]).collect();
+        let z: Vec<usize> = (0..n).map(|i| 3 * i + 2).collect();
+        (track.select_rows(&xy), Some(-track.select_rows(&z)))
+    } else {
+        (track.clone(), None)
+    };
+    let track = &image;
+    let depth = depth.as_ref();
+    if track.ncols() == 0 {
+        return Err(Error::invalid("the track has no frames"));
+    }
+    if let Some((i, v)) = track.iter().enumerate().find(|(_, v)| !v.is_finite()) {
+        return Err(Error::invalid(format!(
+            "frame column {}: landmark {} is {v}",
+            i / track.nrows(),
+            (i % track.nrows()) / 2
+        )));
+    }
+    if let Some(c) = (0..track.ncols())
+        .find(|&c| keyshape_core::sequence::degenerate_shape(track.column(c).as_slice(), 2))
+    {
+        return Err(Error::invalid(format!(
+            "frame column {c}: all {n} landmarks coincide, so no camera can be fitted to it"
+        )));
+    }
+    if !(opts.min_determination >= 0.0 && opts.min_determination < 1.0) {
+        return Err(Error::invalid(format!(
+            "the minimum determination must be in [0, 1), not {}",
+            opts.min_determination
+        )));
+    }
+    if !(opts.zero_phase.is_finite() && (0.0..=1000.0).contains(&opts.zero_phase)) {
+        return Err(Error::invalid(format!(
+            "the zero-phase σ must be a number of frames in [0, 1000], not {}",
+            opts.zero_phase
+        )));
+    }
+    if !(opts.prior.is_finite() && opts.prior >= 0.0) {
+        return Err(Error::invalid(format!(
+            "the magnitude prior must be a number ≥ 0, not {}",
+            opts.prior
+        )));
+    }
+    if !(opts.smooth.is_finite() && opts.smooth >= 0.0) {
+        return Err(Error::invalid(format!(
+            "the temporal prior λ must be a number ≥ 0, not {}",
+            opts.smooth
+        )));
+    }
+    if let Some((i, w)) = opts
+        .landmark_weights
+        .iter()
+        .enumerate()
+        .find(|(_, w)| !(w.is_finite() && **w >= 0.0))
+    {
+        return Err(Error::invalid(format!(
+            "landmark {i}'s weight must be a finite number ≥ 0, not {w}"
+        )));
+    }
+    let lw = rig_landmark_weights(rig, opts)?;
+    if opts.prior > 0.0 && rig.eyes().is_none() {
+        let [a, b] = correspondence::eye_corners(rig.layout).unwrap_or([36, 45]);
+        return Err(Error::invalid(format!(
+            "the magnitude prior is scaled by the outer eye corners (track points {a} and {b}), which the rig's correspondence leaves out: name them, or set the prior to 0"
+        )));
+    }
+    let weighted = lw.iter().filter(|w| **w > 0.0).count();
+    if weighted < 4 {
+        return Err(Error::invalid(format!(
+            "the landmark weights leave {weighted} landmarks with weight > 0; the head pose needs at least 4"
+        )));
+    }
+    let whole = std::iter::once(0..track.ncols()).collect::<Vec<_>>();
+    let clips: &[Range<usize>] = if clips.is_empty() { &whole[..] } else { clips };
+    if clips.iter().any(|c| c.end > track.ncols() || c.is_empty())
+        || clips.windows(2).any(|w| w[0].end != w[1].start)
+        || clips[0].start != 0
+        || clips[clips.len() - 1].end != track.ncols()
+    {
+        return Err(Error::invalid(
+            "rig solve: clips must cover the frames in order",
+        ));
+    }
+    if let Neutral::Column(c) = opts.neutral {
+        if c >= track.ncols() {
+            return Err(Error::invalid(format!(
+                "neutral frame column {c} is past the track's {} frames",
+                track.ncols()
+            )));
+        }
+    }
+    if let Neutral::Span(a, b) = opts.neutral {
+        if a >= b || b > track.ncols() {
+            return Err(Error::invalid(format!(
+                "neutral frame columns {a}..{b} are not a stretch of the track's {} frames",
+                track.ncols()
+            )));
+        }
+    }
+    let all: Vec<usize> = (0..rig.k()).collect();
+    // Pass 1 (without an identity, or to find the least active frames): the rig as it is,
+    // every shape free.
+    let first = match (opts.identity, opts.neutral) {
+        (Identity::None, _) | (_, Neutral::LeastActive) => Some(run(
+            rig,
+            track,
+            &[(0..track.ncols(), rig.clone())],
+            all,
+            opts,
+            &lw,
+            depth,
+        )?),
+        _ => None,
+    };
+    let least_active = |c: &Range<usize>, first: &RigSolve| {
+        c.clone()
+            .min_by(|&a, &b| {
+                let s = |f: usize| first.weights.column(f).sum();
+                s(a).total_cmp(&s(b))
+            })
+            .unwrap_or(c.start)
+    };
+    let (people, neutrals): (Vec<(Range<usize>, Rig)>, Vec<usize>) =
+        match (opts.identity, opts.neutral, &first) {
+            (Identity::None, _, _) => (vec![(0..track.ncols(), rig.clone())], Vec::new()),
+            (id, Neutral::Column(n), _) => (
+                vec![(
+                    0..track.ncols(),
+                    person_rig(rig, track, depth, n..n + 1, id)?,
+                )],
+                vec![n],
+            ),
+            (id, Neutral::Span(a, b), _) => (
+                vec![(0..track.ncols(), person_rig(rig, track, depth, a..b, id)?)],
+                vec![(a + b) / 2],
+            ),
+            (id, auto, first) => {
+                let mut people = Vec::new();
+                let mut neutrals = Vec::new();
+                for c in clips {
+                    let n = match first {
+                        Some(first) if auto == Neutral::LeastActive => least_active(c, first),
+                        _ => best_explaining(rig, track, depth, c.clone(), opts, &lw)?,
+                    };
+                    people.push((c.clone(), person_rig(rig, track, depth, n..n + 1, id)?));
+                    neutrals.push(n);
+                }
+                (people, neutrals)
+            }
+        };
+    // Identifiability at the first clip's neutral view (the rig and the view decide it,
+    // not the person); the frozen shapes are the same in every clip.
+    let cam_n = match (neutrals.first(), &first) {
+        (Some(&n), _) => fit_camera(&people[0].1.neutral, &frame_points(track, n))?,
+        (None, Some(first)) => first.cameras[0],
+        (None, None) => fit_camera(&rig.neutral, &frame_points(track, 0))?,
+    };
+    let shapes = identifiability_weighted(&people[0].1, &cam_n, opts.min_determination, &lw);
+    let free: Vec<usize> = (0..rig.k()).filter(|&s| !shapes[s].frozen).collect();
+    let mut out = run(rig, track, &people, free, opts, &lw, depth)?;
+    out.shapes = shapes;
+    out.neutrals = neutrals;
+    out.people = people;
+    Ok(out)
+}
+
+/// Per landmark, the weight of its squared error: `opts.landmark_weights` (iBUG numbering)
+/// read at the rig's points on a 68-point layout; on other layouts they must all be 1.
+pub(super) fn rig_landmark_weights(rig: &Rig, opts: &RigOptions) -> Result<Vec<f64>> {
+    if rig.layout == LANDMARKS {
+        return Ok(rig
+            .points
+            .iter()
+            .map(|&p| opts.landmark_weights.get(p).copied().unwrap_or(1.0))
+            .collect());
+    }
+    if opts.landmark_weights.iter().any(|&w| w != 1.0) {
+        return Err(Error::invalid(format!(
+            "landmark weights name the 68 iBUG landmarks; this rig reads a {}-point track",
+            rig.layout
+        )));
+    }
+    Ok(vec![1.0; rig.landmarks()])
+}
+
+/// Smooths the columns `clip` of `w` along time by a Gaussian of `sigma` frames (radius
+/// ⌈3σ⌉, the kernel renormalised where it passes the clip's ends): zero phase, no lag.
+pub fn zero_phase(w: &mut DMatrix<f64>, clip: Range<usize>, sigma: f64) {
+    // The smoothing study's zero-phase low-pass, over this one clip.
+    let part = w.columns(clip.start, clip.len()).into_owned();
+    let smooth = keyshape_core::solve::filters::gaussian_lowpass(
+        &part,
+        std::slice::from_ref(&(0..clip.len())),
+        sigma,
+    );
+    w.columns_mut(clip.start, clip.len()).copy_from(&smooth);
+}
+
+/// The per-frame RMS landmark error of `weights` on the frames `clip`, under the frames'
+/// cameras (after the weights were changed by a temporal prior).
+pub(super) fn recompute_rms(
+    person: &Rig,
+    track: &DMatrix<f64>,
+    clip: Range<usize>,
+    cameras: &[Camera],
+    weights: &DMatrix<f64>,
+    rms: &mut [f64],
+) {
+    let n = person.landmarks();
+    for f in clip {
+        let w: Vec<f64> = weights.column(f).iter().copied().collect();
+        let u = frame_points(track, f);
+        let e: f64 = person
+            .posed(&w)
+            .iter()
+            .zip(&u)
+            .map(|(p, q)| {
+                let x = cameras[f].project(p);
+                (x[0] - q[0]).powi(2) + (x[1] - q[1]).powi(2)
+            })
+            .sum();
+        rms[f] = (e / n as f64).sqrt();
+    }
+}
+
+/// One pass over the frames with the shapes `free`, each clip with its person's rig (warm
+/// starts do not cross clips).
+pub(super) fn run(
+    rig: &Rig,
+    track: &DMatrix<f64>,
+    people: &[(Range<usize>, Rig)],
+    free: Vec<usize>,
+    opts: &RigOptions,
+    lw: &[f64],
+    depth: Option<&DMatrix<f64>>,
+) -> Result<RigSolve> {
+    let frames = track.ncols();
+    let mut tzs = vec![0.0; frames];
+    let n = rig.landmarks();
+    let mut weights = DMatrix::zeros(rig.k(), frames);
+    let (mut cameras, mut rms, mut steps) = (Vec::new(), Vec::new(), Vec::new());
+    let mut unconverged = 0;
+    let offline = opts.smooth > 0.0
+        && opts.smooth_mode == keyshape_core::solve::temporal::SmoothMode::Offline;
+    let (mut sweeps, mut sweeps_unconverged) = (0, 0);
+    for (clip, person) in people {
+        let mut fs = FrameSolver::new(person, free.clone(), opts.solver, opts.max_steps.max(1), lw);
+        fs.lambda = if offline { 0.0 } else { opts.smooth };
+        fs.ridge = magnitude_prior(track, opts, rig, &fs.free);
+        fs.pairs = exclusive_pairs(rig, &fs.free, &fs.ridge);
+        fs.taper = tapering(rig, opts, &fs.free, &fs.ridge);
+        for f in clip.clone() {
+            let u = frame_points(track, f);
+            fs.depth = frame_depth(depth, f);
+            let (it, ok, e) = fs.solve(&u)?;
+            tzs[f] = fs.tz;
+            unconverged += usize::from(!ok);
+            steps.push(it);
+            rms.push((e / n as f64).sqrt());
+            let w = fs.full_weights();
+            if w.iter().any(|v| !v.is_finite()) {
+                return Err(Error::invalid(format!(
+                    "frame column {f}: the rig solve produced non-finite weights"
+                )));
+            }
+            weights.column_mut(f).copy_from_slice(&w);
+            fs.prev = Some(fs.w.clone());
+            cameras.push(fs.cam.unwrap_or(Camera {
+                s: 1.0,
+                r: nalgebra::Matrix3::identity(),
+                t: [0.0, 0.0],
+            }));
+        }
+        if offline {
+            let (n_sweeps, ok) = temporal::offline_prior(
+                &mut fs,
+                (track, depth),
+                clip.clone(),
+                (&cameras, &tzs),
+                &mut weights,
+                opts.smooth,
+            );
+            sweeps = sweeps.max(n_sweeps);
+            sweeps_unconverged += usize::from(!ok);
+            recompute_rms(person, track, clip.clone(), &cameras, &weights, &mut rms);
+        }
+    }
+    if opts.zero_phase > 0.0 {
+        for (clip, person) in people {
+            zero_phase(&mut weights, clip.clone(), opts.zero_phase);
+            recompute_rms(person, track, clip.clone(), &cameras, &weights, &mut rms);
+        }
+    }
+    Ok(RigSolve {
+        weights,
+        cameras,
+        rms,
+        steps,
+        unconverged,
+        sweeps,
+        sweeps_unconverged,
+        shapes: Vec::new(),
+        neutrals: Vec::new(),
+        people: Vec::new(),
+    })
+}

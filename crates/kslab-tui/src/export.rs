@@ -1,0 +1,231 @@
+//! `e` in the lab: the current weights as CSV, the current view as PNG, and an experiment
+//! TOML that reproduces the settings with `kslab run`. Head motion follows
+//! `kslab tui --head-motion` (default `apply`): per-frame pose columns in the CSV and the
+//! picture in image coordinates, as `kslab retarget` writes them; `none` keeps both aligned.
+
+use super::state::State;
+use anyhow::{Context, Result};
+use keyshape_core::keyshapes::Method;
+use keyshape_io::{fmt_num, write_atomic};
+use keyshape_lab::render::face::{bounds_of, col, render_frame, FrameShapes};
+use keyshape_lab::render::save_png;
+use std::path::{Path, PathBuf};
+
+/// The folder for the next export in `base`: `kslab-export`, then `kslab-export-2`, `-3` …,
+/// the first that does not exist, so an export never replaces an earlier one.
+pub fn next_dir(base: &Path) -> PathBuf {
+    let first = base.join("kslab-export");
+    if std::fs::symlink_metadata(&first).is_err() {
+        return first;
+    }
+    (2u64..)
+        .map(|n| base.join(format!("kslab-export-{n}")))
+        .find(|d| std::fs::symlink_metadata(d).is_err())
+        .unwrap_or(first)
+}
+
+/// The footer's line after an export: `exported to kslab-export-2/: weights.csv, view.png,
+/// experiment.toml` (the folder once, then the names).
+pub fn status_line(dir: &Path, files: &[String]) -> String {
+    let names: Vec<String> = files
+        .iter()
+        .map(|f| {
+            Path::new(f)
+                .file_name()
+                .map_or(f.clone(), |n| n.to_string_lossy().into_owned())
+        })
+        .collect();
+    let d = dir.strip_prefix(".").unwrap_or(dir);
+    format!("exported to {}/: {}", d.display(), names.join(", "))
+}
+
+/// Writes `weights.csv`, `view.png` and `experiment.toml` into `dir`, all or none;
+/// returns their paths.
+pub fn export(s: &State, seq_path: &str, dir: &Path) -> Result<Vec<String>> {
+    let set = keyshape_io::OutputSet::begin();
+    let files = export_files(s, seq_path, dir)?;
+    set.commit()?;
+    Ok(files)
+}
+
+fn export_files(s: &State, seq_path: &str, dir: &Path) -> Result<Vec<String>> {
+    let c = s.computed.as_ref().context("nothing computed yet")?;
+    let v = c.views.first().context("no solver view")?;
+    keyshape_io::create_dir_all(dir)?;
+    let csv = dir.join("weights.csv");
+    let mean_keys = matches!(c.settings.method, Method::KMeans { mean: true, .. });
+    // Head motion as `kslab retarget --head-motion` handles it: re-applied (pose columns in
+    // the CSV, the picture in image coordinates) or not at all.
+    let head = if s.export_head_motion {
+        c.head.as_deref()
+    } else {
+        None
+    };
+    let image = |m: &nalgebra::DMatrix<f64>| -> Result<nalgebra::DMatrix<f64>> {
+        Ok(match head {
+            Some(h) => keyshape_retarget::with_head_motion(m, h, c.dims)?,
+            None => m.clone(),
+        })
+    };
+    write_atomic(&csv, |w| {
+        // kmeansN-mean: the key shapes are cluster means, not frames.
+        let keys: Vec<String> = c
+            .keys
+            .iter()
+            .enumerate()
+            .map(|(j, &k)| {
+                if mean_keys {
+                    format!("w_mean{j}")
+                } else {
+                    format!("w_{}", c.frames[k])
+                }
+            })
+            .collect();
+        let pose = if head.is_some() {
+            ",head_scale,head_angle_deg,head_tx,head_ty"
+        } else {
+            ""
+        };
+        writeln!(w, "frame,source_rms,target_rms,{}{pose}", keys.join(","))?;
+        for (t, f) in c.frames.iter().enumerate() {
+            let ws: Vec<String> = v.weights.column(t).iter().map(|x| fmt_num(*x)).collect();
+            write!(
+                w,
+                "{f},{},{},{}",
+                fmt_num(v.frame_rms[t]),
+                fmt_num(v.frame_target_rms[t]),
+                ws.join(",")
+            )?;
+            if let Some(h) = head {
+                let h = h[t];
+                write!(
+                    w,
+                    ",{},{},{},{}",
+                    fmt_num(h.scale),
+                    fmt_num(h.angle.to_degrees()),
+                    fmt_num(h.t[0]),
+                    fmt_num(h.t[1])
+                )?;
+            }
+            writeln!(w)?;
+        }
+        Ok(())
+    })?;
+    let t = s.frame.min(c.frames.len().saturating_sub(1));
+    let (tracked, recon, truth, target) = (
+        image(&c.tracked)?,
+        image(&v.recon)?,
+        image(&c.truth)?,
+        image(&v.target)?,
+    );
+    let sb = bounds_of(&[&tracked], c.dims);
+    let tb = bounds_of(&[&truth, &target], c.dims);
+    let shapes = FrameShapes {
+        dims: c.dims,
+        tracked: col(&tracked, t),
+        recon: col(&recon, t),
+        truth: Some(col(&truth, t)),
+        target: col(&target, t),
+        source_lines: &c.polylines,
+        target_lines: &c.polylines,
+        source_bounds: sb,
+        target_bounds: tb,
+    };
+    let caption = format!(
+        "frame {}   {} {} k={}   {}{}",
+        c.frames[t],
+        c.settings.points,
+        c.settings.method,
+        c.keys.len(),
+        c.settings.solver,
+        if c.settings.smooth > 0.0 {
+            format!(" λ={}", c.settings.smooth)
+        } else {
+            String::new()
+        }
+    );
+    let png = dir.join("view.png");
+    save_png(&render_frame(&shapes, &caption, 360)?, &png)?;
+    let toml = dir.join("experiment.toml");
+    let input = if seq_path == "builtin" {
+        "builtin".to_string()
+    } else {
+        std::fs::canonicalize(seq_path).map_or(seq_path.to_string(), |p| p.display().to_string())
+    };
+    let st = &c.settings;
+    let points = if st.points == "all" {
+        "# points: whole face".to_string()
+    } else {
+        format!("points = \"{}\"", st.points)
+    };
+    let k = if st.method == Method::Hull {
+        c.keys.len()
+    } else {
+        st.k
+    };
+    let methods: Vec<String> = Method::ALL.iter().map(|m| format!("\"{m}\"")).collect();
+    let retarget = if mean_keys {
+        format!("# [retarget] is left out: {} key shapes are cluster means, not frames, and the\n# retargeting study draws its target on key frames.\n", st.method)
+    } else {
+        format!("[retarget]\nmethod = \"{}\"\nk = {k}\nsolvers = [\"ls\", \"nnls\"]\ntrace_noise = [0.0, 0.01]\nstrip = 4\n", st.method)
+    };
+    // The temporal prior: the smoothing study at this λ has the exported weights' row.
+    let smooth = if st.smooth > 0.0 {
+        let k_line = if st.method == Method::Hull {
+            String::new()
+        } else {
+            format!("k = {k}\n")
+        };
+        format!("\n# The weights were solved with the offline first-difference temporal prior at λ = {l}:\n# the [smooth] study's `prior offline order 1, λ {l}` row is that solve.\n[smooth]\nmethod = \"{}\"\n{k_line}solver = \"{}\"\nlambdas = [{l:?}]\n", st.method, st.solver, l = st.smooth)
+    } else {
+        String::new()
+    };
+    let text = format!(
+        "# Exported from the kslab lab: reproduces the current settings. Run: kslab run {}\ntitle = \"{} {} k={} {}\"\ninput = \"{input}\"\n{points}\nalign = true\nmethods = [{}]\nk = \"2..24\"\nsolvers = [\"{}\"]\n\n{retarget}{smooth}",
+        toml.display(),
+        st.points,
+        st.method,
+        k,
+        st.solver,
+        methods.join(", "),
+        st.solver,
+    );
+    write_atomic(&toml, |w| w.write_all(text.as_bytes()))?;
+    Ok(vec![
+        csv.display().to_string(),
+        png.display().to_string(),
+        toml.display().to_string(),
+    ])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::next_dir;
+
+    #[test]
+    fn the_export_line_fits_an_eighty_column_footer() {
+        let dir = std::path::Path::new("./kslab-export-12");
+        let files: Vec<String> = ["weights.csv", "view.png", "experiment.toml"]
+            .iter()
+            .map(|f| dir.join(f).display().to_string())
+            .collect();
+        let line = super::status_line(dir, &files);
+        assert_eq!(
+            line,
+            "exported to kslab-export-12/: weights.csv, view.png, experiment.toml"
+        );
+        assert!(line.chars().count() < 79);
+    }
+
+    #[test]
+    fn exports_are_numbered_and_never_replace_an_earlier_one() {
+        let d = tempfile::tempdir().unwrap();
+        assert_eq!(next_dir(d.path()), d.path().join("kslab-export"));
+        std::fs::create_dir(d.path().join("kslab-export")).unwrap();
+        assert_eq!(next_dir(d.path()), d.path().join("kslab-export-2"));
+        std::fs::create_dir(d.path().join("kslab-export-2")).unwrap();
+        // A file of that name counts as taken too.
+        std::fs::write(d.path().join("kslab-export-3"), "x").unwrap();
+        assert_eq!(next_dir(d.path()), d.path().join("kslab-export-4"));
+    }
+}
