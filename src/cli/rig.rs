@@ -104,7 +104,7 @@ pub struct RigArgs {
     #[arg(long, default_value_t = keyshape_rig::RECOMMENDED_PRIOR, allow_negative_numbers = true)]
     prior: f64,
     /// The plain ridge μ‖w‖² instead of the tapered prior (the default: each shape's pull
-    /// 2μw(1 − w)² fades as it comes on, so peaks are reached; see the README, "Rig accuracy
+    /// 2μw(1 − w)² fades as it comes on, so peaks are reached; see docs/src/rig_accuracy.md, "Rig accuracy
     /// against ground truth"). Needs a prior.
     #[arg(long)]
     no_prior_taper: bool,

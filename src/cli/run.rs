@@ -13,7 +13,7 @@ use std::path::PathBuf;
 /// Arguments of `kslab run`.
 #[derive(Debug, Args)]
 pub struct RunArgs {
-    /// The experiment file (TOML; see experiments/ and the README).
+    /// The experiment file (TOML; see experiments/ and docs/src/keyshapes.md, "Scripted experiments").
     spec: PathBuf,
     /// Output folder (default: `out/<spec name>/`, and `out/<spec name>/shard-I-of-N/` for a
     /// shard).

@@ -4,7 +4,7 @@
 //! truncation, repeated and swapped slices) go through the same code
 //! (`keyshape_lab::fuzzing`). No panic, and
 //! whatever parses satisfies the readers' invariants. The long runs are `tools/fuzz.sh`
-//! (cargo fuzz, nightly); see the README's testing section.
+//! (cargo fuzz, nightly); see docs/src/testing.md.
 
 use keyshape_lab::fuzzing;
 use std::path::PathBuf;

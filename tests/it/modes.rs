@@ -379,7 +379,7 @@ fn intensity_study_on_the_news_sample_finds_smiles() {
         .iter()
         .find(|a| a["action"] == "smile")
         .unwrap();
-    // Measured 0.7474 (the README's table); the pipeline is deterministic.
+    // Measured 0.7474 (the table in docs/src/actions.md); the pipeline is deterministic.
     let c = smile["correlation_median3"].as_f64().unwrap();
     assert!((c - 0.7474046986943554).abs() < 1e-6, "{smile}");
     assert_eq!(

@@ -393,7 +393,7 @@ fn apng_has_one_frame_per_sequence_frame() {
 #[test]
 fn nnls_removes_the_distortion_ls_shows_with_traced_targets_on_real_lips() {
     // Paper 000 Figs. 4–5 on liveportrait_d6: 21 spread keys, built-in cartoon target with
-    // hand-tracing noise of 1 % IOD. What the data shows (README): with noise LS distorts
+    // hand-tracing noise of 1 % IOD. What the data shows (docs/src/retargeting.md): with noise LS distorts
     // and NNLS does not; with an exact smooth warp LS is the more accurate of the two.
     let seq = keyshape_io::read_sequence(
         &shared("mediapipe_face_tracks/liveportrait_d6.csv"),

@@ -405,7 +405,7 @@ pub const TAPER_TOLERANCE: f64 = 1e-7;
 
 /// The magnitude prior `kslab rig` uses by default: μ = 0.0026 × IOD², 30 px² at an
 /// inter-ocular distance of 107 px — tuned on the accuracy benchmark (`kslab rig-accuracy`;
-/// README, "Rig accuracy against ground truth").
+/// docs/src/rig_accuracy.md, "Rig accuracy against ground truth").
 pub const RECOMMENDED_PRIOR: f64 = 0.0026;
 
 /// The zero-phase σ (frames) `kslab rig` uses for files by default: 1 frame, tuned on the

@@ -7,7 +7,7 @@ pub use layout::{mediapipe_to_ibug68, named_polylines_for, polylines_for, Group,
 use crate::error::{Error, Result};
 use nalgebra::DMatrix;
 
-/// The file formats keyshape-lab reads (see the README for each one's columns).
+/// The file formats keyshape-lab reads (docs/src/formats.md gives each one's columns).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Format {
