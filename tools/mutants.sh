@@ -13,14 +13,15 @@ tmp=${TMPDIR:-/tmp}
 if [ ! -e "$tmp/shared" ]; then
   ln -s "$(cd ../shared && pwd)" "$tmp/shared"
 fi
+core=crates/keyshape-core/src
 files=(
-  crates/keyshape-core/src/solve/active_set.rs crates/keyshape-core/src/solve/mod.rs crates/keyshape-core/src/solve/lstsq.rs crates/keyshape-core/src/solve/chol.rs
-  crates/keyshape-core/src/solve/jacobi.rs crates/keyshape-core/src/solve/textbook.rs crates/keyshape-core/src/solve/temporal/*.rs crates/keyshape-core/src/solve/filters.rs
-  crates/keyshape-core/src/decompose.rs crates/keyshape-core/src/keyshapes/mod.rs crates/keyshape-core/src/keyshapes/spread.rs crates/keyshape-core/src/keyshapes/kmeans.rs
-  crates/keyshape-core/src/keyshapes/hull.rs crates/keyshape-core/src/keyshapes/greedy.rs crates/keyshape-core/src/keyshapes/random.rs
-  crates/keyshape-core/src/keyshapes/curves.rs
-  crates/keyshape-actions/src/modes.rs crates/keyshape-actions/src/trajectory.rs crates/keyshape-io/src/morph.rs crates/keyshape-actions/src/morph.rs crates/keyshape-actions/src/intensity.rs
-  crates/keyshape-core/src/rbf.rs crates/keyshape-transfer/src/lib.rs crates/keyshape-transfer/src/skin.rs crates/keyshape-transfer/src/features.rs
+  $core/solve/active_set.rs $core/solve/mod.rs $core/solve/lstsq.rs $core/solve/chol.rs
+  $core/solve/jacobi.rs $core/solve/textbook.rs $core/solve/temporal/*.rs $core/solve/filters.rs
+  $core/decompose.rs $core/rbf.rs
+  $core/keyshapes/mod.rs $core/keyshapes/spread.rs $core/keyshapes/kmeans.rs $core/keyshapes/hull.rs
+  $core/keyshapes/greedy.rs $core/keyshapes/random.rs $core/keyshapes/curves.rs
+  crates/keyshape-actions/src/{modes,trajectory,morph,intensity}.rs crates/keyshape-io/src/morph.rs
+  crates/keyshape-transfer/src/{lib,skin,features}.rs
 )
 args=()
 if [[ " $* " != *" -f "* && " $* " != *" --file "* ]]; then

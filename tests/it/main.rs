@@ -5,7 +5,6 @@
 // helpers here are test code too: a failed unwrap is a failed test with its message.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
-mod align;
 mod bad_input;
 mod catalogue;
 mod cli_results;
@@ -18,19 +17,15 @@ mod mediapipe478;
 mod modes;
 mod oracles;
 mod outputs;
-mod pca;
 mod readers;
-mod reference;
 mod retarget;
 mod rig;
 mod rig_accuracy;
 mod rig_dense;
 mod scale;
 mod smoothing;
-mod solvers;
 mod stream;
 mod svg_transforms;
-mod temporal;
 mod transfer;
 mod tui;
 mod weights_png;

@@ -448,3 +448,39 @@ fn smooth_filters_choose_the_families_and_hull_takes_its_own_k() {
         ]
     );
 }
+
+/// The CLI on the news sample (20 clips): one segment per clip, the KKT residual reported,
+/// and λ = 0 writing exactly the unsmoothed weights.
+#[test]
+fn solve_smooth_on_the_command_line_respects_clips() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = |extra: &[&str], out: &str| {
+        let file = crate::common::shared("pyfeat_samples/news_sample_compact.csv");
+        let mut args = vec![
+            "solve".to_string(),
+            file.display().to_string(),
+            "--keys".into(),
+            "0,40,120".into(),
+            "--out".into(),
+            dir.path().join(out).display().to_string(),
+        ];
+        args.extend(extra.iter().map(|s| s.to_string()));
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_kslab"))
+            .args(&args)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        o.stdout
+    };
+    let v: serde_json::Value =
+        serde_json::from_slice(&run(&["--smooth", "50", "--json"], "s.csv")).unwrap();
+    let sm = &v["smoothing"];
+    assert_eq!(sm["segments"], 20);
+    assert!(sm["kkt_residual"].as_f64().unwrap() < 1e-8, "{sm}");
+    assert_eq!(sm["mode"], "offline");
+    run(&[], "plain.csv");
+    run(&["--smooth", "0"], "zero.csv");
+    let read = |f: &str| std::fs::read(dir.path().join(f)).unwrap();
+    assert_eq!(read("plain.csv"), read("zero.csv"));
+    assert_ne!(read("plain.csv"), read("s.csv"));
+}

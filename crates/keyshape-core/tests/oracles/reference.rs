@@ -8,7 +8,7 @@ use nalgebra::DMatrix;
 use serde_json::Value;
 
 fn reference() -> Value {
-    let text = include_str!("../data/nnls_reference.json");
+    let text = include_str!("../../../../tests/data/nnls_reference.json");
     serde_json::from_str(text).unwrap()
 }
 
