@@ -412,7 +412,7 @@ fn write_csv(
         head.push_str(c);
     }
     if motion.is_some() {
-        head.push_str(",head_scale,head_angle_deg,head_tx,head_ty");
+        head.push_str(keyshape_io::POSE_COLUMNS);
     }
     writeln!(w, "{head}")?;
     let trms = r.target_rms_per_frame();
@@ -426,15 +426,7 @@ fn write_csv(
             }
         }
         if let Some(m) = motion {
-            let h = m[t];
-            write!(
-                w,
-                ",{},{},{},{}",
-                fmt_num(h.scale),
-                fmt_num(h.angle.to_degrees()),
-                fmt_num(h.t[0]),
-                fmt_num(h.t[1])
-            )?;
+            keyshape_io::write_pose(w, &m[t])?;
         }
         writeln!(w)?;
     }

@@ -70,6 +70,25 @@ pub fn fmt_num(v: f64) -> String {
     }
 }
 
+/// The head-pose columns a weights CSV ends with when head motion is applied (each
+/// frame's similarity: scale, rotation in degrees, translation), with their leading comma.
+pub const POSE_COLUMNS: &str = ",head_scale,head_angle_deg,head_tx,head_ty";
+
+/// Writes one frame's head pose as the [`POSE_COLUMNS`] values, each after a comma.
+pub fn write_pose(
+    w: &mut dyn std::io::Write,
+    h: &keyshape_core::align::Similarity,
+) -> std::io::Result<()> {
+    write!(
+        w,
+        ",{},{},{},{}",
+        fmt_num(h.scale),
+        fmt_num(h.angle.to_degrees()),
+        fmt_num(h.t[0]),
+        fmt_num(h.t[1])
+    )
+}
+
 /// Reads a tracked sequence from a file or a directory of `.pts` files.
 pub fn read_sequence(path: &Path, opts: &ReadOptions) -> Result<Sequence> {
     if opts.dims != 2 && opts.dims != 3 {

@@ -82,7 +82,7 @@ fn export_files(s: &State, seq_path: &str, dir: &Path) -> Result<Vec<String>> {
             })
             .collect();
         let pose = if head.is_some() {
-            ",head_scale,head_angle_deg,head_tx,head_ty"
+            keyshape_io::POSE_COLUMNS
         } else {
             ""
         };
@@ -97,15 +97,7 @@ fn export_files(s: &State, seq_path: &str, dir: &Path) -> Result<Vec<String>> {
                 ws.join(",")
             )?;
             if let Some(h) = head {
-                let h = h[t];
-                write!(
-                    w,
-                    ",{},{},{},{}",
-                    fmt_num(h.scale),
-                    fmt_num(h.angle.to_degrees()),
-                    fmt_num(h.t[0]),
-                    fmt_num(h.t[1])
-                )?;
+                keyshape_io::write_pose(w, &h[t])?;
             }
             writeln!(w)?;
         }

@@ -362,21 +362,7 @@ fn sub_solve(gram: &Gram, b: &[f64], state: &[Bound], ws: &mut Workspace) {
         ws.z[r] = v;
     }
     if factor(gram, ws) {
-        let (l, z) = (&ws.l, &mut ws.z);
-        for r in 0..p {
-            let mut v = z[r];
-            for m in 0..r {
-                v -= l[r * k + m] * z[m];
-            }
-            z[r] = v / l[r * k + r];
-        }
-        for r in (0..p).rev() {
-            let mut v = z[r];
-            for m in r + 1..p {
-                v -= l[m * k + r] * z[m];
-            }
-            z[r] = v / l[r * k + r];
-        }
+        super::chol::solve_factored(&ws.l, k, p, &mut ws.z);
         return;
     }
     let rhs: Vec<f64> = ws.z[..p].to_vec();

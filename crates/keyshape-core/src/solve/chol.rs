@@ -24,23 +24,29 @@ pub fn solve_spd(a: &mut [f64], p: usize, rhs: &mut [f64]) -> bool {
             a[i * p + j] = v / d;
         }
     }
+    solve_factored(a, p, p, rhs);
+    true
+}
+
+/// Solves `L Lᵀ x = rhs` in place for the Cholesky factor `L` (`p × p`, lower triangle,
+/// row-major with row stride `ld ≥ p`): forward `L y = rhs`, then backward `Lᵀ x = y`.
+pub fn solve_factored(l: &[f64], ld: usize, p: usize, rhs: &mut [f64]) {
     // Forward: L y = rhs.
     for i in 0..p {
         let mut v = rhs[i];
         for k in 0..i {
-            v -= a[i * p + k] * rhs[k];
+            v -= l[i * ld + k] * rhs[k];
         }
-        rhs[i] = v / a[i * p + i];
+        rhs[i] = v / l[i * ld + i];
     }
     // Backward: Lᵀ x = y.
     for i in (0..p).rev() {
         let mut v = rhs[i];
         for k in i + 1..p {
-            v -= a[k * p + i] * rhs[k];
+            v -= l[k * ld + i] * rhs[k];
         }
-        rhs[i] = v / a[i * p + i];
+        rhs[i] = v / l[i * ld + i];
     }
-    true
 }
 
 #[cfg(test)]
