@@ -19,13 +19,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         None => builtin_sequence()?,
     };
     let k: usize = args.next().map_or(Ok(8), |s| s.parse())?;
-    let prep = prepare(
-        &seq,
-        &PrepareOptions {
-            points: Some("lips".into()),
-            align: true,
-        },
-    )?;
+    let prep = prepare(&seq, &PrepareOptions::group_aligned("lips"))?;
     let methods = ["spread", "kmeans2", "hull", "greedy", "random"]
         .iter()
         .map(|m| m.parse::<Method>())

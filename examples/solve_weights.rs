@@ -16,13 +16,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         Some(path) => read_sequence(path.as_ref(), &ReadOptions::default())?,
         None => builtin_sequence()?,
     };
-    let prep = prepare(
-        &seq,
-        &PrepareOptions {
-            points: Some("lips".into()),
-            align: true,
-        },
-    )?;
+    let prep = prepare(&seq, &PrepareOptions::group_aligned("lips"))?;
     // Five evenly spaced frames as the key shapes. Least squares fits every frame closer,
     // with large weights of both signs that distort a retargeted face (paper 000 Fig. 5);
     // NNLS keeps every weight ≥ 0. `choose_keys` picks better frames.

@@ -155,13 +155,7 @@ pub fn run(a: &MapArgs) -> Result<()> {
     let every = a.every as usize;
     if let Some(tpath) = &a.target_sequence {
         let tseq = read_sequence(tpath, &ReadOptions::default())?;
-        let tprep = prepare(
-            &tseq,
-            &PrepareOptions {
-                points: None,
-                align: true,
-            },
-        )?;
+        let tprep = prepare(&tseq, &PrepareOptions::all_aligned())?;
         let tact = Actions::read_for(
             a.target_actions
                 .as_deref()

@@ -241,10 +241,7 @@ fn fig6_shape_holds_on_real_lips_spread_is_nested_and_decreasing() {
     let seq = keyshape_io::builtin_sequence().unwrap();
     let prep = keyshape_core::decompose::prepare(
         &seq,
-        &keyshape_core::decompose::PrepareOptions {
-            points: Some("lips".into()),
-            align: true,
-        },
+        &keyshape_core::decompose::PrepareOptions::group_aligned("lips"),
     )
     .unwrap();
     let an = Analysis::new(prep.seq.coords, prep.seq.points).unwrap();
@@ -323,14 +320,7 @@ fn kmeans_with_linfas_seeding_is_linfas_own_ten_run_fit() {
     let (mut compared, mut exact) = (0, 0);
     for f in files {
         let seq = read_sequence(&crate::common::shared(f), &ReadOptions::default()).unwrap();
-        let prep = prepare(
-            &seq,
-            &PrepareOptions {
-                points: None,
-                align: true,
-            },
-        )
-        .unwrap();
+        let prep = prepare(&seq, &PrepareOptions::all_aligned()).unwrap();
         let an = Analysis::new(prep.seq.coords.clone(), prep.seq.points).unwrap();
         for pcs in [1, 2, 3, 5] {
             let data = ndarray::Array2::from_shape_fn((an.frames(), pcs), |(t, a)| an.proj[(a, t)]);
@@ -711,10 +701,7 @@ fn builtin_lips() -> Analysis {
     let seq = keyshape_io::builtin_sequence().unwrap();
     let prep = keyshape_core::decompose::prepare(
         &seq,
-        &keyshape_core::decompose::PrepareOptions {
-            points: Some("lips".into()),
-            align: true,
-        },
+        &keyshape_core::decompose::PrepareOptions::group_aligned("lips"),
     )
     .unwrap();
     Analysis::new(prep.seq.coords, prep.seq.points).unwrap()

@@ -33,10 +33,7 @@ fn d6_prepared() -> keyshape_core::decompose::Prepared {
     .unwrap();
     keyshape_core::decompose::prepare(
         &seq,
-        &keyshape_core::decompose::PrepareOptions {
-            points: None,
-            align: true,
-        },
+        &keyshape_core::decompose::PrepareOptions::all_aligned(),
     )
     .unwrap()
 }
@@ -518,10 +515,7 @@ fn person(
     let seq = keyshape_io::read_sequence(&shared(rel), &Default::default()).unwrap();
     let prep = keyshape_core::decompose::prepare(
         &seq,
-        &keyshape_core::decompose::PrepareOptions {
-            points: None,
-            align: true,
-        },
+        &keyshape_core::decompose::PrepareOptions::all_aligned(),
     )
     .unwrap();
     let layout = Layout::mediapipe468();
@@ -956,10 +950,7 @@ fn the_block_wise_action_model_is_fit_leadings_on_68_points() {
     let seq = keyshape_io::read_sequence(&path, &Default::default()).unwrap();
     let prep = keyshape_core::decompose::prepare(
         &seq,
-        &keyshape_core::decompose::PrepareOptions {
-            points: None,
-            align: true,
-        },
+        &keyshape_core::decompose::PrepareOptions::all_aligned(),
     )
     .unwrap();
     let layout = Layout::ibug68();

@@ -872,10 +872,7 @@ fn batch_iteration_counts_are_the_per_frame_reports_summed() {
     let seq = keyshape_io::builtin_sequence().unwrap();
     let prep = keyshape_core::decompose::prepare(
         &seq,
-        &keyshape_core::decompose::PrepareOptions {
-            points: Some("lips".into()),
-            align: true,
-        },
+        &keyshape_core::decompose::PrepareOptions::group_aligned("lips"),
     )
     .unwrap();
     let q = &prep.seq.coords;

@@ -273,10 +273,7 @@ fn results_are_scale_free_up_to_the_coordinate_bound() {
     use keyshape_core::decompose::{decompose, prepare, PrepareOptions};
     use keyshape_core::solve::{SolveOptions, Solver};
     let base = read("pyfeat_samples/openface_test.csv", 2);
-    let opts = PrepareOptions {
-        points: None,
-        align: true,
-    };
+    let opts = PrepareOptions::all_aligned();
     let solve = |seq: &keyshape_core::sequence::Sequence| {
         let prep = prepare(seq, &opts).unwrap();
         let d = decompose(

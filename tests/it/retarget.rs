@@ -61,14 +61,7 @@ fn builtin_lips() -> (
     keyshape_core::decompose::Prepared,
 ) {
     let seq = builtin_sequence().unwrap();
-    let prep = prepare(
-        &seq,
-        &PrepareOptions {
-            points: Some("lips".into()),
-            align: true,
-        },
-    )
-    .unwrap();
+    let prep = prepare(&seq, &PrepareOptions::group_aligned("lips")).unwrap();
     (seq, prep)
 }
 
@@ -214,14 +207,7 @@ fn regions_blend_to_one_and_bad_regions_are_explained() {
         .to_string();
     assert!(e.contains("uncovered"), "{e}");
     // Regions retarget end to end on the whole face.
-    let prep = prepare(
-        &seq,
-        &PrepareOptions {
-            points: None,
-            align: true,
-        },
-    )
-    .unwrap();
+    let prep = prepare(&seq, &PrepareOptions::all_aligned()).unwrap();
     let (g, _) = builtin_target(&seq, &prep).unwrap();
     let keys: Vec<Vec<usize>> = vec![vec![0, 50, 100, 150], vec![10, 60, 120, 170, 210]];
     let res = retarget(
@@ -341,14 +327,7 @@ fn svg_template_round_trips_and_reads_edits_through_transforms() {
 #[test]
 fn damaged_svg_templates_are_explained() {
     let seq = builtin_sequence().unwrap();
-    let prep = prepare(
-        &seq,
-        &PrepareOptions {
-            points: Some("lips".into()),
-            align: true,
-        },
-    )
-    .unwrap();
+    let prep = prepare(&seq, &PrepareOptions::group_aligned("lips")).unwrap();
     let (svg, _) = template_of(&prep, &[3, 77]);
     let dir = tempfile::tempdir().unwrap();
     let p = dir.path().join("t.svg");
@@ -400,14 +379,7 @@ fn nnls_removes_the_distortion_ls_shows_with_traced_targets_on_real_lips() {
         &Default::default(),
     )
     .unwrap();
-    let prep = prepare(
-        &seq,
-        &PrepareOptions {
-            points: Some("lips".into()),
-            align: true,
-        },
-    )
-    .unwrap();
+    let prep = prepare(&seq, &PrepareOptions::group_aligned("lips")).unwrap();
     let an =
         keyshape_core::keyshapes::Analysis::new(prep.seq.coords.clone(), prep.seq.points).unwrap();
     let keys = keyshape_core::keyshapes::Method::Spread
@@ -711,14 +683,7 @@ fn retarget_errors_equal_the_full_retarget_bit_for_bit() {
         &Default::default(),
     )
     .unwrap();
-    let face = prepare(
-        &seq,
-        &PrepareOptions {
-            points: None,
-            align: true,
-        },
-    )
-    .unwrap();
+    let face = prepare(&seq, &PrepareOptions::all_aligned()).unwrap();
     let (g, iod) = builtin_target(&seq, &face).unwrap();
     let warp = Target::Warp {
         g,
@@ -770,14 +735,7 @@ fn retarget_errors_equal_the_full_retarget_bit_for_bit() {
     std::fs::write(&path, &text).unwrap();
     let long = keyshape_io::read_sequence(&path, &Default::default()).unwrap();
     std::fs::remove_file(&path).unwrap();
-    let lp = prepare(
-        &long,
-        &PrepareOptions {
-            points: None,
-            align: true,
-        },
-    )
-    .unwrap();
+    let lp = prepare(&long, &PrepareOptions::all_aligned()).unwrap();
     let (g, _) = builtin_target(&long, &lp).unwrap();
     let warp = Target::Warp {
         g,

@@ -221,14 +221,7 @@ fn blocked_errors_on_long_tracks_equal_the_one_pass_errors() {
         &ReadOptions::default(),
     )
     .unwrap();
-    let prep = prepare(
-        &seq,
-        &PrepareOptions {
-            points: None,
-            align: true,
-        },
-    )
-    .unwrap();
+    let prep = prepare(&seq, &PrepareOptions::all_aligned()).unwrap();
     let an = Analysis::new(prep.seq.coords.clone(), prep.seq.points).unwrap();
     assert!(an.frames() > GRAM_LIMIT);
     let keys: Vec<usize> = (0..9).map(|i| i * (an.frames() - 1) / 8).collect();

@@ -95,10 +95,7 @@ fn news_transfer(groups: Option<&[String]>) -> (Transfer, keyshape_core::sequenc
     .unwrap();
     let prep = keyshape_core::decompose::prepare(
         &seq,
-        &keyshape_core::decompose::PrepareOptions {
-            points: None,
-            align: true,
-        },
+        &keyshape_core::decompose::PrepareOptions::all_aligned(),
     )
     .unwrap();
     let t = Transfer::new(
@@ -414,10 +411,7 @@ fn person_mismatch_is_the_gap_to_a_transform_trained_on_each_person() {
     // Aligned, as `kslab transfer` prepares it.
     let seq = keyshape_core::decompose::prepare(
         &raw,
-        &keyshape_core::decompose::PrepareOptions {
-            points: None,
-            align: true,
-        },
+        &keyshape_core::decompose::PrepareOptions::all_aligned(),
     )
     .unwrap()
     .seq;

@@ -487,10 +487,7 @@ fn the_lambda_knob_smooths_the_weights_and_the_export_reproduces_them() {
     // The same keys through the library's smoothed solve.
     let prep = keyshape_core::decompose::prepare(
         &builtin_sequence().unwrap(),
-        &keyshape_core::decompose::PrepareOptions {
-            points: Some("lips".into()),
-            align: true,
-        },
+        &keyshape_core::decompose::PrepareOptions::group_aligned("lips"),
     )
     .unwrap();
     let sk = prep.seq.coords.select_columns(&smooth.keys);

@@ -432,13 +432,7 @@ pub fn study_with_format(
         );
         at += n;
     }
-    let prep = prepare(
-        &seq,
-        &PrepareOptions {
-            points: None,
-            align: true,
-        },
-    )?;
+    let prep = prepare(&seq, &PrepareOptions::all_aligned())?;
     let mut x = prep.seq.coords.clone();
     centre(&mut x, &clips, st)?;
     let ids: Vec<usize> = clips

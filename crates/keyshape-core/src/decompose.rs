@@ -18,6 +18,24 @@ pub struct PrepareOptions {
     pub align: bool,
 }
 
+impl PrepareOptions {
+    /// Every point, head motion removed: where most analyses start.
+    pub fn all_aligned() -> PrepareOptions {
+        PrepareOptions {
+            points: None,
+            align: true,
+        }
+    }
+
+    /// The points of `group` (`lips`, `eyes,brows` …), head motion removed.
+    pub fn group_aligned(group: &str) -> PrepareOptions {
+        PrepareOptions {
+            points: Some(group.into()),
+            align: true,
+        }
+    }
+}
+
 /// A sequence ready for decomposition: points selected, head motion removed and kept.
 #[derive(Debug, Clone)]
 pub struct Prepared {

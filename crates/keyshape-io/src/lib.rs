@@ -9,7 +9,7 @@
 //! use keyshape_io::builtin_sequence;
 //!
 //! let seq = builtin_sequence()?;
-//! let opts = PrepareOptions { points: Some("lips".into()), align: true };
+//! let opts = PrepareOptions::group_aligned("lips");
 //! let prep = prepare(&seq, &opts)?;
 //! let keys: Vec<usize> = [0, 60, 120, 180, 215]
 //!     .iter()

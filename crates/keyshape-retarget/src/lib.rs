@@ -190,7 +190,97 @@ pub fn with_relative_head_motion(
     Ok(out)
 }
 
-/// Retargets every frame of `q` (aligned shapes, `dims` per point).
+/// What a retargeting run solves and drives: the key plan, the target, the solver and, when
+/// asked, a neutral frame (delta mode), `G(Q)` computed beforehand and a temporal prior.
+///
+/// ```
+/// use keyshape_core::decompose::{prepare, PrepareOptions};
+/// use keyshape_core::solve::temporal::{segments, SmoothMode, Smoothing};
+/// use keyshape_core::solve::Solver;
+/// use keyshape_retarget::{setup::builtin_target, KeyPlan, RetargetParams, Target};
+///
+/// let seq = keyshape_io::builtin_sequence()?;
+/// let prep = prepare(&seq, &PrepareOptions::group_aligned("lips"))?;
+/// let (g, _) = builtin_target(&seq, &prep)?;
+/// let target = Target::Warp { g, trace_noise: 0.0 };
+/// let plan = KeyPlan::Global(vec![0, 60, 120, 180, 215]);
+/// let smoothing = Smoothing { lambda: 10.0, order: 1, mode: SmoothMode::Offline };
+/// let segs = segments(&prep.seq.frames, prep.seq.segments.as_deref());
+/// let r = RetargetParams::new(&plan, &target, Solver::Nnls)
+///     .smoothed(&smoothing, &segs)
+///     .run(&prep.seq.coords, prep.seq.dims)?;
+/// assert_eq!(r.weights[0].ncols(), prep.seq.n_frames());
+/// assert!(r.weights[0].iter().all(|&w| w >= 0.0));
+/// # Ok::<(), keyshape_core::Error>(())
+/// ```
+#[derive(Debug, Clone, Copy)]
+pub struct RetargetParams<'a> {
+    plan: &'a KeyPlan,
+    target: &'a Target,
+    solver: Solver,
+    neutral: Option<usize>,
+    truth: Option<&'a DMatrix<f64>>,
+    smoothing: Option<(
+        &'a keyshape_core::solve::temporal::Smoothing,
+        &'a [std::ops::Range<usize>],
+    )>,
+}
+
+impl<'a> RetargetParams<'a> {
+    /// The key plan, the target and the solver; absolute shapes, no prior.
+    pub fn new(plan: &'a KeyPlan, target: &'a Target, solver: Solver) -> Self {
+        RetargetParams {
+            plan,
+            target,
+            solver,
+            neutral: None,
+            truth: None,
+            smoothing: None,
+        }
+    }
+
+    /// Delta mode from this neutral frame column (`None`: absolute shapes).
+    pub fn neutral(mut self, neutral: Option<usize>) -> Self {
+        self.neutral = neutral;
+        self
+    }
+
+    /// `G(Q)` already computed for a warp target (it costs a pass of the RBF over every
+    /// point of every frame, which an interactive caller computes once).
+    pub fn truth(mut self, truth: &'a DMatrix<f64>) -> Self {
+        self.truth = Some(truth);
+        self
+    }
+
+    /// The weights solved under a temporal prior ([`keyshape_core::solve::temporal`]) over
+    /// `segments` (frame column ranges); λ = 0 is the plain solve.
+    pub fn smoothed(
+        mut self,
+        smoothing: &'a keyshape_core::solve::temporal::Smoothing,
+        segments: &'a [std::ops::Range<usize>],
+    ) -> Self {
+        self.smoothing = Some((smoothing, segments));
+        self
+    }
+
+    /// Retargets every frame of `q` (aligned shapes, `dims` per point).
+    pub fn run(&self, q: &DMatrix<f64>, dims: usize) -> Result<Retargeted> {
+        retarget_impl(q, dims, self, true)
+    }
+
+    /// As [`RetargetParams::run`], keeping only the weights and the per-frame errors:
+    /// [`Retargeted::source`] and [`Retargeted::target`] are 0 × frames and
+    /// [`Retargeted::truth`] is `None`. The frames are reconstructed (and `G(Q)` evaluated)
+    /// a chunk at a time, so on a long track this holds the weights and one chunk instead
+    /// of three more copies of the sequence. The weights and errors are those of `run`,
+    /// bit for bit (tested).
+    pub fn errors_only(&self, q: &DMatrix<f64>, dims: usize) -> Result<Retargeted> {
+        retarget_impl(q, dims, self, false)
+    }
+}
+
+/// Retargets every frame of `q` (aligned shapes, `dims` per point): [`RetargetParams::run`]
+/// with a neutral frame or none.
 pub fn retarget(
     q: &DMatrix<f64>,
     dims: usize,
@@ -199,50 +289,13 @@ pub fn retarget(
     neutral: Option<usize>,
     solver: Solver,
 ) -> Result<Retargeted> {
-    retarget_with_truth(q, dims, plan, target, neutral, solver, None)
+    RetargetParams::new(plan, target, solver)
+        .neutral(neutral)
+        .run(q, dims)
 }
 
-/// As [`retarget`], with `G(Q)` already computed for a warp target (it costs a pass of the
-/// RBF over every point of every frame, which an interactive caller computes once).
-pub fn retarget_with_truth(
-    q: &DMatrix<f64>,
-    dims: usize,
-    plan: &KeyPlan,
-    target: &Target,
-    neutral: Option<usize>,
-    solver: Solver,
-    truth: Option<&DMatrix<f64>>,
-) -> Result<Retargeted> {
-    retarget_smoothed(q, dims, plan, target, neutral, solver, truth, None)
-}
-
-/// As [`retarget_with_truth`], with the weights solved under a temporal prior
-/// ([`keyshape_core::solve::temporal`]) over the given segments (frame column ranges) when
-/// `smoothing` is given; λ = 0 is the plain solve.
-#[allow(clippy::too_many_arguments)]
-pub fn retarget_smoothed(
-    q: &DMatrix<f64>,
-    dims: usize,
-    plan: &KeyPlan,
-    target: &Target,
-    neutral: Option<usize>,
-    solver: Solver,
-    truth: Option<&DMatrix<f64>>,
-    smoothing: Option<(
-        &keyshape_core::solve::temporal::Smoothing,
-        &[std::ops::Range<usize>],
-    )>,
-) -> Result<Retargeted> {
-    retarget_impl(
-        q, dims, plan, target, neutral, solver, truth, smoothing, true,
-    )
-}
-
-/// As [`retarget`], keeping only the weights and the per-frame errors: [`Retargeted::source`]
-/// and [`Retargeted::target`] are 0 × frames and [`Retargeted::truth`] is `None`. The
-/// frames are reconstructed (and `G(Q)` evaluated) a chunk at a time, so on a long track
-/// this holds the weights and one chunk instead of three more copies of the sequence. The
-/// weights and errors are those [`retarget`] gives, bit for bit (tested).
+/// As [`retarget`], keeping only the weights and the per-frame errors
+/// ([`RetargetParams::errors_only`]).
 pub fn retarget_errors(
     q: &DMatrix<f64>,
     dims: usize,
@@ -251,24 +304,25 @@ pub fn retarget_errors(
     neutral: Option<usize>,
     solver: Solver,
 ) -> Result<Retargeted> {
-    retarget_impl(q, dims, plan, target, neutral, solver, None, None, false)
+    RetargetParams::new(plan, target, solver)
+        .neutral(neutral)
+        .errors_only(q, dims)
 }
 
-#[allow(clippy::too_many_arguments)]
 fn retarget_impl(
     q: &DMatrix<f64>,
     dims: usize,
-    plan: &KeyPlan,
-    target: &Target,
-    neutral: Option<usize>,
-    solver: Solver,
-    truth: Option<&DMatrix<f64>>,
-    smoothing: Option<(
-        &keyshape_core::solve::temporal::Smoothing,
-        &[std::ops::Range<usize>],
-    )>,
+    params: &RetargetParams,
     keep: bool,
 ) -> Result<Retargeted> {
+    let RetargetParams {
+        plan,
+        target,
+        solver,
+        neutral,
+        truth,
+        smoothing,
+    } = *params;
     let (n, frames) = q.shape();
     let points = n / dims;
     let (regions, key_sets): (Option<&RegionPlan>, Vec<Vec<usize>>) = match plan {

@@ -15,7 +15,7 @@ use keyshape_core::solve::Solver;
 use keyshape_io::{builtin_sequence, read_sequence, ReadOptions};
 use keyshape_retarget::setup::{builtin_target, polylines_for};
 use keyshape_retarget::target::TargetSet;
-use keyshape_retarget::{retarget_smoothed, KeyPlan, Target};
+use keyshape_retarget::{KeyPlan, RetargetParams, Target};
 use nalgebra::DMatrix;
 use std::collections::HashMap;
 use std::path::PathBuf;
@@ -291,16 +291,10 @@ fn solver_view(
         order: 1,
         mode: SmoothMode::Offline,
     };
-    let r = retarget_smoothed(
-        coords,
-        dims,
-        plan,
-        target,
-        None,
-        s,
-        Some(&c.truth),
-        Some((&smoothing, segs.as_slice())),
-    )?;
+    let r = RetargetParams::new(plan, target, s)
+        .truth(&c.truth)
+        .smoothed(&smoothing, &segs)
+        .run(coords, dims)?;
     if r.unconverged > 0 {
         return Err(Error::invalid(format!(
             "the {s} solve did not settle (λ {}): lower λ (L)",

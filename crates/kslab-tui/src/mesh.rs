@@ -24,13 +24,7 @@ pub struct MeshView {
 
 /// Trains the transfer on the first frame and deforms every frame.
 pub fn mesh_view(seq: &Sequence, mesh: Mesh, features: Features) -> Result<MeshView> {
-    let prep = prepare(
-        seq,
-        &PrepareOptions {
-            points: None,
-            align: true,
-        },
-    )?;
+    let prep = prepare(seq, &PrepareOptions::all_aligned())?;
     let tr = Transfer::new(
         mesh,
         features,

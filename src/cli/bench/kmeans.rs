@@ -76,13 +76,7 @@ pub fn run(a: &KmeansBenchArgs) -> Result<()> {
     let (mut all, mut t_linfa, mut t_lab) = (Vec::new(), 0.0, 0.0);
     for f in &files {
         let seq = read_sequence(f, &ReadOptions::default())?;
-        let prep = prepare(
-            &seq,
-            &PrepareOptions {
-                points: None,
-                align: true,
-            },
-        )?;
+        let prep = prepare(&seq, &PrepareOptions::all_aligned())?;
         let an = Analysis::new(prep.seq.coords.clone(), prep.seq.points)?;
         let kmax = a.kmax.min(an.distinct);
         for pcs in [2, 3] {

@@ -81,13 +81,7 @@ pub fn run(a: &NnlsArgs) -> Result<()> {
     outln!("|---|---|---|---|---|---|---|---|---|---|");
     let single = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
     for seq in inputs(a)? {
-        let prep = prepare(
-            &seq,
-            &PrepareOptions {
-                points: None,
-                align: true,
-            },
-        )?;
+        let prep = prepare(&seq, &PrepareOptions::all_aligned())?;
         let coords = &prep.seq.coords;
         let q = tile(coords, a.frames);
         let qb = tile(coords, a.baseline_frames.min(a.frames));

@@ -40,13 +40,7 @@ pub fn run(a: &SmoothBenchArgs) -> Result<()> {
         None => keyshape_io::shared_data("pyfeat_samples/news_sample_compact.csv")?,
     };
     let seq = read_sequence(&path, &ReadOptions::default())?;
-    let prep = prepare(
-        &seq,
-        &PrepareOptions {
-            points: None,
-            align: true,
-        },
-    )?;
+    let prep = prepare(&seq, &PrepareOptions::all_aligned())?;
     let coords = &prep.seq.coords;
     let t = coords.ncols();
     if a.k < 2 || a.k > t {

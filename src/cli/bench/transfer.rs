@@ -22,13 +22,7 @@ pub fn run(a: &TransferBenchArgs) -> Result<()> {
         &keyshape_io::shared_data("pyfeat_samples/news_sample_compact.csv")?,
         &ReadOptions::default(),
     )?;
-    let prep = prepare(
-        &seq,
-        &PrepareOptions {
-            points: None,
-            align: true,
-        },
-    )?;
+    let prep = prepare(&seq, &PrepareOptions::all_aligned())?;
     let mesh = read_obj(&keyshape_io::shared_data(
         "ict_facekit_face/neutral_face.obj",
     )?)?;

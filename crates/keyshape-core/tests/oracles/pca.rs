@@ -57,10 +57,7 @@ fn pca_on_a_real_track_explains_most_variance_in_few_axes() {
     let seq = keyshape_io::builtin_sequence().unwrap();
     let prep = keyshape_core::decompose::prepare(
         &seq,
-        &keyshape_core::decompose::PrepareOptions {
-            points: Some("lips".into()),
-            align: true,
-        },
+        &keyshape_core::decompose::PrepareOptions::group_aligned("lips"),
     )
     .unwrap();
     let pca = Pca::fit(&prep.seq.coords).unwrap();
@@ -82,10 +79,7 @@ fn leading_axes_by_subspace_iteration_match_the_full_decomposition() {
             keyshape_io::read_sequence(&crate::common::shared(rel), &Default::default()).unwrap();
         let prep = keyshape_core::decompose::prepare(
             &seq,
-            &keyshape_core::decompose::PrepareOptions {
-                points: None,
-                align: true,
-            },
+            &keyshape_core::decompose::PrepareOptions::all_aligned(),
         )
         .unwrap();
         let full = Pca::fit(&prep.seq.coords).unwrap();

@@ -195,10 +195,7 @@ fn nnls_meets_kkt_on_every_frame_of_a_real_track_including_key_frames() {
     let seq = keyshape_io::builtin_sequence().unwrap();
     let prep = keyshape_core::decompose::prepare(
         &seq,
-        &keyshape_core::decompose::PrepareOptions {
-            points: None,
-            align: true,
-        },
+        &keyshape_core::decompose::PrepareOptions::all_aligned(),
     )
     .unwrap();
     let q = &prep.seq.coords;

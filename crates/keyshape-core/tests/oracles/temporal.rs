@@ -663,10 +663,7 @@ fn d6_lips() -> keyshape_core::decompose::Prepared {
     .unwrap();
     keyshape_core::decompose::prepare(
         &seq,
-        &keyshape_core::decompose::PrepareOptions {
-            points: Some("lips".into()),
-            align: true,
-        },
+        &keyshape_core::decompose::PrepareOptions::group_aligned("lips"),
     )
     .unwrap()
 }
