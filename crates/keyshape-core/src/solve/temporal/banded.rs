@@ -1,7 +1,12 @@
 //! The block-banded Cholesky factorisation of the offline prior's Hessian, whole or a
 //! window at a time.
 
-use super::*;
+use super::window::{
+    compute_row, dot, matches, not_definite, solve_l, solve_lt, tri, Inputs, Redo, Scratch,
+};
+use crate::error::Result;
+use nalgebra::DMatrix;
+use std::ops::Range;
 
 /// A symmetric positive definite block-banded matrix `H = I ⊗ G + λ·DᵀD ⊗ I (+ δI)` over
 /// one segment, with some variables fixed (eliminated), factorised by block Cholesky over

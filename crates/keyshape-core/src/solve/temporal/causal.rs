@@ -1,6 +1,13 @@
 //! The causal solve: each frame pulled towards its prediction from the past.
 
-use super::*;
+use super::kkt::kkt_residual;
+use super::{Smoothed, Smoothing};
+use crate::error::{Error, Result};
+use crate::solve::active_set::{solve_frame, Bound, Gram, Workspace};
+use crate::solve::Solver;
+use nalgebra::DMatrix;
+use rayon::prelude::*;
+use std::ops::Range;
 
 /// What every frame of a causal solve shares: the Gram forms with and without the prior.
 pub struct CausalShared {

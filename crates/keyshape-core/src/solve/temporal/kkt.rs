@@ -1,6 +1,9 @@
 //! The offline problem's Hessian products, objective and KKT residual.
 
-use super::*;
+use super::bands::difference_bands;
+use crate::solve::Solver;
+use nalgebra::DMatrix;
+use rayon::prelude::*;
 
 /// `H w` for one segment (`w` flat, frame after frame).
 pub(super) fn hessian_times(

@@ -22,11 +22,8 @@
 //! smoothing across their boundaries. λ has the units of the squared coordinates (px² for
 //! pixel tracks) per unit of weight change.
 
-use super::active_set::{solve_frame, Bound, Gram, Workspace};
-use super::{solve_batch, SolveOptions, Solver};
 use crate::error::{Error, Result};
 use nalgebra::DMatrix;
-use rayon::prelude::*;
 use std::ops::Range;
 
 /// Offline (whole sequence) or causal (frame by frame).
@@ -159,15 +156,17 @@ pub use banded::{BandedSystem, WINDOW_BLOCK, WINDOW_FRAMES};
 pub use bands::difference_bands;
 pub use causal::{CausalShared, CausalState};
 pub use kkt::kkt_residual;
-#[cfg(test)]
-use offline::*;
 pub use offline::{smooth_from, solve_smooth, KKT_TOLERANCE};
 pub use split::{SegmentSystem, Split, SPLIT_FRAMES};
-use {causal::*, kkt::*, window::*};
 
 #[cfg(test)]
 mod tests {
+    use super::kkt::{hessian_quadratic, hessian_times};
+    use super::offline::{
+        offline, projected_newton, segment, Caps, NEWTON_ITERATIONS, PDAS_ITERATIONS,
+    };
     use super::*;
+    use crate::solve::Solver;
 
     /// Projected Newton reaches the KKT conditions by itself (the offline path lets the
     /// active-set steps finish from its point, which would hide a projected Newton that

@@ -1,7 +1,16 @@
 //! The offline solve: per segment, the primal–dual active set, then projected Newton
 //! where it cycles.
 
-use super::*;
+use super::bands::difference_bands;
+use super::causal::causal;
+use super::kkt::{hessian_quadratic, hessian_times, hessian_times_into, kkt_from, kkt_residual};
+use super::split::{SegmentSystem, SPLIT_FRAMES};
+use super::{SmoothMode, Smoothed, Smoothing};
+use crate::error::{Error, Result};
+use crate::solve::{solve_batch, SolveOptions, Solver};
+use nalgebra::DMatrix;
+use rayon::prelude::*;
+use std::ops::Range;
 
 /// Segments must partition the frames in order: the first starts at 0, each next one where
 /// the one before ends, none empty, the last ends at `frames` (an overlap would solve a

@@ -1,6 +1,8 @@
 //! Long segments factorised from both ends at once (the two-ended split).
 
-use super::*;
+use super::banded::BandedSystem;
+use crate::error::{Error, Result};
+use nalgebra::DMatrix;
 
 /// Segments at least this long are factorised from both ends at once (see
 /// [`SegmentSystem`]); shorter ones in one sweep. Fixed, so results do not depend on the

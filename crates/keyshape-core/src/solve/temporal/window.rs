@@ -1,6 +1,7 @@
 //! The banded factorisation's row kernels and a windowed factor's checkpoints.
 
-use super::*;
+use crate::error::Error;
+use nalgebra::DMatrix;
 
 /// A windowed factor's inputs and checkpoints.
 pub(super) struct Redo {
