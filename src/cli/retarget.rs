@@ -132,23 +132,7 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
         &[a.png_dir.as_ref()],
         &[a.input.file.as_deref(), a.target.as_deref()],
     )?;
-    super::check_json_stdout(a.json, a.out.as_ref())?;
-    a.heuristic.check(&a.choice.methods(), a.solver)?;
-    if a.regions.is_some() && a.choice.k.is_some() {
-        anyhow::bail!("--regions gives each region its own k (from the regions file): drop --k");
-    }
-    if a.trace_noise != 0.0 && a.target.is_some() {
-        anyhow::bail!("--trace-noise applies to the built-in target only, not to --target");
-    }
-    if !(a.trace_noise.is_finite() && (0.0..=1.0).contains(&a.trace_noise)) {
-        anyhow::bail!(
-            "--trace-noise {:?} is not a fraction of the inter-ocular distance in [0, 1]",
-            a.trace_noise
-        );
-    }
-    if a.input.no_align && a.head_motion.is_some() {
-        anyhow::bail!("--head-motion does not apply with --no-align: no head motion is taken out, so the outputs keep the file's own coordinates");
-    }
+    check_options(a)?;
     let progress = super::progress::Progress::new("retarget");
     progress.step("retarget: reading");
     // The raw track is kept only where it is read again: per-frame pictures, and the
@@ -204,94 +188,8 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
         _ => prep.head.as_deref(),
     };
     let s = &prep.seq;
-    let plan_keys = match (&a.regions, set.as_ref()) {
-        // A target set stands for the frames it was drawn from: those are the keys, unless
-        // --keys or --method asks for others (then the frames must match, said below).
-        (None, Some(set)) if !chosen => {
-            let path = a.target.as_deref().unwrap_or(std::path::Path::new(""));
-            let cols = set
-                .keys
-                .iter()
-                .map(|k| {
-                    s.column_of_frame(k.frame).with_context(|| {
-                        format!(
-                            "{}: key shape for frame {} does not fit this sequence",
-                            path.display(),
-                            k.frame
-                        )
-                    })
-                })
-                .collect::<Result<Vec<_>>>()?;
-            KeyPlan::Global(cols)
-        }
-        (None, _) => KeyPlan::Global(global.context("the global key choice")?),
-        (Some(r), _) => {
-            let layout = prep
-                .layout
-                .as_ref()
-                .context("--regions needs a known layout (468 or 68 points)")?;
-            let regions = if r == "builtin" {
-                Regions::builtin(layout)?
-            } else {
-                Regions::read(std::path::Path::new(r))?
-            };
-            let mean = s.coords.column_mean();
-            let p = plan(
-                &regions,
-                layout,
-                &prep.point_indices,
-                mean.as_slice(),
-                s.dims,
-            )?;
-            if !a.choice.keys.is_empty() {
-                anyhow::bail!("--regions picks key frames per region: use --method, not --keys");
-            }
-            let mut keys = Vec::new();
-            for (members, &k) in p.members.iter().zip(&p.k) {
-                let sub = s.select_points(members)?;
-                let choice = KeyChoiceArgs {
-                    // hull gives each region the k of its hull.
-                    k: (a.choice.method != Some(keyshape_core::keyshapes::Method::Hull))
-                        .then_some(k),
-                    ..a.choice.clone()
-                };
-                keys.push(choice.columns(s, sub.coords, sub.points, &opts)?);
-            }
-            KeyPlan::Regions(p, keys)
-        }
-    };
-    let all_keys: Vec<usize> = match &plan_keys {
-        KeyPlan::Global(k) => k.clone(),
-        KeyPlan::Regions(_, ks) => ks.iter().flatten().copied().collect(),
-        KeyPlan::Shapes(_) => Vec::new(),
-    };
-    let key_frames: Vec<i64> = all_keys.iter().map(|&c| s.frames[c]).collect();
-    // One weight column per key, named by frame (and by region, which may share frames).
-    let columns: Vec<String> = match &plan_keys {
-        KeyPlan::Global(k) => k.iter().map(|&c| format!("w_{}", s.frames[c])).collect(),
-        KeyPlan::Regions(p, ks) => p
-            .names
-            .iter()
-            .zip(ks)
-            .flat_map(|(n, k)| k.iter().map(move |&c| format!("{n}/w_{}", s.frames[c])))
-            .collect(),
-        KeyPlan::Shapes(m) => (0..m.ncols()).map(|j| format!("w_mean{j}")).collect(),
-    };
-    let keys_json = match &plan_keys {
-        KeyPlan::Global(_) | KeyPlan::Shapes(_) => json!(key_frames),
-        KeyPlan::Regions(p, ks) => serde_json::Value::Object(
-            p.names
-                .iter()
-                .zip(ks)
-                .map(|(n, k)| {
-                    (
-                        n.clone(),
-                        json!(k.iter().map(|&c| s.frames[c]).collect::<Vec<_>>()),
-                    )
-                })
-                .collect(),
-        ),
-    };
+    let plan_keys = key_plan(a, &prep, set.as_ref(), chosen, global, &opts)?;
+    let (key_frames, columns, keys_json) = key_names(&plan_keys, s);
     if let (Some(set), Some(path)) = (&set, &a.target) {
         let mut have: Vec<i64> = set.keys.iter().map(|k| k.frame).collect();
         let mut want = key_frames.clone();
@@ -374,28 +272,167 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
         );
     }
     if let Some(png) = &a.png {
-        // Every region's weights, one under the other, named as the CSV names them.
-        let frames = r.weights.first().map_or(0, |w| w.ncols());
-        let rows: usize = r.weights.iter().map(|w| w.nrows()).sum();
-        let mut all = nalgebra::DMatrix::zeros(rows, frames);
-        let mut at = 0;
-        for w in &r.weights {
-            all.rows_mut(at, w.nrows()).copy_from(w);
-            at += w.nrows();
-        }
-        let title = format!(
-            "{}: weights over time, {} keys, {}",
-            s.source.rsplit('/').next().unwrap_or(&s.source),
-            rows,
-            a.solver
-        );
-        let pm = keyshape_lab::render::weights::weights_picture(&all, &columns, &s.frames, &title)?;
-        save_png(&pm, png)?;
+        write_weights_png(a, s, &r, &columns, png)?;
     }
     if let Some(seq) = &seq {
         progress.step("retarget: pictures");
         pictures(a, seq, &prep, head, &r, &target_lines, &progress)?;
     }
+    Ok(())
+}
+
+/// The options that cannot go together, refused before anything is read.
+fn check_options(a: &RetargetArgs) -> Result<()> {
+    super::check_json_stdout(a.json, a.out.as_ref())?;
+    a.heuristic.check(&a.choice.methods(), a.solver)?;
+    if a.regions.is_some() && a.choice.k.is_some() {
+        anyhow::bail!("--regions gives each region its own k (from the regions file): drop --k");
+    }
+    if a.trace_noise != 0.0 && a.target.is_some() {
+        anyhow::bail!("--trace-noise applies to the built-in target only, not to --target");
+    }
+    if !(a.trace_noise.is_finite() && (0.0..=1.0).contains(&a.trace_noise)) {
+        anyhow::bail!(
+            "--trace-noise {:?} is not a fraction of the inter-ocular distance in [0, 1]",
+            a.trace_noise
+        );
+    }
+    if a.input.no_align && a.head_motion.is_some() {
+        anyhow::bail!("--head-motion does not apply with --no-align: no head motion is taken out, so the outputs keep the file's own coordinates");
+    }
+    Ok(())
+}
+
+/// The key frames: the target set's own frames, the global choice, or one choice per region.
+fn key_plan(
+    a: &RetargetArgs,
+    prep: &Prepared,
+    set: Option<&TargetSet>,
+    chosen: bool,
+    global: Option<Vec<usize>>,
+    opts: &keyshape_core::keyshapes::KeyOptions,
+) -> Result<KeyPlan> {
+    let s = &prep.seq;
+    Ok(match (&a.regions, set) {
+        // A target set stands for the frames it was drawn from: those are the keys, unless
+        // --keys or --method asks for others (then the frames must match, said below).
+        (None, Some(set)) if !chosen => {
+            let path = a.target.as_deref().unwrap_or(std::path::Path::new(""));
+            let cols = set
+                .keys
+                .iter()
+                .map(|k| {
+                    s.column_of_frame(k.frame).with_context(|| {
+                        format!(
+                            "{}: key shape for frame {} does not fit this sequence",
+                            path.display(),
+                            k.frame
+                        )
+                    })
+                })
+                .collect::<Result<Vec<_>>>()?;
+            KeyPlan::Global(cols)
+        }
+        (None, _) => KeyPlan::Global(global.context("the global key choice")?),
+        (Some(r), _) => {
+            let layout = prep
+                .layout
+                .as_ref()
+                .context("--regions needs a known layout (468 or 68 points)")?;
+            let regions = if r == "builtin" {
+                Regions::builtin(layout)?
+            } else {
+                Regions::read(std::path::Path::new(r))?
+            };
+            let mean = s.coords.column_mean();
+            let p = plan(
+                &regions,
+                layout,
+                &prep.point_indices,
+                mean.as_slice(),
+                s.dims,
+            )?;
+            if !a.choice.keys.is_empty() {
+                anyhow::bail!("--regions picks key frames per region: use --method, not --keys");
+            }
+            let mut keys = Vec::new();
+            for (members, &k) in p.members.iter().zip(&p.k) {
+                let sub = s.select_points(members)?;
+                let choice = KeyChoiceArgs {
+                    // hull gives each region the k of its hull.
+                    k: (a.choice.method != Some(keyshape_core::keyshapes::Method::Hull))
+                        .then_some(k),
+                    ..a.choice.clone()
+                };
+                keys.push(choice.columns(s, sub.coords, sub.points, opts)?);
+            }
+            KeyPlan::Regions(p, keys)
+        }
+    })
+}
+
+/// The key frames, one weight column name per key (by frame, and by region, which may share
+/// frames), and the keys as the JSON summary gives them.
+fn key_names(plan_keys: &KeyPlan, s: &Sequence) -> (Vec<i64>, Vec<String>, serde_json::Value) {
+    let all_keys: Vec<usize> = match plan_keys {
+        KeyPlan::Global(k) => k.clone(),
+        KeyPlan::Regions(_, ks) => ks.iter().flatten().copied().collect(),
+        KeyPlan::Shapes(_) => Vec::new(),
+    };
+    let key_frames: Vec<i64> = all_keys.iter().map(|&c| s.frames[c]).collect();
+    // One weight column per key, named by frame (and by region, which may share frames).
+    let columns: Vec<String> = match plan_keys {
+        KeyPlan::Global(k) => k.iter().map(|&c| format!("w_{}", s.frames[c])).collect(),
+        KeyPlan::Regions(p, ks) => p
+            .names
+            .iter()
+            .zip(ks)
+            .flat_map(|(n, k)| k.iter().map(move |&c| format!("{n}/w_{}", s.frames[c])))
+            .collect(),
+        KeyPlan::Shapes(m) => (0..m.ncols()).map(|j| format!("w_mean{j}")).collect(),
+    };
+    let keys_json = match plan_keys {
+        KeyPlan::Global(_) | KeyPlan::Shapes(_) => json!(key_frames),
+        KeyPlan::Regions(p, ks) => serde_json::Value::Object(
+            p.names
+                .iter()
+                .zip(ks)
+                .map(|(n, k)| {
+                    (
+                        n.clone(),
+                        json!(k.iter().map(|&c| s.frames[c]).collect::<Vec<_>>()),
+                    )
+                })
+                .collect(),
+        ),
+    };
+    (key_frames, columns, keys_json)
+}
+
+/// Every region's weights over time, one under the other, named as the CSV names them.
+fn write_weights_png(
+    a: &RetargetArgs,
+    s: &Sequence,
+    r: &Retargeted,
+    columns: &[String],
+    png: &std::path::Path,
+) -> Result<()> {
+    let frames = r.weights.first().map_or(0, |w| w.ncols());
+    let rows: usize = r.weights.iter().map(|w| w.nrows()).sum();
+    let mut all = nalgebra::DMatrix::zeros(rows, frames);
+    let mut at = 0;
+    for w in &r.weights {
+        all.rows_mut(at, w.nrows()).copy_from(w);
+        at += w.nrows();
+    }
+    let title = format!(
+        "{}: weights over time, {} keys, {}",
+        s.source.rsplit('/').next().unwrap_or(&s.source),
+        rows,
+        a.solver
+    );
+    let pm = keyshape_lab::render::weights::weights_picture(&all, columns, &s.frames, &title)?;
+    save_png(&pm, png)?;
     Ok(())
 }
 
