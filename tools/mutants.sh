@@ -30,8 +30,9 @@ fi
 # --gitignore false: copy tools/gltf/node_modules too (the glTF tests need the validator).
 # After --: every test target but the doc test, whose recompilation would double each run,
 # and without the fuzz smoke (reader robustness: it kills no numeric mutant).
-# --test-workspace true: a mutant in a library crate is tested by every crate's tests and
-# the binary's end-to-end tests (tests/it), as before the workspace split, not only by its
-# own crate's unit tests.
-exec cargo mutants --profile mutants --gitignore false --test-workspace true -o mutants "${args[@]}" "$@" \
+# --workspace: mutate the library crates too (without it cargo-mutants mutates only the
+# root package, the binary). --test-workspace true: a mutant in a library crate is tested
+# by every crate's tests and the binary's end-to-end tests (tests/it), as before the
+# workspace split, not only by its own crate's tests.
+exec cargo mutants --workspace --profile mutants --gitignore false --test-workspace true -o mutants "${args[@]}" "$@" \
   -- --all-targets -- --skip fuzz_smoke
