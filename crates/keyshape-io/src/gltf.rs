@@ -310,3 +310,18 @@ fn write_glb_chunks(w: &mut dyn Write, doc: Value, mut data: Vec<u8>) -> std::io
     w.write_all(b"BIN\0")?;
     w.write_all(&data)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::check_joints;
+
+    /// glTF's JOINTS_0 holds u16 indices and the still root joint takes one: 65,534
+    /// feature joints fit, 65,535 do not, and the refusal says why.
+    #[test]
+    fn joints_past_sixteen_bits_are_refused() {
+        assert!(check_joints(0).is_ok());
+        assert!(check_joints(u16::MAX as usize - 1).is_ok());
+        let e = check_joints(u16::MAX as usize).unwrap_err().to_string();
+        assert!(e.contains("too many feature points for glTF joints"), "{e}");
+    }
+}
