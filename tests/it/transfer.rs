@@ -245,6 +245,44 @@ fn gltf_export_passes_the_khronos_validator() {
     crate::common::assert_valid_gltf(&p);
 }
 
+/// The GLB's animation holds, for every feature joint and frame, the target's neutral
+/// feature point plus the transfer's displacement (`t0 + d`, in f32), read back through the
+/// `gltf` crate; and a transfer with more features than glTF's 16-bit joints is refused.
+#[test]
+fn gltf_joint_tracks_are_the_neutral_plus_each_frames_displacement() {
+    let (mut t, seq) = news_transfer(None);
+    let frames = seq.coords.columns(0, 5).clone_owned();
+    let mut buf = Vec::new();
+    t.write_glb(&mut buf, &frames, 15.0).unwrap();
+    let g = gltf::Gltf::from_slice(&buf).unwrap();
+    let blob = g.blob.clone().unwrap();
+    let anim = g.animations().next().unwrap();
+    let mut checked = 0;
+    for (j, ch) in anim.channels().enumerate() {
+        assert_eq!(
+            ch.target().node().index(),
+            j + 2,
+            "channel {j} drives joint {j}"
+        );
+        let r = ch.reader(|_| Some(&blob[..]));
+        let Some(gltf::animation::util::ReadOutputs::Translations(out)) = r.read_outputs() else {
+            panic!("channel {j} animates no translation")
+        };
+        for (f, got) in out.enumerate() {
+            let d = t.displacements(frames.column(f).as_slice());
+            for k in 0..3 {
+                let want = (t.t0[j][k] + d[j][k]) as f32;
+                assert_eq!(got[k], want, "joint {j} frame {f} axis {k}");
+            }
+            checked += 1;
+        }
+    }
+    assert_eq!(checked, t.t0.len() * 5);
+    assert!(t.check_gltf().is_ok());
+    t.t0.resize(u16::MAX as usize, [0.0; 3]);
+    assert!(t.check_gltf().is_err());
+}
+
 #[test]
 fn the_lab_gets_a_mesh_view_per_frame() {
     let seq = keyshape_io::builtin_sequence().unwrap();
