@@ -451,6 +451,18 @@ fn region_weights_are_named_by_region() {
     assert_eq!(header.len(), 3 + expected + 4, "{header:?}"); // frame, rms ×2, weights, head pose
 }
 
+/// `--regions builtin` gives each region the k its regions file names (eyes 10, mouth 12),
+/// not a k of the command line's.
+#[test]
+fn each_region_gets_the_k_of_its_regions_file() {
+    let (code, json, err) = run(&["retarget", "--regions", "builtin", "--json"]);
+    assert_eq!(code, 0, "{err}");
+    let v: serde_json::Value = serde_json::from_str(&json).unwrap();
+    let keys = v["keys"].as_object().expect("keys per region");
+    let count = |r: &str| keys[r].as_array().map_or(0, Vec::len);
+    assert_eq!((count("eyes"), count("mouth")), (10, 12), "{keys:?}");
+}
+
 /// `retarget --target T.svg` uses the frames the template's groups stand for (issue 11
 /// item 5): a template of frames chosen by hand is retargeted on exactly those frames.
 #[test]
