@@ -24,6 +24,7 @@
 
 pub mod atomic;
 mod builtin;
+pub mod csv_out;
 pub mod gltf;
 pub mod json;
 pub mod morph;

@@ -1,0 +1,161 @@
+//! Writing CSV tables: a serde row struct per table, written through the `csv` crate (which
+//! quotes a field only when it must), with every float as [`fmt_num`] writes it.
+//!
+//! ```
+//! use keyshape_io::csv_out::{write_rows, Num};
+//! use serde::Serialize;
+//!
+//! #[derive(Serialize, Default)]
+//! struct Row<'a> {
+//!     solver: &'a str,
+//!     rms: Num,
+//!     kkt: Option<Num>,
+//! }
+//! let mut out = Vec::new();
+//! write_rows(&mut out, [Row { solver: "nnls, bounded", rms: Num(0.5), kkt: None }])?;
+//! assert_eq!(String::from_utf8(out).unwrap(), "solver,rms,kkt\n\"nnls, bounded\",0.5,\n");
+//! # Ok::<(), std::io::Error>(())
+//! ```
+
+use crate::fmt_num;
+use serde::{Serialize, Serializer};
+use std::io::Write;
+
+/// A float written the way every CSV of the lab writes floats ([`fmt_num`]): `123456`, not
+/// `123456.0`; `1e-7`, not `0.0000001`.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Num(pub f64);
+
+impl Serialize for Num {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(&fmt_num(self.0))
+    }
+}
+
+impl From<f64> for Num {
+    fn from(v: f64) -> Self {
+        Num(v)
+    }
+}
+
+/// An optional float: empty when `None`.
+pub fn opt(v: Option<f64>) -> Option<Num> {
+    v.map(Num)
+}
+
+/// Writes `rows` under a header of the row struct's field names (serde's names, so
+/// `#[serde(rename)]` applies). The header comes from `R::default()`, so a table without
+/// rows still has its header.
+pub fn write_rows<R, I>(w: &mut dyn Write, rows: I) -> std::io::Result<()>
+where
+    R: Serialize + Default,
+    I: IntoIterator<Item = R>,
+{
+    let mut head = csv::WriterBuilder::new()
+        .has_headers(true)
+        .from_writer(Vec::new());
+    head.serialize(R::default())?;
+    let head = head.into_inner().map_err(|e| e.into_error())?;
+    let end = head.iter().position(|&b| b == b'\n').map_or(0, |i| i + 1);
+    w.write_all(&head[..end])?;
+    let mut out = csv::WriterBuilder::new().has_headers(false).from_writer(w);
+    for r in rows {
+        out.serialize(r)?;
+    }
+    out.flush()
+}
+
+/// Writes a table whose columns are known only at run time (one per action, per shape…):
+/// the header, then each record.
+pub fn write_records<H, R>(w: &mut dyn Write, header: H, records: R) -> std::io::Result<()>
+where
+    H: IntoIterator,
+    H::Item: AsRef<[u8]>,
+    R: IntoIterator,
+    R::Item: IntoIterator,
+    <R::Item as IntoIterator>::Item: AsRef<[u8]>,
+{
+    let mut out = csv::WriterBuilder::new().has_headers(false).from_writer(w);
+    out.write_record(header)?;
+    for r in records {
+        out.write_record(r)?;
+    }
+    out.flush()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[derive(Serialize, Default)]
+    struct Row<'a> {
+        name: &'a str,
+        k: usize,
+        #[serde(rename = "rms_iod")]
+        rms: Num,
+        kkt: Option<Num>,
+        ok: bool,
+    }
+
+    fn text(rows: Vec<Row>) -> String {
+        let mut out = Vec::new();
+        write_rows(&mut out, rows).unwrap();
+        String::from_utf8(out).unwrap()
+    }
+
+    #[test]
+    fn floats_are_written_as_fmt_num_writes_them() {
+        let t = text(vec![
+            Row {
+                name: "a",
+                k: 3,
+                rms: Num(123456.0),
+                kkt: Some(Num(1e-7)),
+                ok: true,
+            },
+            Row {
+                name: "b",
+                k: 0,
+                rms: Num(0.25),
+                kkt: None,
+                ok: false,
+            },
+        ]);
+        assert_eq!(
+            t,
+            "name,k,rms_iod,kkt,ok\na,3,123456,1e-7,true\nb,0,0.25,,false\n"
+        );
+    }
+
+    #[test]
+    fn an_empty_table_keeps_its_header() {
+        assert_eq!(text(Vec::new()), "name,k,rms_iod,kkt,ok\n");
+    }
+
+    #[test]
+    fn fields_with_commas_or_quotes_are_quoted() {
+        let t = text(vec![Row {
+            name: "temporal, λ=\"2\"",
+            ..Default::default()
+        }]);
+        assert_eq!(
+            t.lines().nth(1).unwrap(),
+            "\"temporal, λ=\"\"2\"\"\",0,0,,false"
+        );
+    }
+
+    #[test]
+    fn records_take_a_header_known_at_run_time() {
+        let mut out = Vec::new();
+        write_records(
+            &mut out,
+            ["frame", "smile", "blink"],
+            [["0", "0.5", "1"], ["1", "0", "0"]],
+        )
+        .unwrap();
+        assert_eq!(
+            String::from_utf8(out).unwrap(),
+            "frame,smile,blink\n0,0.5,1\n1,0,0\n"
+        );
+    }
+}
