@@ -81,7 +81,7 @@ pub fn run(a: &RunArgs) -> Result<()> {
         (None, false) => {
             let o = run_spec(&spec, &base, &tick)?;
             let files = write_outcome(&o, &dir)?;
-            summary = outcome_summary(&o);
+            summary = o.summary();
             files
         }
     };
@@ -93,28 +93,6 @@ pub fn run(a: &RunArgs) -> Result<()> {
         outln!("{line}");
     }
     Ok(())
-}
-
-/// The lines a user wants after a run: the lowest curve, the lowest smoothing approach at
-/// equal jitter, the retarget study's solvers side by side.
-fn outcome_summary(o: &keyshape_lab::experiment::Outcome) -> Vec<String> {
-    use keyshape_lab::experiment::smoothing;
-    let mut out = Vec::new();
-    out.extend(keyshape_core::keyshapes::curves::summary(&o.rows));
-    out.extend(smoothing::summary(&smoothing::at_equal_jitter(
-        &o.smoothing,
-        &[0.75, 0.5, 0.35],
-    )));
-    let clean: Vec<String> = o
-        .retarget
-        .iter()
-        .filter(|r| r.trace_noise == 0.0)
-        .map(|r| format!("{} target RMS {:.4}", r.solver, r.target_rms))
-        .collect();
-    if !clean.is_empty() {
-        out.push(format!("retarget, exact target: {}", clean.join(", ")));
-    }
-    out
 }
 
 pub fn merge(a: &MergeArgs) -> Result<()> {

@@ -97,7 +97,8 @@ pub fn run(a: &SmoothArgs) -> Result<()> {
         st.key_count(),
         a.solver
     );
-    let (files, figures) = keyshape_lab::report::write_smoothing(&rows, &title, &a.out, true)?;
+    let (files, figures) =
+        keyshape_lab::experiment::studies::smooth::write_smoothing(&rows, &title, &a.out, true)?;
     progress.finish();
     let none = rows.iter().find(|r| r.approach == "none");
     if let Some(n) = none {

@@ -916,13 +916,17 @@ fn the_rig_experiment_measures_recovery_and_agreement_with_py_feat() {
         .collect();
     assert_eq!(set.len(), 19, "{set:?}");
     let summary = keyshape_io::read_text(&d.path().join("rig_vs_input_summary.csv")).unwrap();
+    // Read as CSV: a setting is quoted where it holds a comma.
+    let table: Vec<csv::StringRecord> = csv::Reader::from_reader(summary.as_bytes())
+        .records()
+        .map(Result::unwrap)
+        .collect();
     let field = |setting: &str, col: usize| -> f64 {
-        let l = summary
-            .lines()
-            .find(|l| l.starts_with(&format!("\"{setting}")))
+        let r = table
+            .iter()
+            .find(|r| r[0].starts_with(setting))
             .unwrap_or_else(|| panic!("{setting} missing:\n{summary}"));
-        let rest = &l[l[1..].find('"').unwrap() + 3..];
-        rest.split(',').nth(col - 1).unwrap().parse().unwrap()
+        r[col].parse().unwrap()
     };
     // mean_r by brute force from the per-shape rows: pooled r over the set, blank = 0.
     for (identity, neutral) in [

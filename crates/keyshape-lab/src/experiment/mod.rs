@@ -1,6 +1,7 @@
 //! Scripted experiments: a TOML spec (input, points, alignment, methods, k range, solvers,
 //! outputs) run headless. [`spec`] parses and checks the file, [`run`] runs it, [`studies`]
-//! holds the studies beside the curves; [`crate::report`] writes the files.
+//! holds the studies beside the curves (one file each, each writing its own files);
+//! [`crate::report`] writes the curves and `report.json`.
 //!
 //! ```toml
 //! title = "Paper 000 Fig. 6: liveportrait_d6, lips"
@@ -22,20 +23,21 @@ pub mod spec;
 pub mod studies;
 
 pub use spec::{MapSpec, ModesSpec, RetargetSpec, Spec};
-pub use studies::{MapOutcome, MorphFace, RetargetRow, Strip, StripSolver};
+pub use studies::{
+    Context, Finding, MapOutcome, MorphFace, Output, RetargetRow, Strip, StripSolver, Study,
+    STUDIES,
+};
 
 use keyshape_core::decompose::{prepare, PrepareOptions};
 use keyshape_core::error::{Error, Result};
 use keyshape_core::keyshapes::curves::{sweep, CurveRow};
 use keyshape_core::keyshapes::{axes_needed, Analysis, KeyOptions};
 use keyshape_io::{builtin_sequence, read_sequence, ReadOptions};
-use serde::Serialize;
 use std::path::Path;
 use std::time::Instant;
-use studies::{map_study, retarget_study};
 
 /// What a run produced, in memory.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug)]
 pub struct Outcome {
     /// The spec as run.
     pub spec: Spec,
@@ -53,29 +55,28 @@ pub struct Outcome {
     pub rows: Vec<CurveRow>,
     /// The curves on raw (unaligned) coordinates, when `compare_raw` asks for them.
     pub raw_rows: Vec<CurveRow>,
-    /// Seconds per stage: read, prepare, pca, sweep.
+    /// Seconds per stage: read, prepare, pca, sweep, sweep_raw, then each study's stage.
     pub timings: Vec<(String, f64)>,
-    /// Retargeting study rows (one per trace-noise level and solver).
-    pub retarget: Vec<RetargetRow>,
-    /// The frames where the first solver distorts most, for the strip picture.
-    #[serde(skip)]
-    pub strip: Option<Strip>,
-    /// Paper 002 orthogonality tables.
-    #[serde(skip)]
-    pub orthogonality: Option<keyshape_actions::modes::OrthogonalityStudy>,
-    /// Paper 002 intensity study.
-    pub intensity: Option<keyshape_actions::intensity::Study>,
-    /// Paper 002 mapping.
-    #[serde(skip)]
-    pub map: Option<MapOutcome>,
-    /// The smoothing study.
-    pub smoothing: Vec<smoothing::SmoothRow>,
-    /// The rig study's recovery rows.
-    pub rig_recovery: Vec<keyshape_rig::study::RecoveryRow>,
-    /// The rig study's agreement with the input's own scores.
-    pub rig_peer: Vec<keyshape_rig::study::PeerRow>,
-    /// Study (ii)'s summary per setting, with the calibrated references.
-    pub rig_peer_summary: Vec<keyshape_rig::study::PeerSummary>,
+    /// What each study the spec asked for found, in [`STUDIES`] order.
+    pub findings: Vec<Box<dyn Finding>>,
+}
+
+impl Outcome {
+    /// The finding of the study whose finding type is `T`, if it ran.
+    pub fn finding<T: 'static>(&self) -> Option<&T> {
+        self.findings
+            .iter()
+            .find_map(|f| f.as_any().downcast_ref::<T>())
+    }
+
+    /// The lines a user wants after a run: the lowest curve, then each study's.
+    pub fn summary(&self) -> Vec<String> {
+        let mut out: Vec<String> = keyshape_core::keyshapes::curves::summary(&self.rows)
+            .into_iter()
+            .collect();
+        out.extend(self.findings.iter().flat_map(|f| f.summary()));
+        out
+    }
 }
 
 /// Runs a spec whose relative paths are relative to `base` (one `input`; a corpus runs
@@ -165,117 +166,25 @@ pub(crate) fn analyse(
         Vec::new()
     };
     timings.push(("sweep_raw".to_string(), t.elapsed().as_secs_f64()));
-    let t = Instant::now();
-    let (retarget, strip) = match &spec.retarget {
-        Some(r) => retarget_study(r, &seq, &prep, &an, &opts)?,
-        None => (Vec::new(), None),
+    let cx = Context {
+        spec,
+        base,
+        seq: &seq,
+        prep: &prep,
+        an: &an,
+        opts: &opts,
     };
-    timings.push(("retarget".to_string(), t.elapsed().as_secs_f64()));
-    let t = Instant::now();
-    let orthogonality = match &spec.modes {
-        Some(m) => {
-            let full = prepare(
-                &seq,
-                &PrepareOptions {
-                    points: None,
-                    align: spec.align,
-                },
-            )?;
-            let layout = full
-                .layout
-                .as_ref()
-                .ok_or_else(|| Error::invalid("[modes] needs a known layout"))?;
-            let opts =
-                keyshape_actions::modes::RegionOptions::from_user(m.boundary, m.blend_radius)?;
-            let regions = keyshape_actions::modes::ModeRegions::builtin(layout)?.weights(
-                layout,
-                &full.seq.coords,
-                full.seq.dims,
-                &opts,
-            )?;
-            let actions = keyshape_actions::modes::Actions::read_for(
-                &base.join(&m.actions),
-                &full.seq.source,
-                &full.seq.frames,
-            )?;
-            Some(keyshape_actions::modes::orthogonality_study(
-                &full.seq.coords,
-                &full.seq.frames,
-                full.seq.dims,
-                &regions,
-                &actions,
-                m.modes,
-            )?)
+    let mut findings = Vec::new();
+    for study in STUDIES {
+        let t = Instant::now();
+        findings.extend(study.run(&cx)?);
+        let secs = t.elapsed().as_secs_f64();
+        // Studies of one stage (paper 002's three) share its timing.
+        match timings.last_mut() {
+            Some((stage, s)) if stage == study.stage() => *s += secs,
+            _ => timings.push((study.stage().to_string(), secs)),
         }
-        None => None,
-    };
-    let intensity = match &spec.intensity {
-        Some(st) => Some(keyshape_actions::intensity::study_with_format(
-            &base.join(&spec.input),
-            spec.format,
-            st,
-        )?),
-        None => None,
-    };
-    let map = match &spec.map {
-        Some(m) => Some(map_study(m, &seq, base, spec.align)?),
-        None => None,
-    };
-    timings.push(("paper002".to_string(), t.elapsed().as_secs_f64()));
-    let t = Instant::now();
-    let smoothing = match &spec.smooth {
-        Some(st) => smoothing::smoothing_study(&seq, &prep, st, &opts)?,
-        None => Vec::new(),
-    };
-    timings.push(("smooth".to_string(), t.elapsed().as_secs_f64()));
-    let t = Instant::now();
-    let (rig_recovery, (rig_peer, rig_peer_summary)) = match &spec.rig {
-        Some(st) => {
-            let rig = keyshape_rig::Rig::read_ict(&keyshape_io::shared_data("ict_facekit_face")?)?;
-            let rec = keyshape_rig::study::recovery(&rig, st)?;
-            let peer = if st.against_input_scores {
-                if seq.points != keyshape_rig::LANDMARKS || spec.input == "builtin" {
-                    return Err(Error::invalid(
-                        "[rig] against_input_scores needs a 68-point py-feat table as input",
-                    ));
-                }
-                let p = base.join(&spec.input);
-                let header = keyshape_io::read_text(&p)?;
-                let names: Vec<&str> = header
-                    .lines()
-                    .next()
-                    .unwrap_or("")
-                    .split(',')
-                    .map(str::trim)
-                    .filter(|n| {
-                        keyshape_rig::livelink::COLUMNS[..52]
-                            .iter()
-                            .any(|c| c.eq_ignore_ascii_case(n))
-                    })
-                    .collect();
-                if names.is_empty() {
-                    return Err(Error::file(
-                        &p,
-                        "[rig] against_input_scores: no ARKit-named score columns",
-                    ));
-                }
-                let cols = keyshape_io::read_columns(&p, &names)?;
-                let scores: Vec<(String, Vec<f64>)> =
-                    names.iter().map(|n| n.to_string()).zip(cols).collect();
-                keyshape_rig::study::against_peer(
-                    &rig,
-                    &seq.coords,
-                    &scores,
-                    seq.segments.as_deref(),
-                )?
-            } else {
-                (Vec::new(), Vec::new())
-            };
-            (rec, peer)
-        }
-        None => (Vec::new(), (Vec::new(), Vec::new())),
-    };
-    timings.push(("rig".to_string(), t.elapsed().as_secs_f64()));
+    }
     Ok(Outcome {
         spec: spec.clone(),
         input,
@@ -286,14 +195,6 @@ pub(crate) fn analyse(
         rows,
         raw_rows,
         timings,
-        retarget,
-        strip,
-        orthogonality,
-        intensity,
-        map,
-        smoothing,
-        rig_recovery,
-        rig_peer,
-        rig_peer_summary,
+        findings,
     })
 }

@@ -1,16 +1,123 @@
 //! Writes a corpus study's report (the same files from a whole run and from `kslab merge`).
 
-use crate::experiment::corpus::{CorpusOutcome, Interval};
+use crate::experiment::corpus::CorpusOutcome;
 use crate::plot::{interval_plot, IntervalCurve, Series, Style};
 use crate::render::{render_plot, save_png};
 use keyshape_core::error::Result;
-use keyshape_io::{fmt_num, write_atomic};
+use keyshape_io::csv_out::{write_rows, Num};
+use keyshape_io::write_atomic;
+use serde::Serialize;
 use serde_json::json;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-fn iv(i: &Interval) -> String {
-    format!("{},{},{}", fmt_num(i.mean), fmt_num(i.lo), fmt_num(i.hi))
+/// A row of `corpus_sequences.csv`.
+#[derive(Serialize, Default)]
+struct SequenceCsv<'a> {
+    sequence: &'a str,
+    input: &'a str,
+    clip: Option<&'a str>,
+    frames: usize,
+    points: usize,
+    iod: Num,
+}
+
+/// A row of `corpus_curves.csv`.
+#[derive(Serialize, Default)]
+struct CurveCsv<'a> {
+    sequence: &'a str,
+    method: &'a str,
+    solver: &'a str,
+    k: usize,
+    total_sq_error: Num,
+    rms: Num,
+    rms_iod: Num,
+}
+
+/// A row of `corpus_summary.csv`.
+#[derive(Serialize, Default)]
+struct SummaryCsv<'a> {
+    method: &'a str,
+    solver: &'a str,
+    k: usize,
+    sequences: usize,
+    mean_rms_iod: Num,
+    lo95: Num,
+    hi95: Num,
+    wins: usize,
+}
+
+/// A row of `corpus_paired.csv`.
+#[derive(Serialize, Default)]
+struct PairedCsv<'a> {
+    solver: &'a str,
+    k: usize,
+    method_a: &'a str,
+    method_b: &'a str,
+    sequences: usize,
+    mean_diff_iod: Num,
+    lo95: Num,
+    hi95: Num,
+    a_lower: usize,
+    b_lower: usize,
+}
+
+/// A row of `corpus_wins.csv`.
+#[derive(Serialize, Default)]
+struct WinCsv<'a> {
+    method: &'a str,
+    solver: &'a str,
+    wins: usize,
+    contests: usize,
+}
+
+/// A row of `corpus_own_k.csv`: an own-k method against one other method at its k (the
+/// comparison's columns empty when there is none).
+#[derive(Serialize, Default, Clone)]
+struct OwnKCsv<'a> {
+    method: &'a str,
+    solver: &'a str,
+    sequences: usize,
+    mean_k: Num,
+    mean_rms_iod: Num,
+    lo95: Num,
+    hi95: Num,
+    compared_with: Option<&'a str>,
+    compared_sequences: Option<usize>,
+    mean_diff_iod: Option<Num>,
+    diff_lo95: Option<Num>,
+    diff_hi95: Option<Num>,
+    other_lower: Option<usize>,
+}
+
+/// A row of `corpus_retarget.csv`.
+#[derive(Serialize, Default)]
+struct RetargetCsv<'a> {
+    sequence: &'a str,
+    solver: &'a str,
+    trace_noise: Num,
+    source_rms: Num,
+    target_rms: Num,
+    source_rms_iod: Num,
+    target_rms_iod: Num,
+    negative_share: Num,
+    max_abs_weight: Num,
+}
+
+/// A row of `corpus_retarget_paired.csv`.
+#[derive(Serialize, Default)]
+struct RetargetPairedCsv<'a> {
+    trace_noise: Num,
+    solver_a: &'a str,
+    solver_b: &'a str,
+    sequences: usize,
+    mean_target_diff_iod: Num,
+    lo95: Num,
+    hi95: Num,
+    mean_source_diff_iod: Num,
+    source_lo95: Num,
+    source_hi95: Num,
+    a_lower_target: usize,
 }
 
 /// Writes `corpus_*.csv`, `corpus_<solver>.png`, `corpus_retarget.png` and `report.json`
@@ -25,154 +132,139 @@ pub fn write_corpus(o: &CorpusOutcome, dir: &Path) -> Result<Vec<PathBuf>> {
         Ok::<(), keyshape_core::error::Error>(())
     };
     put("corpus_sequences.csv", &|w| {
-        writeln!(w, "sequence,input,clip,frames,points,iod")?;
-        for r in &o.results {
-            writeln!(
-                w,
-                "{},{},{},{},{},{}",
-                r.unit.name,
-                r.unit.input,
-                r.unit.clip.as_deref().unwrap_or(""),
-                r.frames,
-                r.points,
-                fmt_num(r.iod)
-            )?;
-        }
-        Ok(())
+        write_rows(
+            w,
+            o.results.iter().map(|r| SequenceCsv {
+                sequence: &r.unit.name,
+                input: &r.unit.input,
+                clip: r.unit.clip.as_deref(),
+                frames: r.frames,
+                points: r.points,
+                iod: Num(r.iod),
+            }),
+        )
     })?;
     if !o.summary.is_empty() {
         put("corpus_curves.csv", &|w| {
-            writeln!(w, "sequence,method,solver,k,total_sq_error,rms,rms_iod")?;
-            for r in &o.results {
-                for c in &r.curves {
-                    writeln!(
-                        w,
-                        "{},{},{},{},{},{},{}",
-                        r.unit.name,
-                        c.method,
-                        c.solver,
-                        c.k,
-                        fmt_num(c.total_sq_error),
-                        fmt_num(c.rms),
-                        fmt_num(c.rms / r.iod)
-                    )?;
-                }
-            }
-            Ok(())
+            let rows = o.results.iter().flat_map(|r| {
+                r.curves.iter().map(move |c| CurveCsv {
+                    sequence: &r.unit.name,
+                    method: &c.method,
+                    solver: &c.solver,
+                    k: c.k,
+                    total_sq_error: Num(c.total_sq_error),
+                    rms: Num(c.rms),
+                    rms_iod: Num(c.rms / r.iod),
+                })
+            });
+            write_rows(w, rows)
         })?;
         put("corpus_summary.csv", &|w| {
-            writeln!(w, "method,solver,k,sequences,mean_rms_iod,lo95,hi95,wins")?;
-            for r in &o.summary {
-                writeln!(
-                    w,
-                    "{},{},{},{},{},{}",
-                    r.method,
-                    r.solver,
-                    r.k,
-                    r.rms_iod.n,
-                    iv(&r.rms_iod),
-                    r.wins
-                )?;
-            }
-            Ok(())
+            write_rows(
+                w,
+                o.summary.iter().map(|r| SummaryCsv {
+                    method: &r.method,
+                    solver: &r.solver,
+                    k: r.k,
+                    sequences: r.rms_iod.n,
+                    mean_rms_iod: Num(r.rms_iod.mean),
+                    lo95: Num(r.rms_iod.lo),
+                    hi95: Num(r.rms_iod.hi),
+                    wins: r.wins,
+                }),
+            )
         })?;
         put("corpus_paired.csv", &|w| {
-            writeln!(
+            write_rows(
                 w,
-                "solver,k,method_a,method_b,sequences,mean_diff_iod,lo95,hi95,a_lower,b_lower"
-            )?;
-            for r in &o.paired {
-                writeln!(
-                    w,
-                    "{},{},{},{},{},{},{},{}",
-                    r.solver,
-                    r.k,
-                    r.a,
-                    r.b,
-                    r.diff.n,
-                    iv(&r.diff),
-                    r.a_lower,
-                    r.b_lower
-                )?;
-            }
-            Ok(())
+                o.paired.iter().map(|r| PairedCsv {
+                    solver: &r.solver,
+                    k: r.k,
+                    method_a: &r.a,
+                    method_b: &r.b,
+                    sequences: r.diff.n,
+                    mean_diff_iod: Num(r.diff.mean),
+                    lo95: Num(r.diff.lo),
+                    hi95: Num(r.diff.hi),
+                    a_lower: r.a_lower,
+                    b_lower: r.b_lower,
+                }),
+            )
         })?;
         put("corpus_wins.csv", &|w| {
-            writeln!(w, "method,solver,wins,contests")?;
-            for r in &o.wins {
-                writeln!(w, "{},{},{},{}", r.method, r.solver, r.wins, r.contests)?;
-            }
-            Ok(())
+            write_rows(
+                w,
+                o.wins.iter().map(|r| WinCsv {
+                    method: &r.method,
+                    solver: &r.solver,
+                    wins: r.wins,
+                    contests: r.contests,
+                }),
+            )
         })?;
     }
     if !o.own_k.is_empty() {
         put("corpus_own_k.csv", &|w| {
-            writeln!(w, "method,solver,sequences,mean_k,mean_rms_iod,lo95,hi95,compared_with,compared_sequences,mean_diff_iod,diff_lo95,diff_hi95,other_lower")?;
-            for r in &o.own_k {
-                let mean_k = r.ks.iter().sum::<usize>() as f64 / r.ks.len() as f64;
-                let head = format!(
-                    "{},{},{},{},{}",
-                    r.method,
-                    r.solver,
-                    r.rms_iod.n,
-                    fmt_num(mean_k),
-                    iv(&r.rms_iod)
-                );
-                if r.against.is_empty() {
-                    writeln!(w, "{head},,,,,,")?;
-                }
-                for c in &r.against {
-                    writeln!(
-                        w,
-                        "{head},{},{},{},{}",
-                        c.method,
-                        c.diff.n,
-                        iv(&c.diff),
-                        c.lower
-                    )?;
-                }
-            }
-            Ok(())
+            let rows = o.own_k.iter().flat_map(|r| {
+                let own = OwnKCsv {
+                    method: &r.method,
+                    solver: &r.solver,
+                    sequences: r.rms_iod.n,
+                    mean_k: Num(r.ks.iter().sum::<usize>() as f64 / r.ks.len() as f64),
+                    mean_rms_iod: Num(r.rms_iod.mean),
+                    lo95: Num(r.rms_iod.lo),
+                    hi95: Num(r.rms_iod.hi),
+                    ..Default::default()
+                };
+                let alone = r.against.is_empty().then(|| own.clone());
+                let against = r.against.iter().map(move |c| OwnKCsv {
+                    compared_with: Some(&c.method),
+                    compared_sequences: Some(c.diff.n),
+                    mean_diff_iod: Some(Num(c.diff.mean)),
+                    diff_lo95: Some(Num(c.diff.lo)),
+                    diff_hi95: Some(Num(c.diff.hi)),
+                    other_lower: Some(c.lower),
+                    ..own.clone()
+                });
+                alone.into_iter().chain(against)
+            });
+            write_rows(w, rows)
         })?;
     }
     if o.spec.retarget.is_some() {
         put("corpus_retarget.csv", &|w| {
-            writeln!(w, "sequence,solver,trace_noise,source_rms,target_rms,source_rms_iod,target_rms_iod,negative_share,max_abs_weight")?;
-            for r in &o.results {
-                for p in &r.retarget {
-                    writeln!(
-                        w,
-                        "{},{},{},{},{},{},{},{},{}",
-                        r.unit.name,
-                        p.solver,
-                        fmt_num(p.trace_noise),
-                        fmt_num(p.source_rms),
-                        fmt_num(p.target_rms),
-                        fmt_num(p.source_rms / r.iod),
-                        fmt_num(p.target_rms / r.iod),
-                        fmt_num(p.negative_share),
-                        fmt_num(p.max_abs_weight)
-                    )?;
-                }
-            }
-            Ok(())
+            let rows = o.results.iter().flat_map(|r| {
+                r.retarget.iter().map(move |p| RetargetCsv {
+                    sequence: &r.unit.name,
+                    solver: &p.solver,
+                    trace_noise: Num(p.trace_noise),
+                    source_rms: Num(p.source_rms),
+                    target_rms: Num(p.target_rms),
+                    source_rms_iod: Num(p.source_rms / r.iod),
+                    target_rms_iod: Num(p.target_rms / r.iod),
+                    negative_share: Num(p.negative_share),
+                    max_abs_weight: Num(p.max_abs_weight),
+                })
+            });
+            write_rows(w, rows)
         })?;
         put("corpus_retarget_paired.csv", &|w| {
-            writeln!(w, "trace_noise,solver_a,solver_b,sequences,mean_target_diff_iod,lo95,hi95,mean_source_diff_iod,source_lo95,source_hi95,a_lower_target")?;
-            for r in &o.retarget_paired {
-                writeln!(
-                    w,
-                    "{},{},{},{},{},{},{}",
-                    fmt_num(r.trace_noise),
-                    r.a,
-                    r.b,
-                    r.target_diff.n,
-                    iv(&r.target_diff),
-                    iv(&r.source_diff),
-                    r.a_lower
-                )?;
-            }
-            Ok(())
+            write_rows(
+                w,
+                o.retarget_paired.iter().map(|r| RetargetPairedCsv {
+                    trace_noise: Num(r.trace_noise),
+                    solver_a: &r.a,
+                    solver_b: &r.b,
+                    sequences: r.target_diff.n,
+                    mean_target_diff_iod: Num(r.target_diff.mean),
+                    lo95: Num(r.target_diff.lo),
+                    hi95: Num(r.target_diff.hi),
+                    mean_source_diff_iod: Num(r.source_diff.mean),
+                    source_lo95: Num(r.source_diff.lo),
+                    source_hi95: Num(r.source_diff.hi),
+                    a_lower_target: r.a_lower,
+                }),
+            )
         })?;
     }
     let mut figures = Vec::new();

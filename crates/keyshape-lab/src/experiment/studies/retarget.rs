@@ -1,48 +1,107 @@
-//! The studies a spec may hold beside its error curves: paper 000's retargeting study
-//! (Figs. 4–5) and paper 002's trajectory mapping (§3.2–3.3). Each returns plain data;
-//! [`crate::report`] writes it.
+//! `[retarget]`: paper 000's retargeting study (Figs. 4–5) on the built-in target — the same
+//! key frames through each solver at each tracing-noise level — with the strip of the frames
+//! where the solvers differ most. Writes `retarget.csv` and `strip.png`.
 
-use super::spec::{MapSpec, RetargetSpec};
-use keyshape_core::decompose::{prepare, PrepareOptions};
-use keyshape_core::error::{Error, Result};
+use super::{Context, Finding, Output, Study};
+use crate::experiment::spec::RetargetSpec;
+use keyshape_core::error::Result;
 use keyshape_core::keyshapes::{axes_needed, Analysis, KeyOptions};
-use keyshape_io::{read_sequence, ReadOptions};
+use keyshape_io::csv_out::Num;
 use nalgebra::DMatrix;
 use serde::Serialize;
-use std::path::Path;
+use serde_json::{json, Map, Value};
+use std::any::Any;
 
-/// A morph-target face ready to export: neutral positions, faces, the used targets (name,
-/// dense offsets) and their weights (targets × frames).
+/// The `[retarget]` study.
+pub struct RetargetStudy;
+
+/// What `[retarget]` found: a row per tracing-noise level and solver, and the strip.
 #[derive(Debug, Clone)]
-pub struct MorphFace {
-    /// Neutral positions.
-    pub neutral: Vec<[f64; 3]>,
-    /// Faces.
-    pub faces: Vec<Vec<usize>>,
-    /// Used targets.
-    pub targets: Vec<(String, Vec<[f64; 3]>)>,
-    /// Weights, targets × frames.
-    pub weights: DMatrix<f64>,
+pub struct RetargetFinding {
+    /// One row per tracing-noise level and solver.
+    pub rows: Vec<RetargetRow>,
+    /// The frames where the solvers differ most, for the strip picture.
+    pub strip: Option<Strip>,
 }
 
-/// What `[map]` produced.
-#[derive(Debug, Clone)]
-pub struct MapOutcome {
-    /// Where each source extreme lands on the target under both normalisations.
-    pub extremes: Vec<keyshape_actions::trajectory::ExtremeRow>,
-    /// The mode alignment used.
-    pub alignment: keyshape_actions::trajectory::ModeAlignment,
-    /// Action names and their normalised trajectories (actions × frames).
-    pub actions: Vec<String>,
-    /// Trajectories.
-    pub trajectories: DMatrix<f64>,
-    /// Frame numbers.
-    pub frames: Vec<i64>,
-    /// Frames per second.
-    pub fps: f64,
-    /// The morph face, if asked: neutral positions, faces, used targets (name, dense
-    /// offsets) and their weights (targets × frames).
-    pub morph: Option<MorphFace>,
+impl Study for RetargetStudy {
+    fn stage(&self) -> &'static str {
+        "retarget"
+    }
+
+    fn run(&self, cx: &Context) -> Result<Option<Box<dyn Finding>>> {
+        let Some(r) = &cx.spec.retarget else {
+            return Ok(None);
+        };
+        let (rows, strip) = retarget_study(r, cx.seq, cx.prep, cx.an, cx.opts)?;
+        Ok(Some(Box::new(RetargetFinding { rows, strip })))
+    }
+
+    fn absent(&self, report: &mut Map<String, Value>) {
+        report.insert("retarget".into(), json!([]));
+        report.insert("strip_frames".into(), Value::Null);
+    }
+}
+
+/// A row of `retarget.csv`.
+#[derive(Serialize, Default)]
+struct CsvRow<'a> {
+    solver: &'a str,
+    trace_noise: Num,
+    source_rms: Num,
+    target_rms: Num,
+    jitter: Num,
+    negative_share: Num,
+    max_abs_weight: Num,
+}
+
+impl Finding for RetargetFinding {
+    fn write(&self, out: &mut Output) -> Result<()> {
+        if !self.rows.is_empty() {
+            out.rows(
+                "retarget.csv",
+                self.rows.iter().map(|r| CsvRow {
+                    solver: &r.solver,
+                    trace_noise: Num(r.trace_noise),
+                    source_rms: Num(r.source_rms),
+                    target_rms: Num(r.target_rms),
+                    jitter: Num(r.jitter),
+                    negative_share: Num(r.negative_share),
+                    max_abs_weight: Num(r.max_abs_weight),
+                }),
+            )?;
+        }
+        if let (Some(strip), true) = (&self.strip, out.spec.png) {
+            out.figure("strip.png", &render_strip(strip)?)?;
+        }
+        Ok(())
+    }
+
+    fn report(&self, report: &mut Map<String, Value>) {
+        report.insert("retarget".into(), json!(self.rows));
+        report.insert(
+            "strip_frames".into(),
+            json!(self.strip.as_ref().map(|s| &s.frames)),
+        );
+    }
+
+    fn summary(&self) -> Vec<String> {
+        let clean: Vec<String> = self
+            .rows
+            .iter()
+            .filter(|r| r.trace_noise == 0.0)
+            .map(|r| format!("{} target RMS {:.4}", r.solver, r.target_rms))
+            .collect();
+        if clean.is_empty() {
+            Vec::new()
+        } else {
+            vec![format!("retarget, exact target: {}", clean.join(", "))]
+        }
+    }
+
+    fn as_any(&self) -> &dyn Any {
+        self
+    }
 }
 
 /// One retargeting result.
@@ -98,98 +157,6 @@ pub struct StripSolver {
     pub target: DMatrix<f64>,
     /// Target-domain RMS per strip frame.
     pub target_rms: Vec<f64>,
-}
-
-pub(crate) fn map_study(
-    m: &MapSpec,
-    seq: &keyshape_core::sequence::Sequence,
-    base: &Path,
-    align: bool,
-) -> Result<MapOutcome> {
-    use keyshape_actions::trajectory::{extremes, person_model, trajectories, ModeAlignment};
-    let region_opts =
-        keyshape_actions::modes::RegionOptions::from_user(m.boundary, m.blend_radius)?;
-    let model_of = |s: &keyshape_core::sequence::Sequence,
-                    actions: &str|
-     -> Result<(
-        keyshape_actions::trajectory::PersonModel,
-        keyshape_core::decompose::Prepared,
-    )> {
-        let prep = prepare(
-            s,
-            &PrepareOptions {
-                points: None,
-                align,
-            },
-        )?;
-        let layout = prep
-            .layout
-            .as_ref()
-            .ok_or_else(|| Error::invalid("[map] needs a known layout"))?;
-        let regions = keyshape_actions::modes::ModeRegions::builtin(layout)?.weights(
-            layout,
-            &prep.seq.coords,
-            prep.seq.dims,
-            &region_opts,
-        )?;
-        let acts = keyshape_actions::modes::Actions::read_for(
-            &base.join(actions),
-            &prep.seq.source,
-            &prep.seq.frames,
-        )?;
-        Ok((
-            person_model(
-                &prep.seq.coords,
-                &prep.seq.frames,
-                prep.seq.dims,
-                &regions,
-                &acts,
-                m.modes,
-                m.normalisation,
-            )?,
-            prep,
-        ))
-    };
-    let (src, prep) = model_of(seq, &m.actions)?;
-    let tseq = read_sequence(&base.join(&m.target_sequence), &ReadOptions::default())?;
-    let (tgt, _) = model_of(&tseq, &m.target_actions)?;
-    let alignment = ModeAlignment::by_actions(&src, &tgt);
-    let extremes = extremes(&src, &tgt, &alignment);
-    let traj = trajectories(&src, &prep.seq.coords);
-    let actions: Vec<String> = src.actions.iter().map(|a| a.0.clone()).collect();
-    let at = DMatrix::from_fn(actions.len(), traj.ncols(), |i, t| {
-        src.actions[i].2 * traj[(src.actions[i].1, t)]
-    });
-    let morph = match &m.morph {
-        None => None,
-        Some(dir) => {
-            let dir = base.join(dir);
-            let mesh = keyshape_io::obj::read_obj(&dir.join("neutral_face.obj"))?;
-            let targets = keyshape_io::morph::MorphTargets::read(
-                &dir.join("expressions.csv"),
-                &dir.join("expression_deltas.csv"),
-                mesh.positions.len(),
-            )?;
-            let w = keyshape_actions::morph::MorphMapping::builtin()?
-                .weights(&targets, &actions, &at)?;
-            let (targets, weights) = targets.used_dense(&w, mesh.positions.len());
-            Some(MorphFace {
-                neutral: mesh.positions,
-                faces: mesh.faces,
-                targets,
-                weights,
-            })
-        }
-    };
-    Ok(MapOutcome {
-        extremes,
-        alignment,
-        actions,
-        trajectories: at,
-        frames: prep.seq.frames.clone(),
-        fps: seq.fps().unwrap_or(30.0),
-        morph,
-    })
 }
 
 /// Paper 000 Figs. 4–5 on the built-in target: the same key frames, each solver, each
@@ -313,6 +280,75 @@ pub fn spaced_top(score: &[f64], count: usize, gap: usize) -> Vec<usize> {
     }
     chosen.sort_unstable();
     chosen
+}
+
+/// One row per strip frame: the source with the first solver's reconstruction, then per
+/// solver the target-domain truth with that solver's retargeted shape.
+pub fn render_strip(s: &Strip) -> Result<tiny_skia::Pixmap> {
+    use crate::render::face::{bounds_of, col, render_panels, Layer, Panel};
+    let mut all = vec![&s.truth];
+    all.extend(s.solvers.iter().map(|x| &x.target));
+    let tb = bounds_of(&all, s.dims);
+    let mut src = vec![&s.tracked];
+    src.extend(s.solvers.iter().map(|x| &x.source));
+    let sb = bounds_of(&src, s.dims);
+    let colours = [[200, 30, 30], [31, 90, 200], [30, 150, 60]];
+    let mut rows = Vec::new();
+    for (i, frame) in s.frames.iter().enumerate() {
+        let (name0, rec0) = (&s.solvers[0].name, &s.solvers[0].source);
+        let mut panels = vec![Panel {
+            title: "source".into(),
+            layers: vec![
+                Layer {
+                    name: "tracked",
+                    shape: col(&s.tracked, i),
+                    dims: s.dims,
+                    polylines: &s.polylines,
+                    color: [20, 20, 20],
+                    dashed: false,
+                },
+                Layer {
+                    name: name0,
+                    shape: col(rec0, i),
+                    dims: s.dims,
+                    polylines: &s.polylines,
+                    color: [31, 90, 200],
+                    dashed: true,
+                },
+            ],
+            bounds: sb,
+            mesh: None,
+        }];
+        for (j, sv) in s.solvers.iter().enumerate() {
+            let (name, tgt, rms) = (&sv.name, &sv.target, &sv.target_rms);
+            panels.push(Panel {
+                title: format!("target, {name}: RMS {:.2}", rms[i]),
+                layers: vec![
+                    Layer {
+                        name: "ground truth G(q)",
+                        shape: col(&s.truth, i),
+                        dims: s.dims,
+                        polylines: &s.polylines,
+                        color: [150, 150, 150],
+                        dashed: true,
+                    },
+                    Layer {
+                        name,
+                        shape: col(tgt, i),
+                        dims: s.dims,
+                        polylines: &s.polylines,
+                        color: colours[j % 3],
+                        dashed: false,
+                    },
+                ],
+                bounds: tb,
+                mesh: None,
+            });
+        }
+        let caption = format!("frame {frame}   (tracing noise {} IOD)", s.trace_noise);
+        rows.push(render_panels(&panels, &caption, 300)?);
+    }
+    crate::render::face::stack(&rows)
 }
 
 #[cfg(test)]
