@@ -11,6 +11,7 @@ use keyshape_actions::trajectory::{
     person_model, synthesise, trajectories, ModeAlignment, Normalisation, PersonModel,
 };
 use keyshape_core::decompose::{prepare, PrepareOptions, Prepared};
+use keyshape_io::csv_out::write_records;
 use keyshape_io::morph::MorphTargets;
 use keyshape_io::obj::{read_obj, write_obj};
 use keyshape_io::{read_sequence, write_atomic, ReadOptions};
@@ -141,16 +142,14 @@ pub fn run(a: &MapArgs) -> Result<()> {
         src.actions[i].2 * traj[(src.actions[i].1, t)]
     });
     if let Some(p) = &a.out {
-        write_atomic(p, |w| {
-            writeln!(w, "frame,{}", names.join(","))?;
-            for (t, f) in prep.seq.frames.iter().enumerate() {
-                let v: Vec<String> = (0..names.len())
-                    .map(|i| format!("{:.5}", action_traj[(i, t)]))
-                    .collect();
-                writeln!(w, "{f},{}", v.join(","))?;
-            }
-            Ok(())
-        })?;
+        let header = std::iter::once("frame").chain(names.iter().map(String::as_str));
+        let at = &action_traj;
+        let records = prep.seq.frames.iter().enumerate().map(|(t, f)| {
+            std::iter::once(f.to_string())
+                .chain((0..names.len()).map(move |i| format!("{:.5}", at[(i, t)])))
+                .collect::<Vec<_>>()
+        });
+        write_atomic(p, |w| write_records(w, header, records))?;
     }
     let every = a.every as usize;
     if let Some(tpath) = &a.target_sequence {

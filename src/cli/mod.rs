@@ -162,6 +162,12 @@ pub fn main() -> ExitCode {
     // One output set per command: every file it writes is staged and renamed into place
     // only when the whole command has succeeded. The lab stages each export on its own; the
     // benchmarks write tracks that the processes they start must read at once.
+    // How the library's errors name a setting: as this command's flag, or, for an
+    // experiment, as its key in the file.
+    let spell: fn(&str) -> String = match command {
+        Command::Run(_) | Command::Merge(_) => spell_experiment_key,
+        _ => spell_flag,
+    };
     let set = match command {
         Command::Tui(_) | Command::Bench(_) => None,
         _ => Some(keyshape_io::OutputSet::begin()),
@@ -196,8 +202,36 @@ pub fn main() -> ExitCode {
         // a signal would have made it, but with the outputs of the set discarded.
         Err(e) if broken_pipe(&e) => ExitCode::from(141),
         Err(e) => {
-            eprintln!("error: {e:#}");
+            eprintln!("error: {}", render_error(&e, &spell));
             ExitCode::FAILURE
         }
+    }
+}
+
+/// An error chain as `{:#}` prints it (`outer: inner`), each library error's settings
+/// ([`keyshape_core::error::setting`]) spelled by `spell`.
+pub fn render_error(e: &anyhow::Error, spell: &dyn Fn(&str) -> String) -> String {
+    e.chain()
+        .map(|c| match c.downcast_ref::<keyshape_core::Error>() {
+            Some(k) => k.render(spell),
+            None => c.to_string(),
+        })
+        .collect::<Vec<_>>()
+        .join(": ")
+}
+
+/// A library setting as the command line spells it: `dims` → `--dims`, `smooth_mode` →
+/// `--smooth-mode`, `no_align` → `--no-align`.
+fn spell_flag(name: &str) -> String {
+    format!("--{}", name.replace('_', "-"))
+}
+
+/// A library setting as an experiment file spells it: its key (`dims`, `points`, `modes`),
+/// `align = false` for `no_align`; `--shard` stays the flag of `kslab run`.
+fn spell_experiment_key(name: &str) -> String {
+    match name {
+        "no_align" => "align = false".to_string(),
+        "shard" => spell_flag(name),
+        _ => name.to_string(),
     }
 }

@@ -7,6 +7,7 @@ use clap::Args;
 use keyshape_core::decompose::Prepared;
 use keyshape_core::sequence::Sequence;
 use keyshape_core::solve::Solver;
+use keyshape_io::csv_out::{pose_cells, write_records, POSE_COLUMNS};
 use keyshape_io::{fmt_num, write_atomic};
 use keyshape_lab::render::face::{bounds_of, col, render_frame, FrameShapes};
 use keyshape_lab::render::{apng::write_apng, save_png};
@@ -443,31 +444,25 @@ fn write_csv(
     columns: &[String],
     motion: Option<&[keyshape_core::align::Similarity]>,
 ) -> std::io::Result<()> {
-    let mut head = String::from("frame,source_rms,target_rms");
-    for c in columns {
-        head.push(',');
-        head.push_str(c);
-    }
-    if motion.is_some() {
-        head.push_str(keyshape_io::POSE_COLUMNS);
-    }
-    writeln!(w, "{head}")?;
+    let pose: &[&str] = if motion.is_some() { &POSE_COLUMNS } else { &[] };
+    let header = ["frame", "source_rms", "target_rms"]
+        .into_iter()
+        .chain(columns.iter().map(String::as_str))
+        .chain(pose.iter().copied());
     let trms = r.target_rms_per_frame();
-    for (t, frame) in s.frames.iter().enumerate() {
+    let records = s.frames.iter().enumerate().map(|(t, frame)| {
         let src = (r.source_sq[t] / r.points as f64).sqrt();
         let tg = trms.as_ref().map_or(String::new(), |v| fmt_num(v[t]));
-        write!(w, "{frame},{},{tg}", fmt_num(src))?;
+        let mut row = vec![frame.to_string(), fmt_num(src), tg];
         for wm in &r.weights {
-            for v in wm.column(t).iter() {
-                write!(w, ",{}", fmt_num(*v))?;
-            }
+            row.extend(wm.column(t).iter().map(|v| fmt_num(*v)));
         }
         if let Some(m) = motion {
-            keyshape_io::write_pose(w, &m[t])?;
+            row.extend(pose_cells(&m[t]));
         }
-        writeln!(w)?;
-    }
-    Ok(())
+        row
+    });
+    write_records(w, header, records)
 }
 
 /// Image-space shapes (head motion re-applied when asked for).

@@ -5,9 +5,11 @@
 use anyhow::Result;
 use clap::Args;
 use keyshape_core::solve::Solver;
+use keyshape_io::csv_out::{opt, write_records, write_rows, Num};
 use keyshape_io::{fmt_num, shared_data, write_atomic};
 use keyshape_rig::accuracy::{self, Kind, Settings, ShapeAccuracy, Summary};
 use keyshape_rig::{Identity, Neutral, Rig, RigOptions};
+use serde::Serialize;
 use serde_json::json;
 use std::path::PathBuf;
 
@@ -179,35 +181,23 @@ pub fn run(a: &RigAccuracyArgs) -> Result<()> {
         all.push((kind, rows, summary));
     }
     if let Some(p) = &a.out {
-        write_atomic(p, |w| {
-            writeln!(w, "kind,shape,active,r,mae,rmse,peak_reach,twin_leakage,idle_activation,jitter,true_jitter,lag")?;
-            let opt = |v: Option<f64>| v.map_or(String::new(), fmt_num);
-            for (kind, rows, _) in &all {
-                for r in rows {
-                    writeln!(
-                        w,
-                        "{},{},{},{},{},{},{},{},{},{},{},{}",
-                        kind.name(),
-                        r.shape,
-                        r.active,
-                        if r.r.is_nan() {
-                            String::new()
-                        } else {
-                            fmt_num(r.r)
-                        },
-                        fmt_num(r.mae),
-                        fmt_num(r.rmse),
-                        opt(r.peak_reach),
-                        opt(r.twin_leakage),
-                        opt(r.idle_activation),
-                        fmt_num(r.jitter),
-                        fmt_num(r.true_jitter),
-                        r.lag.map_or(String::new(), |l| l.to_string()),
-                    )?;
-                }
-            }
-            Ok(())
-        })?;
+        let rows = all.iter().flat_map(|(kind, rows, _)| {
+            rows.iter().map(move |r| AccuracyCsv {
+                kind: kind.name(),
+                shape: &r.shape,
+                active: r.active,
+                r: (!r.r.is_nan()).then_some(Num(r.r)),
+                mae: Num(r.mae),
+                rmse: Num(r.rmse),
+                peak_reach: opt(r.peak_reach),
+                twin_leakage: opt(r.twin_leakage),
+                idle_activation: opt(r.idle_activation),
+                jitter: Num(r.jitter),
+                true_jitter: Num(r.true_jitter),
+                lag: r.lag,
+            })
+        });
+        write_atomic(p, |w| write_rows(w, rows))?;
     }
     if a.json {
         let v: Vec<_> = all
@@ -235,36 +225,48 @@ pub fn run(a: &RigAccuracyArgs) -> Result<()> {
     Ok(())
 }
 
+/// A row of `--out`: one shape of one kind of track.
+#[derive(Serialize, Default)]
+struct AccuracyCsv<'a> {
+    kind: &'a str,
+    shape: &'a str,
+    active: bool,
+    r: Option<Num>,
+    mae: Num,
+    rmse: Num,
+    peak_reach: Option<Num>,
+    twin_leakage: Option<Num>,
+    idle_activation: Option<Num>,
+    jitter: Num,
+    true_jitter: Num,
+    lag: Option<i64>,
+}
+
 /// `<kind>_track.csv` and `<kind>_truth.csv` in `dir`.
 fn write_track(dir: &std::path::Path, kind: Kind, rig: &Rig, t: &accuracy::Track) -> Result<()> {
     keyshape_io::create_dir_all(dir)?;
-    write_atomic(&dir.join(format!("{}_track.csv", kind.name())), |w| {
-        let depth = t.points.nrows() == 3 * rig.landmarks();
-        let head: Vec<String> = rig
-            .points
+    let depth = t.points.nrows() == 3 * rig.landmarks();
+    let axes: &[&str] = if depth { &["x", "y", "z"] } else { &["x", "y"] };
+    let head = std::iter::once("frame".to_string()).chain(
+        rig.points
             .iter()
-            .map(|i| {
-                if depth {
-                    format!("x{i},y{i},z{i}")
-                } else {
-                    format!("x{i},y{i}")
-                }
-            })
-            .collect();
-        writeln!(w, "frame,{}", head.join(","))?;
-        for f in 0..t.points.ncols() {
-            let row: Vec<String> = t.points.column(f).iter().map(|v| fmt_num(*v)).collect();
-            writeln!(w, "{f},{}", row.join(","))?;
-        }
-        Ok(())
+            .flat_map(|i| axes.iter().map(move |a| format!("{a}{i}"))),
+    );
+    write_atomic(&dir.join(format!("{}_track.csv", kind.name())), |w| {
+        write_records(w, head, frame_records(&t.points))
     })?;
+    let head = std::iter::once("frame").chain(rig.names.iter().map(String::as_str));
     write_atomic(&dir.join(format!("{}_truth.csv", kind.name())), |w| {
-        writeln!(w, "frame,{}", rig.names.join(","))?;
-        for f in 0..t.truth.ncols() {
-            let row: Vec<String> = t.truth.column(f).iter().map(|v| fmt_num(*v)).collect();
-            writeln!(w, "{f},{}", row.join(","))?;
-        }
-        Ok(())
+        write_records(w, head, frame_records(&t.truth))
     })?;
     Ok(())
+}
+
+/// One record per column of `m`: its index, then its values.
+fn frame_records(m: &nalgebra::DMatrix<f64>) -> impl Iterator<Item = Vec<String>> + '_ {
+    (0..m.ncols()).map(|f| {
+        std::iter::once(f.to_string())
+            .chain(m.column(f).iter().map(|v| fmt_num(*v)))
+            .collect()
+    })
 }

@@ -7,6 +7,7 @@ use keyshape_core::decompose::{decompose_smoothed, Decomposition};
 use keyshape_core::sequence::Sequence;
 use keyshape_core::solve::temporal::{segments, SmoothMode, Smoothing};
 use keyshape_core::solve::{SolveOptions, Solver};
+use keyshape_io::csv_out::write_records;
 use keyshape_io::{fmt_num, write_atomic};
 use serde_json::json;
 use std::io::Write;
@@ -276,35 +277,43 @@ fn run_stream(a: &SolveArgs, smoothing: Option<Smoothing>) -> Result<()> {
         solve: opts,
         smoothing,
     };
-    let header = {
-        let mut h = String::from("frame,rms");
-        for k in &a.choice.keys {
-            h.push_str(&format!(",w_{k}"));
-        }
-        h
-    };
+    let header: Vec<String> = ["frame".to_string(), "rms".to_string()]
+        .into_iter()
+        .chain(a.choice.keys.iter().map(|k| format!("w_{k}")))
+        .collect();
     // The stream's own error, kept while the writer sees only that it stopped.
     let mut failure: Option<keyshape_core::error::Error> = None;
     let mut summary = None;
     let mut fill = |w: &mut dyn Write| -> std::io::Result<()> {
-        // The header goes out with the first frame: an error found while the passes before
-        // the solve check the input leaves standard output empty.
-        let mut line = format!("{header}\n");
+        let mut out = keyshape_io::csv_out::record_writer(w);
         let mut io_err: Option<std::io::Error> = None;
+        let mut first = true;
         let r = stream_solve(path, &so, &mut |f| {
-            line.push_str(&format!("{},{}", f.frame, fmt_num(f.rms)));
-            for v in f.weights {
-                line.push(',');
-                line.push_str(&fmt_num(*v));
-            }
-            line.push('\n');
-            let r = w.write_all(line.as_bytes()).map_err(|e| {
+            // The header goes out with the first frame: an error found while the passes
+            // before the solve check the input leaves standard output empty.
+            let header = first.then_some(&header).into_iter().map(|h| h.to_vec());
+            first = false;
+            let row = [f.frame.to_string(), fmt_num(f.rms)]
+                .into_iter()
+                .chain(f.weights.iter().map(|v| fmt_num(*v)))
+                .collect::<Vec<_>>();
+            header
+                .chain(std::iter::once(row))
+                .try_for_each(|r| out.write_record(r))
+                .map_err(|e| {
+                    let e = std::io::Error::from(e);
+                    let msg = e.to_string();
+                    io_err = Some(e);
+                    keyshape_core::error::Error::invalid(msg)
+                })
+        });
+        let r = r.and_then(|s| {
+            out.flush().map_err(|e| {
                 let msg = e.to_string();
                 io_err = Some(e);
                 keyshape_core::error::Error::invalid(msg)
-            });
-            line.clear();
-            r
+            })?;
+            Ok(s)
         });
         match r {
             Ok(s) => {
@@ -385,18 +394,15 @@ fn write_csv(
     keys: &[i64],
     d: &Decomposition,
 ) -> std::io::Result<()> {
-    let mut header = String::from("frame,rms");
-    for k in keys {
-        header.push_str(&format!(",w_{k}"));
-    }
-    writeln!(w, "{header}")?;
+    let header = ["frame".to_string(), "rms".to_string()]
+        .into_iter()
+        .chain(keys.iter().map(|k| format!("w_{k}")));
     let rms = d.rms();
-    for (c, frame) in seq.frames.iter().enumerate() {
-        write!(w, "{frame},{}", fmt_num(rms[c]))?;
-        for v in d.weights.column(c).iter() {
-            write!(w, ",{}", fmt_num(*v))?;
-        }
-        writeln!(w)?;
-    }
-    Ok(())
+    let records = seq.frames.iter().enumerate().map(|(c, frame)| {
+        [frame.to_string(), fmt_num(rms[c])]
+            .into_iter()
+            .chain(d.weights.column(c).iter().map(|v| fmt_num(*v)))
+            .collect::<Vec<_>>()
+    });
+    write_records(w, header, records)
 }

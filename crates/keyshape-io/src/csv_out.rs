@@ -38,6 +38,20 @@ impl From<f64> for Num {
     }
 }
 
+/// The head-pose columns a weights CSV ends with when head motion is applied: each frame's
+/// similarity (scale, rotation in degrees, translation).
+pub const POSE_COLUMNS: [&str; 4] = ["head_scale", "head_angle_deg", "head_tx", "head_ty"];
+
+/// One frame's head pose as the [`POSE_COLUMNS`] cells.
+pub fn pose_cells(h: &keyshape_core::align::Similarity) -> [String; 4] {
+    [
+        fmt_num(h.scale),
+        fmt_num(h.angle.to_degrees()),
+        fmt_num(h.t[0]),
+        fmt_num(h.t[1]),
+    ]
+}
+
 /// An optional float: empty when `None`.
 pub fn opt(v: Option<f64>) -> Option<Num> {
     v.map(Num)
@@ -75,12 +89,18 @@ where
     R::Item: IntoIterator,
     <R::Item as IntoIterator>::Item: AsRef<[u8]>,
 {
-    let mut out = csv::WriterBuilder::new().has_headers(false).from_writer(w);
+    let mut out = record_writer(w);
     out.write_record(header)?;
     for r in records {
         out.write_record(r)?;
     }
     out.flush()
+}
+
+/// A writer of records for a table written as it is computed (a streamed solve): the same
+/// dialect as [`write_records`], no header of its own; `flush` it at the end.
+pub fn record_writer<W: Write>(w: W) -> csv::Writer<W> {
+    csv::WriterBuilder::new().has_headers(false).from_writer(w)
 }
 
 #[cfg(test)]

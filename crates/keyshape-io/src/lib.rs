@@ -4,8 +4,7 @@
 //! A whole solve, from the built-in sequence to blend weights:
 //!
 //! ```
-//! use keyshape_core::decompose::{decompose, prepare, PrepareOptions};
-//! use keyshape_core::solve::{SolveOptions, Solver};
+//! use keyshape_core::{decompose, prepare, PrepareOptions, SolveOptions, Solver};
 //! use keyshape_io::builtin_sequence;
 //!
 //! let seq = builtin_sequence()?;
@@ -37,7 +36,7 @@ pub mod table;
 pub use atomic::{check_output, check_output_dir, create_dir_all, write_atomic, OutputSet};
 pub use builtin::{builtin_sequence, BUILTIN_NAME};
 
-use keyshape_core::error::{Error, Result};
+use keyshape_core::error::{setting, Error, Result};
 use keyshape_core::sequence::{Format, Sequence};
 use std::io::Read;
 use std::path::Path;
@@ -71,30 +70,12 @@ pub fn fmt_num(v: f64) -> String {
     }
 }
 
-/// The head-pose columns a weights CSV ends with when head motion is applied (each
-/// frame's similarity: scale, rotation in degrees, translation), with their leading comma.
-pub const POSE_COLUMNS: &str = ",head_scale,head_angle_deg,head_tx,head_ty";
-
-/// Writes one frame's head pose as the [`POSE_COLUMNS`] values, each after a comma.
-pub fn write_pose(
-    w: &mut dyn std::io::Write,
-    h: &keyshape_core::align::Similarity,
-) -> std::io::Result<()> {
-    write!(
-        w,
-        ",{},{},{},{}",
-        fmt_num(h.scale),
-        fmt_num(h.angle.to_degrees()),
-        fmt_num(h.t[0]),
-        fmt_num(h.t[1])
-    )
-}
-
 /// Reads a tracked sequence from a file or a directory of `.pts` files.
 pub fn read_sequence(path: &Path, opts: &ReadOptions) -> Result<Sequence> {
     if opts.dims != 2 && opts.dims != 3 {
         return Err(Error::invalid(format!(
-            "--dims must be 2 or 3, got {}",
+            "{} must be 2 or 3, got {}",
+            setting("dims"),
             opts.dims
         )));
     }
@@ -253,7 +234,8 @@ fn read_table_streamed(
 pub fn parse_sequence(path: &Path, text: &str, opts: &ReadOptions) -> Result<Sequence> {
     if opts.dims != 2 && opts.dims != 3 {
         return Err(Error::invalid(format!(
-            "--dims must be 2 or 3, got {}",
+            "{} must be 2 or 3, got {}",
+            setting("dims"),
             opts.dims
         )));
     }
@@ -433,7 +415,7 @@ pub fn detect_format(path: &Path, text: &str) -> Result<Format> {
             path,
             1,
             1,
-            "header has no landmark columns (expected x_0,y_0,… or x0,y0,…); use --format to force one",
+            format!("header has no landmark columns (expected x_0,y_0,… or x0,y0,…); use {} to force one", setting("format")),
         ))
     }
 }

@@ -136,22 +136,24 @@ pub fn write(
     head: &[[f64; 3]],
 ) -> std::io::Result<()> {
     let sources = column_sources(rig);
-    writeln!(out, "Timecode,BlendShapeCount,{}", COLUMNS.join(","))?;
-    for (f, &t) in times.iter().enumerate() {
-        write!(out, "{},{}", timecode(t, fps), COLUMNS.len())?;
-        for src in &sources {
-            let v = if src.is_empty() {
+    let count = COLUMNS.len().to_string();
+    let header = ["Timecode", "BlendShapeCount"]
+        .into_iter()
+        .chain(COLUMNS.iter().copied());
+    let records = times.iter().enumerate().map(|(f, &t)| {
+        let shapes = sources.iter().map(|src| {
+            if src.is_empty() {
                 0.0
             } else {
                 src.iter().map(|&s| weights[(s, f)]).sum::<f64>() / src.len() as f64
-            };
-            write!(out, ",{}", keyshape_io::fmt_num(v))?;
-        }
-        for a in head[f] {
-            write!(out, ",{}", keyshape_io::fmt_num(a))?;
-        }
-        write!(out, ",0,0,0,0,0,0")?;
-        writeln!(out)?;
-    }
-    Ok(())
+            }
+        });
+        // The head's three angles, then the six eye angles, which are not solved.
+        let angles = head[f].into_iter().chain([0.0; 6]);
+        [timecode(t, fps), count.clone()]
+            .into_iter()
+            .chain(shapes.chain(angles).map(keyshape_io::fmt_num))
+            .collect::<Vec<_>>()
+    });
+    keyshape_io::csv_out::write_records(out, header, records)
 }

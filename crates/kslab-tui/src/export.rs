@@ -6,6 +6,7 @@
 use super::state::State;
 use anyhow::{Context, Result};
 use keyshape_core::keyshapes::Method;
+use keyshape_io::csv_out::{pose_cells, write_records, POSE_COLUMNS};
 use keyshape_io::{fmt_num, write_atomic};
 use keyshape_lab::render::face::{bounds_of, col, render_frame, FrameShapes};
 use keyshape_lab::render::save_png;
@@ -67,42 +68,33 @@ fn export_files(s: &State, seq_path: &str, dir: &Path) -> Result<Vec<String>> {
             None => m.clone(),
         })
     };
-    write_atomic(&csv, |w| {
-        // kmeansN-mean: the key shapes are cluster means, not frames.
-        let keys: Vec<String> = c
-            .keys
-            .iter()
-            .enumerate()
-            .map(|(j, &k)| {
-                if mean_keys {
-                    format!("w_mean{j}")
-                } else {
-                    format!("w_{}", c.frames[k])
-                }
-            })
-            .collect();
-        let pose = if head.is_some() {
-            keyshape_io::POSE_COLUMNS
+    // kmeansN-mean: the key shapes are cluster means, not frames.
+    let keys = c.keys.iter().enumerate().map(|(j, &k)| {
+        if mean_keys {
+            format!("w_mean{j}")
         } else {
-            ""
-        };
-        writeln!(w, "frame,source_rms,target_rms,{}{pose}", keys.join(","))?;
-        for (t, f) in c.frames.iter().enumerate() {
-            let ws: Vec<String> = v.weights.column(t).iter().map(|x| fmt_num(*x)).collect();
-            write!(
-                w,
-                "{f},{},{},{}",
-                fmt_num(v.frame_rms[t]),
-                fmt_num(v.frame_target_rms[t]),
-                ws.join(",")
-            )?;
-            if let Some(h) = head {
-                keyshape_io::write_pose(w, &h[t])?;
-            }
-            writeln!(w)?;
+            format!("w_{}", c.frames[k])
         }
-        Ok(())
-    })?;
+    });
+    let pose: &[&str] = if head.is_some() { &POSE_COLUMNS } else { &[] };
+    let header = ["frame", "source_rms", "target_rms"]
+        .into_iter()
+        .map(String::from)
+        .chain(keys)
+        .chain(pose.iter().map(|p| p.to_string()));
+    let records = c.frames.iter().enumerate().map(|(t, f)| {
+        let mut row = vec![
+            f.to_string(),
+            fmt_num(v.frame_rms[t]),
+            fmt_num(v.frame_target_rms[t]),
+        ];
+        row.extend(v.weights.column(t).iter().map(|x| fmt_num(*x)));
+        if let Some(h) = head {
+            row.extend(pose_cells(&h[t]));
+        }
+        row
+    });
+    write_atomic(&csv, |w| write_records(w, header, records))?;
     let t = s.frame.min(c.frames.len().saturating_sub(1));
     let (tracked, recon, truth, target) = (
         image(&c.tracked)?,

@@ -1,16 +1,17 @@
 //! `kslab rig`: a 68-point track solved onto a blendshape rig (the ICT FaceKit face by
 //! default), with a per-frame head pose; weights, pose and Live Link Face CSV out.
 
+mod output;
+
 use super::check_outputs;
 use anyhow::{Context, Result};
 use clap::Args;
 use keyshape_core::sequence::Sequence;
 use keyshape_core::solve::temporal::SmoothMode;
 use keyshape_core::solve::Solver;
-use keyshape_io::{fmt_num, read_sequence, shared_data, write_atomic, ReadOptions};
-use keyshape_rig::{livelink, solve_rig, Identity, Neutral, Rig, RigOptions, RigSolve};
+use keyshape_io::{read_sequence, shared_data, ReadOptions};
+use keyshape_rig::{solve_rig, Identity, Neutral, RigOptions};
 use serde_json::json;
-use std::io::Write;
 use std::path::PathBuf;
 
 /// Arguments of `kslab rig`.
@@ -241,33 +242,7 @@ pub fn run(a: &RigArgs) -> Result<()> {
         );
     }
     let seq = seq.select_points(&rig.points)?;
-    let neutral = match a.neutral.as_deref().map(str::trim) {
-        None | Some("auto") => Neutral::Auto,
-        Some("least-active") => Neutral::LeastActive,
-        Some(f) => {
-            let bad = || {
-                anyhow::anyhow!(
-                    "--neutral: '{f}' is neither auto, least-active, a frame number nor a stretch of frames FIRST-LAST"
-                )
-            };
-            match f.split_once('-') {
-                // FIRST-LAST (frame numbers ≥ 0, so '-' is never a sign here but for a
-                // lone negative frame, which is refused by the file's frame lookup).
-                Some((x, y)) if !x.is_empty() => {
-                    let (x, y): (i64, i64) = (
-                        x.trim().parse().map_err(|_| bad())?,
-                        y.trim().parse().map_err(|_| bad())?,
-                    );
-                    let (cx, cy) = (seq.column_of_frame(x)?, seq.column_of_frame(y)?);
-                    if cx > cy {
-                        anyhow::bail!("--neutral {f}: frame {x} comes after frame {y} in the file");
-                    }
-                    Neutral::Span(cx, cy + 1)
-                }
-                _ => Neutral::Column(seq.column_of_frame(f.parse().map_err(|_| bad())?)?),
-            }
-        }
-    };
+    let neutral = neutral_of(a, &seq)?;
     let zero_phase = match (a.live, a.zero_phase) {
         (true, Some(z)) if z != 0.0 => anyhow::bail!(
             "--live is causal: --zero-phase {z} smooths with frames still to come; drop one of them"
@@ -335,48 +310,7 @@ pub fn run(a: &RigArgs) -> Result<()> {
         Vec::new()
     };
     let r = solve_rig(&rig, &seq.coords, &clips, &opts)?;
-    let taken = super::is_stdout(a.out.as_ref()) || (a.out.is_none() && !a.json);
-    match &a.out {
-        Some(p) => write_atomic(p, |w| write_weights(w, &seq, &rig, &r))?,
-        None if a.json => {}
-        None => {
-            let stdout = std::io::stdout();
-            match write_weights(&mut stdout.lock(), &seq, &rig, &r) {
-                Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => {}
-                res => res?,
-            }
-        }
-    }
-    if let Some(p) = &a.pose {
-        write_atomic(p, |w| write_pose(w, &seq, &r))?;
-    }
-    if let Some(p) = &a.livelink {
-        let fps = seq.fps().unwrap_or(30.0);
-        let times: Vec<f64> = match &seq.times {
-            Some(t) => t.clone(),
-            None => seq.frames.iter().map(|&f| f as f64 / fps).collect(),
-        };
-        let head: Vec<[f64; 3]> = r.cameras.iter().map(|c| c.yaw_pitch_roll()).collect();
-        write_atomic(p, |w| {
-            livelink::write(w, &rig, &times, fps, &r.weights, &head)
-        })?;
-    }
-    if let Some(p) = &a.gltf {
-        // The head pose as the node's rotation: R maps the rig's frame into the camera's,
-        // which is glTF's view along −z.
-        let q: Vec<[f64; 4]> = r
-            .cameras
-            .iter()
-            .map(|c| {
-                let u = nalgebra::UnitQuaternion::from_matrix(&c.r);
-                [u.i, u.j, u.k, u.w]
-            })
-            .collect();
-        morph.write_used_glb(p, &mesh, &r.weights, seq.fps().unwrap_or(30.0), Some(&q))?;
-    }
-    if let Some(dir) = &a.png_dir {
-        write_pngs(dir, &seq, &rig, &r, &mesh, &morph)?;
-    }
+    let taken = output::write_all(a, &seq, &rig, &r, &mesh, &morph)?;
     let frozen: Vec<&str> = r
         .shapes
         .iter()
@@ -452,7 +386,37 @@ pub fn run(a: &RigArgs) -> Result<()> {
     Ok(())
 }
 
-/// Column ranges of consecutive equal clip labels.
+/// `--neutral`: auto, least-active, a frame number or a stretch FIRST-LAST of frames.
+fn neutral_of(a: &RigArgs, seq: &Sequence) -> Result<Neutral> {
+    Ok(match a.neutral.as_deref().map(str::trim) {
+        None | Some("auto") => Neutral::Auto,
+        Some("least-active") => Neutral::LeastActive,
+        Some(f) => {
+            let bad = || {
+                anyhow::anyhow!(
+                    "--neutral: '{f}' is neither auto, least-active, a frame number nor a stretch of frames FIRST-LAST"
+                )
+            };
+            match f.split_once('-') {
+                // FIRST-LAST (frame numbers ≥ 0, so '-' is never a sign here but for a
+                // lone negative frame, which is refused by the file's frame lookup).
+                Some((x, y)) if !x.is_empty() => {
+                    let (x, y): (i64, i64) = (
+                        x.trim().parse().map_err(|_| bad())?,
+                        y.trim().parse().map_err(|_| bad())?,
+                    );
+                    let (cx, cy) = (seq.column_of_frame(x)?, seq.column_of_frame(y)?);
+                    if cx > cy {
+                        anyhow::bail!("--neutral {f}: frame {x} comes after frame {y} in the file");
+                    }
+                    Neutral::Span(cx, cy + 1)
+                }
+                _ => Neutral::Column(seq.column_of_frame(f.parse().map_err(|_| bad())?)?),
+            }
+        }
+    })
+}
+
 /// How many distinct clips `labels` name.
 fn count_clips(labels: &[String]) -> usize {
     let mut v: Vec<&String> = labels.iter().collect();
@@ -461,6 +425,7 @@ fn count_clips(labels: &[String]) -> usize {
     v.len()
 }
 
+/// Column ranges of consecutive equal clip labels.
 fn clip_ranges(labels: &[String]) -> Vec<std::ops::Range<usize>> {
     let mut out = Vec::new();
     let mut start = 0;
@@ -471,154 +436,4 @@ fn clip_ranges(labels: &[String]) -> Vec<std::ops::Range<usize>> {
         }
     }
     out
-}
-
-fn write_weights(
-    w: &mut dyn Write,
-    seq: &Sequence,
-    rig: &Rig,
-    r: &RigSolve,
-) -> std::io::Result<()> {
-    writeln!(w, "frame,{}", rig.names.join(","))?;
-    for (c, frame) in seq.frames.iter().enumerate() {
-        write!(w, "{frame}")?;
-        for v in r.weights.column(c).iter() {
-            write!(w, ",{}", fmt_num(*v))?;
-        }
-        writeln!(w)?;
-    }
-    Ok(())
-}
-
-fn write_pose(w: &mut dyn Write, seq: &Sequence, r: &RigSolve) -> std::io::Result<()> {
-    writeln!(w, "frame,yaw_deg,pitch_deg,roll_deg,scale,tx,ty,rms")?;
-    for (c, frame) in seq.frames.iter().enumerate() {
-        let cam = &r.cameras[c];
-        let [y, p, ro] = cam.yaw_pitch_roll();
-        // Back to image axes (y down).
-        writeln!(
-            w,
-            "{frame},{},{},{},{},{},{},{}",
-            fmt_num(y.to_degrees()),
-            fmt_num(p.to_degrees()),
-            fmt_num(ro.to_degrees()),
-            fmt_num(cam.s),
-            fmt_num(cam.t[0]),
-            fmt_num(-cam.t[1]),
-            fmt_num(r.rms[c])
-        )?;
-    }
-    Ok(())
-}
-
-/// The per-frame pictures of `--png-dir`: the track with the fitted rig, and the rig's mesh
-/// posed by the weights (shaded, front view) with its landmarks.
-fn write_pngs(
-    dir: &std::path::Path,
-    seq: &Sequence,
-    rig: &Rig,
-    r: &RigSolve,
-    mesh: &keyshape_io::obj::Mesh,
-    morph: &keyshape_io::morph::MorphTargets,
-) -> Result<()> {
-    use keyshape_lab::render::face::{bounds_of, col, render_panels, Layer, Panel, ShadedMesh};
-    let lines = rig.polylines();
-    // The pictures are of the image: x and y of a track with depth.
-    let coords = if seq.dims == 3 {
-        let xy: Vec<usize> = (0..seq.points).flat_map(|i| [3 * i, 3 * i + 1]).collect();
-        seq.coords.select_rows(&xy)
-    } else {
-        seq.coords.clone()
-    };
-    let n = seq.n_frames();
-    let (mut fitted, mut front) = (
-        nalgebra::DMatrix::zeros(2 * rig.landmarks(), n),
-        nalgebra::DMatrix::zeros(2 * rig.landmarks(), n),
-    );
-    for f in 0..n {
-        let w: Vec<f64> = r.weights.column(f).iter().copied().collect();
-        // Left: what was fitted (the person's rig under the frame's camera); right: the
-        // rig itself posed by the weights (what the exports drive).
-        let person = r.person_of(f).unwrap_or(rig);
-        for (i, p) in person.posed(&w).iter().enumerate() {
-            let u = r.cameras[f].project(p);
-            fitted[(2 * i, f)] = u[0];
-            fitted[(2 * i + 1, f)] = -u[1];
-        }
-        for (i, p) in rig.posed(&w).iter().enumerate() {
-            front[(2 * i, f)] = p[0];
-            front[(2 * i + 1, f)] = -p[1];
-        }
-    }
-    let tb = bounds_of(&[&coords, &fitted], 2);
-    // The face: the landmarks' extent over the sequence, widened a quarter each way so the
-    // forehead and cheeks around them show (the rest of the head is cut at the panel).
-    let fb = {
-        let ((a0, b0), (a1, b1)) = bounds_of(&[&front], 2);
-        let (px, py) = (0.25 * (a1 - a0), 0.25 * (b1 - b0));
-        ((a0 - px, b0 - py), (a1 + px, b1 + py))
-    };
-    let mut posed = mesh.positions.clone();
-    keyshape_io::create_dir_all(dir)?;
-    for f in 0..n {
-        let [y, p, ro] = r.cameras[f].yaw_pitch_roll();
-        morph.blend(&mesh.positions, r.weights.column(f).as_slice(), &mut posed);
-        let top = match keyshape_rig::largest_weights(&rig.names, r.weights.column(f).as_slice(), 2)
-        {
-            t if t.is_empty() => "rig landmarks (no shape active)".to_string(),
-            t => t,
-        };
-        let panels = [
-            Panel {
-                title: format!("track and fitted rig · RMS {:.2}", r.rms[f]),
-                layers: vec![
-                    Layer {
-                        name: "tracked",
-                        shape: col(&coords, f),
-                        dims: 2,
-                        polylines: &lines,
-                        color: [20, 20, 20],
-                        dashed: false,
-                    },
-                    Layer {
-                        name: "fitted: the person's rig, posed, head pose",
-                        shape: col(&fitted, f),
-                        dims: 2,
-                        polylines: &lines,
-                        color: [30, 90, 200],
-                        dashed: true,
-                    },
-                ],
-                bounds: tb,
-                mesh: None,
-            },
-            Panel {
-                title: "the rig's mesh posed by the weights, front view".into(),
-                // The shapes that pose it, by name, in the legend (where long names fit).
-                layers: vec![Layer {
-                    name: &top,
-                    shape: col(&front, f),
-                    dims: 2,
-                    polylines: &lines,
-                    color: [200, 40, 40],
-                    dashed: false,
-                }],
-                bounds: fb,
-                mesh: Some(ShadedMesh {
-                    positions: &posed,
-                    faces: &mesh.faces,
-                }),
-            },
-        ];
-        let caption = format!(
-            "frame {}   yaw {:.1}°  pitch {:.1}°  roll {:.1}°",
-            seq.frames[f],
-            y.to_degrees(),
-            p.to_degrees(),
-            ro.to_degrees()
-        );
-        let pm = render_panels(&panels, &caption, 420)?;
-        keyshape_lab::render::save_png(&pm, &dir.join(format!("rig_{:06}.png", seq.frames[f])))?;
-    }
-    Ok(())
 }

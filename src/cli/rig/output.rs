@@ -1,0 +1,225 @@
+//! What `kslab rig` writes: the weights (a file or standard output), the head pose, Live
+//! Link Face CSV, glTF and the per-frame pictures.
+
+use super::RigArgs;
+use anyhow::Result;
+use keyshape_core::sequence::Sequence;
+use keyshape_io::csv_out::{write_records, write_rows, Num};
+use keyshape_io::morph::MorphTargets;
+use keyshape_io::obj::Mesh;
+use keyshape_io::{fmt_num, write_atomic};
+use keyshape_rig::{livelink, Rig, RigSolve};
+use serde::Serialize;
+use std::io::Write;
+
+/// Writes every output `a` asks for; returns whether the weights took standard output.
+pub(super) fn write_all(
+    a: &RigArgs,
+    seq: &Sequence,
+    rig: &Rig,
+    r: &RigSolve,
+    mesh: &Mesh,
+    morph: &MorphTargets,
+) -> Result<bool> {
+    let taken = super::super::is_stdout(a.out.as_ref()) || (a.out.is_none() && !a.json);
+    match &a.out {
+        Some(p) => write_atomic(p, |w| write_weights(w, seq, rig, r))?,
+        None if a.json => {}
+        None => {
+            let stdout = std::io::stdout();
+            match write_weights(&mut stdout.lock(), seq, rig, r) {
+                Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => {}
+                res => res?,
+            }
+        }
+    }
+    if let Some(p) = &a.pose {
+        write_atomic(p, |w| write_pose(w, seq, r))?;
+    }
+    if let Some(p) = &a.livelink {
+        let fps = seq.fps().unwrap_or(30.0);
+        let times: Vec<f64> = match &seq.times {
+            Some(t) => t.clone(),
+            None => seq.frames.iter().map(|&f| f as f64 / fps).collect(),
+        };
+        let head: Vec<[f64; 3]> = r.cameras.iter().map(|c| c.yaw_pitch_roll()).collect();
+        write_atomic(p, |w| {
+            livelink::write(w, rig, &times, fps, &r.weights, &head)
+        })?;
+    }
+    if let Some(p) = &a.gltf {
+        // The head pose as the node's rotation: R maps the rig's frame into the camera's,
+        // which is glTF's view along −z.
+        let q: Vec<[f64; 4]> = r
+            .cameras
+            .iter()
+            .map(|c| {
+                let u = nalgebra::UnitQuaternion::from_matrix(&c.r);
+                [u.i, u.j, u.k, u.w]
+            })
+            .collect();
+        morph.write_used_glb(p, mesh, &r.weights, seq.fps().unwrap_or(30.0), Some(&q))?;
+    }
+    if let Some(dir) = &a.png_dir {
+        write_pngs(dir, seq, rig, r, mesh, morph)?;
+    }
+    Ok(taken)
+}
+
+fn write_weights(
+    w: &mut dyn Write,
+    seq: &Sequence,
+    rig: &Rig,
+    r: &RigSolve,
+) -> std::io::Result<()> {
+    let header = std::iter::once("frame").chain(rig.names.iter().map(String::as_str));
+    let records = seq.frames.iter().enumerate().map(|(c, frame)| {
+        std::iter::once(frame.to_string())
+            .chain(r.weights.column(c).iter().map(|v| fmt_num(*v)))
+            .collect::<Vec<_>>()
+    });
+    write_records(w, header, records)
+}
+
+/// A row of `--pose-out`: the camera per frame, back to image axes (y down).
+#[derive(Serialize, Default)]
+struct PoseCsv {
+    frame: i64,
+    yaw_deg: Num,
+    pitch_deg: Num,
+    roll_deg: Num,
+    scale: Num,
+    tx: Num,
+    ty: Num,
+    rms: Num,
+}
+
+fn write_pose(w: &mut dyn Write, seq: &Sequence, r: &RigSolve) -> std::io::Result<()> {
+    let rows = seq.frames.iter().enumerate().map(|(c, &frame)| {
+        let cam = &r.cameras[c];
+        let [y, p, ro] = cam.yaw_pitch_roll();
+        PoseCsv {
+            frame,
+            yaw_deg: Num(y.to_degrees()),
+            pitch_deg: Num(p.to_degrees()),
+            roll_deg: Num(ro.to_degrees()),
+            scale: Num(cam.s),
+            tx: Num(cam.t[0]),
+            ty: Num(-cam.t[1]),
+            rms: Num(r.rms[c]),
+        }
+    });
+    write_rows(w, rows)
+}
+
+/// The per-frame pictures of `--png-dir`: the track with the fitted rig, and the rig's mesh
+/// posed by the weights (shaded, front view) with its landmarks.
+fn write_pngs(
+    dir: &std::path::Path,
+    seq: &Sequence,
+    rig: &Rig,
+    r: &RigSolve,
+    mesh: &Mesh,
+    morph: &MorphTargets,
+) -> Result<()> {
+    use keyshape_lab::render::face::{bounds_of, col, render_panels, Layer, Panel, ShadedMesh};
+    let lines = rig.polylines();
+    // The pictures are of the image: x and y of a track with depth.
+    let coords = if seq.dims == 3 {
+        let xy: Vec<usize> = (0..seq.points).flat_map(|i| [3 * i, 3 * i + 1]).collect();
+        seq.coords.select_rows(&xy)
+    } else {
+        seq.coords.clone()
+    };
+    let n = seq.n_frames();
+    let (mut fitted, mut front) = (
+        nalgebra::DMatrix::zeros(2 * rig.landmarks(), n),
+        nalgebra::DMatrix::zeros(2 * rig.landmarks(), n),
+    );
+    for f in 0..n {
+        let w: Vec<f64> = r.weights.column(f).iter().copied().collect();
+        // Left: what was fitted (the person's rig under the frame's camera); right: the
+        // rig itself posed by the weights (what the exports drive).
+        let person = r.person_of(f).unwrap_or(rig);
+        for (i, p) in person.posed(&w).iter().enumerate() {
+            let u = r.cameras[f].project(p);
+            fitted[(2 * i, f)] = u[0];
+            fitted[(2 * i + 1, f)] = -u[1];
+        }
+        for (i, p) in rig.posed(&w).iter().enumerate() {
+            front[(2 * i, f)] = p[0];
+            front[(2 * i + 1, f)] = -p[1];
+        }
+    }
+    let tb = bounds_of(&[&coords, &fitted], 2);
+    // The face: the landmarks' extent over the sequence, widened a quarter each way so the
+    // forehead and cheeks around them show (the rest of the head is cut at the panel).
+    let fb = {
+        let ((a0, b0), (a1, b1)) = bounds_of(&[&front], 2);
+        let (px, py) = (0.25 * (a1 - a0), 0.25 * (b1 - b0));
+        ((a0 - px, b0 - py), (a1 + px, b1 + py))
+    };
+    let mut posed = mesh.positions.clone();
+    keyshape_io::create_dir_all(dir)?;
+    for f in 0..n {
+        let [y, p, ro] = r.cameras[f].yaw_pitch_roll();
+        morph.blend(&mesh.positions, r.weights.column(f).as_slice(), &mut posed);
+        let top = match keyshape_rig::largest_weights(&rig.names, r.weights.column(f).as_slice(), 2)
+        {
+            t if t.is_empty() => "rig landmarks (no shape active)".to_string(),
+            t => t,
+        };
+        let panels = [
+            Panel {
+                title: format!("track and fitted rig · RMS {:.2}", r.rms[f]),
+                layers: vec![
+                    Layer {
+                        name: "tracked",
+                        shape: col(&coords, f),
+                        dims: 2,
+                        polylines: &lines,
+                        color: [20, 20, 20],
+                        dashed: false,
+                    },
+                    Layer {
+                        name: "fitted: the person's rig, posed, head pose",
+                        shape: col(&fitted, f),
+                        dims: 2,
+                        polylines: &lines,
+                        color: [30, 90, 200],
+                        dashed: true,
+                    },
+                ],
+                bounds: tb,
+                mesh: None,
+            },
+            Panel {
+                title: "the rig's mesh posed by the weights, front view".into(),
+                // The shapes that pose it, by name, in the legend (where long names fit).
+                layers: vec![Layer {
+                    name: &top,
+                    shape: col(&front, f),
+                    dims: 2,
+                    polylines: &lines,
+                    color: [200, 40, 40],
+                    dashed: false,
+                }],
+                bounds: fb,
+                mesh: Some(ShadedMesh {
+                    positions: &posed,
+                    faces: &mesh.faces,
+                }),
+            },
+        ];
+        let caption = format!(
+            "frame {}   yaw {:.1}°  pitch {:.1}°  roll {:.1}°",
+            seq.frames[f],
+            y.to_degrees(),
+            p.to_degrees(),
+            ro.to_degrees()
+        );
+        let pm = render_panels(&panels, &caption, 420)?;
+        keyshape_lab::render::save_png(&pm, &dir.join(format!("rig_{:06}.png", seq.frames[f])))?;
+    }
+    Ok(())
+}
