@@ -16,4 +16,5 @@ pub mod actions;
 pub mod intensity;
 pub mod modes;
 pub mod morph;
+pub mod regions;
 pub mod trajectory;
