@@ -7,9 +7,8 @@
 //! cargo run --release --example choose_keys -- TRACK.csv 12
 //! ```
 
-use keyshape_core::decompose::{prepare, PrepareOptions};
-use keyshape_core::keyshapes::{axes_needed, Analysis, KeyOptions, Method};
-use keyshape_core::solve::Solver;
+use keyshape_core::keyshapes::axes_needed;
+use keyshape_core::{prepare, Analysis, KeyOptions, Method, PrepareOptions, Solver};
 use keyshape_io::{builtin_sequence, read_sequence, ReadOptions};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {

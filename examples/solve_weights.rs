@@ -7,8 +7,7 @@
 //! cargo run --release --example solve_weights -- TRACK.csv     # any track kslab reads
 //! ```
 
-use keyshape_core::decompose::{decompose, prepare, PrepareOptions};
-use keyshape_core::solve::{SolveOptions, Solver};
+use keyshape_core::{decompose, prepare, PrepareOptions, SolveOptions, Solver};
 use keyshape_io::{builtin_sequence, read_sequence, ReadOptions};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {

@@ -338,3 +338,43 @@ fn retarget_rejects_a_target_that_does_not_fit_the_keys() {
         r.stderr
     );
 }
+
+/// The library names a setting (`dims`), and each front end spells it as its user gave it:
+/// a flag on the command line, a key in an experiment file.
+#[test]
+fn a_setting_is_named_as_a_flag_on_the_command_line_and_as_a_key_in_an_experiment() {
+    let news = shared("pyfeat_samples/news_sample_compact.csv");
+    let r = kslab(&["info", news.to_str().unwrap(), "--dims", "3"]);
+    assert_eq!(r.code, 1);
+    assert!(
+        r.stderr
+            .contains("--dims 3 needs a column 'z_0' and the pyfeat header has none; use --dims 2"),
+        "{}",
+        r.stderr
+    );
+    let d = tempfile::tempdir().unwrap();
+    let spec = write(
+        d.path(),
+        "e.toml",
+        &format!(
+            "title = \"t\"\ninput = {:?}\ndims = 3\nmethods = [\"spread\"]\nk = 3\n",
+            news.to_str().unwrap()
+        ),
+    );
+    let out = d.path().join("out");
+    let r = kslab(&[
+        "run",
+        spec.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(r.code, 1);
+    assert!(
+        r.stderr
+            .contains("dims 3 needs a column 'z_0' and the pyfeat header has none; use dims 2"),
+        "{}",
+        r.stderr
+    );
+    assert!(!r.stderr.contains("--dims"), "{}", r.stderr);
+    assert!(!out.exists(), "a failed run leaves no report");
+}

@@ -40,6 +40,12 @@ pub struct Run {
 }
 
 /// Runs the `kslab` binary with `args`.
+/// A library error as the command line prints it: each setting it names as the flag
+/// (`dims` → `--dims`), as `kslab` spells them.
+pub fn as_cli(e: &keyshape_core::Error) -> String {
+    e.render(&|n| format!("--{}", n.replace('_', "-")))
+}
+
 pub fn kslab(args: &[&str]) -> Run {
     let out = std::process::Command::new(env!("CARGO_BIN_EXE_kslab"))
         .args(args)

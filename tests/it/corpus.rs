@@ -696,10 +696,10 @@ fn shard_options_are_checked_and_read_from_the_schedulers() {
         ("KSLAB_SHARD_COUNT", "3")
     ]))
     .is_err());
-    assert!(Shard::from_env(&env(&[]))
-        .unwrap_err()
-        .to_string()
-        .contains("give --shard i/n"));
+    assert!(
+        crate::common::as_cli(&Shard::from_env(&env(&[])).unwrap_err())
+            .contains("give --shard i/n")
+    );
 
     // Through the binary: --shard on one input, and --shard auto without a scheduler.
     let (_scratch, d) = tmp("shardcli");

@@ -75,7 +75,12 @@ fn pyfeat_table_keeps_clips_as_segments() {
         dims: 3,
     };
     let e = read_sequence(&shared("pyfeat_samples/news_sample_compact.csv"), &opts).unwrap_err();
-    assert!(e.to_string().contains("--dims 3"), "{e}");
+    assert!(crate::common::as_cli(&e).contains("--dims 3"), "{e}");
+    // The library names the setting, not a flag: an experiment file says `dims` too.
+    assert!(
+        e.to_string().contains("dims 3") && !e.to_string().contains("--"),
+        "{e}"
+    );
 }
 
 #[test]

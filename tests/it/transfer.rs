@@ -543,7 +543,11 @@ fn a_misfit_correspondence_names_the_built_in_that_fits_all_three() {
                 let e = g
                     .check_fits(other, Some(layout), points, verts)
                     .unwrap_err();
-                e.to_string().rsplit(": ").next().unwrap().to_string()
+                crate::common::as_cli(&e)
+                    .rsplit(": ")
+                    .next()
+                    .unwrap()
+                    .to_string()
             };
             assert_eq!(
                 hint(layout, points, verts),

@@ -11,7 +11,7 @@
 //! tracks, scaled by the target's own extremes, synthesise the target person's shapes.
 
 use crate::modes::{action_vectors, artificial_pca, Actions, Region};
-use keyshape_core::error::{Error, Result};
+use keyshape_core::error::{setting, Error, Result};
 use keyshape_core::pca::Pca;
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
@@ -90,9 +90,10 @@ pub fn person_model(
     normalisation: Normalisation,
 ) -> Result<PersonModel> {
     if modes == 0 {
-        return Err(Error::invalid(
-            "a person's model needs at least 1 mode (--modes)",
-        ));
+        return Err(Error::invalid(format!(
+            "a person's model needs at least 1 mode ({})",
+            setting("modes")
+        )));
     }
     let pca = artificial_pca(coords, regions, dims, modes)?;
     let m = pca.components.ncols();

@@ -6,7 +6,7 @@
 //! by the same factor. Aligned shapes are centred on the origin and keep the mean size of
 //! the input shapes, so errors measured on them stay in the input's units.
 
-use crate::error::{Error, Result};
+use crate::error::{setting, Error, Result};
 use nalgebra::{DMatrix, DVector};
 
 /// A 2-D similarity `p = scale · R(angle) · a + t` taking an aligned shape `a` back to
@@ -121,7 +121,8 @@ pub fn centre(shape: &mut [f64], dims: usize) -> [f64; 3] {
 
 fn degenerate(i: usize) -> Error {
     Error::invalid(format!(
-        "frame column {i}: all points coincide, so the shape cannot be aligned (use --no-align)"
+        "frame column {i}: all points coincide, so the shape cannot be aligned (use {})",
+        setting("no_align")
     ))
 }
 

@@ -3,7 +3,7 @@
 //! deltas from a neutral frame (`q − N = Σ wᵢ (Sᵢ − N)`).
 
 use crate::align::{procrustes_owned, Similarity};
-use crate::error::{Error, Result};
+use crate::error::{setting, Error, Result};
 use crate::sequence::{Layout, Sequence};
 use crate::solve::temporal::{smooth_from, Smoothed, Smoothing};
 use crate::solve::{residuals, solve_batch, SolveOptions, Solver};
@@ -64,7 +64,8 @@ pub fn prepare_owned(seq: Sequence, opts: &PrepareOptions) -> Result<Prepared> {
         (Some(spec), Some(l)) => l.select(spec)?,
         (Some(spec), None) => {
             return Err(Error::invalid(format!(
-                "--points {spec}: no built-in layout has {} points (MediaPipe has 468, iBUG 68)",
+                "{} {spec}: no built-in layout has {} points (MediaPipe has 468, iBUG 68)",
+                setting("points"),
                 seq.points
             )))
         }

@@ -7,11 +7,10 @@ use std::path::PathBuf;
 pub type Result<T, E = Error> = std::result::Result<T, E>;
 
 /// Everything that can go wrong in keyshape-lab's library.
-#[derive(Debug, thiserror::Error)]
+#[derive(Debug)]
 pub enum Error {
-    /// A file could not be opened, read or written.
-    // The OS error is part of the message, not a `source`, so error chains print it once.
-    #[error("{}: {err}", path.display())]
+    /// A file could not be opened, read or written. (The OS error is part of the message,
+    /// not a `source`, so error chains print it once.)
     Io {
         /// The file.
         path: PathBuf,
@@ -19,7 +18,6 @@ pub enum Error {
         err: std::io::Error,
     },
     /// A file was read but its content is wrong at a known place.
-    #[error("{}{}: {message}", path.display(), place(*line, *column))]
     Parse {
         /// The file.
         path: PathBuf,
@@ -31,7 +29,6 @@ pub enum Error {
         message: String,
     },
     /// A file is wrong as a whole (empty, no landmark columns, every frame failed …).
-    #[error("{}: {message}", path.display())]
     File {
         /// The file.
         path: PathBuf,
@@ -39,11 +36,68 @@ pub enum Error {
         message: String,
     },
     /// A setting or argument is invalid (key frame out of range, unknown group …).
-    #[error("{0}")]
     Invalid(String),
 }
 
+impl std::fmt::Display for Error {
+    /// The message with each [`setting`] by its library name (`dims 3 …`).
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.render(&|name| name.to_string()))
+    }
+}
+
+impl std::error::Error for Error {}
+
+/// Marks a setting's name in a message: the library's name for something its caller chose
+/// (`dims`, `points`, `modes` …). [`Error`]'s `Display` shows the name as it is; a front end
+/// shows it as its users spell it ([`Error::render`]): the command line as a flag
+/// (`--dims`), an experiment file as its key.
+pub fn setting(name: &str) -> String {
+    format!("{MARK_OPEN}{name}{MARK_CLOSE}")
+}
+
+const MARK_OPEN: char = '\u{2}';
+const MARK_CLOSE: char = '\u{3}';
+
+/// `text` with every [`setting`] mark replaced by `spell(name)`.
+pub fn spell_settings(text: &str, spell: &dyn Fn(&str) -> String) -> String {
+    let mut out = String::with_capacity(text.len());
+    let mut rest = text;
+    while let Some(i) = rest.find(MARK_OPEN) {
+        out.push_str(&rest[..i]);
+        let after = &rest[i + MARK_OPEN.len_utf8()..];
+        match after.find(MARK_CLOSE) {
+            Some(j) => {
+                out.push_str(&spell(&after[..j]));
+                rest = &after[j + MARK_CLOSE.len_utf8()..];
+            }
+            None => {
+                rest = after;
+            }
+        }
+    }
+    out.push_str(rest);
+    out
+}
+
 impl Error {
+    /// The message, each [`setting`] spelled by `spell`: `|n| format!("--{n}")` for a
+    /// command line. `Display` is `render` with the names as they are.
+    pub fn render(&self, spell: &dyn Fn(&str) -> String) -> String {
+        let text = match self {
+            Error::Io { path, err } => format!("{}: {err}", path.display()),
+            Error::Parse {
+                path,
+                line,
+                column,
+                message,
+            } => format!("{}{}: {message}", path.display(), place(*line, *column)),
+            Error::File { path, message } => format!("{}: {message}", path.display()),
+            Error::Invalid(message) => message.clone(),
+        };
+        spell_settings(&text, spell)
+    }
+
     /// An [`Error::Invalid`] from anything printable.
     pub fn invalid(msg: impl Into<String>) -> Self {
         Error::Invalid(msg.into())
@@ -167,6 +221,32 @@ fn place(line: u64, column: u64) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_setting_is_named_as_each_front_end_spells_it() {
+        let e = Error::parse(
+            "t.csv",
+            1,
+            13,
+            format!("{d} 3 needs a column 'z_0'; use {d} 2", d = setting("dims")),
+        );
+        assert_eq!(
+            e.to_string(),
+            "t.csv:1:13: dims 3 needs a column 'z_0'; use dims 2"
+        );
+        let flag = e.render(&|n| format!("--{n}"));
+        assert_eq!(
+            flag,
+            "t.csv:1:13: --dims 3 needs a column 'z_0'; use --dims 2"
+        );
+        // No marks left in either, and text without marks is left as it is.
+        assert!(!flag.contains(MARK_OPEN) && !flag.contains(MARK_CLOSE));
+        assert_eq!(spell_settings("a, b", &|_| "x".into()), "a, b");
+        // A mark cut short (a message truncated by its caller) loses its mark only.
+        let cut = format!("use {}", setting("dims"));
+        let cut = &cut[..cut.len() - 1];
+        assert_eq!(spell_settings(cut, &|n| format!("--{n}")), "use dims");
+    }
 
     /// Columns are 1-based: an unknown one is left out, never printed as 0 (issue 41, 15).
     #[test]

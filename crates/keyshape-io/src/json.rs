@@ -8,7 +8,7 @@
 //! `coords` is the flat shape (dims × points values); `time` is optional; a frame with
 //! `"valid": false` is a failed frame and needs no coords.
 
-use keyshape_core::error::{Error, Result};
+use keyshape_core::error::{setting, Error, Result};
 use keyshape_core::sequence::{Format, Sequence};
 use nalgebra::DMatrix;
 use serde::{Deserialize, Serialize};
@@ -98,7 +98,8 @@ pub(super) fn read(path: &Path, text: &str, dims: usize) -> Result<Sequence> {
         return Err(Error::file(
             path,
             format!(
-                "--dims {dims} asked, but the file has {}-D points",
+                "{} {dims} asked, but the file has {}-D points",
+                setting("dims"),
                 file.dims
             ),
         ));

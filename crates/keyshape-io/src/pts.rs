@@ -2,7 +2,7 @@
 //! A directory of them is a sequence, one file per frame, in natural order
 //! (`frame2.pts` before `frame10.pts`).
 
-use keyshape_core::error::{Error, Result};
+use keyshape_core::error::{setting, Error, Result};
 use keyshape_core::sequence::{Format, Sequence};
 use nalgebra::DMatrix;
 use std::path::{Path, PathBuf};
@@ -107,7 +107,7 @@ fn check_dims(path: &Path, dims: usize) -> Result<()> {
     if dims != 2 {
         return Err(Error::file(
             path,
-            ".pts files hold 2-D points; use --dims 2",
+            format!(".pts files hold 2-D points; use {} 2", setting("dims")),
         ));
     }
     Ok(())

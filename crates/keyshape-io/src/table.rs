@@ -1,7 +1,7 @@
 //! CSV landmark tables: MediaPipe tracks, OpenFace 2.x, py-feat tables and the plain CSV.
 //! One reader, configured per format by which columns hold what.
 
-use keyshape_core::error::{Error, Result};
+use keyshape_core::error::{setting, Error, Result};
 use keyshape_core::sequence::{Format, Sequence};
 use nalgebra::DMatrix;
 use std::collections::HashMap;
@@ -444,7 +444,7 @@ fn coordinate_columns(
                         path,
                         1,
                         x as u64 + 1,
-                        format!("--dims 3 needs a column '{name}' and the {format} header has none; use --dims 2"),
+                        format!("{dims} 3 needs a column '{name}' and the {format} header has none; use {dims} 2", dims = setting("dims")),
                     ))
                 }
                 None => {

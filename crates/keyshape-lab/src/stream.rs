@@ -15,7 +15,7 @@
 //! prior needs the whole sequence and is refused; the causal one streams.
 
 use keyshape_core::align::{align_to, centre, procrustes_mean};
-use keyshape_core::error::{Error, Result};
+use keyshape_core::error::{setting, Error, Result};
 use keyshape_core::sequence::{Format, Layout};
 use keyshape_core::solve::temporal::{CausalShared, SmoothMode, Smoothing};
 use keyshape_core::solve::{lstsq, residuals, solve_batch, SolveOptions, CHUNK};
@@ -89,7 +89,10 @@ fn open(path: &Path) -> Result<Box<dyn Read>> {
     if !meta.is_file() {
         return Err(Error::file(
             path,
-            "is not a regular file; --stream reads a file (several times)",
+            format!(
+                "is not a regular file; {} reads a file (several times)",
+                setting("stream")
+            ),
         ));
     }
     keyshape_io::open_input(path)
@@ -113,7 +116,7 @@ fn format_of(path: &Path, given: Option<Format>) -> Result<Format> {
     if matches!(format, Format::Json | Format::Pts) {
         return Err(Error::file(
             path,
-            format!("--stream reads CSV landmark tables (MediaPipe, OpenFace, py-feat, plain CSV); a {format} file is read whole: drop --stream"),
+            format!("{stream} reads CSV landmark tables (MediaPipe, OpenFace, py-feat, plain CSV); a {format} file is read whole: drop {stream}", stream = setting("stream")),
         ));
     }
     Ok(format)
@@ -136,7 +139,7 @@ where
     let changed = || {
         Error::file(
             path,
-            "changed while it was read: --stream reads the file several times; let the tracker finish writing it first",
+            format!("changed while it was read: {} reads the file several times; let the tracker finish writing it first", setting("stream")),
         )
     };
     let mut rows = TableRows::new(path, open(path)?, format, dims)?;
@@ -169,9 +172,11 @@ pub fn stream_solve(
     if let Some(sm) = &opts.smoothing {
         sm.check()?;
         if sm.mode == SmoothMode::Offline && sm.lambda > 0.0 {
-            return Err(Error::invalid(
-                "the offline temporal prior solves the whole sequence at once and cannot stream: use --smooth-mode causal, or drop --stream",
-            ));
+            return Err(Error::invalid(format!(
+                "the offline temporal prior solves the whole sequence at once and cannot stream: use {} causal, or drop {}",
+                setting("smooth_mode"),
+                setting("stream")
+            )));
         }
     }
     if opts.keys.is_empty() {
@@ -260,12 +265,15 @@ pub fn stream_solve(
     let mut cols = Vec::with_capacity(opts.keys.len());
     for (c, &k) in key_cols.iter().zip(&opts.keys) {
         if !seen.insert(k) {
-            return Err(Error::invalid(format!("--keys: frame {k} is listed twice")));
+            return Err(Error::invalid(format!(
+                "{}: frame {k} is listed twice",
+                setting("keys")
+            )));
         }
-        cols.push(c.ok_or_else(|| missing(k, "--keys"))?);
+        cols.push(c.ok_or_else(|| missing(k, &setting("keys")))?);
     }
     let neutral = match opts.neutral {
-        Some(f) => Some(neutral_col.ok_or_else(|| missing(f, "--neutral"))?),
+        Some(f) => Some(neutral_col.ok_or_else(|| missing(f, &setting("neutral")))?),
         None => None,
     };
     if cols.len() > n {
@@ -287,8 +295,9 @@ pub fn stream_solve(
         (Some(spec), Some(l)) => l.select(spec)?,
         (Some(spec), None) => {
             return Err(Error::invalid(format!(
-            "--points {spec}: no built-in layout has {points} points (MediaPipe has 468, iBUG 68)"
-        )))
+                "{} {spec}: no built-in layout has {points} points (MediaPipe has 468, iBUG 68)",
+                setting("points")
+            )))
         }
     };
     let select = |v: &[f64]| -> Vec<f64> {

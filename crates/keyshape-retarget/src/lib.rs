@@ -9,7 +9,7 @@ pub mod svg;
 pub mod target;
 
 use keyshape_core::align::Similarity;
-use keyshape_core::error::{Error, Result};
+use keyshape_core::error::{setting, Error, Result};
 use keyshape_core::rbf::Rbf;
 use keyshape_core::solve::{solve_batch, SolveOptions, Solver};
 use nalgebra::{DMatrix, DVector};
@@ -409,9 +409,10 @@ fn retarget_impl(
                         neutral: Some(v), ..
                     } => v.clone(),
                     Target::Shapes { neutral: None, .. } => {
-                        return Err(Error::invalid(
-                            "delta mode (--neutral) needs a neutral shape in the target set",
-                        ))
+                        return Err(Error::invalid(format!(
+                            "delta mode ({}) needs a neutral shape in the target set",
+                            setting("neutral")
+                        )))
                     }
                 };
                 (Some(nq), Some(nb))

@@ -3,7 +3,7 @@
 
 use super::target::{cartoon_warp, iod};
 use keyshape_core::decompose::{prepare, PrepareOptions, Prepared};
-use keyshape_core::error::{Error, Result};
+use keyshape_core::error::{setting, Error, Result};
 use keyshape_core::rbf::Rbf;
 use keyshape_core::sequence::Sequence;
 
@@ -14,9 +14,11 @@ pub use keyshape_core::sequence::{named_polylines_for, polylines_for};
 /// (selected) aligned points.
 pub fn builtin_target(seq: &Sequence, prep: &Prepared) -> Result<(Rbf, f64)> {
     if seq.dims != 2 {
-        return Err(Error::invalid(
-            "the built-in target is 2-D: use --dims 2, or give --target",
-        ));
+        return Err(Error::invalid(format!(
+            "the built-in target is 2-D: use {} 2, or give {}",
+            setting("dims"),
+            setting("target")
+        )));
     }
     let layout = prep.layout.as_ref().ok_or_else(|| {
         Error::invalid(format!(

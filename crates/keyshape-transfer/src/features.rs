@@ -1,7 +1,7 @@
 //! Feature-point correspondences between a source layout and a target mesh (paper 004 §2:
 //! 15–30 points, e.g. 3 per brow, 2 per eye, 3 nose, 8 mouth).
 
-use keyshape_core::error::{Error, Result};
+use keyshape_core::error::{setting, Error, Result};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -139,7 +139,7 @@ impl Features {
                 "no built-in correspondence fits a {track} and a {vertices}-vertex mesh: write a features file for them (see assets/features/)"
             )
         } else {
-            format!("use --features {}", fitting.join(" or "))
+            format!("use {} {}", setting("features"), fitting.join(" or "))
         };
         Err(Error::invalid(format!(
             "features {name} are for {}, not a {track} onto a {vertices}-vertex mesh: {hint}",
@@ -175,8 +175,9 @@ impl Features {
                 format!("{points}-point {l} track")
             });
             return Err(Error::invalid(format!(
-                "no built-in feature correspondence fits a {track} onto a {vertices}-vertex mesh ({}); give --features FILE",
-                all.join("; ")
+                "no built-in feature correspondence fits a {track} onto a {vertices}-vertex mesh ({}); give {} FILE",
+                all.join("; "),
+                setting("features")
             )));
         }
         let (f, name) = if Features::BUILTIN.contains(&spec) {

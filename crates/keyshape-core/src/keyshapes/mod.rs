@@ -20,7 +20,7 @@ pub use kmeans::KMeans;
 pub use random::Random;
 pub use spread::Spread;
 
-use crate::error::{Error, Result};
+use crate::error::{setting, Error, Result};
 use crate::pca::Pca;
 use crate::solve::active_set::Gram;
 use crate::solve::{active_set_from_gram, lstsq, Solver};
@@ -546,8 +546,9 @@ impl Analysis {
     fn need_axes(&self, n: usize, what: &str) -> Result<()> {
         if self.proj.nrows() < n {
             return Err(Error::invalid(format!(
-                "{what} needs {n} principal axes, but only {} are available (the shapes vary along fewer: choose fewer principal components, e.g. a smaller --pcs or kmeans2)",
-                self.proj.nrows()
+                "{what} needs {n} principal axes, but only {} are available (the shapes vary along fewer: choose fewer principal components, e.g. a smaller {} or kmeans2)",
+                self.proj.nrows(),
+                setting("pcs")
             )));
         }
         Ok(())
