@@ -235,3 +235,29 @@ fn spell_experiment_key(name: &str) -> String {
         _ => name.to_string(),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::{render_error, spell_experiment_key, spell_flag};
+    use keyshape_core::error::{setting, Error};
+
+    #[test]
+    fn settings_are_spelled_as_flags_or_as_experiment_keys() {
+        assert_eq!(spell_flag("dims"), "--dims");
+        assert_eq!(spell_flag("smooth_mode"), "--smooth-mode");
+        assert_eq!(spell_flag("no_align"), "--no-align");
+        assert_eq!(spell_experiment_key("dims"), "dims");
+        assert_eq!(spell_experiment_key("no_align"), "align = false");
+        assert_eq!(spell_experiment_key("shard"), "--shard");
+    }
+
+    #[test]
+    fn a_chain_prints_as_its_alternate_display_with_settings_spelled() {
+        let inner = Error::invalid(format!("use {} 2", setting("dims")));
+        let e = anyhow::Error::from(inner).context("reading t.csv");
+        assert_eq!(render_error(&e, &spell_flag), "reading t.csv: use --dims 2");
+        assert_eq!(format!("{e:#}"), "reading t.csv: use dims 2");
+        let plain = anyhow::anyhow!("no setting here").context("outer");
+        assert_eq!(render_error(&plain, &spell_flag), format!("{plain:#}"));
+    }
+}

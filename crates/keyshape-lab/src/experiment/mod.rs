@@ -178,12 +178,7 @@ pub(crate) fn analyse(
     for study in STUDIES {
         let t = Instant::now();
         findings.extend(study.run(&cx)?);
-        let secs = t.elapsed().as_secs_f64();
-        // Studies of one stage (paper 002's three) share its timing.
-        match timings.last_mut() {
-            Some((stage, s)) if stage == study.stage() => *s += secs,
-            _ => timings.push((study.stage().to_string(), secs)),
-        }
+        add_timing(&mut timings, study.stage(), t.elapsed().as_secs_f64());
     }
     Ok(Outcome {
         spec: spec.clone(),
@@ -197,4 +192,41 @@ pub(crate) fn analyse(
         timings,
         findings,
     })
+}
+
+/// Adds `secs` to the timings: to the last stage when it is `stage` (paper 002's three
+/// studies share one), else as a new stage.
+fn add_timing(timings: &mut Vec<(String, f64)>, stage: &str, secs: f64) {
+    match timings.last_mut() {
+        Some((last, s)) if last == stage => *s += secs,
+        _ => timings.push((stage.to_string(), secs)),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{add_timing, STUDIES};
+
+    #[test]
+    fn studies_of_one_stage_share_its_timing() {
+        let mut t = vec![("sweep".to_string(), 1.0)];
+        for (stage, secs) in [("retarget", 2.0), ("paper002", 0.5), ("paper002", 0.25)] {
+            add_timing(&mut t, stage, secs);
+        }
+        add_timing(&mut t, "smooth", 4.0);
+        let want = [
+            ("sweep", 1.0),
+            ("retarget", 2.0),
+            ("paper002", 0.75),
+            ("smooth", 4.0),
+        ];
+        assert_eq!(t.len(), want.len());
+        for ((k, v), (wk, wv)) in t.iter().zip(want) {
+            assert_eq!((k.as_str(), *v), (wk, wv));
+        }
+        // The registry's stages, in order, as report.json has always listed them.
+        let mut stages: Vec<&str> = STUDIES.iter().map(|s| s.stage()).collect();
+        stages.dedup();
+        assert_eq!(stages, ["retarget", "paper002", "smooth", "rig"]);
+    }
 }
