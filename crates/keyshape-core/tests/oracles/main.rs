@@ -9,7 +9,9 @@
 
 mod align;
 mod common;
+mod keyshapes;
 mod pca;
+mod pinned;
 mod reference;
 mod solvers;
 mod temporal;
