@@ -22,19 +22,6 @@ macro_rules! sayln {
     }};
 }
 
-/// Is this output path standard output (`-`)?
-pub(crate) fn is_stdout(p: Option<&PathBuf>) -> bool {
-    p.is_some_and(|p| keyshape_io::atomic::is_stdout(p))
-}
-
-/// Refuses `--json` when `--out -` already sends the data to standard output.
-pub(crate) fn check_json_stdout(json: bool, out: Option<&PathBuf>) -> anyhow::Result<()> {
-    if json && is_stdout(out) {
-        anyhow::bail!("--json and --out - would both write to standard output: give --out a file");
-    }
-    Ok(())
-}
-
 /// `print!` that returns an error instead of panicking (see [`outln`]).
 #[allow(unused_macros)]
 macro_rules! out {
@@ -54,6 +41,7 @@ mod intensity;
 mod keys;
 mod map;
 mod modes;
+mod output;
 mod progress;
 mod retarget;
 mod rig;
@@ -65,30 +53,12 @@ mod template;
 mod transfer;
 mod tui;
 
-use clap::{Parser, Subcommand};
-use std::path::{Path, PathBuf};
-use std::process::ExitCode;
+use output::{broken_pipe, render_error, spell_experiment_key, spell_flag};
+pub(crate) use output::{check_json_stdout, check_outputs, is_stdout};
 
-/// Checks every output a command will write before it does any work: each file's directory
-/// takes new files, each directory can be made, no output is an input (`inputs`, or any file
-/// already read) and no two outputs name the same path. A command that cannot write one of
-/// its outputs then fails before writing any.
-pub(crate) fn check_outputs(
-    files: &[Option<&PathBuf>],
-    dirs: &[Option<&PathBuf>],
-    inputs: &[Option<&Path>],
-) -> anyhow::Result<()> {
-    let inputs: Vec<&Path> = inputs.iter().flatten().copied().collect();
-    let outputs: Vec<&Path> = files.iter().flatten().map(|f| f.as_path()).collect();
-    for f in &outputs {
-        keyshape_io::check_output(f, &inputs)?;
-    }
-    keyshape_io::atomic::check_distinct(&outputs)?;
-    for d in dirs.iter().flatten() {
-        keyshape_io::check_output_dir(d)?;
-    }
-    Ok(())
-}
+use clap::{Parser, Subcommand};
+
+use std::process::ExitCode;
 
 /// keyshape-lab: with no command, the interactive lab on the built-in sequence. Pick key shapes from a tracked facial performance, solve blend weights,
 /// and see how they retarget.
@@ -142,18 +112,6 @@ enum Command {
     Bench(bench::BenchArgs),
 }
 
-/// Did this error come from writing into a pipe whose reader has gone?
-fn broken_pipe(e: &anyhow::Error) -> bool {
-    e.chain().any(|c| {
-        c.downcast_ref::<std::io::Error>()
-            .is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe)
-            || matches!(
-                c.downcast_ref::<keyshape_core::Error>(),
-                Some(keyshape_core::Error::Io { err, .. }) if err.kind() == std::io::ErrorKind::BrokenPipe
-            )
-    })
-}
-
 /// Runs the CLI; errors print as `error: …` with exit code 1.
 pub fn main() -> ExitCode {
     let cli = Cli::parse();
@@ -205,59 +163,5 @@ pub fn main() -> ExitCode {
             eprintln!("error: {}", render_error(&e, &spell));
             ExitCode::FAILURE
         }
-    }
-}
-
-/// An error chain as `{:#}` prints it (`outer: inner`), each library error's settings
-/// ([`keyshape_core::error::setting`]) spelled by `spell`.
-pub fn render_error(e: &anyhow::Error, spell: &dyn Fn(&str) -> String) -> String {
-    e.chain()
-        .map(|c| match c.downcast_ref::<keyshape_core::Error>() {
-            Some(k) => k.render(spell),
-            None => c.to_string(),
-        })
-        .collect::<Vec<_>>()
-        .join(": ")
-}
-
-/// A library setting as the command line spells it: `dims` → `--dims`, `smooth_mode` →
-/// `--smooth-mode`, `no_align` → `--no-align`.
-fn spell_flag(name: &str) -> String {
-    format!("--{}", name.replace('_', "-"))
-}
-
-/// A library setting as an experiment file spells it: its key (`dims`, `points`, `modes`),
-/// `align = false` for `no_align`; `--shard` stays the flag of `kslab run`.
-fn spell_experiment_key(name: &str) -> String {
-    match name {
-        "no_align" => "align = false".to_string(),
-        "shard" => spell_flag(name),
-        _ => name.to_string(),
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::{render_error, spell_experiment_key, spell_flag};
-    use keyshape_core::error::{setting, Error};
-
-    #[test]
-    fn settings_are_spelled_as_flags_or_as_experiment_keys() {
-        assert_eq!(spell_flag("dims"), "--dims");
-        assert_eq!(spell_flag("smooth_mode"), "--smooth-mode");
-        assert_eq!(spell_flag("no_align"), "--no-align");
-        assert_eq!(spell_experiment_key("dims"), "dims");
-        assert_eq!(spell_experiment_key("no_align"), "align = false");
-        assert_eq!(spell_experiment_key("shard"), "--shard");
-    }
-
-    #[test]
-    fn a_chain_prints_as_its_alternate_display_with_settings_spelled() {
-        let inner = Error::invalid(format!("use {} 2", setting("dims")));
-        let e = anyhow::Error::from(inner).context("reading t.csv");
-        assert_eq!(render_error(&e, &spell_flag), "reading t.csv: use --dims 2");
-        assert_eq!(format!("{e:#}"), "reading t.csv: use dims 2");
-        let plain = anyhow::anyhow!("no setting here").context("outer");
-        assert_eq!(render_error(&plain, &spell_flag), format!("{plain:#}"));
     }
 }

@@ -239,6 +239,17 @@ impl OrthogonalityStudy {
     }
 }
 
+/// Refuses 0 modes: `what` needs at least one.
+pub(crate) fn need_modes(modes: usize, what: &str) -> Result<()> {
+    if modes == 0 {
+        return Err(Error::invalid(format!(
+            "{what} needs at least 1 mode ({})",
+            setting("modes")
+        )));
+    }
+    Ok(())
+}
+
 /// Builds both models from `coords` (aligned shapes, `dims` per point) and measures the
 /// actions. Actions naming unknown regions or frames are errors.
 pub fn orthogonality_study(
@@ -249,12 +260,7 @@ pub fn orthogonality_study(
     actions: &Actions,
     modes: usize,
 ) -> Result<OrthogonalityStudy> {
-    if modes == 0 {
-        return Err(Error::invalid(format!(
-            "the orthogonality study needs at least 1 mode ({})",
-            setting("modes")
-        )));
-    }
+    need_modes(modes, "the orthogonality study")?;
     if actions.actions.len() < 2 {
         return Err(Error::invalid(
             "the orthogonality table needs at least two actions",

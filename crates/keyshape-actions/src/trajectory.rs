@@ -11,7 +11,7 @@
 //! tracks, scaled by the target's own extremes, synthesise the target person's shapes.
 
 use crate::modes::{action_vectors, artificial_pca, Actions, Region};
-use keyshape_core::error::{setting, Error, Result};
+use keyshape_core::error::{Error, Result};
 use keyshape_core::pca::Pca;
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
@@ -89,12 +89,7 @@ pub fn person_model(
     modes: usize,
     normalisation: Normalisation,
 ) -> Result<PersonModel> {
-    if modes == 0 {
-        return Err(Error::invalid(format!(
-            "a person's model needs at least 1 mode ({})",
-            setting("modes")
-        )));
-    }
+    crate::modes::need_modes(modes, "a person's model")?;
     let pca = artificial_pca(coords, regions, dims, modes)?;
     let m = pca.components.ncols();
     let b = pca.project(coords, m);

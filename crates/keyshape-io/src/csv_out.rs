@@ -32,12 +32,6 @@ impl Serialize for Num {
     }
 }
 
-impl From<f64> for Num {
-    fn from(v: f64) -> Self {
-        Num(v)
-    }
-}
-
 /// The head-pose columns a weights CSV ends with when head motion is applied: each frame's
 /// similarity (scale, rotation in degrees, translation).
 pub const POSE_COLUMNS: [&str; 4] = ["head_scale", "head_angle_deg", "head_tx", "head_ty"];
@@ -145,6 +139,17 @@ mod tests {
             t,
             "name,k,rms_iod,kkt,ok\na,3,123456,1e-7,true\nb,0,0.25,,false\n"
         );
+    }
+
+    #[test]
+    fn an_optional_float_is_a_number_or_an_empty_field() {
+        assert_eq!(opt(Some(0.5)), Some(Num(0.5)));
+        assert_eq!(opt(None), None);
+        let t = text(vec![Row {
+            kkt: opt(Some(2.5)),
+            ..Default::default()
+        }]);
+        assert_eq!(t.lines().nth(1).unwrap(), ",0,0,2.5,false");
     }
 
     #[test]

@@ -1,6 +1,12 @@
 //! Readers and writers. Every reader returns a validated [`Sequence`]; every error names the
 //! file and, for parse errors, the line and column.
 //!
+//! **The front door:** [`read_sequence`] with [`ReadOptions`] (any track kslab reads, format
+//! detected) and [`builtin_sequence`]; [`write_atomic`] (a file appears whole or not at
+//! all) and [`OutputSet`] (several files, all or none); [`csv_out`] for tables. The modules
+//! hold the rest: meshes ([`obj`]), morph targets ([`morph`]), GLB ([`gltf`]), JSON tracks,
+//! synthetic long tracks for benchmarks.
+//!
 //! A whole solve, from the built-in sequence to blend weights:
 //!
 //! ```
