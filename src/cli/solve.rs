@@ -301,7 +301,7 @@ fn run_stream(a: &SolveArgs, smoothing: Option<Smoothing>) -> Result<()> {
                 .chain(std::iter::once(row))
                 .try_for_each(|r| out.write_record(r))
                 .map_err(|e| {
-                    let e = std::io::Error::from(e);
+                    let e = keyshape_io::csv_out::io_error(e);
                     let msg = e.to_string();
                     io_err = Some(e);
                     keyshape_core::error::Error::invalid(msg)

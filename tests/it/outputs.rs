@@ -282,6 +282,37 @@ fn a_closed_standard_output_is_an_error_and_a_closed_pipe_a_quiet_stop() {
     assert_ne!(out.status.code(), Some(0));
 }
 
+/// Every table written to standard output (through the `csv` crate, which wraps a write
+/// error as its own) stops quietly when its reader has gone, as `| head` does.
+#[cfg(unix)]
+#[test]
+fn every_csv_on_standard_output_stops_quietly_on_a_closed_pipe() {
+    let bin = env!("CARGO_BIN_EXE_kslab");
+    let track = shared("mediapipe_face_tracks/liveportrait_d6.csv");
+    let t = track.to_str().unwrap();
+    for args in [
+        vec!["solve", "--keys", "3,50"],
+        vec!["solve", t, "--keys", "0,60,120", "--stream"],
+        vec!["rig"],
+        vec!["retarget", "--method", "spread", "--k", "6", "--out", "-"],
+        vec!["curves", "--methods", "spread", "--k", "2..4"],
+    ] {
+        let mut child = Command::new(bin)
+            .args(&args)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        drop(child.stdout.take());
+        let out = child.wait_with_output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            err.lines().all(|l| !l.starts_with("error")),
+            "{args:?}: a closed pipe is a quiet stop: {err}"
+        );
+    }
+}
+
 #[test]
 fn a_degenerate_frame_is_refused_by_name_on_every_path_that_fits_it() {
     let d = tempfile::tempdir().unwrap();

@@ -62,13 +62,13 @@ where
     let mut head = csv::WriterBuilder::new()
         .has_headers(true)
         .from_writer(Vec::new());
-    head.serialize(R::default())?;
+    head.serialize(R::default()).map_err(io_error)?;
     let head = head.into_inner().map_err(|e| e.into_error())?;
     let end = head.iter().position(|&b| b == b'\n').map_or(0, |i| i + 1);
     w.write_all(&head[..end])?;
     let mut out = csv::WriterBuilder::new().has_headers(false).from_writer(w);
     for r in rows {
-        out.serialize(r)?;
+        out.serialize(r).map_err(io_error)?;
     }
     out.flush()
 }
@@ -84,11 +84,25 @@ where
     <R::Item as IntoIterator>::Item: AsRef<[u8]>,
 {
     let mut out = record_writer(w);
-    out.write_record(header)?;
+    out.write_record(header).map_err(io_error)?;
     for r in records {
-        out.write_record(r)?;
+        out.write_record(r).map_err(io_error)?;
     }
     out.flush()
+}
+
+/// A `csv` error as the I/O error it carries, its kind kept: a reader that has gone is
+/// `BrokenPipe`, which the command line stops on quietly (`kslab … | head`). The crate's own
+/// conversion wraps every error as `Other`. Any other error (a row the crate cannot
+/// serialise) is `Other`.
+pub fn io_error(e: csv::Error) -> std::io::Error {
+    if e.is_io_error() {
+        if let csv::ErrorKind::Io(io) = e.into_kind() {
+            return io;
+        }
+        return std::io::Error::other("CSV writer: I/O error");
+    }
+    std::io::Error::other(e)
 }
 
 /// A writer of records for a table written as it is computed (a streamed solve): the same
@@ -150,6 +164,31 @@ mod tests {
             ..Default::default()
         }]);
         assert_eq!(t.lines().nth(1).unwrap(), ",0,0,2.5,false");
+    }
+
+    /// A writer whose reader has gone.
+    struct Closed;
+    impl Write for Closed {
+        fn write(&mut self, _: &[u8]) -> std::io::Result<usize> {
+            Err(std::io::ErrorKind::BrokenPipe.into())
+        }
+        fn flush(&mut self) -> std::io::Result<()> {
+            Err(std::io::ErrorKind::BrokenPipe.into())
+        }
+    }
+
+    #[test]
+    fn a_closed_pipe_stays_a_broken_pipe() {
+        let e = write_rows(&mut Closed, vec![Row::default()]).unwrap_err();
+        assert_eq!(e.kind(), std::io::ErrorKind::BrokenPipe);
+        let e = write_records(&mut Closed, ["a"], [["1"]]).unwrap_err();
+        assert_eq!(e.kind(), std::io::ErrorKind::BrokenPipe);
+        let mut w = record_writer(Closed);
+        let e = w.write_record(["a"]).and_then(|()| Ok(w.flush()?));
+        assert_eq!(
+            io_error(e.map_or_else(|e| e, |()| panic!("wrote to a closed pipe"))).kind(),
+            std::io::ErrorKind::BrokenPipe
+        );
     }
 
     #[test]
