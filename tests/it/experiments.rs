@@ -325,3 +325,49 @@ fn log_axis_for_curves_spanning_decades_and_stable_png_names() {
     }
     assert!(dir.path().join("c_ls.png").is_file());
 }
+
+/// A study writes its own table and figure into the report folder, and the figure is
+/// listed in `report.json` with the study's keys ([retarget] of Figs. 4–5).
+#[test]
+fn a_study_writes_its_table_and_figure_and_report_json_lists_them() {
+    let d = tempfile::tempdir().unwrap();
+    let out = d.path().join("o");
+    let r = crate::common::kslab(&[
+        "run",
+        repo("experiments/chuang_fig4_5_lips_d6.toml")
+            .to_str()
+            .unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let csv = std::fs::read_to_string(out.join("retarget.csv")).unwrap();
+    let mut lines = csv.lines();
+    assert_eq!(
+        lines.next(),
+        Some("solver,trace_noise,source_rms,target_rms,jitter,negative_share,max_abs_weight")
+    );
+    // Two solvers at four noise levels.
+    assert_eq!(lines.count(), 8);
+    let png = std::fs::read(out.join("strip.png")).unwrap();
+    assert!(png.starts_with(b"\x89PNG"));
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    assert_eq!(report["figures"], serde_json::json!(["strip.png"]));
+    assert_eq!(report["retarget"].as_array().unwrap().len(), 8);
+    assert_eq!(report["strip_frames"].as_array().unwrap().len(), 4);
+    // The keys of the studies that did not run are there, empty.
+    for k in [
+        "intensity",
+        "orthogonality_mean",
+        "alignment",
+        "rig_recovery",
+    ] {
+        assert!(report[k].is_null(), "{k}: {}", report[k]);
+    }
+    assert!(
+        r.stdout.contains("retarget, exact target: ls target RMS"),
+        "{}",
+        r.stdout
+    );
+}

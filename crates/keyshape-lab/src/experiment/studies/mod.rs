@@ -125,3 +125,30 @@ impl Output<'_> {
         Ok(())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::{Finding, Output};
+    use keyshape_core::error::Result;
+    use serde_json::{Map, Value};
+    use std::any::Any;
+
+    /// A finding with nothing to say on the terminal.
+    #[derive(Debug)]
+    struct Quiet;
+
+    impl Finding for Quiet {
+        fn write(&self, _: &mut Output) -> Result<()> {
+            Ok(())
+        }
+        fn report(&self, _: &mut Map<String, Value>) {}
+        fn as_any(&self) -> &dyn Any {
+            self
+        }
+    }
+
+    #[test]
+    fn a_finding_prints_no_lines_unless_it_says_so() {
+        assert!(Quiet.summary().is_empty());
+    }
+}
