@@ -56,12 +56,21 @@ pub fn write_long_track(w: &mut dyn Write, frames: usize, points: usize, seed: u
             + 0.25 * (t / 61.0 + phases[3 * i + 2]).sin())
             / 1.75
     };
-    let mut line = String::with_capacity(points * 20 + 32);
-    line.push_str("frame,time_s");
-    for p in 0..points {
-        line.push_str(&format!(",x{p},y{p}"));
-    }
-    writeln!(w, "{line}").map_err(|e| Error::invalid(format!("writing the track: {e}")))?;
+    let failed = |e: std::io::Error| Error::invalid(format!("writing the track: {e}"));
+    let mut out = crate::csv_out::record_writer(w);
+    let header = ["frame".to_string(), "time_s".to_string()]
+        .into_iter()
+        .chain((0..points).flat_map(|p| [format!("x{p}"), format!("y{p}")]));
+    out.write_record(header)
+        .map_err(|e| failed(crate::csv_out::io_error(e)))?;
+    // One field buffer reused for every value: a 300,000-frame track has 41 million.
+    let mut field = String::with_capacity(32);
+    let mut put = |out: &mut csv::Writer<&mut dyn Write>, v: std::fmt::Arguments| {
+        field.clear();
+        // Formatting into a String cannot fail.
+        let _ = std::fmt::Write::write_fmt(&mut field, v);
+        out.write_field(&field)
+    };
     let (mut from, mut to) = (shape(rng.gen_range(0..real)), shape(rng.gen_range(0..real)));
     for f in 0..frames {
         if f > 0 && f % KNOT == 0 {
@@ -73,16 +82,20 @@ pub fn write_long_track(w: &mut dyn Write, frames: usize, points: usize, seed: u
         let (tx, ty) = (12.0 * drift(t, 0), 12.0 * drift(t, 1));
         let (angle, scale) = (4f64.to_radians() * drift(t, 2), 1.0 + 0.04 * drift(t, 3));
         let (sn, cs) = angle.sin_cos();
-        line.clear();
-        line.push_str(&format!("{f},{}", super::fmt_num(t / 30.0)));
-        for p in 0..points {
-            let x = (1.0 - a) * from[p][0] + a * to[p][0] - centre[0];
-            let y = (1.0 - a) * from[p][1] + a * to[p][1] - centre[1];
-            let gx = centre[0] + scale * (cs * x - sn * y) + tx + 0.3 * gauss(&mut rng);
-            let gy = centre[1] + scale * (sn * x + cs * y) + ty + 0.3 * gauss(&mut rng);
-            line.push_str(&format!(",{gx:.3},{gy:.3}"));
-        }
-        writeln!(w, "{line}").map_err(|e| Error::invalid(format!("writing the track: {e}")))?;
+        let mut row = || -> csv::Result<()> {
+            put(&mut out, format_args!("{f}"))?;
+            put(&mut out, format_args!("{}", super::fmt_num(t / 30.0)))?;
+            for p in 0..points {
+                let x = (1.0 - a) * from[p][0] + a * to[p][0] - centre[0];
+                let y = (1.0 - a) * from[p][1] + a * to[p][1] - centre[1];
+                let gx = centre[0] + scale * (cs * x - sn * y) + tx + 0.3 * gauss(&mut rng);
+                let gy = centre[1] + scale * (sn * x + cs * y) + ty + 0.3 * gauss(&mut rng);
+                put(&mut out, format_args!("{gx:.3}"))?;
+                put(&mut out, format_args!("{gy:.3}"))?;
+            }
+            out.write_record(None::<&[u8]>)
+        };
+        row().map_err(|e| failed(crate::csv_out::io_error(e)))?;
     }
-    Ok(())
+    out.flush().map_err(failed)
 }
