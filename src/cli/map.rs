@@ -130,6 +130,8 @@ pub fn run(a: &MapArgs) -> Result<()> {
             a.target_actions.as_deref(),
             a.alignment.as_deref(),
             a.regions.file(),
+            a.morph.as_deref(),
+            (a.mapping != "builtin").then(|| Path::new(&a.mapping)),
         ],
     )?;
     let progress = super::progress::Progress::new("map: reading");
@@ -289,6 +291,7 @@ fn morph(
     every: usize,
     progress: &super::progress::Progress,
 ) -> Result<()> {
+    keyshape_io::atomic::register_input(dir);
     let mesh = read_obj(&dir.join("neutral_face.obj"))?;
     let targets = MorphTargets::read(
         &dir.join("expressions.csv"),

@@ -47,6 +47,7 @@ mod retarget;
 mod rig;
 mod rig_accuracy;
 mod run;
+mod signals;
 mod smooth;
 mod solve;
 mod template;
@@ -128,7 +129,10 @@ pub fn main() -> ExitCode {
     };
     let set = match command {
         Command::Tui(_) | Command::Bench(_) => None,
-        _ => Some(keyshape_io::OutputSet::begin()),
+        _ => {
+            signals::install();
+            Some(keyshape_io::OutputSet::begin())
+        }
     };
     let result = match command {
         Command::Tui(a) => tui::run(&a),

@@ -17,8 +17,9 @@ pub(crate) fn check_json_stdout(json: bool, out: Option<&PathBuf>) -> anyhow::Re
 }
 
 /// Checks every output a command will write before it does any work: each file's directory
-/// takes new files, each directory can be made, no output is an input (`inputs`, or any file
-/// already read) and no two outputs name the same path. A command that cannot write one of
+/// takes new files, each directory can be made, no output is an input (`inputs`, files or
+/// folders whose every file counts, or any file already read) and no two outputs name the
+/// same file or stream. A command that cannot write one of
 /// its outputs then fails before writing any.
 pub(crate) fn check_outputs(
     files: &[Option<&PathBuf>],
@@ -26,6 +27,10 @@ pub(crate) fn check_outputs(
     inputs: &[Option<&Path>],
 ) -> anyhow::Result<()> {
     let inputs: Vec<&Path> = inputs.iter().flatten().copied().collect();
+    // Registered, a folder with every file in it: the final renames check them again.
+    for i in &inputs {
+        keyshape_io::atomic::register_input(i);
+    }
     let outputs: Vec<&Path> = files.iter().flatten().map(|f| f.as_path()).collect();
     for f in &outputs {
         keyshape_io::check_output(f, &inputs)?;

@@ -103,7 +103,7 @@ pub fn merge(a: &MergeArgs) -> Result<()> {
         .collect();
     let inputs: Vec<Option<&std::path::Path>> = inputs.iter().map(|p| Some(p.as_path())).collect();
     super::check_outputs(&[], &[Some(&a.out)], &inputs)?;
-    if a.shards.iter().any(|s| s == &a.out) {
+    if a.shards.iter().any(|s| same_folder(s, &a.out)) {
         bail!(
             "{}: the merged report would overwrite a shard's folder; give another --out",
             a.out.display()
@@ -114,4 +114,41 @@ pub fn merge(a: &MergeArgs) -> Result<()> {
         outln!("{}", f.display());
     }
     Ok(())
+}
+
+/// Are `a` and `b` one folder, however spelled (`s0`, a link to it, `o1/../s0/`)? By
+/// identity when both exist; else by their absolute paths with `.` and `..` resolved
+/// lexically, the way `create_dir_all` would walk them.
+fn same_folder(a: &std::path::Path, b: &std::path::Path) -> bool {
+    let (ia, ib) = (
+        keyshape_io::atomic::file_id(a),
+        keyshape_io::atomic::file_id(b),
+    );
+    if ia.is_some() && ib.is_some() {
+        return ia == ib;
+    }
+    let norm = |p: &std::path::Path| -> Option<PathBuf> {
+        let abs = std::path::absolute(p).ok()?;
+        let mut out = PathBuf::new();
+        for c in abs.components() {
+            match c {
+                std::path::Component::ParentDir => {
+                    out.pop();
+                }
+                std::path::Component::CurDir => {}
+                c => out.push(c),
+            }
+        }
+        // A prefix that exists is spelled canonically (links in it followed).
+        let mut existing = out.clone();
+        let mut rest = Vec::new();
+        while std::fs::symlink_metadata(&existing).is_err() {
+            rest.push(existing.file_name()?.to_os_string());
+            existing = existing.parent()?.to_path_buf();
+        }
+        let mut canon = std::fs::canonicalize(&existing).ok()?;
+        canon.extend(rest.iter().rev());
+        Some(canon)
+    };
+    matches!((norm(a), norm(b)), (Some(x), Some(y)) if x == y)
 }

@@ -83,11 +83,10 @@ pub fn run(a: &SolveArgs) -> Result<()> {
             s.check().map(|_| s)
         })
         .transpose()?;
-    super::check_outputs(
-        &[a.out.as_ref(), a.png.as_ref()],
-        &[],
-        &[a.input.file.as_deref()],
-    )?;
+    // Without --out (and --json) the weights go to standard output, as with `--out -`.
+    let stdout = std::path::PathBuf::from("-");
+    let out = a.out.as_ref().or((!a.json).then_some(&stdout));
+    super::check_outputs(&[out, a.png.as_ref()], &[], &[a.input.file.as_deref()])?;
     super::check_json_stdout(a.json, a.out.as_ref())?;
     if a.choice.keys.is_empty() && a.choice.method.is_none() {
         anyhow::bail!("name the key frames: --keys 3,17,42, or --method spread --k 12 (as `kslab keys` chooses them)");
@@ -189,14 +188,9 @@ pub fn run(a: &SolveArgs) -> Result<()> {
     match &a.out {
         Some(path) => write_atomic(path, |w| write_csv(w, seq, &keys, &d))?,
         None if a.json => {}
-        None => {
-            let stdout = std::io::stdout();
-            match write_csv(&mut stdout.lock(), seq, &keys, &d) {
-                // `kslab solve … | head` closes the pipe early: not an error.
-                Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => {}
-                r => r?,
-            }
-        }
+        // Standard output as `--out -` is: a reader that goes away (`kslab solve … | head`)
+        // ends the command quietly with none of its other outputs committed.
+        None => write_atomic(std::path::Path::new("-"), |w| write_csv(w, seq, &keys, &d))?,
     }
     if a.json {
         let v = json!({
@@ -331,15 +325,11 @@ fn run_stream(a: &SolveArgs, smoothing: Option<Smoothing>) -> Result<()> {
     };
     let written = match &a.out {
         Some(p) => write_atomic(p, &mut fill).map_err(anyhow::Error::from),
-        None => {
-            let stdout = std::io::stdout();
-            let mut lock = std::io::BufWriter::new(stdout.lock());
-            match fill(&mut lock).and_then(|()| lock.flush()) {
-                // `kslab solve … | head` closes the pipe early: not an error.
-                Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => return Ok(()),
-                r => r.map_err(anyhow::Error::from),
-            }
-        }
+        None => write_atomic(std::path::Path::new("-"), |w| {
+            let mut w = std::io::BufWriter::new(w);
+            fill(&mut w).and_then(|()| w.flush())
+        })
+        .map_err(anyhow::Error::from),
     };
     if let Some(e) = failure {
         return Err(e.into());

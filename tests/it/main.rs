@@ -26,6 +26,7 @@ mod scale;
 mod smoothing;
 mod stream;
 mod svg_transforms;
+mod tiny_tracks;
 mod transfer;
 mod tui;
 mod weights_png;

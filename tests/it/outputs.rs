@@ -359,3 +359,122 @@ fn a_degenerate_frame_is_refused_by_name_on_every_path_that_fits_it() {
     let e = keyshape_rig::camera::fit_camera(&rig.neutral, &pts);
     assert!(e.is_err());
 }
+
+/// One rule for a closed pipe: a command that could not deliver an output commits none of
+/// them, whether the weights went to standard output by default or by `--out -` (round
+/// three: the default path exited 0 and wrote the PNG).
+#[cfg(unix)]
+#[test]
+fn a_closed_pipe_commits_no_output_whichever_way_standard_output_was_chosen() {
+    let d = tempfile::tempdir().unwrap();
+    let bin = env!("CARGO_BIN_EXE_kslab");
+    let t = shared("mediapipe_face_tracks/liveportrait_d6.csv");
+    for out in ["", "--out -"] {
+        let script = format!(
+            "set -o pipefail; {bin} solve {} --method spread --k 24 --png w.png {out} | head -c 10 >/dev/null; echo ${{PIPESTATUS[0]}}",
+            t.display()
+        );
+        let r = Command::new("bash")
+            .args(["-c", &script])
+            .current_dir(d.path())
+            .output()
+            .unwrap();
+        let code = String::from_utf8_lossy(&r.stdout).trim().to_string();
+        assert_eq!(
+            code,
+            "141",
+            "{out:?}: {}",
+            String::from_utf8_lossy(&r.stderr)
+        );
+        assert_eq!(files_in(d.path()), Vec::<String>::new(), "{out:?}");
+    }
+}
+
+/// SIGINT, SIGTERM and SIGHUP remove what a command staged and leave every output as it
+/// was; SIGKILL, which no process can catch, leaves one staging folder per output folder
+/// (round three: SIGINT left `.w.csv.*.tmp`, SIGKILL during `rig --png-dir` 29 files).
+#[cfg(unix)]
+#[test]
+fn a_signal_leaves_every_output_as_it_was_and_a_kill_one_staging_folder_per_folder() {
+    let bin = env!("CARGO_BIN_EXE_kslab");
+    let t = shared("mediapipe_face_tracks/liveportrait_d6.csv");
+    for sig in ["INT", "TERM", "HUP", "KILL"] {
+        let d = tempfile::tempdir().unwrap();
+        std::fs::write(d.path().join("w.csv"), "old").unwrap();
+        // Wait until the command has staged at least 10 frames, then signal it.
+        let script = format!(
+            "{bin} rig {} --out w.csv --pose p.csv --png-dir pd -q & pid=$!\n\
+             for i in $(seq 1 600); do n=$(find . -name '*.png' | wc -l); [ $n -ge 10 ] && break; sleep 0.05; done\n\
+             kill -{sig} $pid; wait $pid; echo $?",
+            t.display()
+        );
+        let r = Command::new("bash")
+            .args(["-c", &script])
+            .current_dir(d.path())
+            .output()
+            .unwrap();
+        let code: i32 = String::from_utf8_lossy(&r.stdout).trim().parse().unwrap();
+        assert!(code > 128, "{sig}: exit {code}");
+        assert_eq!(
+            std::fs::read_to_string(d.path().join("w.csv")).unwrap(),
+            "old"
+        );
+        let left = files_in(d.path());
+        if sig == "KILL" {
+            // w.csv, the folder made for the frames, and one staging folder in each.
+            let staging: Vec<&String> = left
+                .iter()
+                .filter(|n| n.starts_with(".kslab-staging-"))
+                .collect();
+            assert_eq!(staging.len(), 1, "{left:?}");
+            let pd = files_in(&d.path().join("pd"));
+            assert_eq!(pd.len(), 1, "{pd:?}");
+            assert!(pd[0].starts_with(".kslab-staging-"), "{pd:?}");
+        } else {
+            assert_eq!(left, ["w.csv"], "{sig}");
+        }
+    }
+}
+
+/// A FIFO, a read-only file and a shard folder named through a link are refused before
+/// any work (round three: a FIFO blocked for ever, a 0444 file was replaced silently,
+/// `merge --out s0l` wrote into the shard s0).
+#[cfg(unix)]
+#[test]
+fn a_fifo_a_read_only_file_and_a_linked_shard_folder_are_refused() {
+    use std::os::unix::fs::PermissionsExt;
+    let d = tempfile::tempdir().unwrap();
+    bash_ok(d.path(), "mkfifo f.csv && mkdir s0 s1 && ln -s s0 s0l");
+    let r = kslab(&["solve", "--keys", "3", "--out", &s(&d.path().join("f.csv"))]);
+    assert_eq!(r.code, 1, "{}", r.stderr);
+    assert!(
+        r.stderr.contains("f.csv: is a FIFO (named pipe)"),
+        "{}",
+        r.stderr
+    );
+    let ro = d.path().join("ro.csv");
+    std::fs::write(&ro, "keep").unwrap();
+    std::fs::set_permissions(&ro, std::fs::Permissions::from_mode(0o444)).unwrap();
+    let r = kslab(&["solve", "--keys", "3", "--out", &s(&ro)]);
+    assert_eq!(r.code, 1, "{}", r.stderr);
+    assert!(
+        r.stderr
+            .contains("ro.csv: refusing to replace a read-only file (mode 444)"),
+        "{}",
+        r.stderr
+    );
+    assert_eq!(std::fs::read_to_string(&ro).unwrap(), "keep");
+    let r = kslab(&[
+        "merge",
+        &s(&d.path().join("s0")),
+        &s(&d.path().join("s1")),
+        "--out",
+        &s(&d.path().join("s0l")),
+    ]);
+    assert_eq!(r.code, 1, "{}", r.stderr);
+    assert!(
+        r.stderr.contains("would overwrite a shard's folder"),
+        "{}",
+        r.stderr
+    );
+}

@@ -48,6 +48,12 @@ pub fn artificial_pca(
     modes: usize,
 ) -> Result<Pca> {
     let (rows, n) = coords.shape();
+    keyshape_core::keyshapes::need_distinct(
+        keyshape_core::keyshapes::distinct_shapes(coords),
+        n,
+        2,
+        "an action-specific model",
+    )?;
     let total = n * regions.len();
     if total <= rows {
         // Fewer shapes than values: the set is small; fit it whole.

@@ -92,6 +92,11 @@ pub fn person_model(
     crate::modes::need_modes(modes, "a person's model")?;
     let pca = artificial_pca(coords, regions, dims, modes)?;
     let m = pca.components.ncols();
+    if m == 0 {
+        return Err(keyshape_core::Error::invalid(
+            "an action-specific model: the regions' training set does not vary (no mode)",
+        ));
+    }
     let b = pca.project(coords, m);
     let upper: Vec<f64> = (0..m)
         .map(|k| b.row(k).iter().fold(f64::MIN_POSITIVE, |a, &v| a.max(v)))

@@ -321,6 +321,14 @@ pub const MAX_LINE_BYTES: usize = 16 << 20;
 /// blocks or reads without end. Files over [`MAX_INPUT_BYTES`] and lines over
 /// [`MAX_LINE_BYTES`] are refused.
 pub fn read_text(path: &Path) -> Result<String> {
+    let bytes = read_bytes(path)?;
+    let gz = path.extension().is_some_and(|e| e == "gz");
+    text_from_bytes(path, bytes, gz)
+}
+
+/// Reads a whole input file's bytes (a GLB, a binary buffer) with the checks of
+/// [`read_text`], recording it as an input that no output may replace.
+pub fn read_bytes(path: &Path) -> Result<Vec<u8>> {
     let meta = std::fs::metadata(path).map_err(|e| Error::io(path, e))?;
     if !meta.is_file() {
         let what = if meta.is_dir() {
@@ -341,8 +349,7 @@ pub fn read_text(path: &Path) -> Result<String> {
     }
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
     atomic::register_input(path);
-    let gz = path.extension().is_some_and(|e| e == "gz");
-    text_from_bytes(path, bytes, gz)
+    Ok(bytes)
 }
 
 /// [`read_text`] on bytes already in memory (`gz`: un-gzip first).

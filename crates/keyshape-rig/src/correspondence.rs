@@ -170,6 +170,8 @@ pub fn read_rig(path: &Path, layout: usize, csv: Option<&Path>) -> Result<RigPar
             "no such folder or file (a rig folder like ../shared/data/ict_facekit_face, or a .glb/.gltf with a landmark,vertex CSV)",
         ));
     }
+    // A rig folder is an input whole: no output may replace any file of it.
+    keyshape_io::atomic::register_input(path);
     let (mesh, morph, pairs) = if path.is_dir() {
         let (mesh, morph, marks) = super::Rig::read_ict_parts(path)?;
         let n = mesh.positions.len();

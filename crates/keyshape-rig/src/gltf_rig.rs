@@ -10,7 +10,7 @@ use std::path::Path;
 /// Blender and three.js write them, else `target<i>`). Primitives are concatenated in order;
 /// vertex `i` of the landmark CSV counts across them.
 pub fn read_gltf_mesh(path: &Path) -> Result<(keyshape_io::obj::Mesh, MorphTargets)> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = keyshape_io::read_bytes(path)?;
     let doc = gltf::Gltf::from_slice(&bytes)
         .map_err(|e| Error::file(path, format!("not a glTF file: {e}")))?;
     // Buffers: the GLB's own binary chunk, or files beside a .gltf.
@@ -29,7 +29,7 @@ pub fn read_gltf_mesh(path: &Path) -> Result<(keyshape_io::obj::Mesh, MorphTarge
             }
             gltf::buffer::Source::Uri(uri) => {
                 let p = path.parent().unwrap_or(Path::new(".")).join(uri);
-                std::fs::read(&p).map_err(|e| Error::io(&p, e))?
+                keyshape_io::read_bytes(&p)?
             }
         });
     }

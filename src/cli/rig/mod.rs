@@ -172,13 +172,11 @@ pub struct RigArgs {
 /// Runs `kslab rig`.
 pub fn run(a: &RigArgs) -> Result<()> {
     super::check_json_stdout(a.json, a.out.as_ref())?;
+    // Without --out (and --json) the weights go to standard output, as with `--out -`.
+    let stdout = PathBuf::from("-");
+    let out = a.out.as_ref().or((!a.json).then_some(&stdout));
     check_outputs(
-        &[
-            a.out.as_ref(),
-            a.pose.as_ref(),
-            a.livelink.as_ref(),
-            a.gltf.as_ref(),
-        ],
+        &[out, a.pose.as_ref(), a.livelink.as_ref(), a.gltf.as_ref()],
         &[a.png_dir.as_ref()],
         &[
             a.file.as_deref(),

@@ -25,13 +25,9 @@ pub(super) fn write_all(
     match &a.out {
         Some(p) => write_atomic(p, |w| write_weights(w, seq, rig, r))?,
         None if a.json => {}
-        None => {
-            let stdout = std::io::stdout();
-            match write_weights(&mut stdout.lock(), seq, rig, r) {
-                Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => {}
-                res => res?,
-            }
-        }
+        // Standard output as `--out -` is: a reader that goes away fails the command,
+        // and none of its other outputs is committed.
+        None => write_atomic(std::path::Path::new("-"), |w| write_weights(w, seq, rig, r))?,
     }
     if let Some(p) = &a.pose {
         write_atomic(p, |w| write_pose(w, seq, r))?;

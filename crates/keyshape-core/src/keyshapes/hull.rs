@@ -32,6 +32,13 @@ impl Heuristic for Hull {
     }
 
     fn select(&self, an: &Analysis, _k: usize) -> Result<Selection> {
+        // Two distinct shapes span one principal axis; fewer span none.
+        an.need_distinct(2, "the convex hull (--method hull)")?;
+        if an.proj.nrows() == 0 {
+            return Err(Error::invalid(
+                "hull: every frame projects to the same point",
+            ));
+        }
         let n = an.frames();
         let axes = an.proj.nrows().min(2);
         let pt = |t: usize| {

@@ -257,6 +257,30 @@ pub fn axes_needed(methods: &[Method], kmax: usize) -> usize {
     })
 }
 
+/// Number of distinct columns (shapes) of `m`, by a 128-bit digest of each column's bits.
+pub fn distinct_shapes(m: &DMatrix<f64>) -> usize {
+    let mut seen = HashSet::with_capacity(m.ncols());
+    for c in m.column_iter() {
+        seen.insert(digest(c.as_slice()));
+    }
+    seen.len()
+}
+
+/// The one check of "enough distinct frames for what is asked": `what` needs at least
+/// `need` distinct shapes among the columns of a sequence with `distinct` of them in
+/// `frames` frames. Every path that fits a PCA, a hull or a model on a track goes through
+/// it, so a one-frame or a repeated track is refused with this message, never a panic.
+pub fn need_distinct(distinct: usize, frames: usize, need: usize, what: &str) -> Result<()> {
+    if distinct >= need {
+        return Ok(());
+    }
+    Err(Error::invalid(format!(
+        "{what} needs at least {need} distinct shapes, but the sequence has {distinct} ({frames} frame{}{})",
+        if frames == 1 { "" } else { "s" },
+        if frames > distinct && distinct > 0 { ", the rest repeats" } else { "" }
+    )))
+}
+
 /// A prepared sequence with what every heuristic needs: its PCA, the projection, the
 /// number of distinct shapes, and (lazily) the frames' Gram matrix.
 #[derive(Debug)]
@@ -300,13 +324,10 @@ impl Analysis {
         let proj = pca.project(&coords, axes.max(3));
         // Distinct shapes counted by a 128-bit digest of each column's bits, not a copy of
         // the coordinates (two distinct shapes share a digest with probability ~2⁻¹²⁸).
-        let mut seen = HashSet::with_capacity(coords.ncols());
-        for c in coords.column_iter() {
-            seen.insert(digest(c.as_slice()));
-        }
+        let distinct = distinct_shapes(&coords);
         let sq_norms = coords.column_iter().map(|c| c.norm_squared()).collect();
         Ok(Analysis {
-            distinct: seen.len(),
+            distinct,
             coords,
             points,
             pca,
@@ -320,6 +341,11 @@ impl Analysis {
     /// Number of frames.
     pub fn frames(&self) -> usize {
         self.coords.ncols()
+    }
+
+    /// [`need_distinct`] on this sequence.
+    pub fn need_distinct(&self, need: usize, what: &str) -> Result<()> {
+        need_distinct(self.distinct, self.frames(), need, what)
     }
 
     /// Checks that `k` key shapes can be chosen.
