@@ -23,6 +23,7 @@ mod rig;
 mod rig_accuracy;
 mod rig_dense;
 mod scale;
+mod settings_walk;
 mod smoothing;
 mod stream;
 mod svg_transforms;

@@ -22,6 +22,7 @@ pub mod align;
 pub mod decompose;
 pub mod error;
 pub mod keyshapes;
+pub mod limits;
 pub mod pca;
 pub mod rbf;
 pub mod sequence;

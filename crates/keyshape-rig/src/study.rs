@@ -151,10 +151,8 @@ pub fn recovery(rig: &Rig, st: &RigStudySettings) -> Result<Vec<RecoveryRow>> {
     if st.frames < 2 {
         return Err(Error::invalid("[rig] frames must be at least 2"));
     }
-    if let Some(n) = st.noise_px.iter().find(|n| !(n.is_finite() && **n >= 0.0)) {
-        return Err(Error::invalid(format!(
-            "[rig] noise_px: {n} is not a noise level"
-        )));
+    for &n in &st.noise_px {
+        keyshape_core::limits::NOISE_PX.check("noise_px", n)?;
     }
     let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(st.seed);
     let series = smooth_weights(st.frames, idx.len(), &mut rng);

@@ -162,12 +162,7 @@ impl SmoothStudySettings {
         for f in self.filters(fps) {
             f.check()?;
         }
-        if !(self.clean_sigma.is_finite() && self.clean_sigma > 0.0) {
-            return Err(Error::invalid(format!(
-                "clean_sigma must be > 0 frames, got {}",
-                self.clean_sigma
-            )));
-        }
+        keyshape_core::limits::CLEAN_SIGMA.check("clean_sigma", self.clean_sigma)?;
         Ok(())
     }
 

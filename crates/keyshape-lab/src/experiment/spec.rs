@@ -399,6 +399,15 @@ impl Spec {
             ));
         }
         if let Some(r) = &spec.retarget {
+            if keyshape_core::limits::STRIP_FRAMES
+                .check_count("strip", r.strip as u64)
+                .is_err()
+            {
+                return Err((
+                    "strip",
+                    keyshape_core::limits::STRIP_FRAMES.why_count(r.strip as u64),
+                ));
+            }
             if r.solvers.is_empty() || r.k == 0 {
                 return Err(("retarget", "needs k ≥ 1 and at least one solver".into()));
             }
@@ -422,6 +431,13 @@ impl Spec {
                     "frames",
                     format!("{} frames: give 1 to {MAX_STUDY_FRAMES}", r.frames),
                 ));
+            }
+            if let Some(&n) = r.noise_px.iter().find(|&&n| {
+                keyshape_core::limits::NOISE_PX
+                    .check("noise_px", n)
+                    .is_err()
+            }) {
+                return Err(("noise_px", keyshape_core::limits::NOISE_PX.why(n)));
             }
             if let Some(sv) = repeated(&r.solvers, |s| *s) {
                 return Err(("rig", format!("solver {sv} is listed twice")));

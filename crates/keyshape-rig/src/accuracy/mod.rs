@@ -139,8 +139,8 @@ impl Settings {
         if self.lead_in > 1_000_000 {
             return Err(bad("lead-in", self.lead_in as f64));
         }
+        keyshape_core::limits::NOISE_PX.check("noise", self.noise_px)?;
         for (what, v, hi) in [
-            ("noise (px)", self.noise_px, 1e3),
             ("inter-ocular distance (px)", self.iod_px, 1e6),
             ("yaw (°)", self.yaw_deg, 80.0),
             ("pitch (°)", self.pitch_deg, 80.0),

@@ -82,6 +82,7 @@ impl Shard {
         if count == 0 || index >= count {
             return Err(bad());
         }
+        keyshape_core::limits::SHARDS.check_count("shard", count as u64)?;
         Ok(Shard { index, count })
     }
 
@@ -105,6 +106,7 @@ impl Shard {
                     "auto: {how} gives shard {index} of {count}"
                 )))
             } else {
+                keyshape_core::limits::SHARDS.check_count("shard", count as u64)?;
                 Ok(Shard { index, count })
             }
         };

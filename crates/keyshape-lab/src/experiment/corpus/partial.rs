@@ -57,7 +57,7 @@ pub fn read_partial(dir: &Path) -> Result<Partial> {
 }
 
 /// The most shards of one run.
-pub const MAX_SHARDS: usize = 1_000_000;
+pub const MAX_SHARDS: usize = keyshape_core::limits::SHARDS.hi as usize;
 
 /// A partial report is an input like any other: its experiment passes the checks of an
 /// experiment file, its counts are bounded, and every value it carries is one a run can

@@ -1,0 +1,138 @@
+//! The ranges of numeric settings, declared once. A flag of the command line and the key
+//! of an experiment file that set the same thing check their value against the same
+//! [`Limit`], so neither accepts what the other refuses, and no value reaches an
+//! allocation or a loop sized by it unchecked (`strip = 2⁶¹` overflowed a capacity,
+//! `clean_sigma = 1e300` a kernel, `noise_px = 1e154` ran for minutes).
+
+use crate::error::{setting, Error, Result};
+
+/// A closed range `[lo, hi]` (or `(lo, hi]` when `lo_open`) in `unit`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Limit {
+    /// The smallest value.
+    pub lo: f64,
+    /// Whether `lo` itself is refused.
+    pub lo_open: bool,
+    /// The largest value.
+    pub hi: f64,
+    /// What the number counts, for the message.
+    pub unit: &'static str,
+}
+
+impl Limit {
+    /// `v` when it lies in the range; else an error naming the setting `name` (spelled
+    /// as the caller's flag or key), the value and the range.
+    pub fn check(&self, name: &str, v: f64) -> Result<f64> {
+        let above_lo = if self.lo_open {
+            v > self.lo
+        } else {
+            v >= self.lo
+        };
+        if v.is_finite() && above_lo && v <= self.hi {
+            return Ok(v);
+        }
+        Err(Error::invalid(format!("{} {}", setting(name), self.why(v))))
+    }
+
+    /// [`Limit::check`] for a count.
+    pub fn check_count(&self, name: &str, v: u64) -> Result<usize> {
+        let f = v as f64;
+        let above_lo = if self.lo_open {
+            f > self.lo
+        } else {
+            f >= self.lo
+        };
+        if above_lo && f <= self.hi {
+            return usize::try_from(v).map_err(|_| Error::invalid("count beyond this machine"));
+        }
+        Err(Error::invalid(format!(
+            "{} {}",
+            setting(name),
+            self.why_count(v)
+        )))
+    }
+
+    /// Why `v` is refused, without the setting's name (for a message that names it
+    /// already): "1e300: give 0 to 1000 pixels".
+    pub fn why(&self, v: f64) -> String {
+        let shown = if v.is_finite() && (v.abs() >= 1e9 || (v != 0.0 && v.abs() < 1e-4)) {
+            format!("{v:e}")
+        } else {
+            format!("{v}")
+        };
+        format!("{shown}: give {} {}", self.describe(), self.unit)
+    }
+
+    /// [`Limit::why`] for a count.
+    pub fn why_count(&self, v: u64) -> String {
+        format!("{v}: give {} {}", self.describe(), self.unit)
+    }
+
+    /// The range in words: "0 to 1000", "more than 0 and at most 1000".
+    pub fn describe(&self) -> String {
+        if self.lo_open {
+            format!("more than {} and at most {}", self.lo, self.hi)
+        } else {
+            format!("{} to {}", self.lo, self.hi)
+        }
+    }
+}
+
+/// Landmark noise σ of a rendered benchmark track (`rig-accuracy --noise`, `[rig]
+/// noise_px`).
+pub const NOISE_PX: Limit = Limit {
+    lo: 0.0,
+    lo_open: false,
+    hi: 1000.0,
+    unit: "pixels",
+};
+
+/// σ of the Gaussian low-pass that makes the smoothing study's clean reference
+/// (`smooth --clean-sigma`, `[smooth] clean_sigma`).
+pub const CLEAN_SIGMA: Limit = Limit {
+    lo: 0.0,
+    lo_open: true,
+    hi: 1000.0,
+    unit: "frames",
+};
+
+/// Frames in the retarget study's strip of worst frames (`[retarget] strip`).
+pub const STRIP_FRAMES: Limit = Limit {
+    lo: 0.0,
+    lo_open: false,
+    hi: 1000.0,
+    unit: "frames",
+};
+
+/// Shards of a corpus run (`run --shard i/n`, `merge`).
+pub const SHARDS: Limit = Limit {
+    lo: 1.0,
+    lo_open: false,
+    hi: 1_000_000.0,
+    unit: "shards",
+};
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_limit_takes_its_ends_and_refuses_what_lies_beyond_and_nan() {
+        assert_eq!(NOISE_PX.check("noise", 0.0).ok(), Some(0.0));
+        assert_eq!(NOISE_PX.check("noise", 1000.0).ok(), Some(1000.0));
+        for v in [-1.0, f64::NAN, 1e300, 2f64.powi(61), f64::INFINITY, 1000.5] {
+            assert!(NOISE_PX.check("noise", v).is_err(), "{v}");
+        }
+        assert!(CLEAN_SIGMA.check("clean_sigma", 0.0).is_err());
+        assert!(CLEAN_SIGMA.check("clean_sigma", 1e-9).is_ok());
+        assert!(SHARDS.check_count("shard", 0).is_err());
+        assert!(SHARDS.check_count("shard", 1 << 61).is_err());
+        assert_eq!(SHARDS.check_count("shard", 1_000_000).ok(), Some(1_000_000));
+        let e = STRIP_FRAMES
+            .check_count("strip", 1 << 61)
+            .map(|_| ())
+            .unwrap_err()
+            .to_string();
+        assert_eq!(e, "strip 2305843009213693952: give 0 to 1000 frames");
+    }
+}
