@@ -1000,7 +1000,28 @@ fn merge_refuses_a_partial_with_values_no_run_gives() {
         (field("rms", "-1"), "rms -1.0 is not a value a run gives"),
         (
             field("iod", "0"),
-            "inter-ocular distance 0.0 is not a value",
+            "inter-ocular distance 0.0 is not one a face has",
+        ),
+        // Round three: 1e-320 was accepted and made mean_rms_iod = inf in the summary.
+        (
+            field("iod", "1e-320"),
+            "inter-ocular distance 1e-320 is not one a face has",
+        ),
+        (
+            field("iod", "1e308"),
+            "inter-ocular distance 1e308 is not one a face has",
+        ),
+        (
+            good.replacen("\"frames\": 1008", "\"frames\": 1000000000000", 1),
+            "1000000000000 frames of 40 points is beyond what a run reads",
+        ),
+        (
+            good.replacen("\"points\": 40", "\"points\": 1000000000", 1),
+            "1008 frames of 1000000000 points is beyond what a run reads",
+        ),
+        (
+            good.replacen("\"frames\": 1008", "\"frames\": 1008, \"colour\": \"red\"", 1),
+            "unknown field `colour`",
         ),
         (
             good.replacen("\"frames\": 1008", "\"frames\": 0", 1),

@@ -28,6 +28,14 @@ pub struct Num(pub f64);
 
 impl Serialize for Num {
     fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        // No table carries a number a reader would refuse: a non-finite value is a bug
+        // upstream, stopped here before it reaches a file.
+        if !self.0.is_finite() {
+            return Err(serde::ser::Error::custom(format!(
+                "refusing to write the non-finite number {} into a table",
+                self.0
+            )));
+        }
         s.serialize_str(&fmt_num(self.0))
     }
 }

@@ -47,6 +47,7 @@ pub const PARTIAL_FILE: &str = "partial.json";
 
 /// One sequence of a corpus.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Unit {
     /// Its name in the report: the file's stem (its path relative to the experiment when
     /// two stems collide), `#clip` appended for a clip.
@@ -59,6 +60,7 @@ pub struct Unit {
 
 /// Shard `index` of `count` (`0 ≤ index < count`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Shard {
     /// This part, from 0.
     pub index: usize,
@@ -187,6 +189,7 @@ mod exact {
 
 /// One error-curve point of one sequence.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct CurvePoint {
     /// Method.
     pub method: String,
@@ -204,6 +207,7 @@ pub struct CurvePoint {
 
 /// One `[retarget]` row of one sequence.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct RetargetPoint {
     /// Solver.
     pub solver: String,
@@ -226,6 +230,7 @@ pub struct RetargetPoint {
 
 /// What one sequence of a corpus gave.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct UnitResult {
     /// The sequence.
     pub unit: Unit,
@@ -247,6 +252,7 @@ pub struct UnitResult {
 
 /// A shard's report: which experiment, which part, and its sequences' results.
 #[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Partial {
     /// [`PARTIAL_FORMAT`].
     pub format: u32,

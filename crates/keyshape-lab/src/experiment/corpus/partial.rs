@@ -56,6 +56,15 @@ pub fn read_partial(dir: &Path) -> Result<Partial> {
     Ok(p)
 }
 
+/// The most frames a partial's sequence may have: a 4 GiB input of 40-byte rows.
+const MAX_FRAMES: usize = 100_000_000;
+/// The most points a partial's sequence may have.
+const MAX_POINTS: usize = 100_000;
+/// The range of inter-ocular distances a partial may carry: normalised coordinates of a
+/// tiny face to pixels of a huge image. Below it every error divided by it overflows.
+const MIN_IOD: f64 = 1e-6;
+const MAX_IOD: f64 = 1e7;
+
 /// The most shards of one run.
 pub const MAX_SHARDS: usize = keyshape_core::limits::SHARDS.hi as usize;
 
@@ -102,8 +111,20 @@ fn check_partial(p: &Partial) -> std::result::Result<(), String> {
                 r.unit.name, r.frames, r.points
             ));
         }
-        if !(r.iod.is_finite() && r.iod > 0.0) {
-            return Err(at("inter-ocular distance", r.iod));
+        // What a run can read: the readers' byte limit bounds the frames, a tracker's
+        // layout the points (MediaPipe's 478 is the largest known; dense rigs stay far
+        // below the bound), a face's eye distance in pixels or normalised coordinates.
+        if r.frames > MAX_FRAMES || r.points > MAX_POINTS {
+            return Err(format!(
+                "sequence {}: {} frames of {} points is beyond what a run reads (at most {MAX_FRAMES} frames of {MAX_POINTS} points)",
+                r.unit.name, r.frames, r.points
+            ));
+        }
+        if !(r.iod.is_finite() && (MIN_IOD..=MAX_IOD).contains(&r.iod)) {
+            return Err(format!(
+                "sequence {}: inter-ocular distance {:?} is not one a face has (give {MIN_IOD:e} to {MAX_IOD:e})",
+                r.unit.name, r.iod
+            ));
         }
         nonneg("seconds", r.seconds)?;
         for (i, c) in r.curves.iter().enumerate() {
