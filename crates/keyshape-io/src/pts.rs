@@ -16,7 +16,7 @@ fn parse(path: &Path, text: &str) -> Result<Vec<f64>> {
     for (i, raw) in text.lines().enumerate() {
         let line_no = i as u64 + 1;
         let line = raw.trim();
-        if line.is_empty() || closed {
+        if line.is_empty() {
             continue;
         }
         if !in_body {
@@ -41,6 +41,14 @@ fn parse(path: &Path, text: &str) -> Result<Vec<f64>> {
                 ));
             }
             continue;
+        }
+        if closed {
+            return Err(Error::parse(
+                path,
+                line_no,
+                1,
+                format!("'{line}' after the closing '}}': a .pts file ends there"),
+            ));
         }
         if line == "}" {
             closed = true;

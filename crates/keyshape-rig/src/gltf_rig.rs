@@ -3,6 +3,7 @@
 
 use super::{read_landmark_vertices, Rig};
 use keyshape_core::error::{Error, Result};
+use keyshape_core::sequence::coord_problem;
 use keyshape_io::morph::MorphTargets;
 use std::path::Path;
 
@@ -37,15 +38,7 @@ pub fn read_gltf_mesh(path: &Path) -> Result<(keyshape_io::obj::Mesh, MorphTarge
         .meshes()
         .find(|m| m.primitives().any(|p| p.morph_targets().len() > 0))
         .ok_or_else(|| Error::file(path, "no mesh with morph targets"))?;
-    let names_json: Option<Vec<String>> = mesh.extras().as_ref().and_then(|raw| {
-        serde_json::from_str::<serde_json::Value>(raw.get())
-            .ok()?
-            .get("targetNames")?
-            .as_array()?
-            .iter()
-            .map(|v| v.as_str().map(String::from))
-            .collect()
-    });
+    let names_json = target_names(path, mesh.extras().as_ref().map(|r| r.get()))?;
     let mut positions: Vec<[f64; 3]> = Vec::new();
     let mut faces: Vec<Vec<usize>> = Vec::new();
     let mut deltas: Vec<Vec<(usize, [f64; 3])>> = Vec::new();
@@ -73,9 +66,24 @@ pub fn read_gltf_mesh(path: &Path) -> Result<(keyshape_io::obj::Mesh, MorphTarge
             Error::file(path, format!("primitive {pi} has no POSITION attribute"))
         })?;
         check(&pos_acc, "POSITION")?;
+        check_sparse(path, pi, &pos_acc)?;
         for (t, target) in prim.morph_targets().enumerate() {
             if let Some(acc) = target.positions() {
                 check(&acc, &format!("morph target {t}'s POSITION"))?;
+                check_sparse(path, pi, &acc)?;
+                // A target of another length would move the first vertices only and freeze
+                // the rest of the shape, silently.
+                if acc.count() != pos_acc.count() {
+                    return Err(Error::file(
+                        path,
+                        format!(
+                            "primitive {pi}: morph target {t}'s POSITION accessor {} has {} entries, the mesh {} vertices (glTF 2.0 §3.7.2.2: a target has one offset per vertex)",
+                            acc.index(),
+                            acc.count(),
+                            pos_acc.count()
+                        ),
+                    ));
+                }
             }
         }
         let reader = prim.reader(|b| data.get(b.index()).map(Vec::as_slice));
@@ -95,6 +103,16 @@ pub fn read_gltf_mesh(path: &Path) -> Result<(keyshape_io::obj::Mesh, MorphTarge
         positions.extend(pos.iter().map(|p| p.map(f64::from)));
         if let Some(idx) = reader.read_indices() {
             let idx: Vec<usize> = idx.into_u32().map(|i| i as usize + base).collect();
+            if let Some(&bad) = idx.iter().find(|&&i| i >= base + pos.len()) {
+                return Err(Error::file(
+                    path,
+                    format!(
+                        "primitive {pi}: a triangle names vertex {} of {}",
+                        bad - base,
+                        pos.len()
+                    ),
+                ));
+            }
             faces.extend(
                 idx.chunks(3)
                     .filter(|c| c.len() == 3)
@@ -136,24 +154,20 @@ pub fn read_gltf_mesh(path: &Path) -> Result<(keyshape_io::obj::Mesh, MorphTarge
         keyshape_io::morph::check_name(n, &names[..i])
             .map_err(|m| Error::file(path, format!("mesh.extras.targetNames: {m}")))?;
     }
-    if let Some((i, p)) = positions
+    // Positions and offsets within the coordinates every reader accepts (±1e30).
+    let problem = |p: &[f64; 3]| p.iter().find_map(|&c| coord_problem(c));
+    if let Some((i, why)) = positions
         .iter()
         .enumerate()
-        .find(|(_, p)| p.iter().any(|c| !c.is_finite()))
+        .find_map(|(i, p)| problem(p).map(|w| (i, w)))
     {
-        return Err(Error::file(
-            path,
-            format!("vertex {i} has a non-finite position {p:?}"),
-        ));
+        return Err(Error::file(path, format!("vertex {i}: {why}")));
     }
     for (s, d) in deltas.iter().enumerate() {
-        if let Some((v, _)) = d.iter().find(|(_, o)| o.iter().any(|c| !c.is_finite())) {
+        if let Some((v, why)) = d.iter().find_map(|(v, o)| problem(o).map(|w| (*v, w))) {
             return Err(Error::file(
                 path,
-                format!(
-                    "morph target {} moves vertex {v} by a non-finite offset",
-                    names[s]
-                ),
+                format!("morph target {} moves vertex {v}: {why}", names[s]),
             ));
         }
     }
@@ -161,6 +175,53 @@ pub fn read_gltf_mesh(path: &Path) -> Result<(keyshape_io::obj::Mesh, MorphTarge
         keyshape_io::obj::Mesh { positions, faces },
         MorphTargets { names, deltas },
     ))
+}
+
+/// `mesh.extras.targetNames`, when the extras hold it: an array of strings, else an error
+/// naming the entry that is not one (a number among them made every name `target<i>`).
+fn target_names(path: &Path, extras: Option<&str>) -> Result<Option<Vec<String>>> {
+    let Some(raw) = extras else {
+        return Ok(None);
+    };
+    let v: serde_json::Value = serde_json::from_str(raw)
+        .map_err(|e| Error::file(path, format!("mesh.extras is not JSON: {e}")))?;
+    let Some(names) = v.get("targetNames") else {
+        return Ok(None);
+    };
+    let list = names.as_array().ok_or_else(|| {
+        Error::file(path, "mesh.extras.targetNames is not an array of names")
+    })?;
+    list.iter()
+        .enumerate()
+        .map(|(i, n)| {
+            n.as_str().map(String::from).ok_or_else(|| {
+                Error::file(
+                    path,
+                    format!("mesh.extras.targetNames[{i}] is {n}, not a name (a string)"),
+                )
+            })
+        })
+        .collect::<Result<Vec<_>>>()
+        .map(Some)
+}
+
+/// A sparse accessor may replace at most as many entries as the accessor has (a count of
+/// 2⁴⁰ was accepted, to be read for ever or to run out of memory).
+fn check_sparse(path: &Path, pi: usize, acc: &gltf::Accessor) -> Result<()> {
+    if let Some(sp) = acc.sparse() {
+        if sp.count() > acc.count() {
+            return Err(Error::file(
+                path,
+                format!(
+                    "primitive {pi}: accessor {} replaces {} sparse entries of its {} (glTF 2.0 §3.6.2.3: at most as many as it has)",
+                    acc.index(),
+                    sp.count(),
+                    acc.count()
+                ),
+            ));
+        }
+    }
+    Ok(())
 }
 
 impl Rig {
