@@ -47,6 +47,8 @@ const CASES: &[Case] = &[
     Case { name: "JSON wrong coordinate count", files: &[("c.json", r#"{"kslab_sequence":1,"dims":2,"points":2,"frames":[{"frame":0,"coords":[1,2,3]}]}"#)], args: &["info", "{d}/c.json"], code: 1, needle: "c.json: frames[0] (frame 0) has 3 coords", absent: &[] },
     Case { name: ".pts without closing brace", files: &[("a.pts", "version: 1\nn_points: 2\n{\n1 2\n3 4\n")], args: &["info", "{d}/a.pts"], code: 1, needle: "a.pts", absent: &[] },
     Case { name: ".pts with data after the closing brace (was accepted)", files: &[("b.pts", "version: 1\nn_points: 2\n{\n1 2\n3 4\n}\n5 6\n")], args: &["info", "{d}/b.pts"], code: 1, needle: "b.pts:7:1: '5 6' after the closing '}': a .pts file ends there", absent: &[] },
+    Case { name: "an OBJ vertex at 1e308 (was refused later, by a camera fit, without the file)", files: &[("big.obj", "v 1e308 0 0\nv 0 1 0\nv 1 0 0\nf 1 2 3\n")], args: &["transfer", "--mesh", "{d}/big.obj"], code: 1, needle: "big.obj:1:3: coordinate 1e308 is beyond ±1e30", absent: &[] },
+    Case { name: "a face offset by 1e15 (was: all points coincide)", files: &[("off.csv", "frame,x0,y0,x1,y1,x2,y2\n0,1e15,1e15,1000000000000050,1e15,1e15,1000000000000050\n1,1e15,1e15,1000000000000060,1e15,1e15,1000000000000050\n")], args: &["keys", "{d}/off.csv", "--method", "spread", "--k", "1"], code: 1, needle: "off.csv: frame 0: the 3 points spread over", absent: &[] },
     Case { name: "directory without .pts", files: &[("dir/readme.txt", "x")], args: &["info", "{d}/dir"], code: 1, needle: "dir: directory holds no .pts files", absent: &[] },
     Case { name: "a device as input", files: &[], args: &["info", "/dev/zero"], code: 1, needle: "/dev/zero: is not a regular file", absent: &[] },
     Case { name: "template naming a point it lacks (found by fuzzing)", files: &[("bad.svg", r#"<svg xmlns="http://www.w3.org/2000/svg"><desc id="kslab-template">{"points":2,"polylines":[[0,5]],"rest":false}</desc><g id="key-0"><polyline id="key-0-c0" points="0,0 1,1"/></g></svg>"#)], args: &["retarget", "--points", "lips", "--target", "{d}/bad.svg"], code: 1, needle: "bad.svg: template description is damaged: a contour names point 5, but the template has 2 points", absent: &[] },
@@ -400,6 +402,8 @@ fn a_full_standard_output_is_an_error() {
     for args in [
         &["info"][..],
         &["keys", "--method", "spread", "--k", "3", "--json"][..],
+        // Round three: the data on standard output named "<standard output>".
+        &["solve", "--keys", "3", "--out", "-"][..],
     ] {
         let full = std::fs::OpenOptions::new()
             .write(true)

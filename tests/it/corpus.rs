@@ -1020,7 +1020,11 @@ fn merge_refuses_a_partial_with_values_no_run_gives() {
             "1008 frames of 1000000000 points is beyond what a run reads",
         ),
         (
-            good.replacen("\"frames\": 1008", "\"frames\": 1008, \"colour\": \"red\"", 1),
+            good.replacen(
+                "\"frames\": 1008",
+                "\"frames\": 1008, \"colour\": \"red\"",
+                1,
+            ),
             "unknown field `colour`",
         ),
         (

@@ -53,6 +53,11 @@ pub fn parse_obj(path: &Path, text: &str) -> Result<Mesh> {
                             format!("non-finite coordinate '{tok}'"),
                         ));
                     }
+                    // The limit every reader keeps: a 1e308 vertex was read, to fail later
+                    // in a camera fit that could not name the file.
+                    if let Some(why) = keyshape_core::sequence::coord_problem(v) {
+                        return Err(Error::parse(path, line_no, col_of(tok), why));
+                    }
                     *slot = v;
                 }
                 positions.push(p);

@@ -212,7 +212,7 @@ pub fn stream_solve(
             if opts.align && keyshape_core::sequence::degenerate_shape(r.coords, dims) {
                 return Err(Error::file(
                     &src,
-                    keyshape_core::sequence::degenerate_message(r.frame, r.coords.len() / dims),
+                    keyshape_core::sequence::degenerate_message(r.frame, r.coords, dims),
                 ));
             }
             for (slot, k) in key_cols.iter_mut().zip(&opts.keys) {

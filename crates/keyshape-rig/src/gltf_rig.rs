@@ -188,9 +188,9 @@ fn target_names(path: &Path, extras: Option<&str>) -> Result<Option<Vec<String>>
     let Some(names) = v.get("targetNames") else {
         return Ok(None);
     };
-    let list = names.as_array().ok_or_else(|| {
-        Error::file(path, "mesh.extras.targetNames is not an array of names")
-    })?;
+    let list = names
+        .as_array()
+        .ok_or_else(|| Error::file(path, "mesh.extras.targetNames is not an array of names"))?;
     list.iter()
         .enumerate()
         .map(|(i, n)| {

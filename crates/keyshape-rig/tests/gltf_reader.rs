@@ -85,7 +85,8 @@ fn a_morph_target_shorter_than_its_mesh_is_refused() {
     });
     let e = read(d.path(), "short.glb", &bytes).unwrap_err();
     assert!(
-        e.contains("short.glb: primitive 0: morph target 1's POSITION accessor") && e.contains("has 1 entries, the mesh 3 vertices"),
+        e.contains("short.glb: primitive 0: morph target 1's POSITION accessor")
+            && e.contains("has 1 entries, the mesh 3 vertices"),
         "{e}"
     );
 }
@@ -102,7 +103,10 @@ fn a_sparse_accessor_replacing_more_entries_than_it_has_is_refused() {
         });
     });
     let e = read(d.path(), "sparse.glb", &bytes).unwrap_err();
-    assert!(e.contains("replaces 1099511627776 sparse entries of its 3"), "{e}");
+    assert!(
+        e.contains("replaces 1099511627776 sparse entries of its 3"),
+        "{e}"
+    );
 }
 
 #[test]
@@ -112,12 +116,18 @@ fn a_target_name_that_is_not_a_string_is_refused() {
         j["meshes"][0]["extras"]["targetNames"][1] = 5.into();
     });
     let e = read(d.path(), "names.glb", &bytes).unwrap_err();
-    assert!(e.contains("mesh.extras.targetNames[1] is 5, not a name"), "{e}");
+    assert!(
+        e.contains("mesh.extras.targetNames[1] is 5, not a name"),
+        "{e}"
+    );
 }
 
 #[test]
 fn a_vertex_beyond_the_coordinate_limit_is_refused() {
     let d = tempfile::tempdir().unwrap();
     let e = read(d.path(), "far.glb", &glb([3e38, 0.0, 0.0])).unwrap_err();
-    assert!(e.contains("far.glb: vertex 0: coordinate 3") && e.contains("is beyond ±1e30"), "{e}");
+    assert!(
+        e.contains("far.glb: vertex 0: coordinate 3") && e.contains("is beyond ±1e30"),
+        "{e}"
+    );
 }

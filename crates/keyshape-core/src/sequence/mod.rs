@@ -105,11 +105,43 @@ pub struct Sequence {
     pub failed: Vec<i64>,
 }
 
-/// The message for a degenerate frame, the same from every path (see [`degenerate_shape`]).
-pub fn degenerate_message(frame: i64, points: usize) -> String {
-    format!(
-        "frame {frame}: all {points} points coincide, so no shape or camera can be fitted to it (drop the frame, or mark it untracked)"
-    )
+/// The message for a degenerate frame, the same from every path (see [`degenerate_shape`]):
+/// points that coincide, or points whose spread is lost next to their distance from the
+/// origin (a face offset by 1e15), which is the file's offset, not the face.
+pub fn degenerate_message(frame: i64, shape: &[f64], dims: usize) -> String {
+    let points = shape.len() / dims.max(1);
+    let (spread, size) = spread_and_size(shape, dims);
+    if spread >= MIN_SPREAD && spread > 0.0 {
+        format!(
+            "frame {frame}: the {points} points spread over {spread:.3e} but lie {size:.3e} from the origin, beyond what 64-bit numbers resolve (a spread of at least 1e-12 of it): subtract the offset from the coordinates"
+        )
+    } else {
+        format!(
+            "frame {frame}: all {points} points coincide, so no shape or camera can be fitted to it (drop the frame, or mark it untracked)"
+        )
+    }
+}
+
+/// (The largest distance of a coordinate from its centroid, the largest |centroid|.)
+fn spread_and_size(shape: &[f64], dims: usize) -> (f64, f64) {
+    let n = shape.len() / dims.max(1);
+    if n == 0 {
+        return (0.0, 0.0);
+    }
+    let mut c = [0.0f64; 3];
+    for p in shape.chunks(dims) {
+        for (ci, v) in c.iter_mut().zip(p) {
+            *ci += v / n as f64;
+        }
+    }
+    let (mut spread, mut size) = (0.0f64, 0.0f64);
+    for p in shape.chunks(dims) {
+        for (ci, v) in c.iter().zip(p) {
+            spread = spread.max((v - ci).abs());
+            size = size.max(ci.abs());
+        }
+    }
+    (spread, size)
 }
 
 /// The most coordinates one frame may hold (dims × points): far above any tracker's
@@ -146,23 +178,10 @@ pub const MIN_SPREAD: f64 = 1e-100;
 /// spread below [`MIN_SPREAD`])? Such a frame is refused by every path that fits a shape or
 /// a camera to it (alignment, the rig's camera), through [`Sequence::check_geometry`].
 pub fn degenerate_shape(shape: &[f64], dims: usize) -> bool {
-    let n = shape.len() / dims.max(1);
-    if n == 0 {
+    if shape.len() / dims.max(1) == 0 {
         return true;
     }
-    let mut c = [0.0f64; 3];
-    for p in shape.chunks(dims) {
-        for (ci, v) in c.iter_mut().zip(p) {
-            *ci += v / n as f64;
-        }
-    }
-    let (mut spread, mut size) = (0.0f64, 0.0f64);
-    for p in shape.chunks(dims) {
-        for (ci, v) in c.iter().zip(p) {
-            spread = spread.max((v - ci).abs());
-            size = size.max(ci.abs());
-        }
-    }
+    let (spread, size) = spread_and_size(shape, dims);
     !(spread >= MIN_SPREAD && spread > 1e-12 * size)
 }
 
@@ -176,7 +195,7 @@ impl Sequence {
             if degenerate_shape(col.as_slice(), self.dims) {
                 return Err(Error::file(
                     &self.source,
-                    degenerate_message(self.frames[c], self.points),
+                    degenerate_message(self.frames[c], col.as_slice(), self.dims),
                 ));
             }
         }

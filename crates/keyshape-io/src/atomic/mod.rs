@@ -76,7 +76,7 @@ where
             let mut out = std::io::stdout().lock();
             fill(&mut out)
                 .and_then(|()| out.flush())
-                .map_err(|e| Error::io("<standard output>", e))
+                .map_err(|e| Error::io("writing to standard output", e))
         }
         Target::Null => {
             let file = std::fs::OpenOptions::new()
