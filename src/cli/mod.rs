@@ -5,7 +5,7 @@
 macro_rules! outln {
     ($($t:tt)*) => {{
         use std::io::Write as _;
-        writeln!(std::io::stdout().lock(), $($t)*)
+        $crate::cli::progress::suspend(|| writeln!(std::io::stdout().lock(), $($t)*))
             .map_err(|e| anyhow::Error::new(e).context("writing to standard output"))?;
     }};
 }
@@ -15,7 +15,7 @@ macro_rules! outln {
 macro_rules! sayln {
     ($taken:expr, $($t:tt)*) => {{
         if $taken {
-            eprintln!($($t)*);
+            $crate::cli::progress::suspend(|| eprintln!($($t)*));
         } else {
             outln!($($t)*);
         }

@@ -8,6 +8,20 @@ use std::time::Duration;
 
 static QUIET: AtomicBool = AtomicBool::new(false);
 
+/// The bar on screen, if any: lines printed while it is drawn go through
+/// [`suspend`], so that no spinner is left between them (map's stayed on screen).
+static CURRENT: std::sync::Mutex<Option<(u64, ProgressBar)>> = std::sync::Mutex::new(None);
+static NEXT_ID: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+
+/// Runs `f` (which prints) with the current bar, if any, taken off the screen meanwhile.
+pub fn suspend<T>(f: impl FnOnce() -> T) -> T {
+    let bar = CURRENT.lock().ok().and_then(|g| g.as_ref().map(|c| c.1.clone()));
+    match bar {
+        Some(b) => b.suspend(f),
+        None => f(),
+    }
+}
+
 /// `--quiet`: no progress bar anywhere.
 pub fn set_quiet(quiet: bool) {
     QUIET.store(quiet, Ordering::SeqCst);
@@ -17,6 +31,7 @@ pub struct Progress {
     bar: ProgressBar,
     done: Arc<AtomicBool>,
     counting: AtomicBool,
+    id: u64,
 }
 
 /// While a step's size is unknown: its name, a spinner and the time so far — no `0/0` bar.
@@ -35,8 +50,12 @@ impl Progress {
             bar,
             done,
             counting: AtomicBool::new(false),
+            id: NEXT_ID.fetch_add(1, Ordering::SeqCst),
         };
         p.style(UNSIZED);
+        if let Ok(mut g) = CURRENT.lock() {
+            *g = Some((p.id, p.bar.clone()));
+        }
         if !quiet {
             let (bar, done) = (p.bar.clone(), p.done.clone());
             std::thread::spawn(move || {
@@ -86,6 +105,11 @@ impl Progress {
     pub fn finish(&self) {
         self.done.store(true, Ordering::SeqCst);
         self.bar.finish_and_clear();
+        if let Ok(mut g) = CURRENT.lock() {
+            if g.as_ref().is_some_and(|c| c.0 == self.id) {
+                *g = None;
+            }
+        }
     }
 }
 

@@ -161,7 +161,11 @@ pub fn run(a: &RigAccuracyArgs) -> Result<()> {
         ..Default::default()
     };
     let mut all: Vec<(Kind, Vec<ShapeAccuracy>, Summary)> = Vec::new();
-    for kind in kinds {
+    let progress = super::progress::Progress::new("rig-accuracy");
+    progress.units("performances rendered and solved");
+    let total = kinds.len();
+    for (i, kind) in kinds.into_iter().enumerate() {
+        progress.tick(i, total);
         let st = Settings {
             kind,
             frames: a.frames,

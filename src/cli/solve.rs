@@ -88,7 +88,8 @@ pub fn run(a: &SolveArgs) -> Result<()> {
     let out = a.out.as_ref().or((!a.json).then_some(&stdout));
     super::check_outputs(&[out, a.png.as_ref()], &[], &[a.input.file.as_deref()])?;
     super::check_json_stdout(a.json, a.out.as_ref())?;
-    if a.choice.keys.is_empty() && a.choice.method.is_none() {
+    // `--k` alone chooses by the default method (spread), as the help says.
+    if a.choice.keys.is_empty() && a.choice.method.is_none() && a.choice.k.is_none() {
         anyhow::bail!("name the key frames: --keys 3,17,42, or --method spread --k 12 (as `kslab keys` chooses them)");
     }
     a.heuristic.check(&a.choice.methods(), a.solver)?;

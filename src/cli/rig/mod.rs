@@ -187,6 +187,7 @@ pub fn run(a: &RigArgs) -> Result<()> {
     if a.identity == Identity::None && a.neutral.is_some() {
         anyhow::bail!("--neutral does not apply with --identity none: no neutral frame is used");
     }
+    let progress = super::progress::Progress::new("rig: reading");
     let name = a
         .file
         .as_ref()
@@ -307,8 +308,11 @@ pub fn run(a: &RigArgs) -> Result<()> {
     } else {
         Vec::new()
     };
+    progress.step("rig: solving");
     let r = solve_rig(&rig, &seq.coords, &clips, &opts)?;
-    let taken = output::write_all(a, &seq, &rig, &r, &mesh, &morph)?;
+    progress.step("rig: writing");
+    let taken = output::write_all(a, &seq, &rig, &r, &mesh, &morph, &progress)?;
+    progress.finish();
     let frozen: Vec<&str> = r
         .shapes
         .iter()

@@ -20,6 +20,7 @@ pub(super) fn write_all(
     r: &RigSolve,
     mesh: &Mesh,
     morph: &MorphTargets,
+    progress: &super::super::progress::Progress,
 ) -> Result<bool> {
     let taken = super::super::is_stdout(a.out.as_ref()) || (a.out.is_none() && !a.json);
     match &a.out {
@@ -57,7 +58,9 @@ pub(super) fn write_all(
         morph.write_used_glb(p, mesh, &r.weights, seq.fps().unwrap_or(30.0), Some(&q))?;
     }
     if let Some(dir) = &a.png_dir {
-        write_pngs(dir, seq, rig, r, mesh, morph)?;
+        progress.step("rig: pictures");
+        progress.units("frames");
+        write_pngs(dir, seq, rig, r, mesh, morph, &|f, n| progress.tick(f, n))?;
     }
     Ok(taken)
 }
@@ -117,6 +120,7 @@ fn write_pngs(
     r: &RigSolve,
     mesh: &Mesh,
     morph: &MorphTargets,
+    tick: &dyn Fn(usize, usize),
 ) -> Result<()> {
     use keyshape_lab::render::face::{bounds_of, col, render_panels, Layer, Panel, ShadedMesh};
     let lines = rig.polylines();
@@ -158,6 +162,7 @@ fn write_pngs(
     let mut posed = mesh.positions.clone();
     keyshape_io::create_dir_all(dir)?;
     for f in 0..n {
+        tick(f, n);
         let [y, p, ro] = r.cameras[f].yaw_pitch_roll();
         morph.blend(&mesh.positions, r.weights.column(f).as_slice(), &mut posed);
         let top = match keyshape_rig::largest_weights(&rig.names, r.weights.column(f).as_slice(), 2)
