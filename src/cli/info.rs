@@ -57,6 +57,7 @@ pub fn run(a: &InfoArgs) -> Result<()> {
             "selected_points": selected,
             "dims": seq.dims,
             "normalised": seq.is_normalised(),
+            "image_size": a.input.image_size.map(|(w, h)| json!([w, h])),
             "layout": layout.as_ref().map(|l| l.name.clone()),
             "groups": layout.as_ref().map(|l| l.names()),
             "fps": seq.fps(),
@@ -93,7 +94,9 @@ pub fn run(a: &InfoArgs) -> Result<()> {
             .unwrap_or_default()
     );
     outln!("dims           {}", seq.dims);
-    if seq.is_normalised() {
+    if let Some((w, h)) = a.input.image_size {
+        outln!("coordinates    pixels: normalised coordinates scaled by --image-size {w}x{h} (x × {w}, y × {h})");
+    } else if seq.is_normalised() {
         outln!("coordinates    normalised: every x and y in [0, 1] (MediaPipe's default; --image-size WxH for pixels)");
     }
     match &layout {

@@ -90,6 +90,16 @@ impl InputArgs {
         Ok(prepare_owned(seq, &self.prepare_options())?)
     }
 
+    /// Prepares a sequence already read by [`InputArgs::read`].
+    pub fn prepare_read(&self, seq: &Sequence) -> Result<Prepared> {
+        Ok(prepare(seq, &self.prepare_options())?)
+    }
+
+    /// [`InputArgs::prepare_read`] in place (a long track held once).
+    pub fn prepare_owned_read(&self, seq: Sequence) -> Result<Prepared> {
+        Ok(prepare_owned(seq, &self.prepare_options())?)
+    }
+
     fn prepare_options(&self) -> PrepareOptions {
         PrepareOptions {
             points: self.points.clone(),

@@ -15,7 +15,10 @@ static NEXT_ID: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new
 
 /// Runs `f` (which prints) with the current bar, if any, taken off the screen meanwhile.
 pub fn suspend<T>(f: impl FnOnce() -> T) -> T {
-    let bar = CURRENT.lock().ok().and_then(|g| g.as_ref().map(|c| c.1.clone()));
+    let bar = CURRENT
+        .lock()
+        .ok()
+        .and_then(|g| g.as_ref().map(|c| c.1.clone()));
     match bar {
         Some(b) => b.suspend(f),
         None => f(),

@@ -7,6 +7,7 @@ use clap::Args;
 use keyshape_core::decompose::Prepared;
 use keyshape_core::sequence::Sequence;
 use keyshape_core::solve::Solver;
+use keyshape_core::stats::sig;
 use keyshape_io::csv_out::{pose_cells, write_records, POSE_COLUMNS};
 use keyshape_io::{fmt_num, write_atomic};
 use keyshape_lab::render::face::{bounds_of, col, render_frame, FrameShapes};
@@ -511,6 +512,12 @@ fn pictures(
 ) -> Result<()> {
     let s = &prep.seq;
     let dims = s.dims;
+    // Errors of a normalised track are fractions of the image, not pixels: say so.
+    let unit = if seq.is_normalised() {
+        " (0–1 units)"
+    } else {
+        " px"
+    };
     // The tracked points as the recon is drawn: in the file's coordinates with head
     // motion, else aligned.
     let tracked = match (head, &prep.head) {
@@ -556,15 +563,15 @@ fn pictures(
         // truth, when there is one).
         let target_err = r.target_sq.as_ref().map_or(String::new(), |e| {
             format!(
-                "   target RMS {:.2}",
-                (e[t] / r.target_points.max(1) as f64).sqrt()
+                "   target RMS {}",
+                sig((e[t] / r.target_points.max(1) as f64).sqrt(), 3)
             )
         });
         let caption = format!(
-            "frame {}   {}   source RMS {:.2}{target_err}",
+            "frame {}   {}   source RMS {}{unit}{target_err}",
             s.frames[t],
             a.solver,
-            (r.source_sq[t] / r.points as f64).sqrt()
+            sig((r.source_sq[t] / r.points as f64).sqrt(), 3)
         );
         render_frame(&shapes, &caption, 360)
     };

@@ -23,14 +23,10 @@ pub struct SmoothArgs {
     #[arg(long, default_value = "nnls")]
     solver: Solver,
     /// λ values of the temporal prior (offline order 1 and 2, causal order 1), in squared
-    /// coordinate units (px²) per unit of weight change.
-    #[arg(
-        long,
-        value_delimiter = ',',
-        default_value = "10,100,1000,10000,100000",
-        allow_negative_numbers = true
-    )]
-    lambdas: Vec<f64>,
+    /// coordinate units (px²) per unit of weight change [default: 10,100,1000,10000,100000;
+    /// a track in normalised coordinates needs --image-size or a grid of its own].
+    #[arg(long, value_delimiter = ',', allow_negative_numbers = true)]
+    lambdas: Option<Vec<f64>>,
     /// Post-filter families compared with the prior: moving-average, ema, one-euro.
     #[arg(
         long,
@@ -59,13 +55,27 @@ pub struct SmoothArgs {
     out: PathBuf,
 }
 
+/// The λ grid in px² when none is given.
+const DEFAULT_LAMBDAS: [f64; 5] = [10.0, 100.0, 1000.0, 10000.0, 100000.0];
+
 pub fn run(a: &SmoothArgs) -> Result<()> {
     super::check_outputs(&[], &[Some(&a.out)], &[a.input.file.as_deref()])?;
+    let seq = a.input.read()?;
+    let lambdas = match &a.lambdas {
+        Some(l) => l.clone(),
+        // A grid in px² on coordinates that are fractions of the image weighs the prior
+        // some 10⁶ times too much: the solves do not settle, or smooth everything away.
+        None if seq.is_normalised() => anyhow::bail!(
+            "{}: the track is in normalised coordinates (every x and y in [0, 1]) and the default λ grid is in px²: give --image-size WIDTHxHEIGHT (the video's size) to work in pixels, or a grid for this scale with --lambdas (the px² grid divided by the squared image width, e.g. 1e-5,1e-4,1e-3,1e-2,1e-1 for a 1000-px video)",
+            seq.source
+        ),
+        None => DEFAULT_LAMBDAS.to_vec(),
+    };
     let st = SmoothStudySettings {
         method: a.method,
         k: a.k,
         solver: a.solver,
-        lambdas: a.lambdas.clone(),
+        lambdas,
         filters: a.filters.clone(),
         windows: a.windows.clone(),
         alphas: a.alphas.clone(),
@@ -78,10 +88,10 @@ pub fn run(a: &SmoothArgs) -> Result<()> {
     // The raw track only for a point subset (the built-in target is made from the whole
     // face); otherwise it is aligned in place and held once.
     let (raw, mut prep) = if a.input.points.is_some() {
-        let (seq, prep) = a.input.prepare()?;
+        let prep = a.input.prepare_read(&seq)?;
         (Some(seq), prep)
     } else {
-        let mut prep = a.input.prepare_only()?;
+        let mut prep = a.input.prepare_owned_read(seq)?;
         // The removed head motion is not part of the study (five values a frame).
         prep.head = None;
         (None, prep)

@@ -67,3 +67,34 @@ pub fn lag(a: &DMatrix<f64>, b: &DMatrix<f64>, segs: &[Range<usize>], max: i64) 
     }
     best.1
 }
+
+/// `v` with `digits` significant digits, never in exponent form for the sizes an error
+/// takes (1.05, 0.00123, 123): an error in normalised coordinates (0.0012) must not read
+/// 0.00 under a fixed two decimals.
+pub fn sig(v: f64, digits: usize) -> String {
+    if !v.is_finite() || v == 0.0 {
+        return format!("{v}");
+    }
+    let mag = v.abs().log10().floor() as i32;
+    let decimals = (digits as i32 - 1 - mag).max(0) as usize;
+    if mag < -6 || mag > 15 {
+        return format!("{v:.*e}", digits.saturating_sub(1));
+    }
+    format!("{v:.decimals$}")
+}
+
+#[cfg(test)]
+mod sig_tests {
+    use super::sig;
+
+    #[test]
+    fn three_significant_digits_at_every_scale() {
+        assert_eq!(sig(1.0512, 3), "1.05");
+        assert_eq!(sig(0.0012345, 3), "0.00123");
+        assert_eq!(sig(123.456, 3), "123");
+        assert_eq!(sig(12345.6, 3), "12346");
+        assert_eq!(sig(-0.5, 2), "-0.50");
+        assert_eq!(sig(0.0, 3), "0");
+        assert_eq!(sig(1.5e-9, 3), "1.50e-9");
+    }
+}

@@ -146,11 +146,10 @@ pub(super) fn error_chart(f: &mut Frame, s: &State, area: Rect) {
                 .bounds([2.0, xmax])
                 .labels(vec![Line::from("2"), Line::from(format!("{xmax:.0}"))]),
         )
-        .y_axis(
-            Axis::default()
-                .bounds([0.0, ymax])
-                .labels(vec![Line::from("0"), Line::from(format!("{ymax:.1}"))]),
-        )
+        .y_axis(Axis::default().bounds([0.0, ymax]).labels(vec![
+            Line::from("0"),
+            Line::from(keyshape_core::stats::sig(ymax, 2)),
+        ]))
         .legend_position(None);
     f.render_widget(chart, area);
 }

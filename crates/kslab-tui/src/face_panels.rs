@@ -69,7 +69,7 @@ pub(super) fn face_panels(f: &mut Frame, s: &State, c: &Computed, area: Rect) {
     let trms = main
         .frame_target_rms
         .get(t)
-        .map_or("n/a".to_string(), |v| format!("{v:.2}"));
+        .map_or("n/a".to_string(), |v| keyshape_core::stats::sig(*v, 3));
     if s.split {
         let (Some(ls), Some(nn)) = (c.view(Solver::Ls), c.view(Solver::Nnls)) else {
             f.render_widget(
@@ -108,7 +108,7 @@ pub(super) fn face_panels(f: &mut Frame, s: &State, c: &Computed, area: Rect) {
                 "target LS · rms {}",
                 ls.frame_target_rms
                     .get(t)
-                    .map_or("n/a".into(), |v| format!("{v:.2}"))
+                    .map_or("n/a".into(), |v| keyshape_core::stats::sig(*v, 3))
             ),
             vec![(&c.truth, Color::DarkGray), (&ls.target, Color::Red)],
             c,
@@ -121,7 +121,7 @@ pub(super) fn face_panels(f: &mut Frame, s: &State, c: &Computed, area: Rect) {
                 "target NNLS · rms {}",
                 nn.frame_target_rms
                     .get(t)
-                    .map_or("n/a".into(), |v| format!("{v:.2}"))
+                    .map_or("n/a".into(), |v| keyshape_core::stats::sig(*v, 3))
             ),
             vec![(&c.truth, Color::DarkGray), (&nn.target, Color::Green)],
             c,
@@ -140,7 +140,10 @@ pub(super) fn face_panels(f: &mut Frame, s: &State, c: &Computed, area: Rect) {
     }
     if let (true, Some(m)) = (s.show_mesh, &s.mesh) {
         let src = shape_panel(
-            format!("source: tracked + recon · rms {rms:.2}"),
+            format!(
+                "source: tracked + recon · rms {}",
+                keyshape_core::stats::sig(rms, 3)
+            ),
             vec![(&c.tracked, Color::White), (&main.recon, Color::Cyan)],
             c,
             t,
@@ -151,7 +154,10 @@ pub(super) fn face_panels(f: &mut Frame, s: &State, c: &Computed, area: Rect) {
         return;
     }
     let src = shape_panel(
-        format!("source: tracked + recon · rms {rms:.2}"),
+        format!(
+            "source: tracked + recon · rms {}",
+            keyshape_core::stats::sig(rms, 3)
+        ),
         vec![(&c.tracked, Color::White), (&main.recon, Color::Cyan)],
         c,
         t,

@@ -208,6 +208,7 @@ pub fn run_sized(
     s.rig = view;
     // The rig stays with the lab: a sequence opened with `o` is solved onto it too.
     if let Some(note) = compute::normalised_note(&seq) {
+        s.normalised = true;
         s.status = note;
     }
     let (jobs, results) = compute::spawn_lab(seq, target, rig, image_size);

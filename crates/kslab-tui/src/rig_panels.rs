@@ -145,8 +145,8 @@ pub fn rig_panel(
 ) -> Canvas<'_, impl Fn(&mut ratatui::widgets::canvas::Context) + '_> {
     Canvas::default()
         .block(Block::bordered().title(format!(
-            "track + posed rig · rms {:.2}",
-            r.rms.get(t).copied().unwrap_or(f64::NAN)
+            "track + posed rig · rms {}",
+            keyshape_core::stats::sig(r.rms.get(t).copied().unwrap_or(f64::NAN), 3)
         )))
         .marker(Marker::Braille)
         .x_bounds(r.bounds.0)

@@ -128,6 +128,9 @@ pub struct State {
     pub prompt: Option<Prompt>,
     /// Status line (errors, exports).
     pub status: String,
+    /// The sequence is in normalised 0–1 image coordinates: the header says so for as
+    /// long as it is open (the status line's note is replaced by the next message).
+    pub normalised: bool,
     /// Id of the newest request; results of older ones are dropped.
     pub request: u64,
     /// A request is running.
@@ -173,6 +176,7 @@ impl State {
             help: false,
             prompt: None,
             status: String::new(),
+            normalised: false,
             request: 0,
             busy: false,
             curves_busy: false,
@@ -344,6 +348,7 @@ pub fn update(s: &mut State, action: Action) -> Vec<Effect> {
         Action::Loaded(id, name, frames, fps) => {
             if id == s.request {
                 s.loaded = id;
+                s.normalised = false;
                 s.source = name;
                 s.frames = frames;
                 s.fps = fps;
@@ -367,6 +372,7 @@ pub fn update(s: &mut State, action: Action) -> Vec<Effect> {
         }
         Action::Notice(id, note) => {
             if id == s.loaded {
+                s.normalised = true;
                 s.status = note;
             }
         }

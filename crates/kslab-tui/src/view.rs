@@ -3,6 +3,7 @@
 use super::rig_panels::{rig_error_over_time, rig_weights_over_time};
 use super::state::{Prompt, State};
 use keyshape_core::keyshapes::Method;
+use keyshape_core::stats::sig;
 use ratatui::layout::{Constraint, Layout, Rect};
 use ratatui::style::{Color, Modifier, Style};
 use ratatui::text::{Line, Span};
@@ -123,17 +124,22 @@ fn header(f: &mut Frame, s: &State, area: Rect) {
         st.solver.to_string()
     };
     // The whole sequence's target error and the jitter of the retargeted points.
-    let mut quality = s
-        .computed
-        .as_ref()
-        .and_then(|c| c.views.first())
-        .map(|v| format!("err {:.2} jit {:.2}", v.target_rms, v.target_jitter));
+    let mut quality = s.computed.as_ref().and_then(|c| c.views.first()).map(|v| {
+        format!(
+            "err {} jit {}",
+            sig(v.target_rms, 3),
+            sig(v.target_jitter, 3)
+        )
+    });
     // The rig view shows the rig solve: its shapes, solver and landmark error, not the
     // key-shape settings (which still drive the panels below and `e`).
     let (keys, solver) = match (s.show_rig, &s.rig) {
         (true, Some(r)) => {
             let n = r.rms.len().max(1) as f64;
-            quality = Some(format!("landmark RMS {:.2}", r.rms.iter().sum::<f64>() / n));
+            quality = Some(format!(
+                "landmark RMS {}",
+                sig(r.rms.iter().sum::<f64>() / n, 3)
+            ));
             (
                 format!("rig: {} shapes", r.names.len()),
                 // The temporal prior: the offline λ (`l`), or the zero-phase σ of the default.
@@ -159,6 +165,12 @@ fn header(f: &mut Frame, s: &State, area: Rect) {
         (format!("{}×", s.speed), 1),
     ];
     if let Some(q) = quality {
+        // The unit beside the numbers while the track is normalised (0–1 of the image).
+        let q = if s.normalised {
+            format!("{q} (0–1 units)")
+        } else {
+            q
+        };
         parts.push((q, 9));
     }
     let room = (area.width as usize).saturating_sub(8 + busy.chars().count());

@@ -172,7 +172,10 @@ fn write_pngs(
         };
         let panels = [
             Panel {
-                title: format!("track and fitted rig · RMS {:.2}", r.rms[f]),
+                title: format!(
+                    "track and fitted rig · RMS {}",
+                    keyshape_core::stats::sig(r.rms[f], 3)
+                ),
                 layers: vec![
                     Layer {
                         name: "tracked",

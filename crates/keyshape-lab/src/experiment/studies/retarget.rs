@@ -322,7 +322,10 @@ pub fn render_strip(s: &Strip) -> Result<tiny_skia::Pixmap> {
         for (j, sv) in s.solvers.iter().enumerate() {
             let (name, tgt, rms) = (&sv.name, &sv.target, &sv.target_rms);
             panels.push(Panel {
-                title: format!("target, {name}: RMS {:.2}", rms[i]),
+                title: format!(
+                    "target, {name}: RMS {}",
+                    keyshape_core::stats::sig(rms[i], 3)
+                ),
                 layers: vec![
                     Layer {
                         name: "ground truth G(q)",
