@@ -514,9 +514,9 @@ fn pictures(
     let dims = s.dims;
     // Errors of a normalised track are fractions of the image, not pixels: say so.
     let unit = if seq.is_normalised() {
-        " (0–1 units)"
+        "   (0–1 units)"
     } else {
-        " px"
+        "   (px)"
     };
     // The tracked points as the recon is drawn: in the file's coordinates with head
     // motion, else aligned.
@@ -568,7 +568,7 @@ fn pictures(
             )
         });
         let caption = format!(
-            "frame {}   {}   source RMS {}{unit}{target_err}",
+            "frame {}   {}   source RMS {}{target_err}{unit}",
             s.frames[t],
             a.solver,
             sig((r.source_sq[t] / r.points as f64).sqrt(), 3)

@@ -59,7 +59,10 @@ fn invalid_specs_name_the_key_and_line() {
         ),
         ("windows = [4]\n", "window 4"),
         ("alphas = [0.0]\n", "alpha 0"),
-        ("clean_sigma = 0.0\n", "clean_sigma must be > 0"),
+        (
+            "clean_sigma = 0.0\n",
+            "clean_sigma 0: give more than 0 and at most 1000 frames",
+        ),
         ("lambda = [1.0]\n", "lambda"),
     ] {
         let e = Spec::from_str(p, &format!("{smooth}{extra}"))

@@ -298,7 +298,7 @@ fn bad_priors_and_settings_are_refused() {
         ),
         (
             vec!["rig-accuracy", "--noise", "-1", "--out", &o],
-            "noise (px) -1 is not allowed",
+            "--noise -1: give 0 to 1000 pixels",
         ),
         (
             vec!["rig-accuracy", "--frames", "1", "--out", &o],

@@ -369,10 +369,13 @@ fn smooth_command_end_to_end_and_refusals() {
         (vec!["--windows", "4"], "window 4"),
         (vec!["--alphas", "0"], "alpha 0"),
         (vec!["--one-euro-betas", "-0.5"], "beta -0.5"),
-        (vec!["--clean-sigma", "0"], "clean_sigma must be > 0"),
+        (
+            vec!["--clean-sigma", "0"],
+            "--clean-sigma 0: give more than 0 and at most 1000 frames",
+        ),
         (
             vec!["--clean-sigma", "-2"],
-            "clean_sigma must be > 0 frames, got -2",
+            "--clean-sigma -2: give more than 0 and at most 1000 frames",
         ),
         (vec!["--k", "0"], "k ≥ 1"),
         (

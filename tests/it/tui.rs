@@ -849,5 +849,8 @@ fn eighty_columns_keep_the_legend_the_file_name_and_the_weights() {
         .chars()
         .take_while(|c| c.is_ascii_digit() || *c == '.')
         .collect();
-    assert_eq!(num.split('.').nth(1).map(str::len), Some(2), "{title}");
+    // Whole: three significant digits, then the border.
+    let digits = num.trim_start_matches(['0', '.']).len();
+    assert_eq!(digits, 3, "{title}");
+    assert!(nnls[num.len()..].starts_with('─'), "{title}");
 }

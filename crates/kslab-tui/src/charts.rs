@@ -148,7 +148,7 @@ pub(super) fn error_chart(f: &mut Frame, s: &State, area: Rect) {
         )
         .y_axis(Axis::default().bounds([0.0, ymax]).labels(vec![
             Line::from("0"),
-            Line::from(keyshape_core::stats::sig(ymax, 2)),
+            Line::from(keyshape_core::stats::sig(ymax, 3)),
         ]))
         .legend_position(None);
     f.render_widget(chart, area);

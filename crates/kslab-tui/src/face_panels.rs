@@ -82,14 +82,15 @@ pub(super) fn face_panels(f: &mut Frame, s: &State, c: &Computed, area: Rect) {
         let [a, b, d] = Layout::horizontal([Constraint::Ratio(1, 3); 3]).areas(area);
         // The title as long as the panel allows: at 80 columns "source ·" goes, not a
         // number ("NNLS 0.3" was all that was left).
-        let full = format!(
-            "source · LS {:.2} NNLS {:.2}",
-            ls.frame_rms[t], nn.frame_rms[t]
+        let (l, n) = (
+            keyshape_core::stats::sig(ls.frame_rms[t], 3),
+            keyshape_core::stats::sig(nn.frame_rms[t], 3),
         );
+        let full = format!("source · LS {l} NNLS {n}");
         let title = if full.chars().count() + 2 <= a.width as usize {
             full
         } else {
-            format!("LS {:.2} NNLS {:.2}", ls.frame_rms[t], nn.frame_rms[t])
+            format!("LS {l} NNLS {n}")
         };
         let src = shape_panel(
             title,

@@ -173,41 +173,92 @@ fn header(f: &mut Frame, s: &State, area: Rect) {
         };
         parts.push((q, 9));
     }
-    let room = (area.width as usize).saturating_sub(8 + busy.chars().count());
-    let width = |p: &[(String, u8)]| {
-        p.iter().map(|(t, _)| t.chars().count()).sum::<usize>() + 3 * p.len().saturating_sub(1)
-    };
-    // Dropped first: the frame count, then the speed; then a long name is shortened to its
-    // end; then the point group, then the name.
-    let mut shortened = false;
-    while width(&parts) > room {
-        let lowest = parts
-            .iter()
-            .enumerate()
-            .filter(|(_, (_, pr))| *pr < 9)
-            .min_by_key(|(_, (_, pr))| *pr)
-            .map(|(i, (_, pr))| (i, *pr));
-        match lowest {
-            Some((i, pr)) if pr < 2 || shortened || short.chars().count() <= 16 => {
-                parts.remove(i);
-            }
-            Some(_) => {
-                let tail: String = short.chars().rev().take(15).collect();
-                parts[0].0 = format!("…{}", tail.chars().rev().collect::<String>());
-                shortened = true;
-            }
-            None => break,
-        }
-    }
-    let body: Vec<&str> = parts.iter().map(|(t, _)| t.as_str()).collect();
-    let line = Line::from(vec![
-        Span::styled(
+    let (badge, body) = fit_header(parts, short, area.width as usize, busy.chars().count());
+    let mut spans = Vec::new();
+    if badge {
+        spans.push(Span::styled(
             " kslab ",
             Style::default().add_modifier(Modifier::BOLD | Modifier::REVERSED),
-        ),
-        Span::raw(format!(" {}{busy}", body.join(" · "))),
-    ]);
+        ));
+    }
+    spans.push(Span::raw(format!(" {}{busy}", body.join(" · "))));
+    let line = Line::from(spans);
     f.render_widget(Paragraph::new(line), area);
+}
+
+/// The header's parts fitted to `width` columns (`busy`: the spinner's), and whether the
+/// ` kslab ` badge still fits. What gives way, in order: the frame count, the speed; the
+/// file name shortened to its last 15 characters; the badge; the name cut to its last 8,
+/// then 4; `frame 150` as `f150`; only then the point group and the name. The settings, the frame and the error always
+/// stay (at 80 columns with `kmeans3-mean` and a λ the group and a name still show).
+pub fn fit_header(
+    mut parts: Vec<(String, u8)>,
+    short: &str,
+    width: usize,
+    busy: usize,
+) -> (bool, Vec<String>) {
+    let used = |p: &[(String, u8)], badge: bool| {
+        p.iter().map(|(t, _)| t.chars().count()).sum::<usize>()
+            + 3 * p.len().saturating_sub(1)
+            + 1
+            + busy
+            + if badge { 7 } else { 0 }
+    };
+    let tail = |n: usize| -> String {
+        if short.chars().count() <= n + 1 {
+            return short.to_string();
+        }
+        let t: String = short.chars().rev().take(n).collect();
+        format!("…{}", t.chars().rev().collect::<String>())
+    };
+    let mut badge = true;
+    let mut stage = 0;
+    while used(&parts, badge) > width {
+        let name = parts.iter().position(|(_, pr)| *pr == 8);
+        match stage {
+            // The frame count and the speed.
+            0 | 1 => {
+                let pr = stage as u8;
+                if let Some(i) = parts.iter().position(|(_, p)| *p == pr) {
+                    parts.remove(i);
+                }
+            }
+            2 => {
+                if let Some(i) = name {
+                    parts[i].0 = tail(15);
+                }
+            }
+            3 => badge = false,
+            4 => {
+                if let Some(i) = name {
+                    parts[i].0 = tail(8);
+                }
+            }
+            5 => {
+                if let Some(i) = name {
+                    parts[i].0 = tail(4);
+                }
+            }
+            // "frame 150 ⏸" as "f150 ⏸".
+            6 => {
+                for (t, _) in parts.iter_mut() {
+                    if let Some(rest) = t.strip_prefix("frame ") {
+                        *t = format!("f{rest}");
+                    }
+                }
+            }
+            // The point group, then the name.
+            7 | 8 => {
+                let pr = if stage == 7 { 3 } else { 8 };
+                if let Some(i) = parts.iter().position(|(_, p)| *p == pr) {
+                    parts.remove(i);
+                }
+            }
+            _ => break,
+        }
+        stage += 1;
+    }
+    (badge, parts.into_iter().map(|(t, _)| t).collect())
 }
 
 /// λ for the header: `100`, then powers of ten as `1e5`.
@@ -375,5 +426,49 @@ mod tests {
                 );
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod header_tests {
+    use super::fit_header;
+
+    fn parts(method: &str, solver: &str) -> Vec<(String, u8)> {
+        vec![
+            ("liveportrait_d18".into(), 8),
+            ("216 frames".into(), 0),
+            ("lips".into(), 3),
+            (format!("{method} k=12"), 9),
+            (solver.into(), 9),
+            ("frame 150 ⏸".into(), 9),
+            ("1×".into(), 1),
+            ("err 0.705 jit 1.40".into(), 9),
+        ]
+    }
+
+    /// Round three: at 80 columns the point group never showed, and the file name went
+    /// with kmeans3-mean, the hull or a λ.
+    #[test]
+    fn eighty_columns_keep_the_group_and_a_name_with_the_longest_settings() {
+        for (m, sv) in [
+            ("kmeans3-mean", "nnls λ=1e5"),
+            ("hull", "bounded λ=100"),
+            ("kmeans2-mean", "nnls"),
+        ] {
+            let (badge, body) = fit_header(parts(m, sv), "liveportrait_d18", 80, 0);
+            let line = body.join(" · ");
+            let width = line.chars().count() + 1 + if badge { 7 } else { 0 };
+            assert!(width <= 80, "{line} is {width} wide");
+            assert!(body.iter().any(|p| p == "lips"), "{line}");
+            assert!(body.iter().any(|p| p.ends_with("d18")), "{line}");
+            assert!(
+                line.contains(m) && line.contains(sv) && line.contains("err"),
+                "{line}"
+            );
+        }
+        // With room, nothing gives way.
+        let (badge, body) = fit_header(parts("spread", "nnls"), "liveportrait_d18", 120, 0);
+        assert!(badge);
+        assert_eq!(body.len(), 8);
     }
 }
