@@ -255,8 +255,16 @@ pub fn weight_lines(
     let col_w = width / cols;
     let label_w = labels.iter().map(|l| l.chars().count()).max().unwrap_or(1);
     let bar_w = col_w.saturating_sub(label_w + 1 + 1 + 4 + 1).min(10);
-    // label, a space, the 4-character value and at least one space after it.
-    let with_value = col_w > label_w + 1 + 4;
+    // label, a space, the value (4 characters, or 3 in a narrow column: from k ≈ 22 at
+    // 80 columns, where the 4-character one left only a shade) and one space after it.
+    let value_w = if col_w > label_w + 1 + 4 {
+        4
+    } else if col_w > label_w + 1 + 3 {
+        3
+    } else {
+        0
+    };
+    let with_value = value_w > 0;
     (0..per_col)
         .map(|r| {
             let mut spans = Vec::new();
@@ -271,7 +279,7 @@ pub fn weight_lines(
                 if bar_w >= 3 {
                     spans.push(Span::styled(format!("{} ", bar(x, bar_w)), colour(x)));
                     used += bar_w + 1;
-                } else if with_value && col_w > label_w + 1 + 1 + 4 {
+                } else if with_value && col_w > label_w + 1 + 1 + value_w {
                     // No room for a bar: a one-character shade keeps the weights visible
                     // at a glance (they vanished at k ≥ 15 on 80 columns).
                     let a = (x.abs() / wmax * 4.0).round() as usize;
@@ -279,8 +287,13 @@ pub fn weight_lines(
                     used += 1;
                 }
                 if with_value {
-                    spans.push(Span::styled(format!("{:>4}", short_value(x)), colour(x)));
-                    used += 4;
+                    let v = if value_w == 4 {
+                        short_value(x)
+                    } else {
+                        tiny_value(x)
+                    };
+                    spans.push(Span::styled(format!("{v:>value_w$}"), colour(x)));
+                    used += value_w;
                 } else {
                     let a = (x.abs() / wmax * 4.0).round() as usize;
                     spans.push(Span::styled(shades[a.min(4)].to_string(), colour(x)));
@@ -291,6 +304,28 @@ pub fn weight_lines(
             Line::from(spans)
         })
         .collect()
+}
+
+/// A weight in at most three characters: `.93`, `-.1`, `1.0`, `-2`, `12`, `>99`, `<-9`.
+pub fn tiny_value(x: f64) -> String {
+    let a = x.abs();
+    if x >= 0.0 {
+        if a < 0.995 {
+            format!("{x:.2}").replacen("0.", ".", 1)
+        } else if a < 9.95 {
+            format!("{x:.1}")
+        } else if a < 99.5 {
+            format!("{x:.0}")
+        } else {
+            ">99".into()
+        }
+    } else if a < 0.95 {
+        format!("{x:.1}").replacen("0.", ".", 1)
+    } else if a < 9.5 {
+        format!("{x:.0}")
+    } else {
+        "<-9".into()
+    }
 }
 
 /// A weight in at most four characters: `.93`, `-.12`, `1.0`, `-2.3`, `12`, `>999`.
@@ -341,4 +376,28 @@ pub fn chart_pick(area: Rect, s: &State, col: u16, row: u16) -> Option<(Method, 
         d(a).total_cmp(&d(b))
     })?;
     Some((Method::parse(&best.method).ok()?, best.k))
+}
+
+#[cfg(test)]
+mod tiny_tests {
+    use super::tiny_value;
+
+    #[test]
+    fn a_weight_in_three_characters() {
+        for (x, want) in [
+            (0.93, ".93"),
+            (0.0, ".00"),
+            (-0.12, "-.1"),
+            (1.0, "1.0"),
+            (-1.2, "-1"),
+            (12.0, "12"),
+            (150.0, ">99"),
+            (-15.0, "<-9"),
+            (0.996, "1.0"),
+            (-0.96, "-1"),
+        ] {
+            assert_eq!(tiny_value(x), want, "{x}");
+            assert!(tiny_value(x).chars().count() <= 3);
+        }
+    }
 }
