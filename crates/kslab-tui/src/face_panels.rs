@@ -183,7 +183,7 @@ pub(super) fn mesh_panel(
     let t = t.min(m.frames.len().saturating_sub(1));
     Canvas::default()
         .block(
-            Block::bordered().title("target mesh: RBF transfer + skinning (paper 004) · x toggles"),
+            Block::bordered().title("mesh: RBF + skinning · x"),
         )
         .marker(Marker::Braille)
         .x_bounds(m.bounds.0)

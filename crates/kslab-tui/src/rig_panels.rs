@@ -34,6 +34,38 @@ fn rgb(c: [u8; 3]) -> Color {
     Color::Rgb(c[0], c[1], c[2])
 }
 
+/// A shape's name in at most `room` characters, still telling shapes apart: the side
+/// (`_L`, `_R`, `Left`, `Right`) kept, then the vowels inside each camel-case word dropped
+/// (`browDown_L` → `brwDwn_L`), then the stem cut (round three's legend read
+/// "browDown_ browOuter").
+pub fn abbreviate(name: &str, room: usize) -> String {
+    if name.chars().count() <= room {
+        return name.to_string();
+    }
+    let (stem, side) = ["_L", "_R", "Left", "Right"]
+        .iter()
+        .find_map(|s| name.strip_suffix(s).map(|st| (st, *s)))
+        .unwrap_or((name, ""));
+    let side = match side {
+        "Left" => "L",
+        "Right" => "R",
+        s => s,
+    };
+    // Vowels dropped, except a word's first letter.
+    let mut short = String::new();
+    let mut prev: Option<char> = None;
+    for c in stem.chars() {
+        let word_start = prev.is_none_or(|p| c.is_uppercase() || !p.is_alphabetic());
+        if word_start || !"aeiou".contains(c) {
+            short.push(c);
+        }
+        prev = Some(c);
+    }
+    let keep = room.saturating_sub(side.chars().count()).max(1);
+    let stem: String = short.chars().take(keep).collect();
+    format!("{stem}{side}")
+}
+
 /// The frame's [`FOLLOWED`] largest weights over the whole sequence, named in the title in
 /// their colours, with the current frame marked, drawn in `area`.
 pub fn rig_weights_over_time(f: &mut Frame, r: &RigView, t: usize, area: Rect) {
@@ -45,7 +77,7 @@ pub fn rig_weights_over_time(f: &mut Frame, r: &RigView, t: usize, area: Rect) {
         .max(4);
     let mut title = vec![Span::raw("over time: ")];
     for (rank, &i) in shown.iter().enumerate() {
-        let name: String = r.names[i].chars().take(room).collect();
+        let name = abbreviate(&r.names[i], room);
         title.push(Span::styled(
             format!("{name} "),
             Style::default().fg(rgb(rank_rgb(rank))),
@@ -194,4 +226,22 @@ pub fn rig_weights(r: &RigView, t: usize, rows: usize) -> Paragraph<'_> {
     let active = w.iter().filter(|v| v.abs() > 1e-9).count();
     Paragraph::new(lines)
         .block(Block::bordered().title(format!("rig weights · {active} of {} active", w.len())))
+}
+
+#[cfg(test)]
+mod abbreviate_tests {
+    use super::abbreviate;
+
+    #[test]
+    fn names_stay_apart_and_keep_their_side() {
+        assert_eq!(abbreviate("browDown_L", 9), "brwDwn_L");
+        assert_eq!(abbreviate("browOuterUp_R", 9), "brwOtrU_R");
+        assert_eq!(abbreviate("eyeBlinkLeft", 9), "eyBlnkL");
+        assert_eq!(abbreviate("jawOpen", 9), "jawOpen");
+        assert_ne!(abbreviate("browDown_L", 8), abbreviate("browDown_R", 8));
+        assert_ne!(abbreviate("browDown_L", 8), abbreviate("browOuterUp_L", 8));
+        for n in ["mouthSmile_L", "cheekSquint_R", "mouthRollLower"] {
+            assert!(abbreviate(n, 8).chars().count() <= 8, "{n}");
+        }
+    }
 }

@@ -261,6 +261,21 @@ pub fn fit_header(
     (badge, parts.into_iter().map(|(t, _)| t).collect())
 }
 
+/// A status message in `width` columns: whole when it fits, else its start and its end
+/// with the middle (usually a long path) elided, so the reason at the end stays ("No such
+/// fil" was all an 80-column error showed).
+pub fn fit_status(msg: &str, width: usize) -> String {
+    let n = msg.chars().count();
+    if n <= width || width < 8 {
+        return msg.chars().take(width).collect();
+    }
+    let head = width / 3;
+    let tail = width - head - 1;
+    let start: String = msg.chars().take(head).collect();
+    let end: String = msg.chars().skip(n - tail).collect();
+    format!("{start}…{end}")
+}
+
 /// λ for the header: `100`, then powers of ten as `1e5`.
 pub fn lambda_label(l: f64) -> String {
     if l >= 1000.0 {
@@ -275,7 +290,7 @@ fn footer(f: &mut Frame, s: &State, area: Rect) {
         "space play ←→ step m method +- k g group s solver l λ v split e export ? q quit"
             .to_string()
     } else {
-        format!(" {}", s.status)
+        format!(" {}", fit_status(&s.status, (area.width as usize).saturating_sub(1)))
     };
     let style = if s.status.starts_with("error") {
         Style::default().fg(Color::Red)
@@ -431,7 +446,17 @@ mod tests {
 
 #[cfg(test)]
 mod header_tests {
-    use super::fit_header;
+    use super::{fit_header, fit_status};
+
+    #[test]
+    fn a_long_status_keeps_its_start_and_its_reason() {
+        let msg = "error: /home/someone/a/very/long/folder/of/tracks/take_017_final.csv: No such file or directory (os error 2)";
+        let s = fit_status(msg, 79);
+        assert_eq!(s.chars().count(), 79);
+        assert!(s.starts_with("error: /home"), "{s}");
+        assert!(s.ends_with("No such file or directory (os error 2)"), "{s}");
+        assert_eq!(fit_status("short", 79), "short");
+    }
 
     fn parts(method: &str, solver: &str) -> Vec<(String, u8)> {
         vec![
