@@ -630,7 +630,7 @@ fn the_rig_view_names_the_largest_weights_and_r_toggles_it() {
     let over = text.find("over time: ").unwrap();
     let title = &text[over..over + 60];
     assert!(
-        title.contains("jawOpen") && title.contains("mouthSmil"),
+        title.contains("jawOpen") && (title.contains("mouthSmil") || title.contains("mthSml")),
         "{text}"
     );
     assert!(text.contains("landmark RMS over time"), "{text}");
@@ -641,6 +641,28 @@ fn the_rig_view_names_the_largest_weights_and_r_toggles_it() {
         );
     }
     assert_screen(&text, "tui_rig_80x24.txt");
+    // `e` in the rig view exports the rig's weights on screen, not the key-shape solve's
+    // (round three).
+    let dir = tempfile::tempdir().unwrap();
+    let files = kslab_tui::export::export(&s, "builtin", dir.path()).unwrap();
+    assert!(files[0].ends_with("rig_weights.csv"), "{files:?}");
+    let text_csv = std::fs::read_to_string(&files[0]).unwrap();
+    let mut lines = text_csv.lines();
+    let head: Vec<&str> = lines.next().unwrap().split(',').collect();
+    assert_eq!(head[..2], ["frame", "rms"]);
+    assert_eq!(
+        head[2..],
+        view.names.iter().map(String::as_str).collect::<Vec<_>>()[..]
+    );
+    let rows: Vec<&str> = lines.collect();
+    assert_eq!(rows.len(), view.weights.len());
+    let row150: Vec<f64> = rows[150]
+        .split(',')
+        .skip(2)
+        .map(|v| v.parse().unwrap())
+        .collect();
+    assert_eq!(row150, view.weights[150]);
+    assert!(std::path::Path::new(&files[1]).exists());
     update(&mut s, Action::Rig);
     assert!(!s.show_rig);
     let text = screen(&s, 80, 24);

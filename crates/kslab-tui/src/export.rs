@@ -50,6 +50,10 @@ pub fn export(s: &State, seq_path: &str, dir: &Path) -> Result<Vec<String>> {
 }
 
 fn export_files(s: &State, seq_path: &str, dir: &Path) -> Result<Vec<String>> {
+    // The rig view exports what it shows: the rig's weights, not the key-shape solve's.
+    if let (true, Some(r)) = (s.show_rig, s.rig.as_deref()) {
+        return export_rig(s, r, dir);
+    }
     let c = s.computed.as_ref().context("nothing computed yet")?;
     let v = c.views.first().context("no solver view")?;
     keyshape_io::create_dir_all(dir)?;
@@ -180,6 +184,70 @@ fn export_files(s: &State, seq_path: &str, dir: &Path) -> Result<Vec<String>> {
         png.display().to_string(),
         toml.display().to_string(),
     ])
+}
+
+/// The rig view's export: `rig_weights.csv` (a row per frame, a column per shape, as
+/// `kslab rig --out` writes them, with the frame's landmark RMS) and `view.png` (the track
+/// and the fitted rig on the current frame).
+fn export_rig(s: &State, r: &super::rig::RigView, dir: &Path) -> Result<Vec<String>> {
+    keyshape_io::create_dir_all(dir)?;
+    let frames: Vec<i64> = match &s.computed {
+        Some(c) if c.frames.len() == r.weights.len() => c.frames.clone(),
+        _ => (0..r.weights.len() as i64).collect(),
+    };
+    let csv = dir.join("rig_weights.csv");
+    let header = ["frame", "rms"]
+        .into_iter()
+        .map(String::from)
+        .chain(r.names.iter().cloned());
+    let records = frames.iter().enumerate().map(|(t, f)| {
+        let mut row = vec![f.to_string(), fmt_num(r.rms[t])];
+        row.extend(r.weights[t].iter().map(|x| fmt_num(*x)));
+        row
+    });
+    write_atomic(&csv, |w| write_records(w, header, records))?;
+    let t = s.frame.min(r.weights.len().saturating_sub(1));
+    // y up in the view, down in the picture.
+    let flat = |pts: &[[f64; 2]]| -> Vec<f64> { pts.iter().flat_map(|p| [p[0], -p[1]]).collect() };
+    let (tracked, fitted) = (flat(&r.tracked[t]), flat(&r.fitted[t]));
+    let ((x0, x1), (y0, y1)) = (
+        (r.bounds.0[0], r.bounds.0[1]),
+        (r.bounds.1[0], r.bounds.1[1]),
+    );
+    let panel = keyshape_lab::render::face::Panel {
+        title: format!(
+            "frame {} · landmark RMS {}",
+            frames[t],
+            keyshape_core::stats::sig(r.rms[t], 3)
+        ),
+        layers: vec![
+            keyshape_lab::render::face::Layer {
+                name: "tracked",
+                shape: &tracked,
+                dims: 2,
+                polylines: &r.polylines,
+                color: [20, 20, 20],
+                dashed: false,
+            },
+            keyshape_lab::render::face::Layer {
+                name: "fitted rig, posed by the weights, head pose",
+                shape: &fitted,
+                dims: 2,
+                polylines: &r.polylines,
+                color: [30, 90, 200],
+                dashed: true,
+            },
+        ],
+        bounds: ((x0, -y1), (x1, -y0)),
+        mesh: None,
+    };
+    let top = keyshape_rig::largest_weights(&r.names, &r.weights[t], 2);
+    let png = dir.join("view.png");
+    save_png(
+        &keyshape_lab::render::face::render_panels(&[panel], &format!("rig: {top}"), 480)?,
+        &png,
+    )?;
+    Ok(vec![csv.display().to_string(), png.display().to_string()])
 }
 
 #[cfg(test)]

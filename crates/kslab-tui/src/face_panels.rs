@@ -182,9 +182,7 @@ pub(super) fn mesh_panel(
 ) -> Canvas<'_, impl Fn(&mut ratatui::widgets::canvas::Context) + '_> {
     let t = t.min(m.frames.len().saturating_sub(1));
     Canvas::default()
-        .block(
-            Block::bordered().title("mesh: RBF + skinning · x"),
-        )
+        .block(Block::bordered().title("mesh: RBF + skinning · x"))
         .marker(Marker::Braille)
         .x_bounds(m.bounds.0)
         .y_bounds(m.bounds.1)

@@ -290,7 +290,10 @@ fn footer(f: &mut Frame, s: &State, area: Rect) {
         "space play ←→ step m method +- k g group s solver l λ v split e export ? q quit"
             .to_string()
     } else {
-        format!(" {}", fit_status(&s.status, (area.width as usize).saturating_sub(1)))
+        format!(
+            " {}",
+            fit_status(&s.status, (area.width as usize).saturating_sub(1))
+        )
     };
     let style = if s.status.starts_with("error") {
         Style::default().fg(Color::Red)
