@@ -71,9 +71,10 @@ impl PlotSpec {
         })
     }
 
-    /// The y axis is logarithmic when the data (all positive) span two decades or more, as
+    /// The y axis is logarithmic when the data (all positive) span a decade or more, as
     /// LS error curves do: on a linear axis everything past the first few k sits on the
-    /// floor. Then the axis runs over the data, not from zero.
+    /// floor (at 94× every LS curve from k ≥ 10 lay flat on zero). Then the axis runs over
+    /// the data, not from zero.
     pub fn log_y(&self) -> bool {
         let ys = self
             .series
@@ -83,9 +84,12 @@ impl PlotSpec {
             .filter(|y| y.is_finite());
         let (lo, hi) = ys.fold((f64::INFINITY, 0.0f64), |(a, b), y| (a.min(y), b.max(y)));
         let hi = self.y_at_least.map_or(hi, |m| hi.max(m));
-        lo > 0.0 && lo.is_finite() && hi / lo >= 100.0
+        lo > 0.0 && lo.is_finite() && hi / lo >= LOG_SPAN
     }
 }
+
+/// The span (largest over smallest value) from which a chart's y axis is logarithmic.
+pub const LOG_SPAN: f64 = 10.0;
 
 /// Colour and style of each key-shape method, after paper 000 Fig. 6 (spread solid blue,
 /// k-means dashed green / magenta, hull a red dot) plus ours; the k-means centre-of-mass
