@@ -63,6 +63,16 @@ pub fn apply_image_size(seq: &mut Sequence, size: Option<(f64, f64)>) -> Result<
     Ok(())
 }
 
+/// How a picture's title names the track: the file's name and the point group
+/// (`liveportrait_d6.csv · lips`, `… · all points`).
+pub fn track_label(source: &str, points: Option<&str>) -> String {
+    format!(
+        "{} · {}",
+        super::curves::short(source),
+        points.unwrap_or("all points")
+    )
+}
+
 impl InputArgs {
     /// Reads the sequence as given.
     pub fn read(&self) -> Result<Sequence> {

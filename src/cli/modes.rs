@@ -45,6 +45,11 @@ impl RegionArgs {
     }
 
     /// The user's regions file, if any (an input that outputs must not overwrite).
+    /// The regions as a title names them: `builtin`, or the file's name.
+    pub fn name(&self) -> &str {
+        super::curves::short(&self.regions)
+    }
+
     pub fn file(&self) -> Option<&std::path::Path> {
         (self.regions != "builtin").then(|| std::path::Path::new(&self.regions))
     }
@@ -130,11 +135,18 @@ pub fn run(a: &ModesArgs) -> Result<()> {
     )
     .with_context(|| format!("{}", a.actions.display()))?;
     if let Some(p) = &a.png {
+        // The track and the regions (which choose the points) in each table's title.
+        let what = format!(
+            "{} · {} regions",
+            super::curves::short(&prep.seq.source),
+            a.regions.name()
+        );
+        let (t1, t2) = (
+            format!("{what}: action-specific model"),
+            format!("{what}: plain PCA"),
+        );
         let pm = keyshape_lab::render::heat::heat_maps(
-            &[
-                ("action-specific model", &st.action_model),
-                ("plain PCA", &st.plain),
-            ],
+            &[(t1.as_str(), &st.action_model), (t2.as_str(), &st.plain)],
             &st.names,
             44,
         )?;
@@ -162,23 +174,30 @@ pub fn run(a: &ModesArgs) -> Result<()> {
     }
     if a.table {
         print_table(
+            // The table is actions × actions; the modes are the model's size (9 actions on
+            // 10 modes read as a 9 × 9 table under "10 modes").
             &format!(
-                "action-specific model ({} regions), {} modes",
+                "action-specific model ({} regions, {} modes): Eq. 9 score of each pair of its {} actions",
                 region_label(&ropts),
-                st.modes
+                st.modes,
+                st.names.len()
             ),
             &st.names,
             &st.action_model,
         )?;
         outln!();
         print_table(
-            &format!("plain PCA, {} modes", st.modes),
+            &format!(
+                "plain PCA ({} modes): Eq. 9 score of each pair of the {} actions",
+                st.modes,
+                st.names.len()
+            ),
             &st.names,
             &st.plain,
         )?;
     } else {
         outln!(
-            "{} actions, {} modes, {} regions, shape only: mean Eq. 9 score {:.3} (action-specific model) vs {:.3} (plain PCA); --table prints both tables",
+            "{} actions on {} modes, {} regions, shape only: mean Eq. 9 score {:.3} (action-specific model) vs {:.3} (plain PCA); --table prints both tables",
             st.names.len(),
             st.modes,
             region_label(&ropts),

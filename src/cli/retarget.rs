@@ -429,11 +429,23 @@ fn write_weights_png(
     }
     let title = format!(
         "{}: weights over time, {} keys, {}",
-        s.source.rsplit('/').next().unwrap_or(&s.source),
+        super::input::track_label(&s.source, a.input.points.as_deref()),
         rows,
         a.solver
     );
-    let pm = keyshape_lab::render::weights::weights_picture(&all, columns, &s.frames, &title)?;
+    // The key frames marked on the time axis, as `kslab solve --png` marks them (cluster
+    // means are no frames and get no mark).
+    let mut keys: Vec<i64> = r
+        .keys
+        .iter()
+        .flatten()
+        .filter_map(|&c| s.frames.get(c).copied())
+        .collect();
+    keys.sort_unstable();
+    keys.dedup();
+    let pm = keyshape_lab::render::weights::weights_picture_marked(
+        &all, columns, &s.frames, &title, &keys,
+    )?;
     save_png(&pm, png)?;
     Ok(())
 }

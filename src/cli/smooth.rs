@@ -102,7 +102,7 @@ pub fn run(a: &SmoothArgs) -> Result<()> {
     // The file's name, not its path: a path filled the title and cut what followed.
     let title = format!(
         "{} {} k={} {}",
-        super::curves::short(&seq.source),
+        super::input::track_label(&seq.source, a.input.points.as_deref()),
         a.method,
         st.key_count(),
         a.solver

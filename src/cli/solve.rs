@@ -167,7 +167,7 @@ pub fn run(a: &SolveArgs) -> Result<()> {
         let labels: Vec<String> = keys.iter().map(|k| format!("w_{k}")).collect();
         let title = format!(
             "{}: weights over time, {} keys, {}{}",
-            seq.source.rsplit('/').next().unwrap_or(&seq.source),
+            super::input::track_label(&seq.source, a.input.points.as_deref()),
             keys.len(),
             a.solver,
             smoothing.map_or(String::new(), |s| format!(

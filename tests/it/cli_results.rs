@@ -116,8 +116,33 @@ fn curves_smooth_and_run_end_with_their_result() {
     assert!(out.starts_with("at k = 5, lowest error: "), "{out}");
     let (out, _) = ok(&["smooth", "--points", "lips", "--out", &o("sm")]);
     assert!(
-        out.contains("lowest error at equal jitter — at jitter"),
+        out.contains("lowest error against G(q) at equal jitter — at jitter"),
         "{out}"
+    );
+    // The line names the winner against G(q), not against the clean reference (whose
+    // winner moves with its σ): the first level's lowest target_rms_tracked in the table.
+    let table = std::fs::read_to_string(
+        std::path::Path::new(&o("sm")).join("smoothing_at_equal_jitter.csv"),
+    )
+    .unwrap();
+    let rows: Vec<Vec<&str>> = table
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').collect())
+        .collect();
+    let first = rows[0][0];
+    let best = rows
+        .iter()
+        .filter(|r| r[0] == first && !r[2].is_empty())
+        .min_by(|a, b| {
+            a[2].parse::<f64>()
+                .unwrap()
+                .total_cmp(&b[2].parse::<f64>().unwrap())
+        })
+        .unwrap();
+    assert!(
+        out.contains(&format!(": {} (target RMS vs G(q)", best[1])),
+        "{out}\n{table}"
     );
     let (out, _) = ok(&[
         "run",
