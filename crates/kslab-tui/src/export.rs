@@ -119,8 +119,10 @@ fn export_files(s: &State, seq_path: &str, dir: &Path) -> Result<Vec<String>> {
         source_bounds: sb,
         target_bounds: tb,
     };
+    // The frame's errors in the title, as on screen (the export had none).
+    let unit = if s.normalised { " (0–1 units)" } else { " px" };
     let caption = format!(
-        "frame {}   {} {} k={}   {}{}",
+        "frame {}   {} {} k={}   {}{}   RMS {} · target {}{unit}",
         c.frames[t],
         c.settings.points,
         c.settings.method,
@@ -130,7 +132,9 @@ fn export_files(s: &State, seq_path: &str, dir: &Path) -> Result<Vec<String>> {
             format!(" λ={}", c.settings.smooth)
         } else {
             String::new()
-        }
+        },
+        keyshape_core::stats::sig(v.frame_rms[t], 3),
+        keyshape_core::stats::sig(v.frame_target_rms[t], 3),
     );
     let png = dir.join("view.png");
     save_png(&render_frame(&shapes, &caption, 360)?, &png)?;

@@ -118,13 +118,27 @@ fn draw_layer(pm: &mut Pixmap, l: &Layer, map: &dyn Fn(f64, f64) -> (f32, f32)) 
     }
 }
 
-/// Renders panels side by side, `size` pixels square each, with `caption` on top.
+/// Renders panels side by side, `size` pixels wide each, with `caption` on top. A panel is
+/// square for a face and as much shorter as its content is wide (down to 0.4 of its width):
+/// a lips-only shape left two thirds of a square panel empty.
 pub fn render_panels(panels: &[Panel], caption: &str, size: u32) -> Result<Pixmap> {
     let fs = (size as f32 / 22.0).clamp(10.0, 16.0);
     let head = (fs * 2.2) as u32;
     let legend =
         (fs * 1.5) as u32 * panels.iter().map(|p| p.layers.len()).max().unwrap_or(0) as u32;
-    let (w, h) = (size * panels.len().max(1) as u32, head + size + legend);
+    let inner = size as f32 - 2.0 * fs;
+    let aspect = panels
+        .iter()
+        .map(|p| {
+            let ((x0, y0), (x1, y1)) = p.bounds;
+            (y1 - y0) / (x1 - x0).max(1e-12)
+        })
+        .filter(|a| a.is_finite())
+        .fold(0.0f64, f64::max)
+        .clamp(0.4, 1.0);
+    let inner_h = (inner as f64 * aspect) as f32;
+    let panel_h = (size as f32 - inner + inner_h).round() as u32;
+    let (w, h) = (size * panels.len().max(1) as u32, head + panel_h + legend);
     let mut pm = Pixmap::new(w, h).ok_or_else(|| Error::invalid("bad picture size"))?;
     pm.fill(Color::WHITE);
     text::draw(
@@ -149,21 +163,19 @@ pub fn render_panels(panels: &[Panel], caption: &str, size: u32) -> Result<Pixma
             [30, 30, 30],
         );
         let ((x0, y0), (x1, y1)) = p.bounds;
-        let span = (x1 - x0).max(y1 - y0).max(1e-12);
-        let inner = size as f32 - 2.0 * fs;
-        let s = inner as f64 / span;
+        let s = (inner as f64 / (x1 - x0).max(1e-12)).min(inner_h as f64 / (y1 - y0).max(1e-12));
         let (cx, cy) = ((x0 + x1) / 2.0, (y0 + y1) / 2.0);
-        let (mx, my) = (ox + size as f32 / 2.0, top + fs * 0.3 + inner / 2.0);
+        let (mx, my) = (ox + size as f32 / 2.0, top + fs * 0.3 + inner_h / 2.0);
         let map = |x: f64, y: f64| (mx + ((x - cx) * s) as f32, my + ((y - cy) * s) as f32);
         if let Some(m) = &p.mesh {
-            let clip = (ox, top + fs * 0.3, size as f32, inner);
+            let clip = (ox, top + fs * 0.3, size as f32, inner_h);
             super::mesh::draw_shaded(&mut pm, m.positions, m.faces, &|x, y| map(x, -y), clip);
         }
         for l in &p.layers {
             draw_layer(&mut pm, l, &map);
         }
         for (i, l) in p.layers.iter().enumerate() {
-            let y = top + inner + fs * (1.4 + 1.4 * i as f32);
+            let y = top + inner_h + fs * (1.4 + 1.4 * i as f32);
             let mut pb = PathBuilder::new();
             pb.move_to(ox + fs, y - fs * 0.3);
             pb.line_to(ox + fs * 2.8, y - fs * 0.3);
