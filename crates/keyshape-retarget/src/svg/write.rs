@@ -93,10 +93,16 @@ pub fn write_template(
             hi = [hi[0].max(p[0]), hi[1].max(p[1])];
         }
     }
-    let cell = (hi[0] - lo[0]).max(hi[1] - lo[1]).max(1e-9) * 1.2;
-    let cols = (keys.len() as f64).sqrt().ceil().max(1.0) as usize;
+    // A panel as wide and as tall as the shapes plus a margin of a tenth of their larger
+    // extent each side: a face's panel is square, a lips-only one wide and low (square
+    // panels left two thirds of each empty). The columns make the sheet about square.
+    let (dx, dy) = ((hi[0] - lo[0]).max(1e-9), (hi[1] - lo[1]).max(1e-9));
+    let m = dx.max(dy);
+    let cell = 1.2 * m;
+    let (cell_w, cell_h) = (dx + 0.2 * m, dy + 0.2 * m);
+    let cols = ((keys.len() as f64 * cell_h / cell_w).sqrt().ceil() as usize).clamp(1, keys.len().max(1));
     let rows = keys.len().div_ceil(cols);
-    let (wd, ht) = (cell * cols as f64, cell * rows as f64);
+    let (wd, ht) = (cell_w * cols as f64, cell_h * rows as f64);
     writeln!(w, r#"<?xml version="1.0" encoding="UTF-8"?>"#)?;
     writeln!(
         w,
@@ -106,8 +112,8 @@ pub fn write_template(
         .iter()
         .enumerate()
         .map(|(i, (frame, _))| {
-            let ox = (i % cols) as f64 * cell + 0.1 * cell - lo[0];
-            let oy = (i / cols) as f64 * cell + 0.1 * cell - lo[1];
+            let ox = (i % cols) as f64 * cell_w + 0.1 * m - lo[0];
+            let oy = (i / cols) as f64 * cell_h + 0.1 * m - lo[1];
             (*frame, [ox, oy])
         })
         .collect::<BTreeMap<i64, [f64; 2]>>();
