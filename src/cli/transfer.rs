@@ -167,13 +167,13 @@ pub fn run(a: &TransferArgs) -> Result<()> {
                 })?;
             }
             if let Some(dir) = &a.png_dir {
-                let m = wireframe(pos, &tr.mesh.faces, &marks, mb, 420, "target mesh")?;
                 let pic = transfer_frame(
                     col(&s.coords, t),
                     s.dims,
                     &lines,
                     sb,
-                    &m,
+                    &|side| wireframe(pos, &tr.mesh.faces, &marks, mb, side, ""),
+                    420,
                     &format!("frame {}", s.frames[t]),
                 )?;
                 save_png(&pic, &dir.join(format!("frame_{:06}.png", s.frames[t])))?;

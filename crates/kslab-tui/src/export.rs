@@ -120,7 +120,11 @@ fn export_files(s: &State, seq_path: &str, dir: &Path) -> Result<Vec<String>> {
         target_bounds: tb,
     };
     // The frame's errors in the title, as on screen (the export had none).
-    let unit = if s.normalised { " (0–1 units)" } else { " px" };
+    let unit = if s.normalised {
+        " (0–1 units)"
+    } else {
+        " px"
+    };
     let caption = format!(
         "frame {}   {} {} k={}   {}{}   RMS {} · target {}{unit}",
         c.frames[t],

@@ -167,16 +167,19 @@ pub fn draw_shaded(
     }
 }
 
-/// Source feature points (a panel) beside the deformed mesh.
+/// A transfer frame: the tracked source as a panel beside the deformed target mesh, drawn
+/// in a panel of the same size, title and height as the source's (the mesh stood higher
+/// and smaller under a title of its own size), its feature points red and named in a
+/// legend. `mesh_wire` draws the mesh (no title) into a square of the side it is given.
 pub fn transfer_frame(
     source: &[f64],
     dims: usize,
     source_lines: &[Vec<usize>],
     source_bounds: ((f64, f64), (f64, f64)),
-    mesh: &Pixmap,
+    mesh_wire: &dyn Fn(u32) -> Result<Pixmap>,
+    size: u32,
     caption: &str,
 ) -> Result<Pixmap> {
-    let size = mesh.height();
     let panel = Panel {
         title: "source".into(),
         layers: vec![Layer {
@@ -191,11 +194,13 @@ pub fn transfer_frame(
         mesh: None,
     };
     let left = render_panels(&[panel], caption, size)?;
-    let mut out = Pixmap::new(
-        left.width() + mesh.width(),
-        left.height().max(mesh.height()),
-    )
-    .ok_or_else(|| Error::invalid("bad picture size"))?;
+    // The geometry render_panels gives a square panel.
+    let fs = (size as f32 / 22.0).clamp(10.0, 16.0);
+    let top = (fs * 2.2).floor() + fs * 1.2;
+    let inner = size as f32 - 2.0 * fs;
+    let mesh = mesh_wire(inner.round() as u32)?;
+    let mut out = Pixmap::new(left.width() * 2, left.height())
+        .ok_or_else(|| Error::invalid("bad picture size"))?;
     out.fill(Color::WHITE);
     out.draw_pixmap(
         0,
@@ -205,13 +210,39 @@ pub fn transfer_frame(
         Transform::identity(),
         None,
     );
+    let ox = left.width() as f32;
+    text::draw(
+        &mut out,
+        "target mesh",
+        ox + size as f32 / 2.0,
+        top - fs * 0.3,
+        fs,
+        Anchor::Centre,
+        [30, 30, 30],
+    );
     out.draw_pixmap(
-        left.width() as i32,
-        0,
+        (ox + (size as f32 - inner) / 2.0) as i32,
+        (top + fs * 0.3) as i32,
         mesh.as_ref(),
         &PixmapPaint::default(),
         Transform::identity(),
         None,
+    );
+    // The legend, where the source panel has its own.
+    let y = top + inner + fs * 1.4;
+    let mut paint = Paint::default();
+    paint.set_color_rgba8(210, 30, 30, 255);
+    if let Some(c) = PathBuilder::from_circle(ox + fs * 1.9, y - fs * 0.3, 3.0) {
+        out.fill_path(&c, &paint, FillRule::Winding, Transform::identity(), None);
+    }
+    text::draw(
+        &mut out,
+        "feature points (the RBF's targets)",
+        ox + fs * 3.3,
+        y,
+        fs * 0.9,
+        Anchor::Left,
+        [30, 30, 30],
     );
     Ok(out)
 }

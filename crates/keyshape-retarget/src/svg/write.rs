@@ -100,7 +100,8 @@ pub fn write_template(
     let m = dx.max(dy);
     let cell = 1.2 * m;
     let (cell_w, cell_h) = (dx + 0.2 * m, dy + 0.2 * m);
-    let cols = ((keys.len() as f64 * cell_h / cell_w).sqrt().ceil() as usize).clamp(1, keys.len().max(1));
+    let cols =
+        ((keys.len() as f64 * cell_h / cell_w).sqrt().ceil() as usize).clamp(1, keys.len().max(1));
     let rows = keys.len().div_ceil(cols);
     let (wd, ht) = (cell_w * cols as f64, cell_h * rows as f64);
     writeln!(w, r#"<?xml version="1.0" encoding="UTF-8"?>"#)?;
