@@ -297,7 +297,7 @@ pub fn run(a: &RigArgs) -> Result<()> {
         None => {
             if let Some(n) = seq.segments.as_deref().map(count_clips).filter(|&n| n > 1) {
                 eprintln!(
-                    "note: {name} labels {n} clips and one identity (one neutral frame) serves them all; if the clips are different people, --identity-per clip fits each its own (on the news sample: RMS landmark error 3.5 → 2.2 px)"
+                    "note: {name} labels {n} clips and one identity (one neutral frame) serves them all; if the clips are different people, --identity-per clip fits each its own (on the news sample it lowers the landmark error by about 30 %)"
                 );
             }
             false
