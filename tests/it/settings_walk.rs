@@ -1,6 +1,6 @@
 //! Every setting of every subcommand walked with the values a fuzzer tries first — 0, −1,
 //! NaN, 1e300 and 2⁶¹ — on a command line that is otherwise valid, so the value is what the
-//! command meets. Each run ends (within a minute) with exit 0, a refusal (1) or a usage
+//! command meets. Each run ends (within two minutes) with exit 0, a refusal (1) or a usage
 //! error (2), never a panic or a hang. Round three found `smooth --clean-sigma 1e300`
 //! (capacity overflow) and `[rig] noise_px = [1e154]` (minutes); the options are read from
 //! `--help`, so a new option is walked without a change here.
@@ -49,7 +49,7 @@ fn with(base: &[String], flag: &str, value: &str) -> Vec<String> {
 
 fn run_bounded(args: &[String], dir: &Path) -> (Option<i32>, String) {
     let out = Command::new("timeout")
-        .arg("60")
+        .arg("120")
         .arg(env!("CARGO_BIN_EXE_kslab"))
         .args(args)
         .arg("-q")
@@ -129,7 +129,7 @@ fn every_setting_of_every_subcommand_refuses_or_takes_zero_minus_one_nan_1e300_a
                     let (code, err) = run_bounded(&args, dir);
                     match code {
                         Some(0..=2) if !err.contains("panicked") => {}
-                        Some(124) => failures.push(format!("{args:?}: still running after 60 s")),
+                        Some(124) => failures.push(format!("{args:?}: still running after 120 s")),
                         c => failures.push(format!("{args:?}: exit {c:?}: {}", err.trim())),
                     }
                 }

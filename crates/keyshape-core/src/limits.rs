@@ -104,6 +104,16 @@ pub const STRIP_FRAMES: Limit = Limit {
     unit: "frames",
 };
 
+/// λ of the rig's temporal prior (`rig --smooth`, `rig-accuracy --smooth`, `[rig] smooth`,
+/// the lab's `l` on the rig): beyond 1e4 the weights barely change and the solve stops
+/// converging (its sweeps reach their cap); `--smooth 1e300` ran for half a minute.
+pub const RIG_SMOOTH: Limit = Limit {
+    lo: 0.0,
+    lo_open: false,
+    hi: 1e4,
+    unit: "(λ of the temporal prior)",
+};
+
 /// Shards of a corpus run (`run --shard i/n`, `merge`).
 pub const SHARDS: Limit = Limit {
     lo: 1.0,

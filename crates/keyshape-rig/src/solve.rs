@@ -68,6 +68,7 @@ pub fn solve_rig(
             opts.zero_phase
         )));
     }
+    keyshape_core::limits::RIG_SMOOTH.check("smooth", opts.smooth)?;
     if !(opts.prior.is_finite() && opts.prior >= 0.0) {
         return Err(Error::invalid(format!(
             "the magnitude prior must be a number ≥ 0, not {}",

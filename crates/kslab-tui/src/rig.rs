@@ -38,7 +38,7 @@ pub fn rig_view(seq: &Sequence, source: &RigSource) -> Result<RigView> {
 /// The largest λ the lab's `l` gives the rig's offline prior (the key-shape solve goes on
 /// to 1e6): the rig's weights barely change beyond it, and its solve slows (564 sweeps, 7 s
 /// for the built-in sequence at 1e4; at 1e5 the sweeps stop at their cap).
-pub const RIG_SMOOTH_MAX: f64 = 1e4;
+pub const RIG_SMOOTH_MAX: f64 = keyshape_core::limits::RIG_SMOOTH.hi;
 
 /// [`rig_view`] with the offline temporal prior λ (the lab's `l` / `L`) in place of the
 /// zero-phase Gaussian; 0 is [`rig_view`].
