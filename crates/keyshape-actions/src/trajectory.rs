@@ -209,18 +209,72 @@ pub fn synthesise(
 ) -> DMatrix<f64> {
     let n = source_traj.ncols();
     let mut out = DMatrix::from_fn(target.pca.mean.len(), n, |i, _| target.pca.mean[i]);
-    for p in &alignment.pairs {
-        let sign = if p.flip { -1.0 } else { 1.0 };
-        let (lo, hi) = (target.lower[p.target_mode], target.upper[p.target_mode]);
-        let u: DVector<f64> = target.pca.components.column(p.target_mode).clone_owned();
+    // Each target mode once, driven by every pair that names it.
+    let mut modes: Vec<usize> = alignment.pairs.iter().map(|p| p.target_mode).collect();
+    modes.sort_unstable();
+    modes.dedup();
+    for m in modes {
+        let pairs: Vec<&ModePair> = alignment
+            .pairs
+            .iter()
+            .filter(|p| p.target_mode == m)
+            .collect();
+        let (lo, hi) = (target.lower[m], target.upper[m]);
+        let u: DVector<f64> = target.pca.components.column(m).clone_owned();
+        // On a shared mode each pair drives only its own action's side (the target's
+        // model says which): the other side of a smile mode is not a pucker.
+        let sides: Vec<Option<f64>> = pairs
+            .iter()
+            .map(|p| {
+                (pairs.len() > 1)
+                    .then(|| {
+                        target
+                            .actions
+                            .iter()
+                            .find(|(name, mode, _)| *name == p.action && *mode == m)
+                            .map(|a| a.2)
+                    })
+                    .flatten()
+            })
+            .collect();
         for t in 0..n {
-            let v = sign * source_traj[(p.source_mode, t)];
+            let vs = pairs.iter().zip(&sides).map(|(p, side)| {
+                let sign = if p.flip { -1.0 } else { 1.0 };
+                let v = sign * source_traj[(p.source_mode, t)];
+                match side {
+                    Some(s) if v * s < 0.0 => 0.0,
+                    _ => v,
+                }
+            });
+            let v = combine(vs);
             let w = v * target.normalisation.scale(v, lo, hi);
             let mut col = out.column_mut(t);
             col.axpy(w, &u, 1.0);
         }
     }
     out
+}
+
+/// The value of a target mode that several pairs drive (the target's model put two actions,
+/// say jaw drop and pucker, on its two sides), from each pair's normalised value (already
+/// cut to its action's side): their mean weighted by |v|², so the action the source
+/// performs more drives the mode
+/// (continuously: equal and opposite values give 0). Added up, as before, the other
+/// action's trajectory cancelled the first — a jaw drop mapped to a closed mouth. One pair
+/// gives its own value.
+pub fn combine(vs: impl Iterator<Item = f64>) -> f64 {
+    let (mut num, mut den, mut count, mut only) = (0.0, 0.0, 0, 0.0);
+    for v in vs {
+        num += v * v * v;
+        den += v * v;
+        count += 1;
+        only = v;
+    }
+    match count {
+        1 => only,
+        _ if den > 0.0 => num / den,
+        _ => 0.0,
+    }
 }
 
 /// Where a source extreme lands on the target under each normalisation, for one mode pair
@@ -280,4 +334,24 @@ pub fn extremes(
         }
     }
     rows
+}
+
+#[cfg(test)]
+mod combine_tests {
+    use super::combine;
+
+    #[test]
+    fn the_action_performed_more_drives_a_shared_mode() {
+        assert_eq!(combine([0.7].into_iter()), 0.7);
+        // Jaw drop at its extreme, the flipped pucker trajectory against it.
+        let jaw = combine([1.0, -0.4].into_iter());
+        assert!(jaw > 0.8, "{jaw}");
+        let pucker = combine([0.1, -0.9].into_iter());
+        assert!(pucker < -0.85, "{pucker}");
+        assert_eq!(combine([0.5, -0.5].into_iter()), 0.0);
+        assert_eq!(combine([0.0, 0.0].into_iter()), 0.0);
+        // Never beyond the largest magnitude given.
+        let v = combine([0.9, 0.3, -0.2].into_iter());
+        assert!(v <= 0.9 && v > 0.7, "{v}");
+    }
 }
