@@ -152,3 +152,97 @@ fn every_setting_of_every_subcommand_refuses_or_takes_zero_minus_one_nan_1e300_a
         failures.join("\n")
     );
 }
+
+/// The same values in every numeric key of every table of an experiment file, on a spec
+/// that otherwise runs: `[retarget] strip = 2⁶¹` overflowed a capacity, `[smooth]
+/// clean_sigma = 1e300` a kernel, `[rig] noise_px = [1e154]` ran for minutes. Each run
+/// ends within two minutes with exit 0 or 1 and no panic.
+#[test]
+fn every_numeric_key_of_every_experiment_table_refuses_or_takes_the_same_values() {
+    let d = tempfile::tempdir().unwrap();
+    let dir = d.path();
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let data = |rel: &str| shared(rel).display().to_string();
+    let asset = |rel: &str| root.join("assets").join(rel).display().to_string();
+    let d6 = data("mediapipe_face_tracks/liveportrait_d6.csv");
+    let one = format!("title = \"w\"\ninput = \"{d6}\"\npoints = \"lips\"\n");
+    // (the spec before the key, the key, whether it takes a list)
+    let tables: Vec<(String, &str, bool)> = vec![
+        (format!("{one}methods = [\"kmeans2\"]\nk = \"2..3\"\n"), "seed", false),
+        (format!("{one}methods = [\"greedy\"]\nk = \"2..3\"\n"), "shortlist", false),
+        (format!("{one}methods = [\"spread\"]\nk = \"2..3\"\n"), "dims", false),
+        (format!("title = \"w\"\ninputs = [\"{d6}\"]\npoints = \"lips\"\nmethods = [\"spread\"]\nk = \"2..3\"\n"), "bootstrap", false),
+        (format!("{one}[retarget]\nmethod = \"spread\"\nsolvers = [\"nnls\"]\n"), "k", false),
+        (format!("{one}[retarget]\nmethod = \"spread\"\nk = 3\nsolvers = [\"nnls\"]\n"), "strip", false),
+        (format!("{one}[retarget]\nmethod = \"spread\"\nk = 3\nsolvers = [\"nnls\"]\n"), "trace_noise", true),
+        (format!("title = \"w\"\ninput = \"{d6}\"\n[modes]\nactions = \"{}\"\n", asset("cosker/actions_liveportrait_d6.json")), "modes", false),
+        (format!("title = \"w\"\ninput = \"{d6}\"\n[modes]\nactions = \"{}\"\n", asset("cosker/actions_liveportrait_d6.json")), "blend_radius", false),
+        (format!("title = \"w\"\ninput = \"{d6}\"\n[map]\nactions = \"{}\"\n", asset("cosker/actions_liveportrait_d6.json")), "modes", false),
+        (format!("title = \"w\"\ninput = \"{d6}\"\n[map]\nactions = \"{}\"\n", asset("cosker/actions_liveportrait_d6.json")), "blend_radius", false),
+        (format!("title = \"w\"\ninput = \"{}\"\n[intensity]\nevaluation = \"split\"\ntrain_clips = [1, 14]\n", data("pyfeat_samples/news_sample_compact.csv")), "k", false),
+        (format!("title = \"w\"\ninput = \"{}\"\n[intensity]\nevaluation = \"split\"\ntrain_clips = [1, 14]\n", data("pyfeat_samples/news_sample_compact.csv")), "degree", false),
+        (format!("title = \"w\"\ninput = \"{}\"\n[intensity]\nevaluation = \"split\"\ntrain_clips = [1, 14]\n", data("pyfeat_samples/news_sample_compact.csv")), "threshold", false),
+        (format!("title = \"w\"\ninput = \"{}\"\n[intensity]\nevaluation = \"split\"\ntrain_clips = [1, 14]\ncentring = \"neutral\"\n", data("pyfeat_samples/news_sample_compact.csv")), "neutral_frames", false),
+        (format!("{one}[smooth]\nmethod = \"spread\"\n"), "k", false),
+        (format!("{one}[smooth]\nmethod = \"spread\"\nk = 3\n"), "lambdas", true),
+        (format!("{one}[smooth]\nmethod = \"spread\"\nk = 3\n"), "clean_sigma", false),
+        (format!("{one}[smooth]\nmethod = \"spread\"\nk = 3\n"), "windows", true),
+        (format!("{one}[smooth]\nmethod = \"spread\"\nk = 3\n"), "alphas", true),
+        (format!("{one}[smooth]\nmethod = \"spread\"\nk = 3\n"), "one_euro_cutoffs", true),
+        (format!("{one}[smooth]\nmethod = \"spread\"\nk = 3\n"), "one_euro_betas", true),
+        (format!("title = \"w\"\ninput = \"builtin\"\n[rig]\nframes = 40\n"), "noise_px", true),
+        (format!("title = \"w\"\ninput = \"builtin\"\n[rig]\nframes = 40\n"), "smooth", true),
+        (format!("title = \"w\"\ninput = \"builtin\"\n[rig]\nframes = 40\n"), "seed", false),
+        (format!("title = \"w\"\ninput = \"builtin\"\n[rig]\n"), "frames", false),
+    ];
+    let toml_values = ["0", "-1", "nan", "1e300", "2305843009213693952"];
+    let walk = |share: usize| {
+        let mut failures = Vec::new();
+        let mut runs = 0;
+        for (i, (base, key, list)) in tables.iter().enumerate().skip(share).step_by(2) {
+            for (j, v) in toml_values.iter().enumerate() {
+                let value = if *list {
+                    format!("[{v}]")
+                } else {
+                    v.to_string()
+                };
+                let spec = dir.join(format!("s{i}_{j}.toml"));
+                std::fs::write(&spec, format!("{base}{key} = {value}\n")).unwrap();
+                let out = dir.join(format!("o{i}_{j}"));
+                let args = vec![
+                    "run".to_string(),
+                    spec.display().to_string(),
+                    "--out".to_string(),
+                    out.display().to_string(),
+                ];
+                runs += 1;
+                let (code, err) = run_bounded(&args, dir);
+                match code {
+                    Some(0 | 1) if !err.contains("panicked") => {}
+                    Some(124) => failures.push(format!(
+                        "{key} = {value}: still running after 120 s\n{base}"
+                    )),
+                    c => failures.push(format!(
+                        "{key} = {value}: exit {c:?}: {}\n{base}",
+                        err.trim()
+                    )),
+                }
+            }
+        }
+        (runs, failures)
+    };
+    let (a, b) = std::thread::scope(|s| {
+        let a = s.spawn(|| walk(0));
+        let b = s.spawn(|| walk(1));
+        (a.join().unwrap(), b.join().unwrap())
+    });
+    let runs = a.0 + b.0;
+    let failures: Vec<String> = a.1.into_iter().chain(b.1).collect();
+    assert_eq!(runs, tables.len() * toml_values.len());
+    assert!(
+        failures.is_empty(),
+        "{} of {runs} runs:\n{}",
+        failures.len(),
+        failures.join("\n")
+    );
+}
