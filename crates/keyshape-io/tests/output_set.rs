@@ -10,6 +10,7 @@
 
 use keyshape_io::atomic::{check_distinct, check_output, register_input};
 use keyshape_io::{write_atomic, OutputSet};
+use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 
@@ -267,4 +268,30 @@ fn a_link_planted_by_another_user_in_a_sticky_folder_is_not_followed() {
             "mine"
         );
     }
+}
+
+/// A write that fails half way (a full disk while filling the second file) fails the
+/// command: nothing of it is visible, the first file staged is gone with the set.
+#[test]
+fn a_write_that_fails_while_filling_leaves_nothing_behind() {
+    let _g = lock();
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    std::fs::write(d.join("a.csv"), "old a").unwrap();
+    {
+        let _set = OutputSet::begin();
+        write(&d.join("a.csv"), "new a").unwrap();
+        let e = write_atomic(&d.join("b.csv"), |w| {
+            w.write_all(b"half")?;
+            Err(std::io::Error::new(
+                std::io::ErrorKind::StorageFull,
+                "disk full",
+            ))
+        })
+        .expect_err("the fill fails");
+        assert!(e.to_string().contains("b.csv"), "{e}");
+        // The set is dropped with the command's error.
+    }
+    assert_eq!(std::fs::read_to_string(d.join("a.csv")).unwrap(), "old a");
+    assert_eq!(names(d), ["a.csv"]);
 }
