@@ -190,10 +190,10 @@ fn every_numeric_key_of_every_experiment_table_refuses_or_takes_the_same_values(
         (format!("{one}[smooth]\nmethod = \"spread\"\nk = 3\n"), "alphas", true),
         (format!("{one}[smooth]\nmethod = \"spread\"\nk = 3\n"), "one_euro_cutoffs", true),
         (format!("{one}[smooth]\nmethod = \"spread\"\nk = 3\n"), "one_euro_betas", true),
-        (format!("title = \"w\"\ninput = \"builtin\"\n[rig]\nframes = 40\n"), "noise_px", true),
-        (format!("title = \"w\"\ninput = \"builtin\"\n[rig]\nframes = 40\n"), "smooth", true),
-        (format!("title = \"w\"\ninput = \"builtin\"\n[rig]\nframes = 40\n"), "seed", false),
-        (format!("title = \"w\"\ninput = \"builtin\"\n[rig]\n"), "frames", false),
+        ("title = \"w\"\ninput = \"builtin\"\n[rig]\nframes = 40\n".to_string(), "noise_px", true),
+        ("title = \"w\"\ninput = \"builtin\"\n[rig]\nframes = 40\n".to_string(), "smooth", true),
+        ("title = \"w\"\ninput = \"builtin\"\n[rig]\nframes = 40\n".to_string(), "seed", false),
+        ("title = \"w\"\ninput = \"builtin\"\n[rig]\n".to_string(), "frames", false),
     ];
     let toml_values = ["0", "-1", "nan", "1e300", "2305843009213693952"];
     let walk = |share: usize| {

@@ -77,7 +77,7 @@ pub fn sig(v: f64, digits: usize) -> String {
     }
     let mag = v.abs().log10().floor() as i32;
     let decimals = (digits as i32 - 1 - mag).max(0) as usize;
-    if mag < -6 || mag > 15 {
+    if !(-6..=15).contains(&mag) {
         return format!("{v:.*e}", digits.saturating_sub(1));
     }
     format!("{v:.decimals$}")

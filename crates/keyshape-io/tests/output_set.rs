@@ -10,7 +10,6 @@
 
 use keyshape_io::atomic::{check_distinct, check_output, register_input};
 use keyshape_io::{write_atomic, OutputSet};
-use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 

@@ -111,7 +111,7 @@ pub struct Sequence {
 pub fn degenerate_message(frame: i64, shape: &[f64], dims: usize) -> String {
     let points = shape.len() / dims.max(1);
     let (spread, size) = spread_and_size(shape, dims);
-    if spread >= MIN_SPREAD && spread > 0.0 {
+    if spread >= MIN_SPREAD {
         format!(
             "frame {frame}: the {points} points spread over {spread:.3e} but lie {size:.3e} from the origin, beyond what 64-bit numbers resolve (a spread of at least 1e-12 of it): subtract the offset from the coordinates"
         )
