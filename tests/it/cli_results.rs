@@ -171,3 +171,54 @@ fn rig_on_a_file_of_clips_names_the_per_clip_identity() {
         assert!(!said.contains("note:"), "{per}: {said}");
     }
 }
+
+/// `info --image-size` says that it scaled the track (round three: it said nothing), and a
+/// normalised track without it says it is normalised.
+#[test]
+fn info_says_whether_it_scaled_a_normalised_track() {
+    let d = tempfile::tempdir().unwrap();
+    let f = d.path().join("n.csv");
+    std::fs::write(
+        &f,
+        "frame,x0,y0,x1,y1,x2,y2\n0,0.1,0.1,0.2,0.1,0.1,0.2\n1,0.1,0.1,0.3,0.1,0.1,0.2\n",
+    )
+    .unwrap();
+    let t = f.display().to_string();
+    let (out, _) = ok(&["info", &t, "--image-size", "512x256"]);
+    assert!(
+        out.contains("coordinates    pixels: normalised coordinates scaled by --image-size 512x256 (x × 512, y × 256)"),
+        "{out}"
+    );
+    assert!(out.contains("x range        51.200 .. 153.600"), "{out}");
+    let (out, _) = ok(&["info", &t]);
+    assert!(
+        out.contains("coordinates    normalised: every x and y in [0, 1]"),
+        "{out}"
+    );
+}
+
+/// A lips-only template's panels are as low as the lips (round three: square panels left
+/// two thirds of each empty); a whole face's stay about square.
+#[test]
+fn template_panels_fit_the_shapes() {
+    let d = tempfile::tempdir().unwrap();
+    let size = |points: Option<&str>| -> (f64, f64) {
+        let o = d.path().join("t.svg").display().to_string();
+        let mut args = vec!["template", "--method", "spread", "--k", "4", "--out", &o];
+        if let Some(p) = points {
+            args.extend(["--points", p]);
+        }
+        ok(&args);
+        let svg = std::fs::read_to_string(&o).unwrap();
+        let attr = |name: &str| -> f64 {
+            let key = format!(" {name}=\"");
+            let i = svg.find(&key).unwrap() + key.len();
+            svg[i..i + svg[i..].find('"').unwrap()].parse().unwrap()
+        };
+        (attr("width"), attr("height"))
+    };
+    let (w, h) = size(Some("lips"));
+    assert!(h < 0.85 * w, "lips: {w} × {h}");
+    let (w, h) = size(None);
+    assert!((h / w - 1.0).abs() < 0.35, "face: {w} × {h}");
+}
