@@ -318,7 +318,7 @@ pub(super) fn check_dir_writable(dir: &Path, what: &Path) -> Result<()> {
 }
 
 /// Checks, before any work, that `path` can be written as an output file and is none of
-/// `inputs` (files or folders, nor a file already read): see [`target_of`] for what is
+/// `inputs` (files or folders, nor a file already read): see the module notes for what is
 /// refused, and its directory must take new files.
 pub fn check_output(path: &Path, inputs: &[&Path]) -> Result<()> {
     match target_of(path)? {
