@@ -16,6 +16,7 @@ pub mod correspondence;
 mod frame;
 pub mod gltf_rig;
 mod identifiability;
+pub mod live;
 pub mod livelink;
 mod neutral;
 mod prior;
@@ -235,6 +236,18 @@ impl Rig {
     }
 }
 
+impl<'a> From<&'a Rig> for std::borrow::Cow<'a, Rig> {
+    fn from(r: &'a Rig) -> Self {
+        std::borrow::Cow::Borrowed(r)
+    }
+}
+
+impl From<Rig> for std::borrow::Cow<'static, Rig> {
+    fn from(r: Rig) -> Self {
+        std::borrow::Cow::Owned(r)
+    }
+}
+
 /// How the person's neutral face is told apart from the rig's.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Identity {
@@ -393,6 +406,13 @@ pub struct RigOptions {
     /// one-step estimator, once more). Gaze shapes held by [`GAZE_DAMPING`] keep the plain
     /// ridge. Off without a prior.
     pub taper: bool,
+    /// Causal: each frame's weights depend on that frame, the frames before it and the
+    /// neutral frames only — the magnitude prior's scale is measured on the neutral frames
+    /// instead of the whole track, no zero-phase or offline smoothing, and the neutral is
+    /// a given frame or lead-in (not searched for over the file). What a live solve
+    /// ([`live::LiveSolver`]) computes, frame by frame, for a track whose first frames are
+    /// its calibration.
+    pub causal: bool,
 }
 
 /// Reweightings of the tapered prior per frame ([`RigOptions::taper`]). Tuned on the
@@ -430,6 +450,7 @@ impl RigOptions {
     pub fn live() -> RigOptions {
         RigOptions {
             zero_phase: 0.0,
+            causal: true,
             ..RigOptions::recommended()
         }
     }
@@ -449,6 +470,7 @@ impl Default for RigOptions {
             prior: 0.0,
             zero_phase: 0.0,
             taper: false,
+            causal: false,
         }
     }
 }

@@ -109,6 +109,8 @@ pub(super) fn best_explaining(
     use rayon::prelude::*;
     let candidates = neutral_looking(rig, track, evenly_spaced(clip.clone(), NEUTRAL_CANDIDATES));
     let scored = evenly_spaced(clip, NEUTRAL_SCORED_FRAMES);
+    // (Never causal: a causal solve is given its neutral.)
+    let iod = super::prior::prior_iod(rig, track, opts, 0..1);
     let scores: Vec<Result<(usize, f64)>> = candidates
         .par_iter()
         .map(|&n| -> Result<(usize, f64)> {
@@ -117,7 +119,7 @@ pub(super) fn best_explaining(
             let shapes = identifiability_weighted(&person, &cam, opts.min_determination, lw);
             let free: Vec<usize> = (0..rig.k()).filter(|&s| !shapes[s].frozen).collect();
             let mut fs = FrameSolver::new(&person, free, opts.solver, opts.max_steps.max(1), lw);
-            fs.ridge = magnitude_prior(track, opts, rig, &fs.free);
+            fs.ridge = magnitude_prior(iod, opts, rig, &fs.free);
             fs.pairs = exclusive_pairs(rig, &fs.free, &fs.ridge);
             let mut total = 0.0;
             // The (weighted) image residuals summed over the scored frames.

@@ -22,6 +22,25 @@ pub fn track_iod(track: &DMatrix<f64>, eyes: [usize; 2]) -> f64 {
     d.get(d.len() / 2).copied().unwrap_or(0.0)
 }
 
+/// The inter-ocular distance that scales the magnitude prior: the track's median over
+/// every frame, or, for a causal solve ([`RigOptions::causal`]), over the neutral frames
+/// only (`neutral`), so that no frame still to come changes a frame's weights.
+pub(super) fn prior_iod(
+    rig: &Rig,
+    track: &DMatrix<f64>,
+    opts: &RigOptions,
+    neutral: std::ops::Range<usize>,
+) -> f64 {
+    let Some(eyes) = rig.eyes() else {
+        return 0.0;
+    };
+    if opts.causal {
+        track_iod(&track.columns(neutral.start, neutral.len()).into_owned(), eyes)
+    } else {
+        track_iod(track, eyes)
+    }
+}
+
 /// How much more the magnitude prior holds the gaze shapes (`eyeLook*`) when the rig reads
 /// no iris (iBUG 68, MediaPipe 468): eye gaze then moves the landmarks only through the
 /// lids, and a free gaze shape explains lid and brow motion instead of the shapes that made
@@ -70,16 +89,12 @@ pub(super) fn exclusive_pairs(
 
 /// Per free shape (`free`, rig order), the magnitude prior's μ: `opts.prior × IOD²`, times
 /// [`GAZE_DAMPING`] for gaze shapes.
-pub(super) fn magnitude_prior(
-    track: &DMatrix<f64>,
-    opts: &RigOptions,
-    rig: &Rig,
-    free: &[usize],
-) -> Vec<f64> {
-    let mu = match rig.eyes() {
-        Some(eyes) => opts.prior * track_iod(track, eyes).powi(2),
-        // solve_rig refuses a prior without the eye corners.
-        None => 0.0,
+pub(super) fn magnitude_prior(iod: f64, opts: &RigOptions, rig: &Rig, free: &[usize]) -> Vec<f64> {
+    // solve_rig refuses a prior without the eye corners, whose distance `iod` is.
+    let mu = if rig.eyes().is_some() {
+        opts.prior * iod.powi(2)
+    } else {
+        0.0
     };
     let damp = !rig.sees_pupils();
     free.iter()

@@ -5,7 +5,7 @@ use super::camera::{fit_camera, Camera};
 use super::frame::{frame_depth, frame_points, FrameSolver};
 use super::identifiability::identifiability_weighted;
 use super::neutral::{best_explaining, person_rig};
-use super::prior::{exclusive_pairs, magnitude_prior, tapering};
+use super::prior::{exclusive_pairs, magnitude_prior, prior_iod, tapering};
 use super::{correspondence, temporal, Identity, Neutral, Rig, RigOptions, RigSolve, LANDMARKS};
 use keyshape_core::error::{Error, Result};
 use nalgebra::DMatrix;
@@ -56,54 +56,7 @@ pub fn solve_rig(
             "frame column {c}: all {n} landmarks coincide, so no camera can be fitted to it"
         )));
     }
-    if !(opts.min_determination >= 0.0 && opts.min_determination < 1.0) {
-        return Err(Error::invalid(format!(
-            "the minimum determination must be in [0, 1), not {}",
-            opts.min_determination
-        )));
-    }
-    if !(opts.zero_phase.is_finite() && (0.0..=1000.0).contains(&opts.zero_phase)) {
-        return Err(Error::invalid(format!(
-            "the zero-phase σ must be a number of frames in [0, 1000], not {}",
-            opts.zero_phase
-        )));
-    }
-    keyshape_core::limits::RIG_SMOOTH.check("smooth", opts.smooth)?;
-    if !(opts.prior.is_finite() && opts.prior >= 0.0) {
-        return Err(Error::invalid(format!(
-            "the magnitude prior must be a number ≥ 0, not {}",
-            opts.prior
-        )));
-    }
-    if !(opts.smooth.is_finite() && opts.smooth >= 0.0) {
-        return Err(Error::invalid(format!(
-            "the temporal prior λ must be a number ≥ 0, not {}",
-            opts.smooth
-        )));
-    }
-    if let Some((i, w)) = opts
-        .landmark_weights
-        .iter()
-        .enumerate()
-        .find(|(_, w)| !(w.is_finite() && **w >= 0.0))
-    {
-        return Err(Error::invalid(format!(
-            "landmark {i}'s weight must be a finite number ≥ 0, not {w}"
-        )));
-    }
-    let lw = rig_landmark_weights(rig, opts)?;
-    if opts.prior > 0.0 && rig.eyes().is_none() {
-        let [a, b] = correspondence::eye_corners(rig.layout).unwrap_or([36, 45]);
-        return Err(Error::invalid(format!(
-            "the magnitude prior is scaled by the outer eye corners (track points {a} and {b}), which the rig's correspondence leaves out: name them, or set the prior to 0"
-        )));
-    }
-    let weighted = lw.iter().filter(|w| **w > 0.0).count();
-    if weighted < 4 {
-        return Err(Error::invalid(format!(
-            "the landmark weights leave {weighted} landmarks with weight > 0; the head pose needs at least 4"
-        )));
-    }
+    let lw = check_options(rig, opts)?;
     let whole = std::iter::once(0..track.ncols()).collect::<Vec<_>>();
     let clips: &[Range<usize>] = if clips.is_empty() { &whole[..] } else { clips };
     if clips.iter().any(|c| c.end > track.ncols() || c.is_empty())
@@ -131,6 +84,8 @@ pub fn solve_rig(
             )));
         }
     }
+    // The magnitude prior's scale: the whole track's, or a causal solve's neutral frames'.
+    let iod = prior_iod(rig, track, opts, neutral_frames(opts.neutral));
     let all: Vec<usize> = (0..rig.k()).collect();
     // Pass 1 (without an identity, or to find the least active frames): the rig as it is,
     // every shape free.
@@ -143,6 +98,7 @@ pub fn solve_rig(
             opts,
             &lw,
             depth,
+            iod,
         )?),
         _ => None,
     };
@@ -191,11 +147,100 @@ pub fn solve_rig(
     };
     let shapes = identifiability_weighted(&people[0].1, &cam_n, opts.min_determination, &lw);
     let free: Vec<usize> = (0..rig.k()).filter(|&s| !shapes[s].frozen).collect();
-    let mut out = run(rig, track, &people, free, opts, &lw, depth)?;
+    let mut out = run(rig, track, &people, free, opts, &lw, depth, iod)?;
     out.shapes = shapes;
     out.neutrals = neutrals;
     out.people = people;
     Ok(out)
+}
+
+/// Checks `opts` against `rig`; returns the per-landmark weights of the fit.
+pub(super) fn check_options(rig: &Rig, opts: &RigOptions) -> Result<Vec<f64>> {
+    if !(opts.min_determination >= 0.0 && opts.min_determination < 1.0) {
+        return Err(Error::invalid(format!(
+            "the minimum determination must be in [0, 1), not {}",
+            opts.min_determination
+        )));
+    }
+    if !(opts.zero_phase.is_finite() && (0.0..=1000.0).contains(&opts.zero_phase)) {
+        return Err(Error::invalid(format!(
+            "the zero-phase σ must be a number of frames in [0, 1000], not {}",
+            opts.zero_phase
+        )));
+    }
+    keyshape_core::limits::RIG_SMOOTH.check("smooth", opts.smooth)?;
+    if !(opts.prior.is_finite() && opts.prior >= 0.0) {
+        return Err(Error::invalid(format!(
+            "the magnitude prior must be a number ≥ 0, not {}",
+            opts.prior
+        )));
+    }
+    if !(opts.smooth.is_finite() && opts.smooth >= 0.0) {
+        return Err(Error::invalid(format!(
+            "the temporal prior λ must be a number ≥ 0, not {}",
+            opts.smooth
+        )));
+    }
+    if let Some((i, w)) = opts
+        .landmark_weights
+        .iter()
+        .enumerate()
+        .find(|(_, w)| !(w.is_finite() && **w >= 0.0))
+    {
+        return Err(Error::invalid(format!(
+            "landmark {i}'s weight must be a finite number ≥ 0, not {w}"
+        )));
+    }
+    let lw = rig_landmark_weights(rig, opts)?;
+    if opts.prior > 0.0 && rig.eyes().is_none() {
+        let [a, b] = correspondence::eye_corners(rig.layout).unwrap_or([36, 45]);
+        return Err(Error::invalid(format!(
+            "the magnitude prior is scaled by the outer eye corners (track points {a} and {b}), which the rig's correspondence leaves out: name them, or set the prior to 0"
+        )));
+    }
+    let weighted = lw.iter().filter(|w| **w > 0.0).count();
+    if weighted < 4 {
+        return Err(Error::invalid(format!(
+            "the landmark weights leave {weighted} landmarks with weight > 0; the head pose needs at least 4"
+        )));
+    }
+    check_causal(opts)?;
+    Ok(lw)
+}
+
+/// A causal solve's settings: nothing that reads frames still to come.
+fn check_causal(opts: &RigOptions) -> Result<()> {
+    if !opts.causal {
+        return Ok(());
+    }
+    if opts.zero_phase != 0.0 {
+        return Err(Error::invalid(format!(
+            "a causal solve cannot smooth with frames still to come: zero-phase σ {} must be 0",
+            opts.zero_phase
+        )));
+    }
+    if opts.smooth > 0.0 && opts.smooth_mode == keyshape_core::solve::temporal::SmoothMode::Offline
+    {
+        return Err(Error::invalid(
+            "a causal solve cannot use the offline temporal prior (it solves a clip at once)",
+        ));
+    }
+    if opts.identity != Identity::None && matches!(opts.neutral, Neutral::Auto | Neutral::LeastActive) {
+        return Err(Error::invalid(
+            "a causal solve needs its neutral given (a frame, or a lead-in of frames): finding it searches the whole track",
+        ));
+    }
+    Ok(())
+}
+
+/// The frames a causal solve measures the prior's scale on: the neutral frame or lead-in,
+/// or the first frame when there is none.
+fn neutral_frames(n: Neutral) -> Range<usize> {
+    match n {
+        Neutral::Column(c) => c..c + 1,
+        Neutral::Span(a, b) => a..b,
+        Neutral::Auto | Neutral::LeastActive => 0..1,
+    }
 }
 
 /// Per landmark, the weight of its squared error: `opts.landmark_weights` (iBUG numbering)
@@ -267,6 +312,7 @@ pub(super) fn run(
     opts: &RigOptions,
     lw: &[f64],
     depth: Option<&DMatrix<f64>>,
+    iod: f64,
 ) -> Result<RigSolve> {
     let frames = track.ncols();
     let mut tzs = vec![0.0; frames];
@@ -280,7 +326,7 @@ pub(super) fn run(
     for (clip, person) in people {
         let mut fs = FrameSolver::new(person, free.clone(), opts.solver, opts.max_steps.max(1), lw);
         fs.lambda = if offline { 0.0 } else { opts.smooth };
-        fs.ridge = magnitude_prior(track, opts, rig, &fs.free);
+        fs.ridge = magnitude_prior(iod, opts, rig, &fs.free);
         fs.pairs = exclusive_pairs(rig, &fs.free, &fs.ridge);
         fs.taper = tapering(rig, opts, &fs.free, &fs.ridge);
         for f in clip.clone() {

@@ -74,7 +74,7 @@ pub struct RigArgs {
     /// file, or a recorded neutral lead-in FIRST-LAST (frame numbers, inclusive: each
     /// frame's difference from the rig's neutral averaged, so no one frame's landmark noise
     /// becomes the person's face); refused with --identity none, which uses none.
-    /// [default: auto].
+    /// [default: auto; with --live, the first 30 frames].
     #[arg(long, value_name = "auto|least-active|FRAME|FIRST-LAST")]
     neutral: Option<String>,
     /// How the person's face differs from the rig's: `offset` (the neutral frame's 2-D
@@ -114,8 +114,12 @@ pub struct RigArgs {
     /// Tuned on `kslab rig-accuracy` (2 already flattens speech-rate jaw motion).
     #[arg(long, value_name = "SIGMA", allow_negative_numbers = true)]
     zero_phase: Option<f64>,
-    /// Weights for live use: causal only (no --zero-phase; combine with --smooth λ for the
-    /// causal temporal prior, each frame pulled towards the last).
+    /// Weights for live use: causal, each frame's weights from that frame, the frames
+    /// before it and the neutral lead-in only — no --zero-phase, the prior scaled on the
+    /// lead-in, which must be given (--neutral FIRST-LAST or FRAME; default 0-29, the first
+    /// 30 frames, as `kslab live --calibrate 30` calibrates). A take `kslab live --record`
+    /// recorded gives the same weights here as it gave live. Combine with --smooth λ for the
+    /// causal temporal prior, each frame pulled towards the last.
     #[arg(long)]
     live: bool,
     /// Temporal prior λ (≥ 0, squared image units per unit weight²; not across clips), in
@@ -242,6 +246,9 @@ pub fn run(a: &RigArgs) -> Result<()> {
     }
     let seq = seq.select_points(&rig.points)?;
     let neutral = neutral_of(a, &seq)?;
+    if a.live && a.identity_per.as_deref() == Some("clip") {
+        anyhow::bail!("--live takes one neutral lead-in for the track: --identity-per clip searches each clip for its own");
+    }
     let zero_phase = match (a.live, a.zero_phase) {
         (true, Some(z)) if z != 0.0 => anyhow::bail!(
             "--live is causal: --zero-phase {z} smooths with frames still to come; drop one of them"
@@ -273,6 +280,7 @@ pub fn run(a: &RigArgs) -> Result<()> {
         prior: a.prior,
         zero_phase,
         taper: !a.no_prior_taper,
+        causal: a.live,
         ..Default::default()
     };
     let per_clip = match a.identity_per.as_deref() {
@@ -388,9 +396,19 @@ pub fn run(a: &RigArgs) -> Result<()> {
     Ok(())
 }
 
+/// The neutral lead-in `--live` takes by default: the first 30 frames, `kslab live`'s
+/// default calibration.
+pub(crate) const LIVE_LEAD_IN: usize = 30;
+
 /// `--neutral`: auto, least-active, a frame number or a stretch FIRST-LAST of frames.
 fn neutral_of(a: &RigArgs, seq: &Sequence) -> Result<Neutral> {
     Ok(match a.neutral.as_deref().map(str::trim) {
+        None if a.live && a.identity != Identity::None => {
+            Neutral::Span(0, seq.n_frames().min(LIVE_LEAD_IN))
+        }
+        Some(n @ ("auto" | "least-active")) if a.live => anyhow::bail!(
+            "--live solves each frame from the frames before it: --neutral {n} searches the whole file; give the neutral lead-in, FIRST-LAST (by default the first {LIVE_LEAD_IN} frames, as `kslab live` calibrates)"
+        ),
         None | Some("auto") => Neutral::Auto,
         Some("least-active") => Neutral::LeastActive,
         Some(f) => {

@@ -16,7 +16,9 @@ pub(super) use blocks::{dot, frame_depth, frame_points, Blocks};
 
 /// One frame's solver state, reused from frame to frame (the warm start).
 pub(super) struct FrameSolver<'a> {
-    pub(super) rig: &'a Rig,
+    /// The person's rig: borrowed by a file's solve, owned by the live solve (which keeps
+    /// its solver from frame to frame).
+    pub(super) rig: std::borrow::Cow<'a, Rig>,
     pub(super) blocks: Blocks,
     /// Shapes solved for (not frozen), in rig order.
     pub(super) free: Vec<usize>,
@@ -49,12 +51,13 @@ pub(super) struct FrameSolver<'a> {
 
 impl<'a> FrameSolver<'a> {
     pub(super) fn new(
-        rig: &'a Rig,
+        rig: impl Into<std::borrow::Cow<'a, Rig>>,
         free: Vec<usize>,
         solver: Solver,
         max_steps: usize,
         lw: &[f64],
     ) -> Self {
+        let rig = rig.into();
         let sub: Vec<Vec<[f64; 3]>> = free.iter().map(|&s| rig.deltas[s].clone()).collect();
         let m = free.len();
         FrameSolver {

@@ -1,0 +1,289 @@
+//! The rig solve one frame at a time, as the frames arrive: the person's neutral from the
+//! first N frames (the calibration: "look neutral"), then each frame solved when it comes,
+//! warm-started from the one before, with nothing from frames still to come.
+//!
+//! It computes what [`crate::solve_rig`] computes for a causal solve
+//! ([`RigOptions::causal`]) whose neutral is the lead-in `0..N`: the same person (the
+//! lead-in's residuals averaged), the same shapes frozen (judged at the middle lead-in
+//! frame's head pose), the prior scaled by the lead-in's inter-ocular distance, the same
+//! warm-started frame solver. So a recorded take replays to the same weights, bit for bit,
+//! as `kslab rig --live --neutral 0-(N-1)` gives for the file.
+
+use super::camera::{fit_camera, Camera};
+use super::frame::{frame_points, FrameSolver};
+use super::identifiability::identifiability_weighted;
+use super::neutral::person_rig;
+use super::prior::{exclusive_pairs, magnitude_prior, prior_iod, tapering};
+use super::solve::check_options;
+use super::{Identity, Neutral, Rig, RigOptions};
+use keyshape_core::error::{Error, Result};
+use nalgebra::DMatrix;
+use serde::{Deserialize, Serialize};
+
+/// A person's calibration: what the neutral lead-in taught the solve. Saved and loaded as
+/// JSON (`kslab live --neutral-file`), so a session can start without looking neutral again.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Calibration {
+    /// The track layout the rig reads (68, 468 or 478 points).
+    pub layout: usize,
+    /// The track points the rig reads, in landmark order.
+    pub points: Vec<usize>,
+    /// The rig's shape names.
+    pub names: Vec<String>,
+    /// The person's neutral landmarks (the rig's, moved by the lead-in's averaged residual).
+    pub neutral: Vec<[f64; 3]>,
+    /// The inter-ocular distance that scales the magnitude prior (track units).
+    pub iod: f64,
+    /// The shapes solved for, in rig order (the others are held at 0).
+    pub free: Vec<usize>,
+    /// Frames averaged into the neutral.
+    pub frames: usize,
+}
+
+/// One solved frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LiveFrame {
+    /// The weights, in the rig's shape order.
+    pub weights: Vec<f64>,
+    /// The fitted head pose.
+    pub camera: Camera,
+    /// RMS landmark error (track units).
+    pub rms: f64,
+}
+
+/// The frame-by-frame rig solve (see the module's documentation).
+pub struct LiveSolver {
+    rig: Rig,
+    opts: RigOptions,
+    lw: Vec<f64>,
+    needed: usize,
+    /// The frames collected for the calibration (each `2 × landmarks` values, x then y
+    /// per landmark, image axes).
+    pending: Vec<Vec<f64>>,
+    state: Option<(Calibration, FrameSolver<'static>)>,
+}
+
+impl LiveSolver {
+    /// A solver for `rig` that calibrates on its first `calibrate` frames (≥ 1). `opts`
+    /// must be causal ([`RigOptions::live`]), with an identity of `offset` or `rbf`.
+    pub fn new(rig: Rig, opts: RigOptions, calibrate: usize) -> Result<LiveSolver> {
+        if calibrate == 0 {
+            return Err(Error::invalid(
+                "the calibration needs at least 1 neutral frame",
+            ));
+        }
+        if !opts.causal {
+            return Err(Error::invalid(
+                "a live solve is causal: give RigOptions::live() or set causal",
+            ));
+        }
+        if opts.identity == Identity::None {
+            return Err(Error::invalid(
+                "a live solve calibrates the person's neutral: the identity cannot be none",
+            ));
+        }
+        let opts = RigOptions {
+            neutral: Neutral::Span(0, calibrate),
+            ..opts
+        };
+        let lw = check_options(&rig, &opts)?;
+        Ok(LiveSolver {
+            rig,
+            opts,
+            lw,
+            needed: calibrate,
+            pending: Vec::new(),
+            state: None,
+        })
+    }
+
+    /// The rig solved onto.
+    pub fn rig(&self) -> &Rig {
+        &self.rig
+    }
+
+    /// The calibration in use, once there is one.
+    pub fn calibration(&self) -> Option<&Calibration> {
+        self.state.as_ref().map(|s| &s.0)
+    }
+
+    /// Frames collected towards the calibration, and how many it needs.
+    pub fn collected(&self) -> (usize, usize) {
+        (self.pending.len(), self.needed)
+    }
+
+    /// Starts a new calibration: the next frames are the person's neutral again (the
+    /// warm start is dropped with the old person).
+    pub fn recalibrate(&mut self) {
+        self.state = None;
+        self.pending.clear();
+    }
+
+    /// The causal temporal prior's λ from now on (≥ 0; see [`RigOptions::smooth`]).
+    pub fn set_smooth(&mut self, lambda: f64) -> Result<()> {
+        keyshape_core::limits::RIG_SMOOTH.check("smooth", lambda)?;
+        self.opts.smooth = lambda;
+        if let Some((_, fs)) = &mut self.state {
+            fs.lambda = lambda;
+        }
+        Ok(())
+    }
+
+    /// The causal temporal prior's λ.
+    pub fn smooth(&self) -> f64 {
+        self.opts.smooth
+    }
+
+    /// Uses a saved calibration instead of collecting one (it must be of this rig).
+    pub fn set_calibration(&mut self, c: Calibration) -> Result<()> {
+        let rig = &self.rig;
+        let bad = |what: String| Err(Error::invalid(format!("calibration: {what}")));
+        if c.layout != rig.layout || c.points != rig.points {
+            return bad(format!(
+                "it was made for a {}-point track read at {} points; this rig reads a {}-point track at {}",
+                c.layout,
+                c.points.len(),
+                rig.layout,
+                rig.points.len()
+            ));
+        }
+        if c.names != rig.names {
+            return bad("its shape names are not this rig's".into());
+        }
+        if c.neutral.len() != rig.landmarks()
+            || c.neutral.iter().flatten().any(|v| !v.is_finite())
+        {
+            return bad(format!(
+                "its neutral must be {} finite landmarks",
+                rig.landmarks()
+            ));
+        }
+        if !(c.iod.is_finite() && c.iod > 0.0) {
+            return bad(format!(
+                "the inter-ocular distance must be a number > 0, not {}",
+                c.iod
+            ));
+        }
+        if c.free.windows(2).any(|w| w[0] >= w[1]) || c.free.iter().any(|&s| s >= rig.k()) {
+            return bad(format!(
+                "the free shapes must be increasing shape numbers below {}",
+                rig.k()
+            ));
+        }
+        if self.opts.identity == Identity::Rbf {
+            return bad(
+                "a saved calibration holds the neutral only, an `offset` identity; this solve asks for rbf"
+                    .into(),
+            );
+        }
+        let person = Rig {
+            neutral: c.neutral.clone(),
+            ..rig.clone()
+        };
+        let fs = self.frame_solver(person, c.free.clone(), c.iod);
+        self.pending.clear();
+        self.state = Some((c, fs));
+        Ok(())
+    }
+
+    /// Takes one frame (`2 × landmarks` values: x and y of each of the rig's landmarks,
+    /// image axes, y down). Returns the frames it solved: none while calibrating, the whole
+    /// lead-in when the calibration completes, then one per frame. A frame that cannot be
+    /// solved (non-finite, all points together, the wrong size) is an error and changes
+    /// nothing.
+    pub fn push(&mut self, frame: &[f64]) -> Result<Vec<LiveFrame>> {
+        let n = self.rig.landmarks();
+        if frame.len() != 2 * n {
+            return Err(Error::invalid(format!(
+                "a frame for this rig has {} values (x, y of {n} landmarks), not {}",
+                2 * n,
+                frame.len()
+            )));
+        }
+        if let Some((i, v)) = frame.iter().enumerate().find(|(_, v)| !v.is_finite()) {
+            return Err(Error::invalid(format!("landmark {}: {v}", i / 2)));
+        }
+        if keyshape_core::sequence::degenerate_shape(frame, 2) {
+            return Err(Error::invalid(format!(
+                "all {n} landmarks coincide, so no camera can be fitted to the frame"
+            )));
+        }
+        if self.state.is_some() {
+            return Ok(vec![self.solve(frame)?]);
+        }
+        self.pending.push(frame.to_vec());
+        if self.pending.len() < self.needed {
+            return Ok(Vec::new());
+        }
+        let pending = std::mem::take(&mut self.pending);
+        // A lead-in that cannot be a neutral is dropped: the collection starts again.
+        let (c, fs) = self.calibrate(&pending)?;
+        self.state = Some((c, fs));
+        pending.iter().map(|f| self.solve(f)).collect()
+    }
+
+    /// The person, frozen shapes and prior scale from the lead-in `frames`.
+    fn calibrate(&self, frames: &[Vec<f64>]) -> Result<(Calibration, FrameSolver<'static>)> {
+        let track = DMatrix::from_fn(2 * self.rig.landmarks(), frames.len(), |r, c| {
+            frames[c][r]
+        });
+        let count = frames.len();
+        let person = person_rig(&self.rig, &track, None, 0..count, self.opts.identity)?;
+        // As solve_rig with the neutral Span(0, count): identifiability at the middle
+        // lead-in frame's head pose.
+        let cam_n = fit_camera(&person.neutral, &frame_points(&track, count / 2))?;
+        let shapes =
+            identifiability_weighted(&person, &cam_n, self.opts.min_determination, &self.lw);
+        let free: Vec<usize> = (0..self.rig.k()).filter(|&s| !shapes[s].frozen).collect();
+        let iod = prior_iod(&self.rig, &track, &self.opts, 0..count);
+        let c = Calibration {
+            layout: self.rig.layout,
+            points: self.rig.points.clone(),
+            names: self.rig.names.clone(),
+            neutral: person.neutral.clone(),
+            iod,
+            free: free.clone(),
+            frames: count,
+        };
+        Ok((c, self.frame_solver(person, free, iod)))
+    }
+
+    /// The frame solver for `person`, set up as the file's solve sets up a clip's.
+    fn frame_solver(&self, person: Rig, free: Vec<usize>, iod: f64) -> FrameSolver<'static> {
+        let opts = &self.opts;
+        let mut fs = FrameSolver::new(person, free, opts.solver, opts.max_steps.max(1), &self.lw);
+        fs.lambda = opts.smooth;
+        fs.ridge = magnitude_prior(iod, opts, &self.rig, &fs.free);
+        fs.pairs = exclusive_pairs(&self.rig, &fs.free, &fs.ridge);
+        fs.taper = tapering(&self.rig, opts, &fs.free, &fs.ridge);
+        fs
+    }
+
+    /// Solves one frame with the calibrated solver (warm-started from the last).
+    fn solve(&mut self, frame: &[f64]) -> Result<LiveFrame> {
+        let n = self.rig.landmarks();
+        let Some((_, fs)) = &mut self.state else {
+            return Err(Error::invalid("the live solve is not calibrated yet"));
+        };
+        let u: Vec<[f64; 2]> = frame.chunks_exact(2).map(|p| [p[0], -p[1]]).collect();
+        fs.depth = None;
+        let (_, _, e) = fs.solve(&u)?;
+        let weights = fs.full_weights();
+        if weights.iter().any(|v| !v.is_finite()) {
+            return Err(Error::invalid(
+                "the rig solve produced non-finite weights for the frame",
+            ));
+        }
+        fs.prev = Some(fs.w.clone());
+        Ok(LiveFrame {
+            weights,
+            camera: fs.cam.unwrap_or(Camera {
+                s: 1.0,
+                r: nalgebra::Matrix3::identity(),
+                t: [0.0, 0.0],
+            }),
+            rms: (e / n as f64).sqrt(),
+        })
+    }
+}

@@ -1,0 +1,152 @@
+//! The frame-by-frame solve against the file's causal solve on real tracks: the same
+//! weights, bit for bit, however the frames arrive; calibration saved and loaded; bad
+//! frames refused without changing the state.
+
+use keyshape_io::{read_sequence, shared_data, ReadOptions};
+use keyshape_rig::correspondence::read_rig;
+use keyshape_rig::live::LiveSolver;
+use keyshape_rig::{solve_rig, Neutral, Rig, RigOptions};
+use nalgebra::DMatrix;
+
+/// A shipped MediaPipe track read through `layout` points (68: the iBUG subset; 468:
+/// dense), its first `frames` frames, and the ICT rig for it.
+fn track(layout: usize, frames: usize) -> (Rig, DMatrix<f64>) {
+    let path = shared_data("mediapipe_face_tracks/liveportrait_d6.csv").unwrap();
+    let seq = read_sequence(&path, &ReadOptions { format: None, dims: 2 }).unwrap();
+    let seq = if layout == 68 {
+        seq.select_points(&keyshape_rig::mediapipe_to_ibug68().unwrap())
+            .unwrap()
+    } else {
+        seq
+    };
+    let (_, _, rig) = read_rig(&shared_data("ict_facekit_face").unwrap(), layout, None).unwrap();
+    let seq = seq.select_points(&rig.points).unwrap();
+    let n = frames.min(seq.n_frames());
+    (rig, seq.coords.columns(0, n).into_owned())
+}
+
+fn live_weights(solver: &mut LiveSolver, track: &DMatrix<f64>) -> DMatrix<f64> {
+    let mut out = Vec::new();
+    for c in 0..track.ncols() {
+        let col: Vec<f64> = track.column(c).iter().copied().collect();
+        out.extend(solver.push(&col).unwrap());
+    }
+    assert_eq!(out.len(), track.ncols(), "every frame is solved once");
+    DMatrix::from_fn(solver.rig().k(), out.len(), |s, f| out[f].weights[s])
+}
+
+#[test]
+fn the_live_solve_is_the_files_causal_solve_bit_for_bit() {
+    for (layout, calibrate, smooth) in [(68, 30, 0.0), (68, 7, 50.0), (468, 20, 0.0)] {
+        let (rig, t) = track(layout, 90);
+        let opts = RigOptions {
+            smooth,
+            ..RigOptions::live()
+        };
+        let file = solve_rig(
+            &rig,
+            &t,
+            &[],
+            &RigOptions {
+                neutral: Neutral::Span(0, calibrate),
+                ..opts
+            },
+        )
+        .unwrap();
+        let mut live = LiveSolver::new(rig.clone(), opts, calibrate).unwrap();
+        let w = live_weights(&mut live, &t);
+        assert_eq!(w, file.weights, "{layout} points, calibrate {calibrate}, λ {smooth}");
+        assert!(w.iter().any(|&v| v > 0.05), "the take moves the face");
+    }
+}
+
+#[test]
+fn a_saved_calibration_solves_as_the_one_it_was_saved_from() {
+    let (rig, t) = track(68, 60);
+    let mut first = LiveSolver::new(rig.clone(), RigOptions::live(), 30).unwrap();
+    let w = live_weights(&mut first, &t);
+    let saved = first.calibration().unwrap().clone();
+    assert_eq!(saved.frames, 30);
+    let text = serde_json::to_string(&saved).unwrap();
+    let back: keyshape_rig::live::Calibration = serde_json::from_str(&text).unwrap();
+    assert_eq!(back, saved, "JSON keeps every bit");
+    let mut second = LiveSolver::new(rig.clone(), RigOptions::live(), 30).unwrap();
+    second.set_calibration(back).unwrap();
+    // The frames after the lead-in: solved at once (no lead-in to collect), to the
+    // solver's tolerance of the first session's (whose warm start came from the lead-in).
+    for c in 30..60 {
+        let col: Vec<f64> = t.column(c).iter().copied().collect();
+        let f = second.push(&col).unwrap();
+        assert_eq!(f.len(), 1, "calibrated: each frame solved as it comes");
+        let worst = f[0]
+            .weights
+            .iter()
+            .zip(w.column(c).iter())
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        assert!(worst < 1e-4, "frame {c}: {worst}");
+    }
+    // Another rig's calibration is refused, naming why.
+    let mut other = saved.clone();
+    other.names[0] = "notAShape".into();
+    let err = second.set_calibration(other).unwrap_err().to_string();
+    assert!(err.contains("shape names"), "{err}");
+    let mut nan = saved;
+    nan.iod = f64::NAN;
+    assert!(second.set_calibration(nan).is_err());
+}
+
+#[test]
+fn a_bad_frame_is_refused_and_changes_nothing() {
+    let (rig, t) = track(68, 40);
+    let mut clean = LiveSolver::new(rig.clone(), RigOptions::live(), 10).unwrap();
+    let want = live_weights(&mut clean, &t);
+    let mut live = LiveSolver::new(rig.clone(), RigOptions::live(), 10).unwrap();
+    let mut got = Vec::new();
+    for c in 0..t.ncols() {
+        if c % 7 == 3 {
+            let mut bad: Vec<f64> = t.column(c).iter().copied().collect();
+            bad[5] = f64::NAN;
+            assert!(live.push(&bad).unwrap_err().to_string().contains("NaN"));
+            assert!(live.push(&bad[..10]).is_err());
+            assert!(live.push(&vec![3.0; bad.len()]).is_err(), "coincident points");
+        }
+        let col: Vec<f64> = t.column(c).iter().copied().collect();
+        got.extend(live.push(&col).unwrap());
+    }
+    let got = DMatrix::from_fn(rig.k(), got.len(), |s, f| got[f].weights[s]);
+    assert_eq!(got, want);
+}
+
+#[test]
+fn recalibrating_starts_a_new_lead_in() {
+    let (rig, t) = track(68, 50);
+    let mut live = LiveSolver::new(rig, RigOptions::live(), 10).unwrap();
+    let mut n = 0;
+    for c in 0..25 {
+        let col: Vec<f64> = t.column(c).iter().copied().collect();
+        n += live.push(&col).unwrap().len();
+    }
+    assert_eq!(n, 25);
+    live.recalibrate();
+    assert!(live.calibration().is_none());
+    assert_eq!(live.collected(), (0, 10));
+    for c in 25..34 {
+        let col: Vec<f64> = t.column(c).iter().copied().collect();
+        assert!(live.push(&col).unwrap().is_empty(), "collecting");
+    }
+    let col: Vec<f64> = t.column(34).iter().copied().collect();
+    assert_eq!(live.push(&col).unwrap().len(), 10, "the new lead-in, solved");
+}
+
+#[test]
+fn settings_a_live_solve_cannot_honour_are_refused() {
+    let (rig, _) = track(68, 1);
+    assert!(LiveSolver::new(rig.clone(), RigOptions::live(), 0).is_err());
+    assert!(LiveSolver::new(rig.clone(), RigOptions::recommended(), 10).is_err());
+    let mut live = LiveSolver::new(rig, RigOptions::live(), 10).unwrap();
+    assert!(live.set_smooth(f64::NAN).is_err());
+    assert!(live.set_smooth(-1.0).is_err());
+    live.set_smooth(20.0).unwrap();
+    assert_eq!(live.smooth(), 20.0);
+}
