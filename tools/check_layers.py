@@ -15,6 +15,7 @@ LAYERS = {
     "keyshape-transfer": 2,
     "keyshape-rig": 2,
     "keyshape-lab": 3,
+    "keyshape-live": 3,
     "kslab-tui": 4,
     "kslab": 5,
 }

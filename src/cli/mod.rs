@@ -39,6 +39,7 @@ mod info;
 mod input;
 mod intensity;
 mod keys;
+mod live;
 mod map;
 mod modes;
 mod output;
@@ -91,6 +92,8 @@ enum Command {
     Retarget(retarget::RetargetArgs),
     /// Solve a tracked face (68 or MediaPipe 468 points) onto a blendshape rig (ARKit-style, e.g. ICT FaceKit) with head pose; weights, Live Link Face CSV, glTF.
     Rig(rig::RigArgs),
+    /// Live: a running face tracker (OpenSeeFace, stdin, a replayed file) through the rig's causal solve to an avatar (VMC, Live Link Face, CSV lines), calibrated and recorded.
+    Live(live::LiveArgs),
     /// The rig accuracy benchmark: performances rendered through the rig from known weights, solved back and measured per shape against the truth.
     RigAccuracy(rig_accuracy::RigAccuracyArgs),
     /// Drive a 3-D mesh from the feature points: RBF transfer + skinning (paper 004).
@@ -128,7 +131,9 @@ pub fn main() -> ExitCode {
         _ => spell_flag,
     };
     let set = match command {
-        Command::Tui(_) | Command::Bench(_) => None,
+        // Live writes as it goes (a recording flushed per frame), and its signals end the
+        // session cleanly instead.
+        Command::Tui(_) | Command::Bench(_) | Command::Live(_) => None,
         _ => {
             signals::install();
             Some(keyshape_io::OutputSet::begin())
@@ -143,6 +148,7 @@ pub fn main() -> ExitCode {
         Command::Template(a) => template::run(&a),
         Command::Retarget(a) => retarget::run(&a),
         Command::Rig(a) => rig::run(&a),
+        Command::Live(a) => live::run(&a),
         Command::RigAccuracy(a) => rig_accuracy::run(&a),
         Command::Transfer(a) => transfer::run(&a),
         Command::Actions(a) => actions::run(&a),

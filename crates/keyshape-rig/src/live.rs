@@ -151,8 +151,7 @@ impl LiveSolver {
         if c.names != rig.names {
             return bad("its shape names are not this rig's".into());
         }
-        if c.neutral.len() != rig.landmarks()
-            || c.neutral.iter().flatten().any(|v| !v.is_finite())
+        if c.neutral.len() != rig.landmarks() || c.neutral.iter().flatten().any(|v| !v.is_finite())
         {
             return bad(format!(
                 "its neutral must be {} finite landmarks",
@@ -225,9 +224,7 @@ impl LiveSolver {
 
     /// The person, frozen shapes and prior scale from the lead-in `frames`.
     fn calibrate(&self, frames: &[Vec<f64>]) -> Result<(Calibration, FrameSolver<'static>)> {
-        let track = DMatrix::from_fn(2 * self.rig.landmarks(), frames.len(), |r, c| {
-            frames[c][r]
-        });
+        let track = DMatrix::from_fn(2 * self.rig.landmarks(), frames.len(), |r, c| frames[c][r]);
         let count = frames.len();
         let person = person_rig(&self.rig, &track, None, 0..count, self.opts.identity)?;
         // As solve_rig with the neutral Span(0, count): identifiability at the middle

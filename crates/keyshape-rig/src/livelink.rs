@@ -107,6 +107,20 @@ pub fn column_sources(rig: &Rig) -> Vec<Vec<usize>> {
         .collect()
 }
 
+/// One frame's 61 values in [`COLUMNS`] order: each ARKit column the mean of its rig
+/// shapes (`sources`, from [`column_sources`]; 0 where it has none) in `w` (rig order),
+/// then the head's yaw, pitch and roll (radians), then the six eye angles (not solved: 0).
+pub fn frame_values(sources: &[Vec<usize>], w: &[f64], head: [f64; 3]) -> [f64; 61] {
+    let mut out = [0.0; 61];
+    for (o, src) in out.iter_mut().zip(sources) {
+        if !src.is_empty() {
+            *o = src.iter().map(|&s| w[s]).sum::<f64>() / src.len() as f64;
+        }
+    }
+    out[52..55].copy_from_slice(&head);
+    out
+}
+
 /// `HH:MM:SS:FF.mmm` for time `t` seconds at `fps` frames per second (Live Link Face's
 /// timecode: frame within the second, then the fraction of a frame in thousandths).
 pub fn timecode(t: f64, fps: f64) -> String {
@@ -125,6 +139,28 @@ pub fn timecode(t: f64, fps: f64) -> String {
     )
 }
 
+/// One frame's row of the CSV: its timecode, the value count and the 61 values.
+pub fn record(
+    sources: &[Vec<usize>],
+    w: &[f64],
+    head: [f64; 3],
+    t: f64,
+    fps: f64,
+    count: &str,
+) -> Vec<String> {
+    [timecode(t, fps), count.to_string()]
+        .into_iter()
+        .chain(frame_values(sources, w, head).map(keyshape_io::fmt_num))
+        .collect()
+}
+
+/// The CSV's header: `Timecode`, `BlendShapeCount` and the 61 [`COLUMNS`].
+pub fn header() -> impl Iterator<Item = &'static str> {
+    ["Timecode", "BlendShapeCount"]
+        .into_iter()
+        .chain(COLUMNS.iter().copied())
+}
+
 /// Writes the CSV: per frame, its time (seconds), the rig weights (rig order) and the head's
 /// yaw, pitch and roll (radians).
 pub fn write(
@@ -137,23 +173,10 @@ pub fn write(
 ) -> std::io::Result<()> {
     let sources = column_sources(rig);
     let count = COLUMNS.len().to_string();
-    let header = ["Timecode", "BlendShapeCount"]
-        .into_iter()
-        .chain(COLUMNS.iter().copied());
+    let header = header();
     let records = times.iter().enumerate().map(|(f, &t)| {
-        let shapes = sources.iter().map(|src| {
-            if src.is_empty() {
-                0.0
-            } else {
-                src.iter().map(|&s| weights[(s, f)]).sum::<f64>() / src.len() as f64
-            }
-        });
-        // The head's three angles, then the six eye angles, which are not solved.
-        let angles = head[f].into_iter().chain([0.0; 6]);
-        [timecode(t, fps), count.clone()]
-            .into_iter()
-            .chain(shapes.chain(angles).map(keyshape_io::fmt_num))
-            .collect::<Vec<_>>()
+        let w: Vec<f64> = weights.column(f).iter().copied().collect();
+        record(&sources, &w, head[f], t, fps, &count)
     });
     keyshape_io::csv_out::write_records(out, header, records)
 }

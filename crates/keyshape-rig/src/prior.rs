@@ -35,7 +35,10 @@ pub(super) fn prior_iod(
         return 0.0;
     };
     if opts.causal {
-        track_iod(&track.columns(neutral.start, neutral.len()).into_owned(), eyes)
+        track_iod(
+            &track.columns(neutral.start, neutral.len()).into_owned(),
+            eyes,
+        )
     } else {
         track_iod(track, eyes)
     }

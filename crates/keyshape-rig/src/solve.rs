@@ -225,7 +225,9 @@ fn check_causal(opts: &RigOptions) -> Result<()> {
             "a causal solve cannot use the offline temporal prior (it solves a clip at once)",
         ));
     }
-    if opts.identity != Identity::None && matches!(opts.neutral, Neutral::Auto | Neutral::LeastActive) {
+    if opts.identity != Identity::None
+        && matches!(opts.neutral, Neutral::Auto | Neutral::LeastActive)
+    {
         return Err(Error::invalid(
             "a causal solve needs its neutral given (a frame, or a lead-in of frames): finding it searches the whole track",
         ));

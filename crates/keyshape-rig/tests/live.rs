@@ -12,7 +12,14 @@ use nalgebra::DMatrix;
 /// dense), its first `frames` frames, and the ICT rig for it.
 fn track(layout: usize, frames: usize) -> (Rig, DMatrix<f64>) {
     let path = shared_data("mediapipe_face_tracks/liveportrait_d6.csv").unwrap();
-    let seq = read_sequence(&path, &ReadOptions { format: None, dims: 2 }).unwrap();
+    let seq = read_sequence(
+        &path,
+        &ReadOptions {
+            format: None,
+            dims: 2,
+        },
+    )
+    .unwrap();
     let seq = if layout == 68 {
         seq.select_points(&keyshape_rig::mediapipe_to_ibug68().unwrap())
             .unwrap()
@@ -55,7 +62,10 @@ fn the_live_solve_is_the_files_causal_solve_bit_for_bit() {
         .unwrap();
         let mut live = LiveSolver::new(rig.clone(), opts, calibrate).unwrap();
         let w = live_weights(&mut live, &t);
-        assert_eq!(w, file.weights, "{layout} points, calibrate {calibrate}, λ {smooth}");
+        assert_eq!(
+            w, file.weights,
+            "{layout} points, calibrate {calibrate}, λ {smooth}"
+        );
         assert!(w.iter().any(|&v| v > 0.05), "the take moves the face");
     }
 }
@@ -109,7 +119,10 @@ fn a_bad_frame_is_refused_and_changes_nothing() {
             bad[5] = f64::NAN;
             assert!(live.push(&bad).unwrap_err().to_string().contains("NaN"));
             assert!(live.push(&bad[..10]).is_err());
-            assert!(live.push(&vec![3.0; bad.len()]).is_err(), "coincident points");
+            assert!(
+                live.push(&vec![3.0; bad.len()]).is_err(),
+                "coincident points"
+            );
         }
         let col: Vec<f64> = t.column(c).iter().copied().collect();
         got.extend(live.push(&col).unwrap());
@@ -136,7 +149,11 @@ fn recalibrating_starts_a_new_lead_in() {
         assert!(live.push(&col).unwrap().is_empty(), "collecting");
     }
     let col: Vec<f64> = t.column(34).iter().copied().collect();
-    assert_eq!(live.push(&col).unwrap().len(), 10, "the new lead-in, solved");
+    assert_eq!(
+        live.push(&col).unwrap().len(),
+        10,
+        "the new lead-in, solved"
+    );
 }
 
 #[test]

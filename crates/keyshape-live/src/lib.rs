@@ -1,0 +1,257 @@
+//! A running face tracker to an avatar (`kslab live`, `kslab tui --live`): frames arrive
+//! from a source ([`source`]: OpenSeeFace's UDP datagrams, lines on standard input, a file
+//! replayed in real time), pass a bounded queue ([`Queue`]: when the solve falls behind,
+//! the oldest frames are dropped and counted), are solved by the rig's causal path
+//! ([`keyshape_rig::live::LiveSolver`]) and leave through the sinks ([`sink`]: VMC bundles
+//! over OSC, Live Link Face UDP packets, CSV lines on standard output), optionally
+//! recorded as they go ([`sink::Recorder`]).
+
+pub mod openseeface;
+pub mod protocols;
+pub mod session;
+pub mod sink;
+pub mod source;
+
+use std::collections::VecDeque;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Condvar, Mutex};
+use std::time::{Duration, Instant};
+
+/// One frame of landmarks as a source delivers it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Frame {
+    /// The frame's number: the file's frame number, or the count of frames received.
+    pub number: i64,
+    /// Its time stamp (seconds): the tracker's, the file's, or the time since the start.
+    pub time: f64,
+    /// x then y of each of the layout's points (image pixels, y down).
+    pub points: Vec<f64>,
+    /// When it was received (for the latency).
+    pub arrived: Instant,
+}
+
+/// What the receiving side counts (shared with the solving side).
+#[derive(Debug, Default)]
+pub struct Counters {
+    /// Frames received.
+    pub received: AtomicU64,
+    /// Datagrams or lines skipped as malformed.
+    pub malformed: AtomicU64,
+    /// Frames dropped because the solve fell behind.
+    pub dropped: AtomicU64,
+}
+
+impl Counters {
+    /// (received, malformed, dropped).
+    pub fn get(&self) -> (u64, u64, u64) {
+        (
+            self.received.load(Ordering::Relaxed),
+            self.malformed.load(Ordering::Relaxed),
+            self.dropped.load(Ordering::Relaxed),
+        )
+    }
+}
+
+/// What [`Queue::pop`] found.
+#[derive(Debug)]
+pub enum Popped {
+    /// A frame.
+    Frame(Frame),
+    /// Nothing within the wait.
+    Idle,
+    /// The source has ended and every frame was taken.
+    Closed,
+}
+
+/// A bounded queue of frames between the receiving thread and the solve. A live source
+/// never waits: when the queue is full the oldest frame is dropped (and counted), so the
+/// solve always works on the newest frames and the backlog never grows. A file source
+/// waits instead (`blocking`): a file can be read at the solve's pace.
+pub struct Queue {
+    inner: Mutex<(VecDeque<Frame>, bool)>,
+    ready: Condvar,
+    room: Condvar,
+    capacity: usize,
+    blocking: bool,
+}
+
+impl Queue {
+    /// A queue of at most `capacity` frames (≥ 1).
+    pub fn new(capacity: usize, blocking: bool) -> Queue {
+        Queue {
+            inner: Mutex::new((VecDeque::with_capacity(capacity.max(1)), false)),
+            ready: Condvar::new(),
+            room: Condvar::new(),
+            capacity: capacity.max(1),
+            blocking,
+        }
+    }
+
+    /// Adds a frame: drops the oldest when full (counted in `counters.dropped`), or, for a
+    /// blocking queue, waits for room.
+    pub fn push(&self, frame: Frame, counters: &Counters) {
+        let Ok(mut g) = self.inner.lock() else {
+            return;
+        };
+        if self.blocking {
+            while g.0.len() >= self.capacity && !g.1 {
+                g = match self.room.wait(g) {
+                    Ok(g) => g,
+                    Err(_) => return,
+                };
+            }
+        }
+        while g.0.len() >= self.capacity {
+            g.0.pop_front();
+            counters.dropped.fetch_add(1, Ordering::Relaxed);
+        }
+        g.0.push_back(frame);
+        self.ready.notify_one();
+    }
+
+    /// The source has ended: the frames still queued are taken, then [`Popped::Closed`].
+    pub fn close(&self) {
+        if let Ok(mut g) = self.inner.lock() {
+            g.1 = true;
+        }
+        self.ready.notify_all();
+        self.room.notify_all();
+    }
+
+    /// The oldest frame, waiting up to `wait` for one.
+    pub fn pop(&self, wait: Duration) -> Popped {
+        let Ok(mut g) = self.inner.lock() else {
+            return Popped::Closed;
+        };
+        let deadline = Instant::now() + wait;
+        loop {
+            if let Some(f) = g.0.pop_front() {
+                self.room.notify_one();
+                return Popped::Frame(f);
+            }
+            if g.1 {
+                return Popped::Closed;
+            }
+            let left = deadline.saturating_duration_since(Instant::now());
+            if left.is_zero() {
+                return Popped::Idle;
+            }
+            g = match self.ready.wait_timeout(g, left) {
+                Ok((g, _)) => g,
+                Err(_) => return Popped::Closed,
+            };
+        }
+    }
+}
+
+/// A warning that says itself at most once a second, with the count of the ones it held
+/// back (a stream of malformed datagrams is one line a second, not thousands).
+pub struct RateLimited {
+    last: Option<Instant>,
+    held: u64,
+}
+
+impl Default for RateLimited {
+    fn default() -> Self {
+        RateLimited::new()
+    }
+}
+
+impl RateLimited {
+    /// Nothing said yet.
+    pub fn new() -> RateLimited {
+        RateLimited {
+            last: None,
+            held: 0,
+        }
+    }
+
+    /// The message to say now, if a second has passed since the last ("(and 41 more)"
+    /// appended when some were held back), or None.
+    pub fn say(&mut self, msg: &str) -> Option<String> {
+        let now = Instant::now();
+        match self.last {
+            Some(t) if now.duration_since(t) < Duration::from_secs(1) => {
+                self.held += 1;
+                None
+            }
+            _ => {
+                self.last = Some(now);
+                let held = std::mem::take(&mut self.held);
+                Some(if held > 0 {
+                    format!("{msg} (and {held} more like it in the last second)")
+                } else {
+                    msg.to_string()
+                })
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn frame(n: i64) -> Frame {
+        Frame {
+            number: n,
+            time: n as f64,
+            points: Vec::new(),
+            arrived: Instant::now(),
+        }
+    }
+
+    #[test]
+    fn a_full_queue_drops_its_oldest_frames_and_counts_them() {
+        let q = Queue::new(3, false);
+        let c = Counters::default();
+        for n in 0..10 {
+            q.push(frame(n), &c);
+        }
+        assert_eq!(c.get().2, 7);
+        let mut got = Vec::new();
+        while let Popped::Frame(f) = q.pop(Duration::ZERO) {
+            got.push(f.number);
+        }
+        assert_eq!(got, [7, 8, 9], "the newest frames are kept, in order");
+        q.close();
+        assert!(matches!(q.pop(Duration::ZERO), Popped::Closed));
+    }
+
+    #[test]
+    fn a_blocking_queue_loses_nothing() {
+        let q = std::sync::Arc::new(Queue::new(2, true));
+        let c = std::sync::Arc::new(Counters::default());
+        let (q2, c2) = (q.clone(), c.clone());
+        let t = std::thread::spawn(move || {
+            for n in 0..50 {
+                q2.push(frame(n), &c2);
+            }
+            q2.close();
+        });
+        let mut got = Vec::new();
+        loop {
+            match q.pop(Duration::from_millis(100)) {
+                Popped::Frame(f) => got.push(f.number),
+                Popped::Idle => {}
+                Popped::Closed => break,
+            }
+        }
+        t.join().unwrap();
+        assert_eq!(got, (0..50).collect::<Vec<_>>());
+        assert_eq!(c.get().2, 0);
+    }
+
+    #[test]
+    fn a_warning_repeats_at_most_once_a_second() {
+        let mut w = RateLimited::new();
+        assert_eq!(w.say("bad").as_deref(), Some("bad"));
+        assert_eq!(w.say("bad"), None);
+        assert_eq!(w.say("bad"), None);
+        w.last = Some(Instant::now() - Duration::from_secs(2));
+        assert_eq!(
+            w.say("bad").as_deref(),
+            Some("bad (and 2 more like it in the last second)")
+        );
+    }
+}

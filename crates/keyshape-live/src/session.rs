@@ -1,0 +1,189 @@
+//! One live session: frames from the queue through the causal solve to the sinks and the
+//! recording, with the calibration and the latency kept.
+
+use super::sink::{Recorder, Sinks};
+use super::Frame;
+use keyshape_core::error::{Error, Result};
+use keyshape_rig::live::{Calibration, LiveFrame, LiveSolver};
+use std::path::PathBuf;
+use std::time::Instant;
+
+/// What a frame did.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Step {
+    /// Collected towards the calibration (frames so far, frames needed).
+    Collecting(usize, usize),
+    /// The calibration completed: the lead-in's frames were solved and sent.
+    Calibrated(usize),
+    /// Solved and sent.
+    Solved,
+}
+
+/// The session.
+pub struct Session {
+    /// The solve.
+    pub solver: LiveSolver,
+    sinks: Sinks,
+    recorder: Option<Recorder>,
+    /// Where a new calibration is saved (JSON), if anywhere.
+    pub save_calibration: Option<PathBuf>,
+    /// The lead-in's frames, waiting for the calibration.
+    waiting: Vec<Frame>,
+    /// Per frame solved on arrival, milliseconds from its arrival to its sending.
+    pub latencies: Vec<f64>,
+    /// Frames solved and sent.
+    pub solved: u64,
+    /// Frames the solve refused (a degenerate frame).
+    pub refused: u64,
+    /// The last frame solved, with its input.
+    pub last: Option<(Frame, LiveFrame)>,
+    /// Per rig landmark, the source point it reads.
+    select: Vec<usize>,
+}
+
+impl Session {
+    /// A session solving with `solver` into `sinks`, recording into `recorder`; `select`
+    /// names, per rig landmark, the source point it reads (the recording keeps every point
+    /// of the source).
+    pub fn new(
+        solver: LiveSolver,
+        sinks: Sinks,
+        recorder: Option<Recorder>,
+        select: Vec<usize>,
+    ) -> Session {
+        Session {
+            select,
+            solver,
+            sinks,
+            recorder,
+            save_calibration: None,
+            waiting: Vec::new(),
+            latencies: Vec::new(),
+            solved: 0,
+            refused: 0,
+            last: None,
+        }
+    }
+
+    /// Datagrams the network would not take.
+    pub fn send_errors(&self) -> u64 {
+        self.sinks.send_errors
+    }
+
+    /// The next frames are the person's neutral again.
+    pub fn recalibrate(&mut self) {
+        self.solver.recalibrate();
+        self.waiting.clear();
+    }
+
+    /// Uses a saved calibration.
+    pub fn set_calibration(&mut self, c: Calibration) -> Result<()> {
+        self.solver.set_calibration(c)?;
+        self.waiting.clear();
+        Ok(())
+    }
+
+    /// Takes one frame. A frame the solve refuses is counted in `refused` and changes
+    /// nothing; an error is a sink or the recording that failed (the session ends).
+    pub fn take(&mut self, frame: Frame) -> Result<Step> {
+        let was_calibrated = self.solver.calibration().is_some();
+        // A frame too short for the rig's points (the source guarantees its layout, so
+        // only a library caller's mistake) is refused like a degenerate one.
+        if self.select.iter().any(|&p| 2 * p + 1 >= frame.points.len()) {
+            self.refused += 1;
+            return Ok(match self.solver.calibration() {
+                Some(_) => Step::Solved,
+                None => {
+                    let (have, need) = self.solver.collected();
+                    Step::Collecting(have, need)
+                }
+            });
+        }
+        let chosen: Vec<f64> = self
+            .select
+            .iter()
+            .flat_map(|&p| [frame.points[2 * p], frame.points[2 * p + 1]])
+            .collect();
+        let solved = match self.solver.push(&chosen) {
+            Ok(v) => v,
+            Err(_) => {
+                self.refused += 1;
+                if was_calibrated {
+                    return Ok(Step::Solved);
+                }
+                // A lead-in the calibration could not use is dropped with it.
+                let (have, need) = self.solver.collected();
+                self.waiting.truncate(have);
+                return Ok(Step::Collecting(have, need));
+            }
+        };
+        if solved.is_empty() {
+            self.waiting.push(frame);
+            let (have, need) = self.solver.collected();
+            return Ok(Step::Collecting(have, need));
+        }
+        let calibrated = !was_calibrated;
+        let mut frames = std::mem::take(&mut self.waiting);
+        frames.push(frame);
+        if frames.len() != solved.len() {
+            return Err(Error::invalid(format!(
+                "live: {} frames solved for {} taken",
+                solved.len(),
+                frames.len()
+            )));
+        }
+        if calibrated {
+            if let (Some(p), Some(c)) = (&self.save_calibration, self.solver.calibration()) {
+                let c = c.clone();
+                keyshape_io::write_atomic(p, |w| {
+                    serde_json::to_writer_pretty(&mut *w, &c).map_err(std::io::Error::other)?;
+                    w.write_all(b"\n")
+                })?;
+            }
+        }
+        let n = solved.len();
+        for (f, s) in frames.into_iter().zip(solved) {
+            let head = s.camera.yaw_pitch_roll();
+            self.sinks
+                .send(f.number, &s.weights, head)
+                .map_err(|e| Error::io("standard output", e))?;
+            if let Some(r) = &mut self.recorder {
+                r.record(f.number, f.time, &f.points, &s.weights, head)?;
+            }
+            if !calibrated {
+                self.latencies
+                    .push(Instant::now().duration_since(f.arrived).as_secs_f64() * 1e3);
+            }
+            self.solved += 1;
+            self.last = Some((f, s));
+        }
+        Ok(if calibrated {
+            Step::Calibrated(n)
+        } else {
+            Step::Solved
+        })
+    }
+}
+
+/// The `q`-quantile (0–1) of `v` (nearest rank), or None when empty.
+pub fn quantile(v: &[f64], q: f64) -> Option<f64> {
+    if v.is_empty() {
+        return None;
+    }
+    let mut s = v.to_vec();
+    s.sort_by(f64::total_cmp);
+    let i = ((q * s.len() as f64).ceil() as usize).clamp(1, s.len()) - 1;
+    Some(s[i])
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn quantiles_by_nearest_rank() {
+        let v: Vec<f64> = (1..=100).map(f64::from).collect();
+        assert_eq!(super::quantile(&v, 0.5), Some(50.0));
+        assert_eq!(super::quantile(&v, 0.99), Some(99.0));
+        assert_eq!(super::quantile(&[], 0.5), None);
+        assert_eq!(super::quantile(&[3.0], 0.99), Some(3.0));
+    }
+}

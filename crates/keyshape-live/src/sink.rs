@@ -1,0 +1,282 @@
+//! Where the weights go: `vmc:[HOST:]PORT`, `livelink:[HOST:]PORT`, `stdout`; and the
+//! recording (`--record DIR`).
+
+use super::protocols::{head_quaternion, livelink_packet, vmc_bundle, vmc_names, vmc_values};
+use super::source::parse_address;
+use keyshape_core::error::{Error, Result};
+use keyshape_rig::livelink::{column_sources, frame_values};
+use keyshape_rig::Rig;
+use std::io::Write;
+use std::net::{SocketAddr, UdpSocket};
+use std::path::{Path, PathBuf};
+
+/// The VMC protocol's default port (a performer application's receiver).
+pub const VMC_PORT: u16 = 39539;
+/// Live Link Face's default port.
+pub const LIVELINK_PORT: u16 = 11111;
+
+/// A sink as `--to` names it.
+#[derive(Debug, Clone, PartialEq)]
+pub enum SinkSpec {
+    /// VMC bundles (OSC over UDP) to this address.
+    Vmc(SocketAddr),
+    /// Live Link Face packets to this address.
+    LiveLink(SocketAddr),
+    /// Weights CSV lines on standard output.
+    Stdout,
+}
+
+impl SinkSpec {
+    /// Parses a comma-separated list of sinks (each named once).
+    pub fn parse_list(s: &str) -> Result<Vec<SinkSpec>> {
+        let mut out = Vec::new();
+        for part in s.split(',').map(str::trim) {
+            let (scheme, rest) = match part.split_once(':') {
+                Some((a, b)) => (a, Some(b)),
+                None => (part, None),
+            };
+            let what = format!("--to {part}");
+            let sink = match scheme {
+                "vmc" => SinkSpec::Vmc(parse_address(rest, "127.0.0.1", VMC_PORT, &what)?),
+                "livelink" => {
+                    SinkSpec::LiveLink(parse_address(rest, "127.0.0.1", LIVELINK_PORT, &what)?)
+                }
+                "stdout" if rest.is_none() => SinkSpec::Stdout,
+                _ => return Err(Error::invalid(format!(
+                    "--to '{part}': not a sink (vmc:[HOST:]PORT, livelink:[HOST:]PORT or stdout)"
+                ))),
+            };
+            if out.contains(&sink) {
+                return Err(Error::invalid(format!("--to names {part} twice")));
+            }
+            out.push(sink);
+        }
+        Ok(out)
+    }
+}
+
+/// The CSV header of a weights table: `frame` and the rig's shape names (as `kslab rig`
+/// writes it).
+fn weights_header(rig: &Rig) -> Vec<String> {
+    std::iter::once("frame".to_string())
+        .chain(rig.names.iter().cloned())
+        .collect()
+}
+
+/// One CSV line (the weights tables' dialect).
+fn csv_line(fields: impl IntoIterator<Item = String>) -> std::io::Result<Vec<u8>> {
+    let mut w = keyshape_io::csv_out::record_writer(Vec::new());
+    w.write_record(fields.into_iter())
+        .map_err(keyshape_io::csv_out::io_error)?;
+    w.into_inner().map_err(|e| e.into_error())
+}
+
+fn weights_line(number: i64, w: &[f64]) -> std::io::Result<Vec<u8>> {
+    csv_line(std::iter::once(number.to_string()).chain(w.iter().map(|v| keyshape_io::fmt_num(*v))))
+}
+
+/// The open sinks.
+pub struct Sinks {
+    udp: Option<UdpSocket>,
+    vmc: Vec<SocketAddr>,
+    livelink: Vec<SocketAddr>,
+    stdout: Option<Box<dyn Write + Send>>,
+    sources: Vec<Vec<usize>>,
+    vmc_names: Vec<String>,
+    header: Vec<String>,
+    wrote_header: bool,
+    fps: i32,
+    /// Datagrams the network would not take (no receiver yet, say): counted, never fatal.
+    pub send_errors: u64,
+}
+
+impl Sinks {
+    /// Opens `specs` for `rig`; `stdout` is where the `stdout` sink writes.
+    pub fn open(
+        specs: &[SinkSpec],
+        rig: &Rig,
+        stdout: Box<dyn Write + Send>,
+        fps: f64,
+    ) -> Result<Sinks> {
+        let vmc: Vec<SocketAddr> = specs
+            .iter()
+            .filter_map(|s| match s {
+                SinkSpec::Vmc(a) => Some(*a),
+                _ => None,
+            })
+            .collect();
+        let livelink: Vec<SocketAddr> = specs
+            .iter()
+            .filter_map(|s| match s {
+                SinkSpec::LiveLink(a) => Some(*a),
+                _ => None,
+            })
+            .collect();
+        let udp = if vmc.is_empty() && livelink.is_empty() {
+            None
+        } else {
+            let v6 = vmc.iter().chain(&livelink).any(SocketAddr::is_ipv6);
+            let any = if v6 { "[::]:0" } else { "0.0.0.0:0" };
+            Some(
+                UdpSocket::bind(any)
+                    .map_err(|e| Error::invalid(format!("--to: cannot open a UDP socket: {e}")))?,
+            )
+        };
+        let sources = column_sources(rig);
+        Ok(Sinks {
+            udp,
+            vmc,
+            livelink,
+            stdout: specs.contains(&SinkSpec::Stdout).then_some(stdout),
+            vmc_names: vmc_names(&rig.names, &sources),
+            sources,
+            header: weights_header(rig),
+            wrote_header: false,
+            fps: fps.round().clamp(1.0, 1000.0) as i32,
+            send_errors: 0,
+        })
+    }
+
+    /// Sends one solved frame to every sink. Only standard output can fail (a reader that
+    /// went away); the network's refusals are counted in `send_errors`.
+    pub fn send(&mut self, number: i64, w: &[f64], head: [f64; 3]) -> std::io::Result<()> {
+        if let Some(udp) = &self.udp {
+            if !self.vmc.is_empty() {
+                let bundle = vmc_bundle(
+                    &self.vmc_names,
+                    &vmc_values(&self.sources, w),
+                    head_quaternion(head),
+                );
+                for a in &self.vmc {
+                    if udp.send_to(&bundle, a).is_err() {
+                        self.send_errors += 1;
+                    }
+                }
+            }
+            if !self.livelink.is_empty() {
+                let values = frame_values(&self.sources, w, head);
+                let packet = livelink_packet("kslab", "kslab", number as i32, self.fps, &values);
+                for a in &self.livelink {
+                    if udp.send_to(&packet, a).is_err() {
+                        self.send_errors += 1;
+                    }
+                }
+            }
+        }
+        if let Some(out) = &mut self.stdout {
+            if !self.wrote_header {
+                out.write_all(&csv_line(self.header.iter().cloned())?)?;
+                self.wrote_header = true;
+            }
+            out.write_all(&weights_line(number, w)?)?;
+            out.flush()?;
+        }
+        Ok(())
+    }
+}
+
+/// A take written as it happens: `track.csv` (the input, as solved: `frame,time_s,x0,y0,…`
+/// in image pixels, which the readers read back), `weights.csv` (as `kslab rig` writes it)
+/// and `livelink.csv` (Live Link Face CSV). Each line is flushed as it is written, so the
+/// files are whole up to the last frame however the session ends.
+pub struct Recorder {
+    dir: PathBuf,
+    track: std::fs::File,
+    weights: std::fs::File,
+    livelink: std::fs::File,
+    sources: Vec<Vec<usize>>,
+    fps: f64,
+    t0: Option<f64>,
+}
+
+impl Recorder {
+    /// The recording's files.
+    pub const FILES: [&'static str; 3] = ["track.csv", "weights.csv", "livelink.csv"];
+
+    /// Makes `dir` (it must not exist, or be an empty folder: a recording never replaces a
+    /// file) and writes each file's header; `layout` points per frame.
+    pub fn create(dir: &Path, rig: &Rig, layout: usize, fps: f64) -> Result<Recorder> {
+        match std::fs::read_dir(dir) {
+            Ok(mut entries) => {
+                if entries.next().is_some() {
+                    return Err(Error::file(dir, "is not empty: a recording goes into a new or empty folder, so no earlier take is replaced"));
+                }
+            }
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+                std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+            }
+            Err(e) => return Err(Error::io(dir, e)),
+        }
+        let make = |name: &str| -> Result<std::fs::File> {
+            let p = dir.join(name);
+            std::fs::OpenOptions::new()
+                .write(true)
+                .create_new(true)
+                .open(&p)
+                .map_err(|e| Error::io(&p, e))
+        };
+        let mut r = Recorder {
+            dir: dir.to_path_buf(),
+            track: make(Self::FILES[0])?,
+            weights: make(Self::FILES[1])?,
+            livelink: make(Self::FILES[2])?,
+            sources: column_sources(rig),
+            fps,
+            t0: None,
+        };
+        let track_header = ["frame".to_string(), "time_s".to_string()]
+            .into_iter()
+            .chain((0..layout).flat_map(|i| [format!("x{i}"), format!("y{i}")]));
+        let h = csv_line(track_header).map_err(|e| Error::io(&r.dir, e))?;
+        r.write(0, &h)?;
+        let h = csv_line(weights_header(rig)).map_err(|e| Error::io(&r.dir, e))?;
+        r.write(1, &h)?;
+        let h = csv_line(keyshape_rig::livelink::header().map(String::from))
+            .map_err(|e| Error::io(&r.dir, e))?;
+        r.write(2, &h)?;
+        Ok(r)
+    }
+
+    fn write(&mut self, which: usize, line: &[u8]) -> Result<()> {
+        let f = match which {
+            0 => &mut self.track,
+            1 => &mut self.weights,
+            _ => &mut self.livelink,
+        };
+        f.write_all(line)
+            .and_then(|()| f.flush())
+            .map_err(|e| Error::io(self.dir.join(Self::FILES[which]), e))
+    }
+
+    /// Records one solved frame: its input `points`, weights `w` and head angles.
+    pub fn record(
+        &mut self,
+        number: i64,
+        time: f64,
+        points: &[f64],
+        w: &[f64],
+        head: [f64; 3],
+    ) -> Result<()> {
+        let io = |e| Error::io(&self.dir, e);
+        let track = csv_line(
+            [number.to_string(), format!("{time}")]
+                .into_iter()
+                .chain(points.iter().map(|v| format!("{v}"))),
+        )
+        .map_err(io)?;
+        let weights = weights_line(number, w).map_err(io)?;
+        let t0 = *self.t0.get_or_insert(time);
+        let ll = csv_line(keyshape_rig::livelink::record(
+            &self.sources,
+            w,
+            head,
+            time - t0,
+            self.fps,
+            "61",
+        ))
+        .map_err(io)?;
+        self.write(0, &track)?;
+        self.write(1, &weights)?;
+        self.write(2, &ll)
+    }
+}

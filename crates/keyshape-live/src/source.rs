@@ -1,0 +1,495 @@
+//! Where frames come from: `openseeface:[HOST:]PORT`, `stdin`, `file:TRACK`.
+//!
+//! A source is opened before anything starts ([`open`]: the socket bound, the first line
+//! read, the file read), so a bad option or an unreadable input fails at once and the
+//! layout (68, 468 or 478 points) is known when the rig is read. Then it runs on its own
+//! thread ([`Opened::spawn`]), pushing frames into the [`Queue`].
+
+use super::{Counters, Frame, Queue, RateLimited};
+use keyshape_core::error::{Error, Result};
+use keyshape_core::sequence::Format;
+use std::io::{BufRead, Read};
+use std::net::{SocketAddr, ToSocketAddrs, UdpSocket};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+/// OpenSeeFace's default port.
+pub const OPENSEEFACE_PORT: u16 = 11573;
+
+/// A source as `--from` names it.
+#[derive(Debug, Clone, PartialEq)]
+pub enum SourceSpec {
+    /// OpenSeeFace's datagrams, received on this address.
+    OpenSeeFace(SocketAddr),
+    /// Lines on standard input: a table (header, then rows) or JSON lines.
+    Stdin,
+    /// A track file replayed in real time.
+    File(PathBuf),
+}
+
+/// `HOST:PORT`, `PORT` or nothing (the default port), host `default_host`; ports 1–65535.
+pub fn parse_address(
+    rest: Option<&str>,
+    default_host: &str,
+    default_port: u16,
+    what: &str,
+) -> Result<SocketAddr> {
+    let rest = rest.map(str::trim).filter(|r| !r.is_empty());
+    let (host, port) = match rest {
+        None => (default_host.to_string(), default_port.to_string()),
+        Some(r) => match r.rsplit_once(':') {
+            Some((h, p)) => (h.trim_matches(['[', ']']).to_string(), p.to_string()),
+            None if r.bytes().all(|b| b.is_ascii_digit()) => {
+                (default_host.to_string(), r.to_string())
+            }
+            None => (r.to_string(), default_port.to_string()),
+        },
+    };
+    let port: u16 = port.parse().ok().filter(|&p| p > 0).ok_or_else(|| {
+        Error::invalid(format!(
+            "{what}: port '{port}' is not a port number (1–65535)"
+        ))
+    })?;
+    (host.as_str(), port)
+        .to_socket_addrs()
+        .map_err(|e| Error::invalid(format!("{what}: host '{host}': {e}")))?
+        .next()
+        .ok_or_else(|| Error::invalid(format!("{what}: host '{host}' has no address")))
+}
+
+impl SourceSpec {
+    /// Parses `openseeface[:[HOST:]PORT]`, `stdin` or `file:TRACK`.
+    pub fn parse(s: &str) -> Result<SourceSpec> {
+        let (scheme, rest) = match s.split_once(':') {
+            Some((a, b)) => (a, Some(b)),
+            None => (s, None),
+        };
+        match scheme.trim() {
+            "openseeface" => Ok(SourceSpec::OpenSeeFace(parse_address(
+                rest,
+                "127.0.0.1",
+                OPENSEEFACE_PORT,
+                &format!("--from {s}"),
+            )?)),
+            "stdin" if rest.is_none() => Ok(SourceSpec::Stdin),
+            "file" => match rest.filter(|r| !r.is_empty()) {
+                Some(p) => Ok(SourceSpec::File(PathBuf::from(p))),
+                None => Err(Error::invalid("--from file: name the track, file:TRACK")),
+            },
+            _ => Err(Error::invalid(format!(
+                "--from '{s}': not a source (openseeface:[HOST:]PORT, stdin or file:TRACK)"
+            ))),
+        }
+    }
+}
+
+/// How a source reads its frames.
+#[derive(Debug, Clone, Default)]
+pub struct SourceOptions {
+    /// OpenSeeFace: the face id to follow [default: the first seen].
+    pub face: Option<i32>,
+    /// A file: frames per second to replay at [default: the file's own rate, else 30].
+    pub rate: Option<f64>,
+    /// The video's size, for normalised coordinates (every x and y in [0, 1]).
+    pub image_size: Option<(f64, f64)>,
+    /// A table's format [default: detected from the header].
+    pub format: Option<Format>,
+}
+
+/// What a source reads, before its thread starts.
+enum Reader {
+    OpenSeeFace(UdpSocket),
+    Table(keyshape_io::table::TableRows<Box<dyn Read + Send>>),
+    JsonLines(Box<dyn BufRead + Send>, String),
+    File(keyshape_core::sequence::Sequence, f64),
+}
+
+/// An opened source.
+pub struct Opened {
+    reader: Reader,
+    /// Points per frame (68, 468, 478).
+    pub layout: usize,
+    /// The name messages use.
+    pub name: String,
+    /// Does the queue wait for the solve (a file) rather than drop frames (a live source)?
+    pub blocking: bool,
+    /// A note for the terminal (normalised coordinates without an image size).
+    pub note: Option<String>,
+    /// The source's own frame rate, when it has one (a file with time stamps).
+    pub fps: Option<f64>,
+    options: SourceOptions,
+}
+
+/// Opens `spec` (standard input is `stdin`; tests give another reader).
+pub fn open(
+    spec: &SourceSpec,
+    options: &SourceOptions,
+    stdin: Box<dyn BufRead + Send>,
+) -> Result<Opened> {
+    let options = options.clone();
+    if let Some(r) = options.rate {
+        if !(r.is_finite() && r > 0.0 && r <= 10_000.0) {
+            return Err(Error::invalid(format!(
+                "--rate {r}: frames per second in (0, 10000]"
+            )));
+        }
+        if !matches!(spec, SourceSpec::File(_)) {
+            return Err(Error::invalid(
+                "--rate applies to a file source (file:TRACK); a live source sends at its own rate",
+            ));
+        }
+    }
+    if options.face.is_some() && !matches!(spec, SourceSpec::OpenSeeFace(_)) {
+        return Err(Error::invalid(
+            "--face applies to an OpenSeeFace source, which may send several faces",
+        ));
+    }
+    match spec {
+        SourceSpec::OpenSeeFace(addr) => {
+            if options.image_size.is_some() || options.format.is_some() {
+                return Err(Error::invalid(
+                    "--image-size and --format apply to stdin and file sources; OpenSeeFace sends pixels in its own layout",
+                ));
+            }
+            let sock = UdpSocket::bind(addr).map_err(|e| {
+                Error::invalid(format!("openseeface: cannot listen on {addr}: {e}"))
+            })?;
+            sock.set_read_timeout(Some(Duration::from_millis(200)))
+                .map_err(|e| Error::invalid(format!("openseeface: {e}")))?;
+            Ok(Opened {
+                reader: Reader::OpenSeeFace(sock),
+                layout: super::openseeface::POINTS,
+                name: format!("openseeface:{addr}"),
+                blocking: false,
+                note: None,
+                fps: None,
+                options,
+            })
+        }
+        SourceSpec::Stdin => open_stdin(stdin, options),
+        SourceSpec::File(path) => open_file(path, options),
+    }
+}
+
+fn open_file(path: &Path, options: SourceOptions) -> Result<Opened> {
+    let mut seq = keyshape_io::read_sequence(
+        path,
+        &keyshape_io::ReadOptions {
+            format: options.format,
+            dims: 2,
+        },
+    )?;
+    keyshape_io::atomic::register_input(path);
+    let mut note = None;
+    match options.image_size {
+        Some((w, h)) => seq.scale_to_image(w, h)?,
+        None if seq.is_normalised() => note = Some(normalised_note(&path.display().to_string())),
+        None => {}
+    }
+    let rate = options.rate.or(seq.fps()).unwrap_or(30.0);
+    Ok(Opened {
+        fps: seq.fps(),
+        layout: seq.points,
+        reader: Reader::File(seq, rate),
+        name: path.display().to_string(),
+        blocking: true,
+        note,
+        options,
+    })
+}
+
+fn normalised_note(name: &str) -> String {
+    format!("note: {name}: every x and y lies in [0, 1]: normalised image coordinates (MediaPipe's default); x and y are on different scales unless the video is square: give --image-size WIDTHxHEIGHT")
+}
+
+/// The points of one JSON line `{"t": …, "points": [[x, y], …]}` (extra values per point,
+/// such as z, are read past).
+fn json_points(line: &str) -> std::result::Result<(Option<f64>, Vec<f64>), String> {
+    let v: serde_json::Value = serde_json::from_str(line).map_err(|e| format!("not JSON: {e}"))?;
+    let t = v.get("t").and_then(serde_json::Value::as_f64);
+    let pts = v
+        .get("points")
+        .and_then(serde_json::Value::as_array)
+        .ok_or("no \"points\" array")?;
+    let mut out = Vec::with_capacity(2 * pts.len());
+    for (i, p) in pts.iter().enumerate() {
+        let xy = p
+            .as_array()
+            .filter(|a| a.len() >= 2)
+            .ok_or_else(|| format!("point {i} is not [x, y]"))?;
+        for c in &xy[..2] {
+            let c = c
+                .as_f64()
+                .filter(|c| c.is_finite())
+                .ok_or_else(|| format!("point {i}: not a finite number"))?;
+            out.push(c);
+        }
+    }
+    Ok((t, out))
+}
+
+fn open_stdin(mut stdin: Box<dyn BufRead + Send>, options: SourceOptions) -> Result<Opened> {
+    let mut first = String::new();
+    let at = Path::new("stdin");
+    loop {
+        first.clear();
+        let n = stdin.read_line(&mut first).map_err(|e| Error::io(at, e))?;
+        if n == 0 {
+            return Err(Error::file(
+                at,
+                "ended before its first line (a table header or a JSON line)",
+            ));
+        }
+        if !first.trim().is_empty() {
+            break;
+        }
+    }
+    if first.trim_start().starts_with('{') {
+        if options.format.is_some() {
+            return Err(Error::invalid(
+                "--format applies to a table on stdin; these are JSON lines",
+            ));
+        }
+        let (_, pts) = json_points(&first).map_err(|e| Error::parse(at, 1, 1, e))?;
+        let layout = pts.len() / 2;
+        let mut note = None;
+        let normalised = pts.iter().all(|v| (0.0..=1.0).contains(v));
+        match options.image_size {
+            Some(_) if !normalised => {
+                return Err(Error::parse(at, 1, 1, "an image size applies to normalised coordinates (every x and y in [0, 1]); this line's are not"))
+            }
+            None if normalised => note = Some(normalised_note("stdin")),
+            _ => {}
+        }
+        // The first line is a frame too: the thread starts with it.
+        return Ok(Opened {
+            reader: Reader::JsonLines(stdin, first),
+            layout,
+            name: "stdin".into(),
+            blocking: false,
+            note,
+            fps: None,
+            options,
+        });
+    }
+    let format = match options.format {
+        Some(f) => f,
+        None => keyshape_io::detect_format(at, &first)?,
+    };
+    let head: Box<dyn Read + Send> =
+        Box::new(std::io::Cursor::new(first.into_bytes()).chain(stdin));
+    let rows = keyshape_io::table::TableRows::new(at, head, format, 2)?;
+    Ok(Opened {
+        layout: rows.points(),
+        reader: Reader::Table(rows),
+        name: "stdin".into(),
+        blocking: false,
+        note: None,
+        fps: None,
+        options,
+    })
+}
+
+/// Reports from the receiving thread (malformed input, rate-limited by the caller).
+pub type Warn = Box<dyn FnMut(String) + Send>;
+
+impl Opened {
+    /// Starts the receiving thread: frames into `queue` until the source ends (then the
+    /// queue is closed) or `stop` is set.
+    pub fn spawn(
+        self,
+        queue: Arc<Queue>,
+        counters: Arc<Counters>,
+        stop: Arc<AtomicBool>,
+        warn: Warn,
+    ) -> std::thread::JoinHandle<()> {
+        std::thread::spawn(move || {
+            let mut run = Run {
+                queue: &queue,
+                counters: &counters,
+                stop: &stop,
+                warn,
+                limit: RateLimited::new(),
+                start: Instant::now(),
+                options: self.options,
+                layout: self.layout,
+            };
+            match self.reader {
+                Reader::OpenSeeFace(sock) => run.openseeface(&sock),
+                Reader::Table(rows) => run.table(rows),
+                Reader::JsonLines(r, first) => run.json_lines(r, first),
+                Reader::File(seq, rate) => run.file(&seq, rate),
+            }
+            queue.close();
+        })
+    }
+}
+
+struct Run<'a> {
+    queue: &'a Queue,
+    counters: &'a Counters,
+    stop: &'a AtomicBool,
+    warn: Warn,
+    limit: RateLimited,
+    start: Instant,
+    options: SourceOptions,
+    layout: usize,
+}
+
+impl Run<'_> {
+    fn stopped(&self) -> bool {
+        self.stop.load(Ordering::Relaxed)
+    }
+
+    fn malformed(&mut self, msg: &str) {
+        self.counters.malformed.fetch_add(1, Ordering::Relaxed);
+        if let Some(m) = self.limit.say(msg) {
+            (self.warn)(m);
+        }
+    }
+
+    fn deliver(&mut self, number: i64, time: f64, mut points: Vec<f64>) {
+        if let Some((w, h)) = self.options.image_size {
+            for p in points.chunks_mut(2) {
+                p[0] *= w;
+                p[1] *= h;
+            }
+        }
+        self.counters.received.fetch_add(1, Ordering::Relaxed);
+        self.queue.push(
+            Frame {
+                number,
+                time,
+                points,
+                arrived: Instant::now(),
+            },
+            self.counters,
+        );
+    }
+
+    fn openseeface(&mut self, sock: &UdpSocket) {
+        let mut buf = vec![0u8; 65_536];
+        let mut follow = self.options.face;
+        let mut n = 0i64;
+        while !self.stopped() {
+            let len = match sock.recv_from(&mut buf) {
+                Ok((len, _)) => len,
+                Err(e)
+                    if matches!(
+                        e.kind(),
+                        std::io::ErrorKind::WouldBlock
+                            | std::io::ErrorKind::TimedOut
+                            | std::io::ErrorKind::Interrupted
+                    ) =>
+                {
+                    continue
+                }
+                Err(e) => {
+                    self.malformed(&format!("openseeface: {e}"));
+                    continue;
+                }
+            };
+            match super::openseeface::decode(&buf[..len]) {
+                Err(e) => self.malformed(&format!("openseeface: skipped a datagram: {e}")),
+                Ok(faces) => {
+                    let id = *follow.get_or_insert(faces[0].id);
+                    if let Some(f) = faces.into_iter().find(|f| f.id == id) {
+                        self.deliver(n, f.time, f.points);
+                        n += 1;
+                    }
+                }
+            }
+        }
+    }
+
+    fn table(&mut self, mut rows: keyshape_io::table::TableRows<Box<dyn Read + Send>>) {
+        let mut errors_in_a_row = 0;
+        while !self.stopped() {
+            match rows.next_row() {
+                Ok(None) => return,
+                Ok(Some(r)) => {
+                    errors_in_a_row = 0;
+                    if !r.tracked {
+                        continue;
+                    }
+                    let (number, time, coords) = (r.frame, r.time, r.coords.to_vec());
+                    let time = time.unwrap_or(self.start.elapsed().as_secs_f64());
+                    self.deliver(number, time, coords);
+                }
+                Err(e) => {
+                    self.malformed(&format!("skipped a line: {e}"));
+                    errors_in_a_row += 1;
+                    if errors_in_a_row > 1000 {
+                        (self.warn)("stdin: 1000 bad lines in a row; reading stops".into());
+                        return;
+                    }
+                }
+            }
+        }
+    }
+
+    fn json_lines(&mut self, mut r: Box<dyn BufRead + Send>, first: String) {
+        let mut line = first;
+        let mut n = 0i64;
+        let mut line_no = 1u64;
+        loop {
+            if self.stopped() {
+                return;
+            }
+            if !line.trim().is_empty() {
+                match json_points(&line) {
+                    Ok((t, pts)) if pts.len() == 2 * self.layout => {
+                        let t = t.unwrap_or(self.start.elapsed().as_secs_f64());
+                        self.deliver(n, t, pts);
+                        n += 1;
+                    }
+                    Ok((_, pts)) => self.malformed(&format!(
+                        "stdin line {line_no}: {} points, the stream has {}",
+                        pts.len() / 2,
+                        self.layout
+                    )),
+                    Err(e) => self.malformed(&format!("stdin line {line_no}: {e}")),
+                }
+            }
+            line.clear();
+            line_no += 1;
+            match r.read_line(&mut line) {
+                Ok(0) => return,
+                Ok(_) => {}
+                Err(e) => {
+                    (self.warn)(format!("stdin: {e}"));
+                    return;
+                }
+            }
+        }
+    }
+
+    fn file(&mut self, seq: &keyshape_core::sequence::Sequence, rate: f64) {
+        let period = Duration::from_secs_f64(1.0 / rate);
+        for c in 0..seq.n_frames() {
+            if self.stopped() {
+                return;
+            }
+            let due = self.start + period.mul_f64(c as f64);
+            let now = Instant::now();
+            if due > now {
+                std::thread::sleep(due - now);
+            }
+            let time = seq.times.as_ref().map_or(c as f64 / rate, |t| t[c]);
+            let points: Vec<f64> = seq.coords.column(c).iter().copied().collect();
+            // (The image size was applied when the file was read.)
+            self.counters.received.fetch_add(1, Ordering::Relaxed);
+            self.queue.push(
+                Frame {
+                    number: seq.frames[c],
+                    time,
+                    points,
+                    arrived: Instant::now(),
+                },
+                self.counters,
+            );
+        }
+    }
+}

@@ -1,0 +1,357 @@
+//! `kslab live`: a running face tracker through the rig's causal solve to an avatar
+//! (VMC, Live Link Face, CSV lines), calibrated on a neutral lead-in, recorded as it goes.
+
+use anyhow::{Context, Result};
+use clap::Args;
+use keyshape_live::session::{quantile, Session, Step};
+use keyshape_live::sink::{Recorder, SinkSpec, Sinks};
+use keyshape_live::source::{self, SourceOptions, SourceSpec};
+use keyshape_live::{Counters, Popped, Queue};
+use keyshape_rig::live::LiveSolver;
+use keyshape_rig::RigOptions;
+use std::io::IsTerminal;
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+/// Arguments of `kslab live`.
+#[derive(Debug, Args)]
+pub struct LiveArgs {
+    /// Where frames come from: `openseeface:[HOST:]PORT` (OpenSeeFace's UDP datagrams;
+    /// default 127.0.0.1:11573), `stdin` (a table — a header line in any format the
+    /// readers know, then one row per frame — or JSON lines `{"t": …, "points": [[x, y],
+    /// …]}`, as a MediaPipe Face Landmarker script prints them) or `file:TRACK` (a file
+    /// replayed in real time at --rate).
+    #[arg(long, value_name = "SOURCE")]
+    from: String,
+    /// Where the weights go, comma-separated: `vmc:[HOST:]PORT` (the VMC protocol over
+    /// OSC: one bundle per frame, /VMC/Ext/Blend/Val for each ARKit shape as Perfect Sync
+    /// avatars name them, /VMC/Ext/Blend/Apply, the head as /VMC/Ext/Bone/Pos "Head";
+    /// default 127.0.0.1:39539), `livelink:[HOST:]PORT` (Live Link Face UDP packets, the
+    /// 61 values of the Live Link CSV; default 127.0.0.1:11111), `stdout` (weights CSV
+    /// lines as `kslab rig` writes them, flushed per frame).
+    #[arg(long, value_name = "SINK[,SINK…]")]
+    to: String,
+    /// The rig, as for `kslab rig` [default: ict_facekit_face in the shared data folder].
+    #[arg(long, value_name = "DIR|rig.glb")]
+    rig: Option<PathBuf>,
+    /// A `landmark,vertex` CSV naming the mesh vertex of each track point (as for `kslab
+    /// rig`; required with a glTF rig).
+    #[arg(long, value_name = "CSV")]
+    rig_landmarks: Option<PathBuf>,
+    /// How a MediaPipe source meets the rig: `dense` (every point the rig covers) or `68`
+    /// (the 68 iBUG points) [default: dense].
+    #[arg(long, value_name = "dense|68", value_parser = ["dense", "68"])]
+    landmarks: Option<String>,
+    /// The calibration: the first N frames are the person's neutral face (look neutral),
+    /// averaged as `kslab rig --neutral 0-(N-1)` averages a lead-in; their weights are
+    /// solved and sent once it completes. Recalibrate with SIGUSR1 or a line `calibrate`
+    /// on standard input (when it is not the source).
+    #[arg(long, value_name = "N", default_value_t = 30, value_parser = clap::value_parser!(u32).range(1..=100_000))]
+    calibrate: u32,
+    /// A calibration file (JSON): loaded when it exists (no lead-in is collected);
+    /// otherwise written when the calibration completes (and again on each
+    /// recalibration).
+    #[arg(long, value_name = "FILE")]
+    neutral_file: Option<PathBuf>,
+    /// Record the take into this new (or empty) folder: track.csv (the input as solved,
+    /// which `kslab rig` and `kslab live --from file:` read back), weights.csv and
+    /// livelink.csv, each flushed per frame, so complete however the session ends.
+    #[arg(long, value_name = "DIR")]
+    record: Option<PathBuf>,
+    /// OpenSeeFace: the face id to follow when several are tracked [default: the first
+    /// seen].
+    #[arg(long, value_name = "ID")]
+    face: Option<i32>,
+    /// A file source's frames per second [default: the file's own rate, else 30].
+    #[arg(long, value_name = "FPS")]
+    rate: Option<f64>,
+    /// The video's size WIDTHxHEIGHT, for normalised coordinates (MediaPipe's default)
+    /// [default: the coordinates as they come].
+    #[arg(long, value_name = "WxH", value_parser = super::input::parse_image_size)]
+    image_size: Option<(f64, f64)>,
+    /// A table source's format (mediapipe, openface, pyfeat, csv) [default: detected from
+    /// the header].
+    #[arg(long)]
+    format: Option<keyshape_core::sequence::Format>,
+    /// The causal temporal prior λ (each frame pulled towards the last; as `kslab rig
+    /// --live --smooth`). 0 is off.
+    #[arg(
+        long,
+        value_name = "LAMBDA",
+        default_value_t = 0.0,
+        allow_negative_numbers = true
+    )]
+    smooth: f64,
+    /// The magnitude prior (as `kslab rig --prior`).
+    #[arg(long, default_value_t = keyshape_rig::RECOMMENDED_PRIOR, allow_negative_numbers = true)]
+    prior: f64,
+    /// Frames waiting between receiving and solving at most; when the solve falls behind
+    /// a live source, the oldest are dropped (and counted). A file source waits instead.
+    #[arg(long, value_name = "N", default_value_t = 4, value_parser = clap::value_parser!(u32).range(1..=10_000))]
+    queue: u32,
+}
+
+/// The rig, the frame's point selection and the source, opened and checked before
+/// anything starts.
+pub(crate) struct Setup {
+    pub(crate) opened: source::Opened,
+    pub(crate) sinks: Vec<SinkSpec>,
+    pub(crate) rig: keyshape_rig::Rig,
+    /// Per rig landmark, the value pair of the source frame it reads.
+    pub(crate) select: Vec<usize>,
+    pub(crate) name: String,
+}
+
+/// Opens the source and the rig: every bad option fails here.
+fn setup(a: &LiveArgs) -> Result<Setup> {
+    let spec = SourceSpec::parse(&a.from)?;
+    let sinks = SinkSpec::parse_list(&a.to)?;
+    if let SourceSpec::File(p) = &spec {
+        if a.record.is_some() || a.neutral_file.is_some() {
+            super::check_outputs(
+                &[a.neutral_file.as_ref().filter(|p| !p.exists())],
+                &[a.record.as_ref()],
+                &[
+                    Some(p.as_path()),
+                    a.rig.as_deref(),
+                    a.rig_landmarks.as_deref(),
+                ],
+            )?;
+        }
+    } else {
+        super::check_outputs(
+            &[a.neutral_file.as_ref().filter(|p| !p.exists())],
+            &[a.record.as_ref()],
+            &[a.rig.as_deref(), a.rig_landmarks.as_deref()],
+        )?;
+    }
+    let opts = SourceOptions {
+        face: a.face,
+        rate: a.rate,
+        image_size: a.image_size,
+        format: a.format,
+    };
+    let stdin: Box<dyn std::io::BufRead + Send> =
+        Box::new(std::io::BufReader::new(std::io::stdin()));
+    let opened = source::open(&spec, &opts, stdin)?;
+    let name = opened.name.clone();
+    let layout = opened.layout;
+    keyshape_rig::correspondence::check_layout(layout)
+        .with_context(|| format!("{name}: kslab live"))?;
+    // A MediaPipe source read through the 68 iBUG points, or densely.
+    let (rig_layout, to68): (usize, Option<Vec<usize>>) = match (layout, a.landmarks.as_deref()) {
+        (68, Some("dense")) => anyhow::bail!(
+            "--landmarks dense applies to MediaPipe sources; {name} sends the 68 iBUG points"
+        ),
+        (68, _) | (_, None | Some("dense")) => (layout, None),
+        _ => (68, Some(keyshape_rig::mediapipe_to_ibug68()?)),
+    };
+    let dir = match &a.rig {
+        Some(d) => d.clone(),
+        None => keyshape_io::shared_data("ict_facekit_face")?,
+    };
+    if dir.is_file() && a.rig_landmarks.is_none() {
+        anyhow::bail!(
+            "{}: a glTF rig needs --rig-landmarks CSV (landmark,vertex: the mesh vertex of each track point it covers)",
+            dir.display()
+        );
+    }
+    let (_, _, rig) =
+        keyshape_rig::correspondence::read_rig(&dir, rig_layout, a.rig_landmarks.as_deref())
+            .with_context(|| format!("reading the rig {}", dir.display()))?;
+    let select: Vec<usize> = rig
+        .points
+        .iter()
+        .map(|&p| to68.as_ref().map_or(p, |m| m[p]))
+        .collect();
+    Ok(Setup {
+        opened,
+        sinks,
+        rig,
+        select,
+        name,
+    })
+}
+
+/// Runs `kslab live`.
+pub fn run(a: &LiveArgs) -> Result<()> {
+    let s = setup(a)?;
+    let opts = RigOptions {
+        smooth: a.smooth,
+        prior: a.prior,
+        ..RigOptions::live()
+    };
+    let mut solver = LiveSolver::new(s.rig.clone(), opts, a.calibrate as usize)?;
+    let loaded = match &a.neutral_file {
+        Some(p) if p.exists() => {
+            let c: keyshape_rig::live::Calibration = keyshape_io::read_json(p)?;
+            solver
+                .set_calibration(c)
+                .with_context(|| format!("{}: not a calibration of this rig", p.display()))?;
+            true
+        }
+        _ => false,
+    };
+    // The take's frame rate (Live Link's timecode): the file's own, else 60.
+    let fps = s.opened.fps.unwrap_or(60.0);
+    let sinks = Sinks::open(&s.sinks, &s.rig, Box::new(std::io::stdout()), fps)?;
+    let recorder = match &a.record {
+        Some(d) => Some(Recorder::create(d, &s.rig, s.opened.layout, fps)?),
+        None => None,
+    };
+    let mut session = Session::new(solver, sinks, recorder, s.select.clone());
+    if !loaded {
+        session.save_calibration = a.neutral_file.clone();
+    }
+    // Ctrl-C, SIGTERM and SIGHUP end the session (exit 0, the recording complete);
+    // SIGUSR1 recalibrates.
+    let stop = Arc::new(AtomicBool::new(false));
+    let recal = Arc::new(AtomicBool::new(false));
+    #[cfg(unix)]
+    {
+        use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM, SIGUSR1};
+        for sig in [SIGINT, SIGTERM, SIGHUP] {
+            signal_hook::flag::register(sig, stop.clone())?;
+        }
+        signal_hook::flag::register(SIGUSR1, recal.clone())?;
+    }
+    let stdin_is_source = a.from.trim() == "stdin";
+    if !stdin_is_source {
+        let recal = recal.clone();
+        // A line `calibrate` on standard input recalibrates.
+        let _ = std::thread::Builder::new().name("kslab-control".into()).spawn(move || {
+            let mut line = String::new();
+            let stdin = std::io::stdin();
+            while stdin.read_line(&mut line).is_ok_and(|n| n > 0) {
+                match line.trim() {
+                    "calibrate" => recal.store(true, Ordering::Relaxed),
+                    "" => {}
+                    other => eprintln!("kslab live: unknown control line '{other}' (the one there is: calibrate)"),
+                }
+                line.clear();
+            }
+        });
+    }
+    if let Some(n) = &s.opened.note {
+        eprintln!("{n}");
+    }
+    let counters = Arc::new(Counters::default());
+    let queue = Arc::new(Queue::new(a.queue as usize, s.opened.blocking));
+    let warn: source::Warn = Box::new(|m| eprintln!("warning: {m}"));
+    eprintln!(
+        "kslab live: {} → {} ({} landmarks, {} shapes)",
+        s.name,
+        a.to,
+        s.rig.landmarks(),
+        s.rig.k()
+    );
+    if loaded {
+        eprintln!(
+            "calibrated: loaded from {}",
+            a.neutral_file
+                .as_ref()
+                .map_or(String::new(), |p| p.display().to_string())
+        );
+    } else {
+        eprintln!(
+            "look neutral: calibrating on the first {} frames",
+            a.calibrate
+        );
+    }
+    let thread = s
+        .opened
+        .spawn(queue.clone(), counters.clone(), stop.clone(), warn);
+    let tty = std::io::stderr().is_terminal();
+    let started = Instant::now();
+    let mut last_status = Instant::now();
+    let mut last_frame = Instant::now();
+    let mut idle_said = false;
+    let mut window: std::collections::VecDeque<Instant> = std::collections::VecDeque::new();
+    let result = loop {
+        if stop.load(Ordering::Relaxed) {
+            break Ok(());
+        }
+        if recal.swap(false, Ordering::Relaxed) {
+            session.recalibrate();
+            eprintln!(
+                "{}look neutral: recalibrating on the next {} frames",
+                if tty { "\r\x1b[K" } else { "" },
+                a.calibrate
+            );
+        }
+        match queue.pop(Duration::from_millis(100)) {
+            Popped::Closed => break Ok(()),
+            Popped::Idle => {
+                if last_frame.elapsed() > Duration::from_secs(2) && !idle_said {
+                    eprintln!(
+                        "{}waiting: no frames for {:.0} s",
+                        if tty { "\r\x1b[K" } else { "" },
+                        last_frame.elapsed().as_secs_f64()
+                    );
+                    idle_said = true;
+                }
+            }
+            Popped::Frame(f) => {
+                last_frame = Instant::now();
+                if idle_said {
+                    idle_said = false;
+                }
+                match session.take(f) {
+                    Ok(Step::Calibrated(n)) => eprintln!(
+                        "{}calibrated on {n} frames{}",
+                        if tty { "\r\x1b[K" } else { "" },
+                        a.neutral_file
+                            .as_ref()
+                            .filter(|_| session.save_calibration.is_some())
+                            .map_or(String::new(), |p| format!(" (saved to {})", p.display()))
+                    ),
+                    Ok(_) => {}
+                    Err(e) => break Err(e),
+                }
+                window.push_back(Instant::now());
+            }
+        }
+        while window
+            .front()
+            .is_some_and(|t| t.elapsed() > Duration::from_secs(1))
+        {
+            window.pop_front();
+        }
+        if tty && last_status.elapsed() > Duration::from_millis(500) {
+            last_status = Instant::now();
+            let (_, malformed, dropped) = counters.get();
+            let n = session.latencies.len();
+            let recent = &session.latencies[n.saturating_sub(300)..];
+            eprint!(
+                "\r\x1b[K{} fps · latency p50 {} p99 {} · solved {} · dropped {dropped} · malformed {malformed}",
+                window.len(),
+                ms(quantile(recent, 0.5)),
+                ms(quantile(recent, 0.99)),
+                session.solved
+            );
+        }
+    };
+    stop.store(true, Ordering::Relaxed);
+    drop(queue);
+    if matches!(result, Ok(())) && thread.is_finished() {
+        let _ = thread.join();
+    }
+    let (received, malformed, dropped) = counters.get();
+    eprintln!(
+        "{}kslab live: {} frames solved in {:.1} s ({received} received, {dropped} dropped, {malformed} malformed, {} refused, {} not sent); latency p50 {} p99 {}",
+        if tty { "\r\x1b[K" } else { "" },
+        session.solved,
+        started.elapsed().as_secs_f64(),
+        session.refused,
+        session.send_errors(),
+        ms(quantile(&session.latencies, 0.5)),
+        ms(quantile(&session.latencies, 0.99)),
+    );
+    result.map_err(anyhow::Error::from)
+}
+
+fn ms(v: Option<f64>) -> String {
+    v.map_or("–".into(), |v| format!("{v:.2} ms"))
+}
