@@ -14,6 +14,7 @@ mod corpus;
 mod experiments;
 mod fuzz_smoke;
 mod keyshapes;
+mod live;
 mod mediapipe478;
 mod modes;
 mod oracles;

@@ -42,9 +42,11 @@ impl SinkSpec {
                     SinkSpec::LiveLink(parse_address(rest, "127.0.0.1", LIVELINK_PORT, &what)?)
                 }
                 "stdout" if rest.is_none() => SinkSpec::Stdout,
-                _ => return Err(Error::invalid(format!(
+                _ => {
+                    return Err(Error::invalid(format!(
                     "--to '{part}': not a sink (vmc:[HOST:]PORT, livelink:[HOST:]PORT or stdout)"
-                ))),
+                )))
+                }
             };
             if out.contains(&sink) {
                 return Err(Error::invalid(format!("--to names {part} twice")));

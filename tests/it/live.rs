@@ -1,0 +1,446 @@
+//! `kslab live` on loopback: OpenSeeFace datagrams built here (the layout written out
+//! below, not the crate's decoder) → `kslab live` → VMC bundles decoded by rosc's decoder
+//! and Live Link packets decoded by the layout written out below; the weights against the
+//! offline causal solve of the same frames and against the weights they were rendered
+//! from; malformed datagrams counted and harmless; Ctrl-C ends with exit 0 and the
+//! recording complete.
+
+use crate::common::{kslab, shared};
+use keyshape_rig::accuracy::{render, Settings};
+use keyshape_rig::Rig;
+use std::io::Read;
+use std::net::UdpSocket;
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+/// OpenSeeFace's face record (facetracker.py), little-endian: f64 time, i32 id, f32 width,
+/// height, right and left eye open, u8 success, f32 fit error, 4 f32 quaternion, 3 f32
+/// Euler, 3 f32 translation, 68 f32 confidences, 68 × (f32 x, f32 y), 70 × 3 f32, 14 f32.
+fn osf_face(time: f64, id: i32, points: &[f64]) -> Vec<u8> {
+    let mut b = Vec::new();
+    b.extend(time.to_le_bytes());
+    b.extend(id.to_le_bytes());
+    for v in [640f32, 480.0, 1.0, 1.0] {
+        b.extend(v.to_le_bytes());
+    }
+    b.push(1u8);
+    for _ in 0..(1 + 4 + 3 + 3) {
+        b.extend(0f32.to_le_bytes());
+    }
+    for _ in 0..68 {
+        b.extend(0.9f32.to_le_bytes());
+    }
+    for p in points.chunks(2) {
+        b.extend((p[0] as f32).to_le_bytes());
+        b.extend((p[1] as f32).to_le_bytes());
+    }
+    for _ in 0..(70 * 3 + 14) {
+        b.extend(0f32.to_le_bytes());
+    }
+    assert_eq!(b.len(), 1785);
+    b
+}
+
+/// Live Link Face's UDP packet, big-endian: u8 version, i32 + device id, i32 + subject,
+/// i32 frame, f32 sub-frame, i32 rate numerator, i32 denominator, u8 count, count × f32.
+fn decode_livelink(p: &[u8]) -> (i32, Vec<f32>) {
+    let be_i32 = |at: usize| i32::from_be_bytes(p[at..at + 4].try_into().unwrap());
+    assert_eq!(p[0], 6, "version");
+    let mut at = 1;
+    for _ in 0..2 {
+        let n = be_i32(at) as usize;
+        at += 4 + n;
+    }
+    let frame = be_i32(at);
+    at += 4 + 4 + 4 + 4;
+    let count = p[at] as usize;
+    at += 1;
+    assert_eq!(count, 61);
+    assert_eq!(p.len(), at + 4 * count, "nothing after the values");
+    let values = (0..count)
+        .map(|i| f32::from_be_bytes(p[at + 4 * i..at + 4 * i + 4].try_into().unwrap()))
+        .collect();
+    (frame, values)
+}
+
+fn free_udp_port() -> u16 {
+    UdpSocket::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port()
+}
+
+fn pearson(a: &[f64], b: &[f64]) -> f64 {
+    let n = a.len() as f64;
+    let (ma, mb) = (a.iter().sum::<f64>() / n, b.iter().sum::<f64>() / n);
+    let (mut sab, mut saa, mut sbb) = (0.0, 0.0, 0.0);
+    for (x, y) in a.iter().zip(b) {
+        sab += (x - ma) * (y - mb);
+        saa += (x - ma).powi(2);
+        sbb += (y - mb).powi(2);
+    }
+    sab / (saa * sbb).sqrt()
+}
+
+/// Reads a weights CSV (frame + one column per shape) into per-frame rows.
+fn weights_rows(text: &str) -> Vec<Vec<f64>> {
+    text.lines()
+        .skip(1)
+        .map(|l| l.split(',').skip(1).map(|v| v.parse().unwrap()).collect())
+        .collect()
+}
+
+#[test]
+fn a_rendered_performance_sent_at_60_fps_comes_out_as_the_offline_causal_solve() {
+    let rig = Rig::read_ict(&shared("ict_facekit_face")).unwrap();
+    let st = Settings {
+        frames: 160,
+        lead_in: 20,
+        ..Settings::default()
+    };
+    let track = render(&rig, &st).unwrap();
+    let frames = track.points.ncols();
+    let dir = tempfile::tempdir().unwrap();
+    let (osf, vmc_port, ll_port) = (free_udp_port(), free_udp_port(), free_udp_port());
+    let vmc = UdpSocket::bind(("127.0.0.1", vmc_port)).unwrap();
+    let ll = UdpSocket::bind(("127.0.0.1", ll_port)).unwrap();
+    for s in [&vmc, &ll] {
+        s.set_nonblocking(true).unwrap();
+    }
+    let take = dir.path().join("take");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_kslab"))
+        .args([
+            "live",
+            "--from",
+            &format!("openseeface:127.0.0.1:{osf}"),
+            "--to",
+            &format!("vmc:127.0.0.1:{vmc_port},livelink:127.0.0.1:{ll_port},stdout"),
+            "--calibrate",
+            "20",
+            "--record",
+        ])
+        .arg(&take)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Wait for the listener (its first line on stderr comes after the socket is bound).
+    let mut stderr = child.stderr.take().unwrap();
+    let mut first = [0u8; 12];
+    stderr.read_exact(&mut first).unwrap();
+    // Standard output read as it comes (a full pipe would hold the solve up).
+    let mut stdout = child.stdout.take().unwrap();
+    let reader = std::thread::spawn(move || {
+        let mut out = String::new();
+        stdout.read_to_string(&mut out).unwrap();
+        out
+    });
+    let send = UdpSocket::bind("127.0.0.1:0").unwrap();
+    let to = ("127.0.0.1", osf);
+    // The frames as sent: f32, as the datagrams carry them.
+    let mut sent = nalgebra::DMatrix::<f64>::zeros(136, frames);
+    let start = Instant::now();
+    let mut bundles: Vec<rosc::OscPacket> = Vec::new();
+    let mut packets: Vec<(i32, Vec<f32>)> = Vec::new();
+    let mut buf = vec![0u8; 65_536];
+    let mut drain = |bundles: &mut Vec<rosc::OscPacket>, packets: &mut Vec<(i32, Vec<f32>)>| {
+        while let Ok(n) = vmc.recv(&mut buf) {
+            bundles.push(rosc::decoder::decode_udp(&buf[..n]).unwrap().1);
+        }
+        while let Ok(n) = ll.recv(&mut buf) {
+            packets.push(decode_livelink(&buf[..n]));
+        }
+    };
+    for f in 0..frames {
+        let pts: Vec<f64> = track.points.column(f).iter().copied().collect();
+        for (i, v) in pts.iter().enumerate() {
+            sent[(i, f)] = f64::from(*v as f32);
+        }
+        send.send_to(&osf_face(f as f64 / 60.0, 0, &pts), to)
+            .unwrap();
+        // Malformed datagrams mixed in: short, a face and a bit, a NaN landmark, empty.
+        if f % 40 == 7 {
+            // (The header is 73 bytes, the confidences 272; landmark 4's x.)
+            let mut nan = osf_face(0.0, 0, &pts);
+            nan[73 + 272 + 32..73 + 272 + 36].copy_from_slice(&f32::NAN.to_le_bytes());
+            for bad in [
+                vec![1u8; 100],
+                [osf_face(0.0, 0, &pts), vec![0; 7]].concat(),
+                nan,
+                Vec::new(),
+            ] {
+                send.send_to(&bad, to).unwrap();
+            }
+        }
+        let due = start + Duration::from_secs_f64((f + 1) as f64 / 60.0);
+        while Instant::now() < due {
+            drain(&mut bundles, &mut packets);
+        }
+    }
+    let end = Instant::now() + Duration::from_secs(5);
+    while (bundles.len() < frames || packets.len() < frames) && Instant::now() < end {
+        drain(&mut bundles, &mut packets);
+    }
+    // Ctrl-C: exit 0, the recording complete.
+    unsafe_free_kill(child.id(), libc::SIGINT);
+    let out = reader.join().unwrap();
+    let mut err = String::from_utf8_lossy(&first).into_owned();
+    stderr.read_to_string(&mut err).unwrap();
+    let status = child.wait().unwrap();
+    assert_eq!(status.code(), Some(0), "{err}");
+    assert!(
+        err.contains("look neutral") && err.contains("calibrated on 20 frames"),
+        "{err}"
+    );
+    assert!(err.contains(&format!("{frames} frames solved")), "{err}");
+    assert!(err.contains("20 malformed"), "5 × 4 bad datagrams: {err}");
+    assert!(err.contains(" 0 dropped"), "{err}");
+    assert_eq!(bundles.len(), frames, "one VMC bundle per frame");
+    assert_eq!(packets.len(), frames, "one Live Link packet per frame");
+
+    // The offline causal solve of the same frames.
+    let file = dir.path().join("sent.csv");
+    let mut csv = String::from("frame");
+    for i in 0..68 {
+        csv += &format!(",x{i},y{i}");
+    }
+    for f in 0..frames {
+        csv += &format!("\n{f}");
+        for v in sent.column(f).iter() {
+            csv += &format!(",{v}");
+        }
+    }
+    std::fs::write(&file, csv + "\n").unwrap();
+    let offline = dir.path().join("offline.csv");
+    let r = kslab(&[
+        "rig",
+        file.to_str().unwrap(),
+        "--live",
+        "--neutral",
+        "0-19",
+        "--landmarks",
+        "68",
+        "--out",
+        offline.to_str().unwrap(),
+    ]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let offline_text = std::fs::read_to_string(&offline).unwrap();
+    assert_eq!(
+        out, offline_text,
+        "stdout: the offline causal solve, byte for byte"
+    );
+    let rec = std::fs::read_to_string(take.join("weights.csv")).unwrap();
+    assert_eq!(rec, offline_text, "the recorded weights");
+    let rows = weights_rows(&offline_text);
+
+    // VMC: per bundle, Val for the 52 ARKit shapes and the rig's others, Apply, then the head.
+    let jaw = rig.names.iter().position(|n| n == "jawOpen").unwrap();
+    for (f, b) in bundles.iter().enumerate() {
+        let rosc::OscPacket::Bundle(b) = b else {
+            panic!("a bundle")
+        };
+        let msgs: Vec<&rosc::OscMessage> = b
+            .content
+            .iter()
+            .map(|p| match p {
+                rosc::OscPacket::Message(m) => m,
+                _ => panic!("flat"),
+            })
+            .collect();
+        let vals: Vec<&&rosc::OscMessage> = msgs
+            .iter()
+            .filter(|m| m.addr == "/VMC/Ext/Blend/Val")
+            .collect();
+        assert_eq!(
+            vals.len(),
+            52 + 2,
+            "52 ARKit shapes and ICT's cheekRaiser_L/R"
+        );
+        let apply = msgs
+            .iter()
+            .position(|m| m.addr == "/VMC/Ext/Blend/Apply")
+            .unwrap();
+        assert_eq!(apply, vals.len(), "Apply after every value");
+        let head = msgs.last().unwrap();
+        assert_eq!(head.addr, "/VMC/Ext/Bone/Pos");
+        assert_eq!(head.args[0], rosc::OscType::String("Head".into()));
+        assert_eq!(head.args.len(), 8);
+        let value = |name: &str| {
+            vals.iter()
+                .find(|m| m.args[0] == rosc::OscType::String(name.into()))
+                .map(|m| match m.args[1] {
+                    rosc::OscType::Float(v) => v,
+                    _ => panic!("a float"),
+                })
+                .unwrap()
+        };
+        assert_eq!(value("JawOpen"), rows[f][jaw] as f32, "frame {f}");
+        let (n, ll) = &packets[f];
+        assert_eq!(*n as usize, f);
+        assert_eq!(
+            ll[17], rows[f][jaw] as f32,
+            "Live Link's JawOpen (column 17), frame {f}"
+        );
+    }
+
+    // Against the weights it was rendered from: the shapes the performance drives.
+    let lead = st.lead_in;
+    let mut rs = Vec::new();
+    for (s, name) in rig.names.iter().enumerate() {
+        let truth: Vec<f64> = (lead..frames).map(|f| track.truth[(s, f)]).collect();
+        if truth.iter().cloned().fold(0.0, f64::max) < 0.2 {
+            continue;
+        }
+        let got: Vec<f64> = (lead..frames).map(|f| rows[f][s]).collect();
+        rs.push((name.clone(), pearson(&truth, &got)));
+    }
+    // (The live weights are the offline causal solve's, byte for byte, so they score as
+    // it does. On this 160-frame take at 68 points: mean r 0.885, jawOpen 0.995, the
+    // smiles 0.95–0.99; mouthFrown_L 0.15 and eyeWide_L 0.76 are what 68 points without a
+    // neutral search lose.)
+    let r_of = |n: &str| rs.iter().find(|r| r.0 == n).map(|r| r.1).unwrap();
+    let mean = rs.iter().map(|r| r.1).sum::<f64>() / rs.len() as f64;
+    assert!(rs.len() >= 8, "{rs:?}");
+    assert!(mean > 0.85, "mean r {mean}: {rs:?}");
+    assert!(
+        r_of("jawOpen") > 0.99 && r_of("eyeBlink_R") > 0.97,
+        "{rs:?}"
+    );
+
+    // The recording replays to the same weights.
+    let replay = kslab(&[
+        "live",
+        "--from",
+        &format!("file:{}", take.join("track.csv").display()),
+        "--rate",
+        "2000",
+        "--calibrate",
+        "20",
+        "--to",
+        "stdout",
+    ]);
+    assert_eq!(replay.code, 0, "{}", replay.stderr);
+    assert_eq!(replay.stdout, offline_text);
+}
+
+/// Sends `sig` to `pid`.
+fn unsafe_free_kill(pid: u32, sig: i32) {
+    let ok = Command::new("kill")
+        .arg(format!("-{sig}"))
+        .arg(pid.to_string())
+        .status()
+        .unwrap();
+    assert!(ok.success());
+}
+
+#[test]
+fn a_replayed_real_track_gives_the_files_causal_weights_and_a_readable_take() {
+    let dir = tempfile::tempdir().unwrap();
+    let track = shared("mediapipe_face_tracks/liveportrait_d18.csv");
+    let take = dir.path().join("take");
+    let live = kslab(&[
+        "live",
+        "--from",
+        &format!("file:{}", track.display()),
+        "--rate",
+        "3000",
+        "--to",
+        "stdout",
+        "--record",
+        take.to_str().unwrap(),
+        "--neutral-file",
+        dir.path().join("cal.json").to_str().unwrap(),
+    ]);
+    assert_eq!(live.code, 0, "{}", live.stderr);
+    let rig = kslab(&["rig", track.to_str().unwrap(), "--live"]);
+    assert_eq!(rig.code, 0, "{}", rig.stderr);
+    assert_eq!(live.stdout, rig.stdout, "a 468-point take, byte for byte");
+    let again = kslab(&["rig", take.join("track.csv").to_str().unwrap(), "--live"]);
+    assert_eq!(again.stdout, rig.stdout, "the recorded track");
+    let cal = std::fs::read_to_string(dir.path().join("cal.json")).unwrap();
+    assert!(cal.contains("\"frames\": 30"), "{cal}");
+    // A recording never replaces an earlier take.
+    let before = std::fs::read(take.join("weights.csv")).unwrap();
+    let again = kslab(&[
+        "live",
+        "--from",
+        &format!("file:{}", track.display()),
+        "--to",
+        "stdout",
+        "--record",
+        take.to_str().unwrap(),
+    ]);
+    assert_eq!(again.code, 1);
+    assert!(again.stderr.contains("is not empty"), "{}", again.stderr);
+    assert_eq!(std::fs::read(take.join("weights.csv")).unwrap(), before);
+}
+
+#[test]
+fn bad_options_fail_before_anything_starts() {
+    let d6 = shared("mediapipe_face_tracks/liveportrait_d6.csv");
+    let file = format!("file:{}", d6.display());
+    for (args, needle) in [
+        (vec!["--from", "webcam:0", "--to", "stdout"], "not a source"),
+        (
+            vec!["--from", "openseeface:70000", "--to", "stdout"],
+            "not a port number",
+        ),
+        (
+            vec!["--from", "openseeface:0", "--to", "stdout"],
+            "not a port number",
+        ),
+        (vec!["--from", &file, "--to", "osc:1"], "not a sink"),
+        (vec!["--from", &file, "--to", "stdout,stdout"], "twice"),
+        (
+            vec!["--from", "openseeface", "--to", "stdout", "--rate", "30"],
+            "--rate applies to a file",
+        ),
+        (
+            vec!["--from", &file, "--to", "stdout", "--face", "1"],
+            "--face applies",
+        ),
+        (
+            vec!["--from", &file, "--to", "stdout", "--rate", "0"],
+            "--rate 0",
+        ),
+        (
+            vec!["--from", &file, "--to", "stdout", "--calibrate", "0"],
+            "calibrate",
+        ),
+        (
+            vec!["--from", &file, "--to", "stdout", "--smooth", "-1"],
+            "smooth",
+        ),
+        (
+            vec!["--from", "file:/no/such.csv", "--to", "stdout"],
+            "/no/such.csv",
+        ),
+        (
+            vec![
+                "--from",
+                &file,
+                "--to",
+                "stdout",
+                "--landmarks",
+                "68",
+                "--rig",
+                "/no/rig",
+            ],
+            "/no/rig",
+        ),
+    ] {
+        let mut all = vec!["live"];
+        all.extend(args.iter().copied());
+        let r = kslab(&all);
+        assert_eq!(
+            r.code,
+            if needle == "calibrate" { 2 } else { 1 },
+            "{all:?}: {}",
+            r.stderr
+        );
+        assert!(r.stderr.contains(needle), "{all:?}: {}", r.stderr);
+        assert!(r.stdout.is_empty(), "{all:?}: nothing sent");
+    }
+}
