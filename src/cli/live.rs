@@ -32,7 +32,7 @@ pub struct LiveArgs {
     /// 61 values of the Live Link CSV; default 127.0.0.1:11111), `stdout` (weights CSV
     /// lines as `kslab rig` writes them, flushed per frame).
     #[arg(long, value_name = "SINK[,SINK…]")]
-    to: String,
+    to: Option<String>,
     /// The rig, as for `kslab rig` [default: ict_facekit_face in the shared data folder].
     #[arg(long, value_name = "DIR|rig.glb")]
     rig: Option<PathBuf>,
@@ -87,6 +87,12 @@ pub struct LiveArgs {
     /// The magnitude prior (as `kslab rig --prior`).
     #[arg(long, default_value_t = keyshape_rig::RECOMMENDED_PRIOR, allow_negative_numbers = true)]
     prior: f64,
+    /// When the session ends, write its figures here as JSON: frames solved, received,
+    /// dropped, malformed, refused, datagrams not sent, seconds, and the latency from a
+    /// frame's arrival to its sending (p50, p99, worst, milliseconds) — what `kslab bench
+    /// live` measures.
+    #[arg(long, value_name = "FILE")]
+    stats: Option<PathBuf>,
     /// Frames waiting between receiving and solving at most; when the solve falls behind
     /// a live source, the oldest are dropped (and counted). A file source waits instead.
     #[arg(long, value_name = "N", default_value_t = 4, value_parser = clap::value_parser!(u32).range(1..=10_000))]
@@ -107,9 +113,12 @@ pub(crate) struct Setup {
 /// Opens the source and the rig: every bad option fails here.
 fn setup(a: &LiveArgs) -> Result<Setup> {
     let spec = SourceSpec::parse(&a.from)?;
-    let sinks = SinkSpec::parse_list(&a.to)?;
+    let sinks = match &a.to {
+        Some(t) => SinkSpec::parse_list(t)?,
+        None => Vec::new(),
+    };
     if let SourceSpec::File(p) = &spec {
-        if a.record.is_some() || a.neutral_file.is_some() {
+        if a.record.is_some() || a.neutral_file.is_some() || a.stats.is_some() {
             super::check_outputs(
                 &[a.neutral_file.as_ref().filter(|p| !p.exists())],
                 &[a.record.as_ref()],
@@ -177,6 +186,9 @@ fn setup(a: &LiveArgs) -> Result<Setup> {
 
 /// Runs `kslab live`.
 pub fn run(a: &LiveArgs) -> Result<()> {
+    if a.to.is_none() {
+        anyhow::bail!("--to: name where the weights go (vmc:[HOST:]PORT, livelink:[HOST:]PORT, stdout; several with commas), or watch them in `kslab tui --live SOURCE`");
+    }
     let s = setup(a)?;
     let opts = RigOptions {
         smooth: a.smooth,
@@ -243,7 +255,7 @@ pub fn run(a: &LiveArgs) -> Result<()> {
     eprintln!(
         "kslab live: {} → {} ({} landmarks, {} shapes)",
         s.name,
-        a.to,
+        a.to.as_deref().unwrap_or(""),
         s.rig.landmarks(),
         s.rig.k()
     );
@@ -349,9 +361,82 @@ pub fn run(a: &LiveArgs) -> Result<()> {
         ms(quantile(&session.latencies, 0.5)),
         ms(quantile(&session.latencies, 0.99)),
     );
+    if let Some(p) = &a.stats {
+        let v = serde_json::json!({
+            "source": s.name,
+            "landmarks": s.rig.landmarks(),
+            "shapes": s.rig.k(),
+            "seconds": started.elapsed().as_secs_f64(),
+            "solved": session.solved,
+            "received": received,
+            "dropped": dropped,
+            "malformed": malformed,
+            "refused": session.refused,
+            "not_sent": session.send_errors(),
+            "latency_ms": {
+                "p50": quantile(&session.latencies, 0.5),
+                "p99": quantile(&session.latencies, 0.99),
+                "worst": quantile(&session.latencies, 1.0),
+            },
+        });
+        keyshape_io::write_atomic(p, |w| {
+            serde_json::to_writer_pretty(&mut *w, &v).map_err(std::io::Error::other)?;
+            w.write_all(b"\n")
+        })?;
+    }
     result.map_err(anyhow::Error::from)
 }
 
 fn ms(v: Option<f64>) -> String {
     v.map_or("–".into(), |v| format!("{v:.2} ms"))
+}
+
+/// `kslab tui --live SOURCE`: the live screen, solving as `kslab live` does (no sinks).
+pub(crate) fn tui(
+    from: &str,
+    rig: Option<&std::path::Path>,
+    image_size: Option<(f64, f64)>,
+) -> Result<()> {
+    #[derive(clap::Parser)]
+    struct Wrap {
+        #[command(flatten)]
+        a: LiveArgs,
+    }
+    let mut args: Vec<String> = vec!["live".into(), "--from".into(), from.into()];
+    if let Some(r) = rig {
+        args.extend(["--rig".into(), r.display().to_string()]);
+    }
+    if let Some((w, h)) = image_size {
+        args.extend(["--image-size".into(), format!("{w}x{h}")]);
+    }
+    let a = <Wrap as clap::Parser>::try_parse_from(args)?.a;
+    if matches!(SourceSpec::parse(from)?, SourceSpec::Stdin) {
+        anyhow::bail!("--live stdin: the lab reads its keys from the terminal; pipe frames through a file source or OpenSeeFace instead");
+    }
+    let s = setup(&a)?;
+    let solver = LiveSolver::new(
+        s.rig.clone(),
+        RigOptions {
+            prior: a.prior,
+            ..RigOptions::live()
+        },
+        a.calibrate as usize,
+    )?;
+    let sinks = Sinks::open(&[], &s.rig, Box::new(std::io::sink()), 60.0)?;
+    let mut session = Session::new(solver, sinks, None, s.select.clone());
+    let counters = Arc::new(Counters::default());
+    let queue = Arc::new(Queue::new(a.queue as usize, s.opened.blocking));
+    let stop = Arc::new(AtomicBool::new(false));
+    let thread = s.opened.spawn(
+        queue.clone(),
+        counters.clone(),
+        stop.clone(),
+        Box::new(|_| {}),
+    );
+    let r = kslab_tui::run_live(&mut session, &queue, &counters, &s.name);
+    stop.store(true, Ordering::Relaxed);
+    if thread.is_finished() {
+        let _ = thread.join();
+    }
+    r
 }

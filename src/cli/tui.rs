@@ -37,13 +37,32 @@ pub struct TuiArgs {
     /// coordinates: the track (and every normalised one opened with `o`) is scaled to pixels.
     /// Needs FILE; refused for a track already in pixels.
     /// [default: none: a normalised track is shown as it is, with a note]
-    #[arg(long, value_name = "WxH", value_parser = super::input::parse_image_size, requires = "file")]
+    #[arg(long, value_name = "WxH", value_parser = super::input::parse_image_size)]
     image_size: Option<(f64, f64)>,
+    /// The lab live: frames from SOURCE (as `kslab live --from`: openseeface:[HOST:]PORT,
+    /// stdin, file:TRACK) solved onto the rig (--rig, or the ICT face in the shared data
+    /// folder) as they come, calibrated on the first 30 frames: the incoming landmarks over
+    /// the posed rig, the named weight bars, frames per second, latency, dropped frames;
+    /// `n` recalibrates, `l`/`L` turn the causal prior's λ up and down. With --image-size
+    /// for normalised coordinates.
+    #[arg(long, value_name = "SOURCE", conflicts_with_all = ["file", "target", "mesh"])]
+    live: Option<String>,
 }
 
 pub fn run(a: &TuiArgs) -> Result<()> {
     if !std::io::stdout().is_terminal() {
         anyhow::bail!("the lab needs a terminal (stdout is not one); see `kslab --help` for the headless commands");
+    }
+    if let Some(src) = &a.live {
+        if a.head_motion != "apply" {
+            anyhow::bail!(
+                "--head-motion applies to the lab's export; the live screen exports nothing"
+            );
+        }
+        return super::live::tui(src, a.rig.as_deref(), a.image_size);
+    }
+    if a.image_size.is_some() && a.file.is_none() {
+        anyhow::bail!("--image-size scales a track given as FILE (or a --live source); the built-in sequence is in pixels");
     }
     let path = a
         .file
@@ -104,6 +123,7 @@ impl Default for TuiArgs {
             features: "builtin".into(),
             head_motion: "apply".into(),
             image_size: None,
+            live: None,
         }
     }
 }

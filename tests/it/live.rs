@@ -444,3 +444,110 @@ fn bad_options_fail_before_anything_starts() {
         assert!(r.stdout.is_empty(), "{all:?}: nothing sent");
     }
 }
+
+/// `kslab tui --live` in tmux, receiving a replay of a shipped track as OpenSeeFace
+/// datagrams: it calibrates, shows the weights and the rate, recalibrates on `n`, turns λ
+/// on `l`, quits on `q`.
+#[test]
+fn the_live_lab_runs_in_tmux_on_a_replay() {
+    assert!(
+        Command::new("tmux").arg("-V").output().is_ok(),
+        "tmux is needed for this test: install it (.ci/run does)"
+    );
+    let d6 = keyshape_io::read_sequence(
+        &shared("mediapipe_face_tracks/liveportrait_d6.csv"),
+        &keyshape_io::ReadOptions::default(),
+    )
+    .unwrap()
+    .select_points(&keyshape_rig::mediapipe_to_ibug68().unwrap())
+    .unwrap();
+    let port = free_udp_port();
+    let name = format!("kslab-live-{}", std::process::id());
+    let tmux = |args: &[&str]| Command::new("tmux").args(args).output().unwrap();
+    let out = tmux(&[
+        "new-session",
+        "-d",
+        "-s",
+        &name,
+        "-x",
+        "80",
+        "-y",
+        "24",
+        env!("CARGO_BIN_EXE_kslab"),
+        "tui",
+        "--live",
+        &format!("openseeface:127.0.0.1:{port}"),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let capture =
+        || String::from_utf8_lossy(&tmux(&["capture-pane", "-t", &name, "-p"]).stdout).into_owned();
+    // The replay: 30 frames a second on a thread, the track cycled, until the test ends.
+    let done = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let sender = {
+        let done = done.clone();
+        std::thread::spawn(move || {
+            let send = UdpSocket::bind("127.0.0.1:0").unwrap();
+            let mut f = 0usize;
+            while !done.load(std::sync::atomic::Ordering::Relaxed) {
+                let c = f % d6.n_frames();
+                let pts: Vec<f64> = d6.coords.column(c).iter().copied().collect();
+                let _ = send.send_to(&osf_face(f as f64 / 30.0, 3, &pts), ("127.0.0.1", port));
+                f += 1;
+                std::thread::sleep(Duration::from_millis(33));
+            }
+        })
+    };
+    let finish = |screen: &str, msg: &str| -> ! {
+        done.store(true, std::sync::atomic::Ordering::Relaxed);
+        tmux(&["kill-session", "-t", &name]);
+        panic!("{msg}:\n{screen}");
+    };
+    let wait_for = |needle: &str| {
+        for _ in 0..150 {
+            let screen = capture();
+            if screen.contains(needle) {
+                return screen;
+            }
+            std::thread::sleep(Duration::from_millis(100));
+        }
+        finish(&capture(), &format!("'{needle}' never appeared"))
+    };
+    wait_for("look neutral:");
+    let screen = wait_for("calibrated");
+    // Weight bars with the rig's names, the rate, the landmarks panel.
+    if !(screen.contains("weights") && screen.contains("tracked") && screen.contains(" fps")) {
+        finish(&screen, "the live screen lacks a panel");
+    }
+    let named = [
+        "jawOpen",
+        "eyeBlink_L",
+        "mouthSmile_L",
+        "browDown_L",
+        "eyeWide_L",
+    ]
+    .iter()
+    .filter(|n| screen.contains(*n))
+    .count();
+    if named == 0 {
+        finish(&screen, "no named weight bar");
+    }
+    tmux(&["send-keys", "-t", &name, "n"]);
+    wait_for("recalibrating");
+    wait_for("calibrated on 30 frames");
+    tmux(&["send-keys", "-t", &name, "l"]);
+    wait_for("λ 10");
+    tmux(&["send-keys", "-t", &name, "q"]);
+    for _ in 0..50 {
+        if !tmux(&["has-session", "-t", &name]).status.success() {
+            done.store(true, std::sync::atomic::Ordering::Relaxed);
+            sender.join().unwrap();
+            return;
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    finish(&capture(), "kslab did not quit on q")
+}

@@ -65,6 +65,11 @@ impl Session {
         }
     }
 
+    /// Per rig landmark, the source point it reads.
+    pub fn selection(&self) -> &[usize] {
+        &self.select
+    }
+
     /// Datagrams the network would not take.
     pub fn send_errors(&self) -> u64 {
         self.sinks.send_errors

@@ -68,7 +68,7 @@ fn weights_header(rig: &Rig) -> Vec<String> {
 /// One CSV line (the weights tables' dialect).
 fn csv_line(fields: impl IntoIterator<Item = String>) -> std::io::Result<Vec<u8>> {
     let mut w = keyshape_io::csv_out::record_writer(Vec::new());
-    w.write_record(fields.into_iter())
+    w.write_record(fields)
         .map_err(keyshape_io::csv_out::io_error)?;
     w.into_inner().map_err(|e| e.into_error())
 }

@@ -101,7 +101,7 @@ pub struct SourceOptions {
 /// What a source reads, before its thread starts.
 enum Reader {
     OpenSeeFace(UdpSocket),
-    Table(keyshape_io::table::TableRows<Box<dyn Read + Send>>),
+    Table(Box<keyshape_io::table::TableRows<Box<dyn Read + Send>>>),
     JsonLines(Box<dyn BufRead + Send>, String),
     File(keyshape_core::sequence::Sequence, f64),
 }
@@ -283,7 +283,7 @@ fn open_stdin(mut stdin: Box<dyn BufRead + Send>, options: SourceOptions) -> Res
     let rows = keyshape_io::table::TableRows::new(at, head, format, 2)?;
     Ok(Opened {
         layout: rows.points(),
-        reader: Reader::Table(rows),
+        reader: Reader::Table(Box::new(rows)),
         name: "stdin".into(),
         blocking: false,
         note: None,
@@ -318,7 +318,7 @@ impl Opened {
             };
             match self.reader {
                 Reader::OpenSeeFace(sock) => run.openseeface(&sock),
-                Reader::Table(rows) => run.table(rows),
+                Reader::Table(rows) => run.table(*rows),
                 Reader::JsonLines(r, first) => run.json_lines(r, first),
                 Reader::File(seq, rate) => run.file(&seq, rate),
             }
@@ -350,7 +350,8 @@ impl Run<'_> {
         }
     }
 
-    fn deliver(&mut self, number: i64, time: f64, mut points: Vec<f64>) {
+    /// Queues a frame received at `arrived`.
+    fn deliver(&mut self, number: i64, time: f64, mut points: Vec<f64>, arrived: Instant) {
         if let Some((w, h)) = self.options.image_size {
             for p in points.chunks_mut(2) {
                 p[0] *= w;
@@ -363,7 +364,7 @@ impl Run<'_> {
                 number,
                 time,
                 points,
-                arrived: Instant::now(),
+                arrived,
             },
             self.counters,
         );
@@ -374,8 +375,8 @@ impl Run<'_> {
         let mut follow = self.options.face;
         let mut n = 0i64;
         while !self.stopped() {
-            let len = match sock.recv_from(&mut buf) {
-                Ok((len, _)) => len,
+            let (len, arrived) = match sock.recv_from(&mut buf) {
+                Ok((len, _)) => (len, Instant::now()),
                 Err(e)
                     if matches!(
                         e.kind(),
@@ -396,7 +397,7 @@ impl Run<'_> {
                 Ok(faces) => {
                     let id = *follow.get_or_insert(faces[0].id);
                     if let Some(f) = faces.into_iter().find(|f| f.id == id) {
-                        self.deliver(n, f.time, f.points);
+                        self.deliver(n, f.time, f.points, arrived);
                         n += 1;
                     }
                 }
@@ -407,7 +408,9 @@ impl Run<'_> {
     fn table(&mut self, mut rows: keyshape_io::table::TableRows<Box<dyn Read + Send>>) {
         let mut errors_in_a_row = 0;
         while !self.stopped() {
-            match rows.next_row() {
+            let next = rows.next_row();
+            let arrived = Instant::now();
+            match next {
                 Ok(None) => return,
                 Ok(Some(r)) => {
                     errors_in_a_row = 0;
@@ -416,7 +419,7 @@ impl Run<'_> {
                     }
                     let (number, time, coords) = (r.frame, r.time, r.coords.to_vec());
                     let time = time.unwrap_or(self.start.elapsed().as_secs_f64());
-                    self.deliver(number, time, coords);
+                    self.deliver(number, time, coords, arrived);
                 }
                 Err(e) => {
                     self.malformed(&format!("skipped a line: {e}"));
@@ -434,6 +437,7 @@ impl Run<'_> {
         let mut line = first;
         let mut n = 0i64;
         let mut line_no = 1u64;
+        let mut arrived = Instant::now();
         loop {
             if self.stopped() {
                 return;
@@ -442,7 +446,7 @@ impl Run<'_> {
                 match json_points(&line) {
                     Ok((t, pts)) if pts.len() == 2 * self.layout => {
                         let t = t.unwrap_or(self.start.elapsed().as_secs_f64());
-                        self.deliver(n, t, pts);
+                        self.deliver(n, t, pts, arrived);
                         n += 1;
                     }
                     Ok((_, pts)) => self.malformed(&format!(
@@ -455,7 +459,9 @@ impl Run<'_> {
             }
             line.clear();
             line_no += 1;
-            match r.read_line(&mut line) {
+            let read = r.read_line(&mut line);
+            arrived = Instant::now();
+            match read {
                 Ok(0) => return,
                 Ok(_) => {}
                 Err(e) => {

@@ -92,12 +92,11 @@ pub fn solve_rig(
     let first = match (opts.identity, opts.neutral) {
         (Identity::None, _) | (_, Neutral::LeastActive) => Some(run(
             rig,
-            track,
+            (track, depth),
             &[(0..track.ncols(), rig.clone())],
             all,
             opts,
             &lw,
-            depth,
             iod,
         )?),
         _ => None,
@@ -147,7 +146,7 @@ pub fn solve_rig(
     };
     let shapes = identifiability_weighted(&people[0].1, &cam_n, opts.min_determination, &lw);
     let free: Vec<usize> = (0..rig.k()).filter(|&s| !shapes[s].frozen).collect();
-    let mut out = run(rig, track, &people, free, opts, &lw, depth, iod)?;
+    let mut out = run(rig, (track, depth), &people, free, opts, &lw, iod)?;
     out.shapes = shapes;
     out.neutrals = neutrals;
     out.people = people;
@@ -308,12 +307,11 @@ pub(super) fn recompute_rms(
 /// starts do not cross clips).
 pub(super) fn run(
     rig: &Rig,
-    track: &DMatrix<f64>,
+    (track, depth): (&DMatrix<f64>, Option<&DMatrix<f64>>),
     people: &[(Range<usize>, Rig)],
     free: Vec<usize>,
     opts: &RigOptions,
     lw: &[f64],
-    depth: Option<&DMatrix<f64>>,
     iod: f64,
 ) -> Result<RigSolve> {
     let frames = track.ncols();

@@ -2,6 +2,9 @@
 //! weights, bit for bit, however the frames arrive; calibration saved and loaded; bad
 //! frames refused without changing the state.
 
+// Test code: a failed unwrap is a failed test with its message.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
 use keyshape_io::{read_sequence, shared_data, ReadOptions};
 use keyshape_rig::correspondence::read_rig;
 use keyshape_rig::live::LiveSolver;

@@ -7,6 +7,7 @@ mod charts;
 pub mod compute;
 pub mod export;
 mod face_panels;
+pub mod live;
 pub mod mesh;
 pub mod request;
 pub mod rig;
@@ -234,6 +235,27 @@ pub fn run_sized(
         path,
     );
     let _ = crossterm::execute!(std::io::stdout(), crossterm::event::DisableMouseCapture);
+    ratatui::restore();
+    r
+}
+
+/// Opens the live screen ([`live`]) in this terminal: frames from `queue` through
+/// `session` until the user quits; the terminal is restored on every exit path.
+pub fn run_live(
+    session: &mut keyshape_live::session::Session,
+    queue: &keyshape_live::Queue,
+    counters: &keyshape_live::Counters,
+    source: &str,
+) -> anyhow::Result<()> {
+    let mut terminal = ratatui::try_init()?;
+    let r = live::run_loop(
+        &mut terminal,
+        &mut TerminalEvents,
+        session,
+        queue,
+        counters,
+        source,
+    );
     ratatui::restore();
     r
 }

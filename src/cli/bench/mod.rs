@@ -3,6 +3,7 @@
 
 mod curves;
 mod kmeans;
+mod live;
 mod nnls;
 mod rig;
 mod scale;
@@ -32,6 +33,8 @@ enum What {
     Transfer(transfer::TransferBenchArgs),
     /// The offline temporal prior against the unsmoothed batch NNLS, and its memory.
     Smooth(smooth::SmoothBenchArgs),
+    /// `kslab live` fed in real time on loopback: latency from arrival to sending, drops, CPU.
+    Live(live::LiveBenchArgs),
     /// Rig solve throughput (camera + 55 ICT shapes per frame) on one core.
     Rig(rig::RigBenchArgs),
     /// Wall time and peak memory of solve, keys and curves on long generated tracks (issue 17).
@@ -49,6 +52,7 @@ pub fn run(a: &BenchArgs) -> Result<()> {
         What::Transfer(t) => transfer::run(t),
         What::Smooth(s) => smooth::run(s),
         What::Rig(r) => rig::run(r),
+        What::Live(l) => live::run(l),
         What::Scale(s) => scale::run(s),
     }
 }

@@ -1,0 +1,386 @@
+//! The lab live (`kslab tui --live SOURCE`): the incoming landmarks over the posed rig's
+//! landmarks under the fitted head pose, the named weight bars, frames per second,
+//! latency and dropped frames; `n` recalibrates, `l`/`L` turn the causal temporal prior's
+//! λ up and down, `q` quits. Event → [`LiveAction`] (a pure keymap) → [`update`] (pure)
+//! → [`draw`] (reads only), the loop generic over the backend and the event source.
+
+use super::Events;
+use crossterm::event::{Event, KeyCode, KeyEventKind, KeyModifiers};
+use keyshape_live::session::{quantile, Session, Step};
+use keyshape_live::{Counters, Popped, Queue};
+use ratatui::backend::Backend;
+use ratatui::layout::{Constraint, Layout, Rect};
+use ratatui::style::{Color, Style};
+use ratatui::text::Line;
+use ratatui::widgets::canvas::{Canvas, Points};
+use ratatui::widgets::{Block, Paragraph};
+use ratatui::{Frame, Terminal};
+use std::collections::VecDeque;
+use std::time::{Duration, Instant};
+
+/// The λ steps `l` and `L` move through (the causal prior, squared pixels per unit weight²).
+pub const LAMBDAS: [f64; 7] = [0.0, 10.0, 30.0, 100.0, 300.0, 1000.0, 3000.0];
+
+/// What the screen shows.
+#[derive(Debug, Clone, Default)]
+pub struct LiveState {
+    /// The source's name.
+    pub source: String,
+    /// The rig's shape names.
+    pub names: Vec<String>,
+    /// The last frame's weights.
+    pub weights: Vec<f64>,
+    /// The last frame's landmarks as received (image x, y).
+    pub tracked: Vec<[f64; 2]>,
+    /// The posed rig's landmarks under the fitted head pose (image x, y).
+    pub posed: Vec<[f64; 2]>,
+    /// Frames solved in the last second.
+    pub fps: usize,
+    /// Latency p50 and p99 over the recent frames (ms).
+    pub latency: (Option<f64>, Option<f64>),
+    /// (received, malformed, dropped).
+    pub counts: (u64, u64, u64),
+    /// Calibration: Some((have, need)) while collecting.
+    pub collecting: Option<(usize, usize)>,
+    /// Seconds since the last frame arrived.
+    pub idle: f64,
+    /// Index into [`LAMBDAS`].
+    pub lambda: usize,
+    /// The last message.
+    pub status: String,
+    /// Ask to quit.
+    pub quit: bool,
+}
+
+/// What a key asks.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LiveAction {
+    /// Start a new calibration.
+    Recalibrate,
+    /// λ one step up (true) or down.
+    Smooth(bool),
+    /// Leave.
+    Quit,
+}
+
+/// What [`update`] asks the loop to do.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum LiveEffect {
+    /// Recalibrate the solve.
+    Recalibrate,
+    /// Set the solve's λ.
+    SetSmooth(f64),
+}
+
+/// The pure keymap.
+pub fn key(k: crossterm::event::KeyEvent) -> Option<LiveAction> {
+    if k.kind == KeyEventKind::Release {
+        return None;
+    }
+    Some(match k.code {
+        KeyCode::Char('c') if k.modifiers.contains(KeyModifiers::CONTROL) => LiveAction::Quit,
+        KeyCode::Char('q') | KeyCode::Esc => LiveAction::Quit,
+        KeyCode::Char('n') => LiveAction::Recalibrate,
+        KeyCode::Char('l') => LiveAction::Smooth(true),
+        KeyCode::Char('L') => LiveAction::Smooth(false),
+        _ => return None,
+    })
+}
+
+/// The pure update.
+pub fn update(s: &mut LiveState, a: LiveAction) -> Vec<LiveEffect> {
+    match a {
+        LiveAction::Quit => {
+            s.quit = true;
+            Vec::new()
+        }
+        LiveAction::Recalibrate => {
+            s.status = "look neutral: recalibrating".into();
+            vec![LiveEffect::Recalibrate]
+        }
+        LiveAction::Smooth(up) => {
+            s.lambda = if up {
+                (s.lambda + 1).min(LAMBDAS.len() - 1)
+            } else {
+                s.lambda.saturating_sub(1)
+            };
+            s.status = format!("causal prior λ {}", LAMBDAS[s.lambda]);
+            vec![LiveEffect::SetSmooth(LAMBDAS[s.lambda])]
+        }
+    }
+}
+
+/// Draws the screen.
+pub fn draw(f: &mut Frame, s: &LiveState) {
+    let [head, body, foot] = Layout::vertical([
+        Constraint::Length(1),
+        Constraint::Min(3),
+        Constraint::Length(1),
+    ])
+    .areas(f.area());
+    let state = match (s.collecting, s.idle > 2.0) {
+        (_, true) => format!("waiting: no frames for {:.0} s", s.idle),
+        (Some((have, need)), _) => format!("look neutral: {have}/{need}"),
+        (None, _) => "calibrated".into(),
+    };
+    let ms = |v: Option<f64>| v.map_or("–".into(), |v| format!("{v:.1}"));
+    let long = format!(
+        "live · {} · {state} · {} fps · latency p50/p99 {}/{} ms · dropped {} · bad {} · λ {}",
+        short(&s.source),
+        s.fps,
+        ms(s.latency.0),
+        ms(s.latency.1),
+        s.counts.2,
+        s.counts.1,
+        LAMBDAS[s.lambda]
+    );
+    // At 80 columns the short form, which keeps every figure.
+    let text = if long.chars().count() <= usize::from(head.width) {
+        long
+    } else {
+        format!(
+            "{state} · {} fps · {}/{} ms · drop {} · bad {} · λ {}",
+            s.fps,
+            ms(s.latency.0),
+            ms(s.latency.1),
+            s.counts.2,
+            s.counts.1,
+            LAMBDAS[s.lambda]
+        )
+    };
+    f.render_widget(Paragraph::new(text), head);
+    let [face, bars] =
+        Layout::horizontal([Constraint::Percentage(50), Constraint::Percentage(50)]).areas(body);
+    draw_face(f, face, s);
+    draw_bars(f, bars, s);
+    let foot_text = if s.status.is_empty() {
+        "n recalibrate · l/L λ up/down · q quit".to_string()
+    } else {
+        format!("{} · n recalibrate · l/L λ · q quit", s.status)
+    };
+    f.render_widget(
+        Paragraph::new(foot_text).style(Style::default().fg(Color::DarkGray)),
+        foot,
+    );
+}
+
+/// A source's short name: a file's name without its folder.
+fn short(source: &str) -> &str {
+    match source.rsplit_once('/') {
+        Some((_, name)) if !source.starts_with("openseeface") => name,
+        _ => source,
+    }
+}
+
+fn draw_face(f: &mut Frame, area: Rect, s: &LiveState) {
+    let all: Vec<[f64; 2]> = s.tracked.iter().chain(&s.posed).copied().collect();
+    let block = Block::bordered().title(Line::from(vec![
+        ratatui::text::Span::styled("● tracked", Style::default().fg(Color::Cyan)),
+        ratatui::text::Span::raw(" "),
+        ratatui::text::Span::styled("● posed rig", Style::default().fg(Color::Yellow)),
+    ]));
+    if all.is_empty() {
+        f.render_widget(Paragraph::new("no frame yet").block(block), area);
+        return;
+    }
+    let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
+    for p in &all {
+        x0 = x0.min(p[0]);
+        x1 = x1.max(p[0]);
+        y0 = y0.min(p[1]);
+        y1 = y1.max(p[1]);
+    }
+    // Equal scales on both axes (a terminal cell is about twice as tall as wide).
+    let (w, h) = (
+        f64::from(area.width.saturating_sub(2).max(1)),
+        2.0 * f64::from(area.height.saturating_sub(2).max(1)),
+    );
+    let span = ((x1 - x0) / w).max((y1 - y0) / h).max(1e-9) * 1.05;
+    let (cx, cy) = ((x0 + x1) / 2.0, (y0 + y1) / 2.0);
+    let (hw, hh) = (span * w / 2.0, span * h / 2.0);
+    // Image y points down; the canvas's up.
+    let flip = |v: &[[f64; 2]]| -> Vec<(f64, f64)> { v.iter().map(|p| (p[0], -p[1])).collect() };
+    let (tracked, posed) = (flip(&s.tracked), flip(&s.posed));
+    let canvas = Canvas::default()
+        .block(block)
+        .marker(ratatui::symbols::Marker::Braille)
+        .x_bounds([cx - hw, cx + hw])
+        .y_bounds([-cy - hh, -cy + hh])
+        .paint(move |ctx| {
+            ctx.draw(&Points {
+                coords: &posed,
+                color: Color::Yellow,
+            });
+            ctx.draw(&Points {
+                coords: &tracked,
+                color: Color::Cyan,
+            });
+        });
+    f.render_widget(canvas, area);
+}
+
+fn draw_bars(f: &mut Frame, area: Rect, s: &LiveState) {
+    let block = Block::bordered().title("weights (largest first)");
+    let inner = block.inner(area);
+    f.render_widget(block, area);
+    let mut order: Vec<usize> = (0..s.weights.len().min(s.names.len())).collect();
+    order.sort_by(|&a, &b| s.weights[b].total_cmp(&s.weights[a]).then(a.cmp(&b)));
+    let name_w = 16usize.min(usize::from(inner.width) / 2);
+    let bar_w = usize::from(inner.width).saturating_sub(name_w + 6);
+    let lines: Vec<Line> = order
+        .iter()
+        .take(usize::from(inner.height))
+        .map(|&i| {
+            let w = s.weights[i].clamp(0.0, 1.0);
+            let n = (w * bar_w as f64).round() as usize;
+            let name: String = s.names[i].chars().take(name_w).collect();
+            Line::from(format!(
+                "{name:<name_w$} {:>4} {}",
+                format!("{:.2}", s.weights[i]).trim_start_matches('0'),
+                "█".repeat(n)
+            ))
+        })
+        .collect();
+    f.render_widget(Paragraph::new(lines), inner);
+}
+
+/// Runs the live screen until the user quits or the source ends: frames from `queue` go
+/// through `session`; keys from `events`.
+pub fn run_loop<B: Backend>(
+    terminal: &mut Terminal<B>,
+    events: &mut dyn Events,
+    session: &mut Session,
+    queue: &Queue,
+    counters: &Counters,
+    source: &str,
+) -> anyhow::Result<()>
+where
+    B::Error: std::error::Error + Send + Sync + 'static,
+{
+    let mut s = LiveState {
+        source: source.to_string(),
+        names: session.solver.rig().names.clone(),
+        collecting: match session.solver.calibration() {
+            Some(_) => None,
+            None => Some(session.solver.collected()),
+        },
+        status: "look neutral".into(),
+        ..LiveState::default()
+    };
+    let mut window: VecDeque<Instant> = VecDeque::new();
+    let mut last_frame = Instant::now();
+    let mut last_draw: Option<Instant> = None;
+    let mut ended = false;
+    while !s.quit {
+        // Every frame waiting, solved in order (the newest is what is drawn).
+        loop {
+            match queue.pop(Duration::ZERO) {
+                Popped::Frame(fr) => {
+                    last_frame = Instant::now();
+                    match session.take(fr)? {
+                        Step::Collecting(have, need) => s.collecting = Some((have, need)),
+                        Step::Calibrated(n) => {
+                            s.collecting = None;
+                            s.status = format!("calibrated on {n} frames");
+                        }
+                        Step::Solved => s.collecting = None,
+                    }
+                    window.push_back(Instant::now());
+                }
+                Popped::Idle => break,
+                Popped::Closed => {
+                    if !ended {
+                        s.status = "the source has ended".into();
+                        ended = true;
+                    }
+                    break;
+                }
+            }
+        }
+        while window
+            .front()
+            .is_some_and(|t| t.elapsed() > Duration::from_secs(1))
+        {
+            window.pop_front();
+        }
+        s.fps = window.len();
+        s.idle = last_frame.elapsed().as_secs_f64();
+        s.counts = counters.get();
+        let n = session.latencies.len();
+        let recent = &session.latencies[n.saturating_sub(300)..];
+        s.latency = (quantile(recent, 0.5), quantile(recent, 0.99));
+        if let Some((fr, solved)) = &session.last {
+            s.weights.clone_from(&solved.weights);
+            let rig = session.solver.rig();
+            let sel = session.selection();
+            s.tracked = sel
+                .iter()
+                .filter_map(|&p| Some([*fr.points.get(2 * p)?, *fr.points.get(2 * p + 1)?]))
+                .collect();
+            if let Some(c) = session.solver.calibration() {
+                let person = keyshape_rig::Rig {
+                    neutral: c.neutral.clone(),
+                    ..rig.clone()
+                };
+                s.posed = person
+                    .posed(&solved.weights)
+                    .iter()
+                    .map(|p| {
+                        let u = solved.camera.project(p);
+                        [u[0], -u[1]]
+                    })
+                    .collect();
+            }
+        }
+        if last_draw.is_none_or(|t| t.elapsed() >= Duration::from_millis(33)) {
+            terminal.draw(|f| draw(f, &s))?;
+            last_draw = Some(Instant::now());
+        }
+        if let Some(Event::Key(k)) = events.next(Duration::from_millis(5))? {
+            if let Some(a) = key(k) {
+                for e in update(&mut s, a) {
+                    match e {
+                        LiveEffect::Recalibrate => {
+                            session.recalibrate();
+                            s.collecting = Some(session.solver.collected());
+                        }
+                        LiveEffect::SetSmooth(l) => session.solver.set_smooth(l)?,
+                    }
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn keys_recalibrate_turn_lambda_and_quit() {
+        let mut s = LiveState::default();
+        let k = |c| crossterm::event::KeyEvent::from(KeyCode::Char(c));
+        assert_eq!(
+            update(&mut s, key(k('n')).unwrap()),
+            [LiveEffect::Recalibrate]
+        );
+        assert_eq!(
+            update(&mut s, key(k('l')).unwrap()),
+            [LiveEffect::SetSmooth(10.0)]
+        );
+        update(&mut s, key(k('l')).unwrap());
+        assert_eq!(
+            update(&mut s, key(k('L')).unwrap()),
+            [LiveEffect::SetSmooth(10.0)]
+        );
+        update(&mut s, LiveAction::Smooth(false));
+        assert_eq!(
+            update(&mut s, LiveAction::Smooth(false)),
+            [LiveEffect::SetSmooth(0.0)],
+            "λ stops at 0"
+        );
+        assert!(update(&mut s, key(k('q')).unwrap()).is_empty());
+        assert!(s.quit);
+    }
+}

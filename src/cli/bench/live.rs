@@ -1,0 +1,224 @@
+//! `kslab bench live`: a `kslab live` process fed in real time on loopback, as a tracker
+//! would feed it — 68 points as OpenSeeFace datagrams, or 478 points as MediaPipe JSON
+//! lines on its standard input — sending VMC and Live Link Face to receivers here. Reports
+//! the latency from a frame's arrival to its sending (p50, p99, worst; the process's own
+//! `--stats`), frames dropped, datagrams received, and the process's CPU use.
+
+use anyhow::{Context, Result};
+use clap::Args;
+use keyshape_rig::accuracy::{render, Kind, Settings};
+use std::io::Write;
+use std::net::UdpSocket;
+use std::process::{Command, Stdio};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+/// Arguments of `kslab bench live`.
+#[derive(Debug, Args)]
+pub struct LiveBenchArgs {
+    /// Landmarks per frame: 68 (OpenSeeFace datagrams over UDP) or 478 (MediaPipe Face
+    /// Landmarker JSON lines on standard input, solved densely).
+    #[arg(long, default_value = "68", value_parser = ["68", "478"])]
+    points: String,
+    /// Seconds of performance to send (after the 30-frame calibration).
+    #[arg(long, default_value_t = 20.0)]
+    seconds: f64,
+    /// Frames per second.
+    #[arg(long, default_value_t = 60.0)]
+    fps: f64,
+}
+
+/// A rendered performance (the rig accuracy benchmark's smooth one, 0.5 px noise, another
+/// person's face) as `points`-point frames: 30 neutral frames, then `frames` frames.
+fn frames(points: usize, frames: usize) -> Result<Vec<Vec<f64>>> {
+    let dir = keyshape_io::shared_data("ict_facekit_face")?;
+    let (_, _, rig) = keyshape_rig::correspondence::read_rig(&dir, points, None)?;
+    // The performance repeats every 600 frames (a render of 10 minutes is not needed to
+    // measure 10 minutes).
+    let st = Settings {
+        kind: Kind::Smooth,
+        frames: 600,
+        lead_in: 30,
+        ..Settings::default()
+    };
+    let t = render(&rig, &st)?;
+    let mut out = Vec::with_capacity(30 + frames);
+    for f in 0..30 + frames {
+        let c = if f < 30 { f } else { 30 + (f - 30) % 600 };
+        // Every point of the layout; the ones the rig does not read sit on its first.
+        let mut v = vec![0.0; 2 * points];
+        for p in 0..points {
+            v[2 * p] = t.points[(0, c)];
+            v[2 * p + 1] = t.points[(1, c)];
+        }
+        for (l, &p) in rig.points.iter().enumerate() {
+            v[2 * p] = t.points[(2 * l, c)];
+            v[2 * p + 1] = t.points[(2 * l + 1, c)];
+        }
+        out.push(v);
+    }
+    Ok(out)
+}
+
+/// OpenSeeFace's face record (see `keyshape_live::openseeface`), little-endian.
+fn osf_datagram(time: f64, points: &[f64]) -> Vec<u8> {
+    let mut b = Vec::with_capacity(keyshape_live::openseeface::FACE_BYTES);
+    b.extend(time.to_le_bytes());
+    b.extend(0i32.to_le_bytes());
+    for v in [640f32, 480.0, 1.0, 1.0] {
+        b.extend(v.to_le_bytes());
+    }
+    b.push(1u8);
+    b.extend(std::iter::repeat_n(0u8, 4 * (1 + 4 + 3 + 3)));
+    for _ in 0..68 {
+        b.extend(1f32.to_le_bytes());
+    }
+    for v in points {
+        b.extend((*v as f32).to_le_bytes());
+    }
+    b.extend(std::iter::repeat_n(0u8, 4 * (70 * 3 + 14)));
+    b
+}
+
+fn receiver(counter: Arc<AtomicU64>) -> Result<u16> {
+    let s = UdpSocket::bind("127.0.0.1:0")?;
+    let port = s.local_addr()?.port();
+    std::thread::spawn(move || {
+        let mut buf = vec![0u8; 65_536];
+        while s.recv(&mut buf).is_ok() {
+            counter.fetch_add(1, Ordering::Relaxed);
+        }
+    });
+    Ok(port)
+}
+
+/// The process's CPU seconds so far (user + system), from /proc.
+fn cpu_seconds(pid: u32) -> Option<f64> {
+    let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).ok()?;
+    let rest = stat.rsplit_once(')')?.1;
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    let ticks: f64 = f.get(11)?.parse::<f64>().ok()? + f.get(12)?.parse::<f64>().ok()?;
+    Some(ticks / 100.0)
+}
+
+pub fn run(a: &LiveBenchArgs) -> Result<()> {
+    if !(a.fps > 0.0 && a.fps <= 1000.0 && a.seconds > 0.0 && a.seconds <= 86_400.0) {
+        anyhow::bail!("--fps in (0, 1000] and --seconds in (0, 86400]");
+    }
+    let points: usize = a.points.parse()?;
+    let n = (a.seconds * a.fps).round() as usize;
+    let progress = crate::cli::progress::Progress::new("bench live: rendering");
+    let frames = frames(points, n)?;
+    let (vmc, ll) = (Arc::new(AtomicU64::new(0)), Arc::new(AtomicU64::new(0)));
+    let (vmc_port, ll_port) = (receiver(vmc.clone())?, receiver(ll.clone())?);
+    let osf_port = UdpSocket::bind("127.0.0.1:0")?.local_addr()?.port();
+    let stats = std::env::temp_dir().join(format!("kslab-bench-live-{}.json", std::process::id()));
+    let from = if points == 68 {
+        format!("openseeface:127.0.0.1:{osf_port}")
+    } else {
+        "stdin".to_string()
+    };
+    let exe = std::env::current_exe()?;
+    // One core, as a tracker's machine would spare it.
+    let taskset = std::path::Path::new("/usr/bin/taskset").exists();
+    let mut cmd = if taskset {
+        let mut c = Command::new("/usr/bin/taskset");
+        c.args(["-c", "0"]).arg(&exe);
+        c
+    } else {
+        Command::new(&exe)
+    };
+    cmd.args(["live", "--from", &from, "--to"])
+        .arg(format!(
+            "vmc:127.0.0.1:{vmc_port},livelink:127.0.0.1:{ll_port}"
+        ))
+        .arg("--stats")
+        .arg(&stats)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped());
+    let mut child = cmd.spawn().context("starting kslab live")?;
+    let pid = child.id();
+    // Its first line comes once the source is open (a UDP source: then it can receive;
+    // standard input is opened by reading its first line, which the pipe holds).
+    let mut err = child.stderr.take().context("stderr")?;
+    if points == 68 {
+        let mut first = [0u8; 12];
+        std::io::Read::read_exact(&mut err, &mut first)?;
+    }
+    let err_thread = std::thread::spawn(move || {
+        let mut s = String::new();
+        let _ = std::io::Read::read_to_string(&mut err, &mut s);
+        s
+    });
+    let mut stdin = child.stdin.take().context("stdin")?;
+    let send = UdpSocket::bind("127.0.0.1:0")?;
+    progress.step("bench live: sending in real time");
+    let period = Duration::from_secs_f64(1.0 / a.fps);
+    let start = Instant::now();
+    let cpu0 = cpu_seconds(pid);
+    for (f, v) in frames.iter().enumerate() {
+        let due = start + period.mul_f64(f as f64);
+        let now = Instant::now();
+        if due > now {
+            std::thread::sleep(due - now);
+        }
+        let t = f as f64 / a.fps;
+        if points == 68 {
+            send.send_to(&osf_datagram(t, v), ("127.0.0.1", osf_port))?;
+        } else {
+            let pts: Vec<String> = v
+                .chunks(2)
+                .map(|p| format!("[{},{}]", p[0], p[1]))
+                .collect();
+            writeln!(stdin, "{{\"t\":{t},\"points\":[{}]}}", pts.join(","))?;
+            stdin.flush()?;
+        }
+    }
+    std::thread::sleep(Duration::from_millis(300));
+    let wall = start.elapsed().as_secs_f64();
+    let cpu = match (cpu0, cpu_seconds(pid)) {
+        (Some(a), Some(b)) => Some(100.0 * (b - a) / wall),
+        _ => None,
+    };
+    let _ = Command::new("kill")
+        .args(["-INT", &pid.to_string()])
+        .status();
+    drop(stdin);
+    let status = child.wait()?;
+    let log = err_thread.join().unwrap_or_default();
+    progress.finish();
+    if !status.success() {
+        anyhow::bail!("kslab live failed: {log}");
+    }
+    let s: serde_json::Value = keyshape_io::read_json(&stats)?;
+    let _ = std::fs::remove_file(&stats);
+    let num = |k: &str| s[k].as_f64().unwrap_or(f64::NAN);
+    let lat = |k: &str| s["latency_ms"][k].as_f64().unwrap_or(f64::NAN);
+    outln!(
+        "kslab live{}: {} frames ({} points, {} landmarks solved, 55 shapes) at {} fps over {:.0} s, VMC + Live Link Face out, on loopback",
+        if taskset { " on one core (taskset -c 0)" } else { "" },
+        frames.len(),
+        points,
+        num("landmarks"),
+        a.fps,
+        wall
+    );
+    outln!("| points | fps | frames sent | solved | dropped | VMC bundles | Live Link packets | latency p50 | p99 | worst | CPU |");
+    outln!("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |");
+    outln!(
+        "| {points} | {} | {} | {} | {} | {} | {} | {:.2} ms | {:.2} ms | {:.2} ms | {} |",
+        a.fps,
+        frames.len(),
+        num("solved"),
+        num("dropped"),
+        vmc.load(Ordering::Relaxed),
+        ll.load(Ordering::Relaxed),
+        lat("p50"),
+        lat("p99"),
+        lat("worst"),
+        cpu.map_or("–".into(), |c| format!("{c:.0} %"))
+    );
+    Ok(())
+}
