@@ -31,6 +31,7 @@ pub struct LiveArgs {
     /// default 127.0.0.1:39539), `livelink:[HOST:]PORT` (Live Link Face UDP packets, the
     /// 61 values of the Live Link CSV; default 127.0.0.1:11111), `stdout` (weights CSV
     /// lines as `kslab rig` writes them, flushed per frame).
+    /// [default: none; required]
     #[arg(long, value_name = "SINK[,SINK…]")]
     to: Option<String>,
     /// The rig, as for `kslab rig` [default: ict_facekit_face in the shared data folder].
@@ -38,6 +39,7 @@ pub struct LiveArgs {
     rig: Option<PathBuf>,
     /// A `landmark,vertex` CSV naming the mesh vertex of each track point (as for `kslab
     /// rig`; required with a glTF rig).
+    /// [default: the rig folder's own, as for `kslab rig`]
     #[arg(long, value_name = "CSV")]
     rig_landmarks: Option<PathBuf>,
     /// How a MediaPipe source meets the rig: `dense` (every point the rig covers) or `68`
@@ -53,11 +55,13 @@ pub struct LiveArgs {
     /// A calibration file (JSON): loaded when it exists (no lead-in is collected);
     /// otherwise written when the calibration completes (and again on each
     /// recalibration).
+    /// [default: none: calibrate on the first frames, save nothing]
     #[arg(long, value_name = "FILE")]
     neutral_file: Option<PathBuf>,
     /// Record the take into this new (or empty) folder: track.csv (the input as solved,
     /// which `kslab rig` and `kslab live --from file:` read back), weights.csv and
     /// livelink.csv, each flushed per frame, so complete however the session ends.
+    /// [default: not recorded]
     #[arg(long, value_name = "DIR")]
     record: Option<PathBuf>,
     /// OpenSeeFace: the face id to follow when several are tracked [default: the first
@@ -91,6 +95,7 @@ pub struct LiveArgs {
     /// dropped, malformed, refused, datagrams not sent, seconds, and the latency from a
     /// frame's arrival to its sending (p50, p99, worst, milliseconds) — what `kslab bench
     /// live` measures.
+    /// [default: not written]
     #[arg(long, value_name = "FILE")]
     stats: Option<PathBuf>,
     /// Frames waiting between receiving and solving at most; when the solve falls behind

@@ -45,6 +45,7 @@ pub struct TuiArgs {
     /// the posed rig, the named weight bars, frames per second, latency, dropped frames;
     /// `n` recalibrates, `l`/`L` turn the causal prior's λ up and down. With --image-size
     /// for normalised coordinates.
+    /// [default: none: the lab on FILE or the built-in sequence]
     #[arg(long, value_name = "SOURCE", conflicts_with_all = ["file", "target", "mesh"])]
     live: Option<String>,
 }

@@ -129,6 +129,15 @@ const CASES: &[Case] = &[
     Case { name: "the default standard output and --png -", files: &[], args: &["solve", "--keys", "3", "--png", "-"], code: 1, needle: "both would go to standard output", absent: &[] },
     Case { name: "hull on two identical frames (panicked)", files: &[("twin.csv", "frame,x0,y0,x1,y1,x2,y2\n0,0,0,1,0,0,1\n1,0,0,1,0,0,1\n")], args: &["keys", "{d}/twin.csv", "--no-align", "--method", "hull"], code: 1, needle: "the convex hull (--method hull) needs at least 2 distinct shapes, but the sequence has 1 (2 frames, the rest repeats)", absent: &[] },
     Case { name: "solve with hull on two identical frames (panicked)", files: &[("twin.csv", "frame,x0,y0,x1,y1,x2,y2\n0,0,0,1,0,0,1\n1,0,0,1,0,0,1\n")], args: &["solve", "{d}/twin.csv", "--no-align", "--method", "hull", "--out", "{d}/w.csv"], code: 1, needle: "needs at least 2 distinct shapes", absent: &["w.csv"] },
+    // ---- kslab live: bad options fail before anything starts (issue 51) ----
+    Case { name: "live: an unknown source scheme", files: &[], args: &["live", "--from", "webcam:0", "--to", "stdout"], code: 1, needle: "--from 'webcam:0': not a source", absent: &[] },
+    Case { name: "live: a source port out of range", files: &[], args: &["live", "--from", "openseeface:70000", "--to", "vmc"], code: 1, needle: "port '70000' is not a port number", absent: &[] },
+    Case { name: "live: a sink port of 0", files: &[], args: &["live", "--from", "openseeface", "--to", "vmc:0"], code: 1, needle: "--to vmc:0: port '0'", absent: &[] },
+    Case { name: "live: no sink", files: &[], args: &["live", "--from", "openseeface"], code: 1, needle: "--to: name where the weights go", absent: &[] },
+    Case { name: "live: standard input empty", files: &[], args: &["live", "--from", "stdin", "--to", "stdout"], code: 1, needle: "stdin: ended before its first line", absent: &[] },
+    Case { name: "live: a track no rig reads", files: &[("p.csv", PLAIN)], args: &["live", "--from", "file:{d}/p.csv", "--to", "stdout", "--record", "{d}/take"], code: 1, needle: "this one has 3 points", absent: &["take"] },
+    Case { name: "live: an image size for a track in pixels", files: &[("p.csv", PLAIN)], args: &["live", "--from", "file:{d}/p.csv", "--to", "stdout", "--image-size", "10x10"], code: 1, needle: "an image size applies to normalised coordinates", absent: &[] },
+    Case { name: "live: --rate on a live source", files: &[], args: &["live", "--from", "openseeface", "--to", "stdout", "--rate", "30"], code: 1, needle: "--rate applies to a file source", absent: &[] },
     // ---- outputs as one set (issue 41) ----
     Case { name: "two outputs, one file spelled two ways", files: &[], args: &["curves", "--methods", "spread", "--k", "2..3", "--out", "{d}/c.csv", "--png", "{d}/./c.csv"], code: 1, needle: "c.csv: named as two outputs", absent: &["c.csv"] },
     Case { name: "rig --smooth-mode without --smooth", files: &[], args: &["rig", "--smooth-mode", "causal", "--out", "{d}/w.csv"], code: 1, needle: "--smooth-mode applies to the temporal prior", absent: &["w.csv"] },

@@ -551,3 +551,44 @@ fn the_live_lab_runs_in_tmux_on_a_replay() {
     }
     finish(&capture(), "kslab did not quit on q")
 }
+
+/// Recalibration on demand: a line `calibrate` on standard input (not the source) and
+/// SIGUSR1 each start a new lead-in; a VMC receiver that is not there stops nothing.
+#[test]
+fn a_control_line_and_sigusr1_recalibrate_and_an_absent_receiver_stops_nothing() {
+    use std::io::Write;
+    let track = shared("mediapipe_face_tracks/liveportrait_d6.csv");
+    let nobody = free_udp_port();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_kslab"))
+        .args(["live", "--from"])
+        .arg(format!("file:{}", track.display()))
+        .args(["--rate", "250", "--calibrate", "10", "--landmarks", "68", "--to"])
+        .arg(format!("vmc:127.0.0.1:{nobody},stdout"))
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stdout = child.stdout.take().unwrap();
+    let reader = std::thread::spawn(move || {
+        let mut out = String::new();
+        stdout.read_to_string(&mut out).unwrap();
+        out
+    });
+    let mut stdin = child.stdin.take().unwrap();
+    std::thread::sleep(Duration::from_millis(1000));
+    writeln!(stdin, "calibrate").unwrap();
+    stdin.flush().unwrap();
+    std::thread::sleep(Duration::from_millis(1000));
+    unsafe_free_kill(child.id(), 10); // SIGUSR1
+    let out = reader.join().unwrap();
+    let mut err = String::new();
+    child.stderr.take().unwrap().read_to_string(&mut err).unwrap();
+    let status = child.wait().unwrap();
+    assert_eq!(status.code(), Some(0), "{err}");
+    assert_eq!(err.matches("look neutral: recalibrating").count(), 2, "{err}");
+    assert_eq!(err.matches("calibrated on 10 frames").count(), 3, "{err}");
+    // Every frame of the file is solved (a recalibration's lead-in too), once.
+    assert_eq!(out.lines().count(), 1 + 1008, "{err}");
+    assert!(err.contains("1008 frames solved"), "{err}");
+}
