@@ -183,7 +183,8 @@ fn a_rendered_performance_sent_at_60_fps_comes_out_as_the_offline_causal_solve()
     while (bundles.len() < frames || packets.len() < frames) && Instant::now() < end {
         drain(&mut bundles, &mut packets);
     }
-    // Ctrl-C: exit 0, the recording complete.
+    // The tracker stops: shown, not an error. Then Ctrl-C: exit 0, the recording complete.
+    std::thread::sleep(Duration::from_millis(2400));
     unsafe_free_kill(child.id(), libc::SIGINT);
     let out = reader.join().unwrap();
     let mut err = String::from_utf8_lossy(&first).into_owned();
@@ -197,6 +198,7 @@ fn a_rendered_performance_sent_at_60_fps_comes_out_as_the_offline_causal_solve()
     assert!(err.contains(&format!("{frames} frames solved")), "{err}");
     assert!(err.contains("20 malformed"), "5 × 4 bad datagrams: {err}");
     assert!(err.contains(" 0 dropped"), "{err}");
+    assert!(err.contains("waiting: no frames for 2 s"), "{err}");
     assert_eq!(bundles.len(), frames, "one VMC bundle per frame");
     assert_eq!(packets.len(), frames, "one Live Link packet per frame");
 
@@ -562,7 +564,15 @@ fn a_control_line_and_sigusr1_recalibrate_and_an_absent_receiver_stops_nothing()
     let mut child = Command::new(env!("CARGO_BIN_EXE_kslab"))
         .args(["live", "--from"])
         .arg(format!("file:{}", track.display()))
-        .args(["--rate", "250", "--calibrate", "10", "--landmarks", "68", "--to"])
+        .args([
+            "--rate",
+            "250",
+            "--calibrate",
+            "10",
+            "--landmarks",
+            "68",
+            "--to",
+        ])
         .arg(format!("vmc:127.0.0.1:{nobody},stdout"))
         .stdin(Stdio::piped())
         .stdout(Stdio::piped())
@@ -583,12 +593,114 @@ fn a_control_line_and_sigusr1_recalibrate_and_an_absent_receiver_stops_nothing()
     unsafe_free_kill(child.id(), 10); // SIGUSR1
     let out = reader.join().unwrap();
     let mut err = String::new();
-    child.stderr.take().unwrap().read_to_string(&mut err).unwrap();
+    child
+        .stderr
+        .take()
+        .unwrap()
+        .read_to_string(&mut err)
+        .unwrap();
     let status = child.wait().unwrap();
     assert_eq!(status.code(), Some(0), "{err}");
-    assert_eq!(err.matches("look neutral: recalibrating").count(), 2, "{err}");
+    assert_eq!(
+        err.matches("look neutral: recalibrating").count(),
+        2,
+        "{err}"
+    );
     assert_eq!(err.matches("calibrated on 10 frames").count(), 3, "{err}");
     // Every frame of the file is solved (a recalibration's lead-in too), once.
     assert_eq!(out.lines().count(), 1 + 1008, "{err}");
     assert!(err.contains("1008 frames solved"), "{err}");
+}
+
+/// Several faces in a datagram: `--face ID` follows that one; without it, the first seen.
+#[test]
+fn face_follows_one_face_of_several() {
+    let d6 = keyshape_io::read_sequence(
+        &shared("mediapipe_face_tracks/liveportrait_d6.csv"),
+        &keyshape_io::ReadOptions::default(),
+    )
+    .unwrap()
+    .select_points(&keyshape_rig::mediapipe_to_ibug68().unwrap())
+    .unwrap();
+    let frames = 40;
+    let dir = tempfile::tempdir().unwrap();
+    // Face 9 is the track; face 5 the track 300 frames on, shifted.
+    let face = |id: i32, f: usize| -> Vec<f64> {
+        let c = if id == 9 { f } else { f + 300 };
+        d6.coords
+            .column(c)
+            .iter()
+            .map(|v| v + if id == 9 { 0.0 } else { 40.0 })
+            .collect()
+    };
+    let solve_alone = |id: i32| -> String {
+        let mut csv = String::from("frame");
+        for i in 0..68 {
+            csv += &format!(",x{i},y{i}");
+        }
+        for f in 0..frames {
+            csv += &format!("\n{f}");
+            for v in face(id, f) {
+                csv += &format!(",{}", f64::from(v as f32));
+            }
+        }
+        let file = dir.path().join(format!("face{id}.csv"));
+        std::fs::write(&file, csv + "\n").unwrap();
+        let r = kslab(&["rig", file.to_str().unwrap(), "--live", "--neutral", "0-9"]);
+        assert_eq!(r.code, 0, "{}", r.stderr);
+        r.stdout
+    };
+    for (follow, want) in [(Some(9), 9), (None, 5)] {
+        let port = free_udp_port();
+        let mut cmd = Command::new(env!("CARGO_BIN_EXE_kslab"));
+        cmd.args([
+            "live",
+            "--from",
+            &format!("openseeface:127.0.0.1:{port}"),
+            "--to",
+            "stdout",
+            "--calibrate",
+            "10",
+        ]);
+        if let Some(id) = follow {
+            cmd.args(["--face", &id.to_string()]);
+        }
+        let mut child = cmd
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        let mut stderr = child.stderr.take().unwrap();
+        let mut first = [0u8; 12];
+        stderr.read_exact(&mut first).unwrap();
+        let mut stdout = child.stdout.take().unwrap();
+        let reader = std::thread::spawn(move || {
+            let mut out = String::new();
+            stdout.read_to_string(&mut out).unwrap();
+            out
+        });
+        let send = UdpSocket::bind("127.0.0.1:0").unwrap();
+        for f in 0..frames {
+            // Face 5 first in the datagram, face 9 second.
+            let d = [
+                osf_face(f as f64, 5, &face(5, f)),
+                osf_face(f as f64, 9, &face(9, f)),
+            ]
+            .concat();
+            send.send_to(&d, ("127.0.0.1", port)).unwrap();
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        std::thread::sleep(Duration::from_millis(300));
+        unsafe_free_kill(child.id(), libc::SIGINT);
+        let out = reader.join().unwrap();
+        let mut err = String::new();
+        stderr.read_to_string(&mut err).unwrap();
+        assert_eq!(child.wait().unwrap().code(), Some(0), "{err}");
+        assert_eq!(
+            out,
+            solve_alone(want),
+            "--face {follow:?}: face {want}'s weights"
+        );
+    }
 }

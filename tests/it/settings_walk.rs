@@ -93,6 +93,19 @@ fn every_setting_of_every_subcommand_refuses_or_takes_zero_minus_one_nan_1e300_a
             v(&["--method", "spread", "--k", "3", "--out", &o("r.csv")]),
         ),
         ("rig", v(&["--out", &o("rig.csv")])),
+        (
+            "live",
+            v(&[
+                "--from",
+                &format!("file:{d6}"),
+                "--rate",
+                "5000",
+                "--landmarks",
+                "68",
+                "--to",
+                "stdout",
+            ]),
+        ),
         ("rig-accuracy", v(&["--frames", "40", "--lead-in", "5"])),
         (
             "transfer",
