@@ -8,6 +8,8 @@ use std::path::PathBuf;
 
 /// Arguments of `kslab tui`.
 #[derive(Debug, Args)]
+// --image-size scales a track: FILE's, or a live source's.
+#[command(group(clap::ArgGroup::new("track").args(["file", "live"]).multiple(false)))]
 pub struct TuiArgs {
     /// Tracked sequence (omit for the built-in one).
     file: Option<PathBuf>,
@@ -37,7 +39,7 @@ pub struct TuiArgs {
     /// coordinates: the track (and every normalised one opened with `o`) is scaled to pixels.
     /// Needs FILE; refused for a track already in pixels.
     /// [default: none: a normalised track is shown as it is, with a note]
-    #[arg(long, value_name = "WxH", value_parser = super::input::parse_image_size)]
+    #[arg(long, value_name = "WxH", value_parser = super::input::parse_image_size, requires = "track")]
     image_size: Option<(f64, f64)>,
     /// The lab live: frames from SOURCE (as `kslab live --from`: openseeface:[HOST:]PORT,
     /// stdin, file:TRACK) solved onto the rig (--rig, or the ICT face in the shared data
@@ -61,9 +63,6 @@ pub fn run(a: &TuiArgs) -> Result<()> {
             );
         }
         return super::live::tui(src, a.rig.as_deref(), a.image_size);
-    }
-    if a.image_size.is_some() && a.file.is_none() {
-        anyhow::bail!("--image-size scales a track given as FILE (or a --live source); the built-in sequence is in pixels");
     }
     let path = a
         .file

@@ -1,6 +1,17 @@
 //! Automatic skinning weights (paper 004 §3): each feature point moves the vertices inside
 //! an ellipsoid around it, `w_ij = max(0, 1 − (dx²/rx² + dy²/ry² + dz²/rz²))`; each vertex
-//! keeps its largest significant weights, normalised to sum 1, and `v_f = v₀ + Σ wᵢ d_if`.
+//! keeps its largest significant weights, normalised where they sum above 1, and
+//! `v_f = v₀ + Σ wᵢ d_if`.
+//!
+//! The paper normalises every vertex's weights to sum 1. Taken literally, a vertex at the
+//! very edge of one ellipsoid (weight 0.002) moves with its feature point in full while its
+//! neighbour just outside does not move at all: on the ICT face at a wide-open mouth
+//! (LivePortrait d6, frame 863) the jaw line and the neck tore into a jagged edge and the
+//! skull was pulled into a spike by the brows. The paper also asks the weights for "smooth
+//! borders and a smooth gradient from 1 on the joint to 0 far from it"; both hold when the
+//! weights are scaled down only where ellipsoids overlap (a sum above 1) and the rest of a
+//! vertex stays still — as if a static root bone took `1 − Σ w`, the usual completion of
+//! linear blend skinning.
 
 use keyshape_core::error::{Error, Result};
 use rayon::prelude::*;
@@ -13,7 +24,7 @@ pub const MAX_INFLUENCES: usize = 4;
 pub const MIN_WEIGHT: f64 = 1e-3;
 
 /// Sparse skin weights: per vertex up to [`MAX_INFLUENCES`] (feature, weight) pairs summing
-/// to 1; vertices with none do not move.
+/// to at most 1 (the rest of the vertex stays still); vertices with none do not move.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Skin {
     /// Per vertex.
@@ -129,11 +140,13 @@ impl Skin {
     }
 }
 
+/// Scales the weights down to sum 1 where they sum above it (overlapping ellipsoids); a
+/// vertex under less than full influence keeps its weights, fading to 0 at the borders.
 fn normalise(ws: &mut Vec<(usize, f64)>) {
     let s: f64 = ws.iter().map(|x| x.1).sum();
-    if s > 0.0 {
+    if s > 1.0 {
         ws.iter_mut().for_each(|x| x.1 /= s);
-    } else {
+    } else if s <= 0.0 {
         ws.clear();
     }
 }
