@@ -145,4 +145,37 @@ mod tests {
             .to_string();
         assert_eq!(e, "strip 2305843009213693952: give 0 to 1000 frames");
     }
+
+    #[test]
+    fn an_open_lower_end_refuses_itself_for_counts_too() {
+        let l = Limit {
+            lo: 0.0,
+            lo_open: true,
+            hi: 10.0,
+            unit: "things",
+        };
+        assert!(l.check_count("n", 0).is_err());
+        assert_eq!(l.check_count("n", 1).ok(), Some(1));
+        assert_eq!(l.check_count("n", 10).ok(), Some(10));
+        assert!(l.check_count("n", 11).is_err());
+        assert!(l.check("x", 0.0).is_err());
+        assert_eq!(l.check("x", 1e-9).ok(), Some(1e-9));
+        assert_eq!(l.describe(), "more than 0 and at most 10");
+    }
+
+    #[test]
+    fn a_refused_value_is_shown_as_it_reads_best() {
+        let why = |v: f64| NOISE_PX.why(v);
+        assert_eq!(why(1e300), "1e300: give 0 to 1000 pixels");
+        assert_eq!(why(-2e9), "-2e9: give 0 to 1000 pixels");
+        assert_eq!(why(1e9), "1e9: give 0 to 1000 pixels");
+        assert_eq!(why(5e-5), "5e-5: give 0 to 1000 pixels");
+        assert_eq!(why(-5e-5), "-5e-5: give 0 to 1000 pixels");
+        assert_eq!(why(1e-4), "0.0001: give 0 to 1000 pixels");
+        assert_eq!(why(999_999_999.0), "999999999: give 0 to 1000 pixels");
+        assert_eq!(why(0.0), "0: give 0 to 1000 pixels");
+        assert_eq!(why(-1.0), "-1: give 0 to 1000 pixels");
+        assert_eq!(why(f64::NAN), "NaN: give 0 to 1000 pixels");
+        assert_eq!(why(f64::INFINITY), "inf: give 0 to 1000 pixels");
+    }
 }
