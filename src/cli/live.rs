@@ -189,12 +189,9 @@ fn setup(a: &LiveArgs) -> Result<Setup> {
     })
 }
 
-/// Runs `kslab live`.
-pub fn run(a: &LiveArgs) -> Result<()> {
-    if a.to.is_none() {
-        anyhow::bail!("--to: name where the weights go (vmc:[HOST:]PORT, livelink:[HOST:]PORT, stdout; several with commas), or watch them in `kslab tui --live SOURCE`");
-    }
-    let s = setup(a)?;
+/// The solve, the calibration (loaded from --neutral-file when it exists), the sinks and
+/// the recording; whether the calibration was loaded.
+fn start_session(a: &LiveArgs, s: &Setup) -> Result<(Session, bool)> {
     let opts = RigOptions {
         smooth: a.smooth,
         prior: a.prior,
@@ -222,10 +219,13 @@ pub fn run(a: &LiveArgs) -> Result<()> {
     if !loaded {
         session.save_calibration = a.neutral_file.clone();
     }
-    // Ctrl-C, SIGTERM and SIGHUP end the session (exit 0, the recording complete);
-    // SIGUSR1 recalibrates.
-    let stop = Arc::new(AtomicBool::new(false));
-    let recal = Arc::new(AtomicBool::new(false));
+    Ok((session, loaded))
+}
+
+/// Ctrl-C, SIGTERM and SIGHUP set `stop` (the session ends, exit 0, the recording
+/// complete); SIGUSR1 and a line `calibrate` on standard input (when it is not the source)
+/// set `recal`.
+fn control(stdin_is_source: bool, stop: &Arc<AtomicBool>, recal: &Arc<AtomicBool>) -> Result<()> {
     #[cfg(unix)]
     {
         use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM, SIGUSR1};
@@ -234,161 +234,214 @@ pub fn run(a: &LiveArgs) -> Result<()> {
         }
         signal_hook::flag::register(SIGUSR1, recal.clone())?;
     }
-    let stdin_is_source = a.from.trim() == "stdin";
     if !stdin_is_source {
         let recal = recal.clone();
-        // A line `calibrate` on standard input recalibrates.
-        let _ = std::thread::Builder::new().name("kslab-control".into()).spawn(move || {
-            let mut line = String::new();
-            let stdin = std::io::stdin();
-            while stdin.read_line(&mut line).is_ok_and(|n| n > 0) {
-                match line.trim() {
-                    "calibrate" => recal.store(true, Ordering::Relaxed),
-                    "" => {}
-                    other => eprintln!("kslab live: unknown control line '{other}' (the one there is: calibrate)"),
+        let _ = std::thread::Builder::new()
+            .name("kslab-control".into())
+            .spawn(move || {
+                let mut line = String::new();
+                let stdin = std::io::stdin();
+                while stdin.read_line(&mut line).is_ok_and(|n| n > 0) {
+                    match line.trim() {
+                        "calibrate" => recal.store(true, Ordering::Relaxed),
+                        "" => {}
+                        other => eprintln!(
+                            "kslab live: unknown control line '{other}' (the one there is: calibrate)"
+                        ),
+                    }
+                    line.clear();
                 }
-                line.clear();
-            }
-        });
+            });
     }
-    if let Some(n) = &s.opened.note {
-        eprintln!("{n}");
-    }
-    let counters = Arc::new(Counters::default());
-    let queue = Arc::new(Queue::new(a.queue as usize, s.opened.blocking));
-    let warn: source::Warn = Box::new(|m| eprintln!("warning: {m}"));
-    eprintln!(
-        "kslab live: {} → {} ({} landmarks, {} shapes)",
-        s.name,
-        a.to.as_deref().unwrap_or(""),
-        s.rig.landmarks(),
-        s.rig.k()
-    );
-    if loaded {
-        eprintln!(
-            "calibrated: loaded from {}",
-            a.neutral_file
-                .as_ref()
-                .map_or(String::new(), |p| p.display().to_string())
-        );
-    } else {
-        eprintln!(
-            "look neutral: calibrating on the first {} frames",
-            a.calibrate
-        );
-    }
-    let thread = s
-        .opened
-        .spawn(queue.clone(), counters.clone(), stop.clone(), warn);
-    let tty = std::io::stderr().is_terminal();
-    let started = Instant::now();
-    let mut last_status = Instant::now();
-    let mut last_frame = Instant::now();
-    let mut idle_said = false;
-    let mut window: std::collections::VecDeque<Instant> = std::collections::VecDeque::new();
-    let result = loop {
-        if stop.load(Ordering::Relaxed) {
-            break Ok(());
+    Ok(())
+}
+
+/// What the terminal shows while the session runs.
+struct Terminal {
+    /// Standard error is a terminal: a status line redrawn in place.
+    tty: bool,
+    last_status: Instant,
+    last_frame: Instant,
+    idle_said: bool,
+    window: std::collections::VecDeque<Instant>,
+}
+
+impl Terminal {
+    /// The start of a line (clearing the status line on a terminal).
+    fn line(&self) -> &'static str {
+        if self.tty {
+            "\r\x1b[K"
+        } else {
+            ""
         }
+    }
+
+    /// Redraws the status line twice a second (on a terminal).
+    fn status(&mut self, session: &Session, counters: &Counters) {
+        while self
+            .window
+            .front()
+            .is_some_and(|t| t.elapsed() > Duration::from_secs(1))
+        {
+            self.window.pop_front();
+        }
+        if !self.tty || self.last_status.elapsed() < Duration::from_millis(500) {
+            return;
+        }
+        self.last_status = Instant::now();
+        let (_, malformed, dropped) = counters.get();
+        let n = session.latencies.len();
+        let recent = &session.latencies[n.saturating_sub(300)..];
+        eprint!(
+            "\r\x1b[K{} fps · latency p50 {} p99 {} · solved {} · dropped {dropped} · malformed {malformed}",
+            self.window.len(),
+            ms(quantile(recent, 0.5)),
+            ms(quantile(recent, 0.99)),
+            session.solved
+        );
+    }
+}
+
+/// Takes frames from `queue` through `session` until the source ends or `stop` is set.
+fn serve(
+    a: &LiveArgs,
+    session: &mut Session,
+    (queue, counters): (&Queue, &Counters),
+    (stop, recal): (&AtomicBool, &AtomicBool),
+) -> keyshape_core::error::Result<()> {
+    let mut t = Terminal {
+        tty: std::io::stderr().is_terminal(),
+        last_status: Instant::now(),
+        last_frame: Instant::now(),
+        idle_said: false,
+        window: Default::default(),
+    };
+    while !stop.load(Ordering::Relaxed) {
         if recal.swap(false, Ordering::Relaxed) {
             session.recalibrate();
             eprintln!(
                 "{}look neutral: recalibrating on the next {} frames",
-                if tty { "\r\x1b[K" } else { "" },
+                t.line(),
                 a.calibrate
             );
         }
         match queue.pop(Duration::from_millis(100)) {
-            Popped::Closed => break Ok(()),
+            Popped::Closed => return Ok(()),
             Popped::Idle => {
-                if last_frame.elapsed() > Duration::from_secs(2) && !idle_said {
+                if t.last_frame.elapsed() > Duration::from_secs(2) && !t.idle_said {
                     eprintln!(
                         "{}waiting: no frames for {:.0} s",
-                        if tty { "\r\x1b[K" } else { "" },
-                        last_frame.elapsed().as_secs_f64()
+                        t.line(),
+                        t.last_frame.elapsed().as_secs_f64()
                     );
-                    idle_said = true;
+                    t.idle_said = true;
                 }
             }
             Popped::Frame(f) => {
-                last_frame = Instant::now();
-                if idle_said {
-                    idle_said = false;
+                t.last_frame = Instant::now();
+                t.idle_said = false;
+                if let Step::Calibrated(n) = session.take(f)? {
+                    let saved = a
+                        .neutral_file
+                        .as_ref()
+                        .filter(|_| session.save_calibration.is_some())
+                        .map_or(String::new(), |p| format!(" (saved to {})", p.display()));
+                    eprintln!("{}calibrated on {n} frames{saved}", t.line());
                 }
-                match session.take(f) {
-                    Ok(Step::Calibrated(n)) => eprintln!(
-                        "{}calibrated on {n} frames{}",
-                        if tty { "\r\x1b[K" } else { "" },
-                        a.neutral_file
-                            .as_ref()
-                            .filter(|_| session.save_calibration.is_some())
-                            .map_or(String::new(), |p| format!(" (saved to {})", p.display()))
-                    ),
-                    Ok(_) => {}
-                    Err(e) => break Err(e),
-                }
-                window.push_back(Instant::now());
+                t.window.push_back(Instant::now());
             }
         }
-        while window
-            .front()
-            .is_some_and(|t| t.elapsed() > Duration::from_secs(1))
-        {
-            window.pop_front();
-        }
-        if tty && last_status.elapsed() > Duration::from_millis(500) {
-            last_status = Instant::now();
-            let (_, malformed, dropped) = counters.get();
-            let n = session.latencies.len();
-            let recent = &session.latencies[n.saturating_sub(300)..];
-            eprint!(
-                "\r\x1b[K{} fps · latency p50 {} p99 {} · solved {} · dropped {dropped} · malformed {malformed}",
-                window.len(),
-                ms(quantile(recent, 0.5)),
-                ms(quantile(recent, 0.99)),
-                session.solved
-            );
-        }
-    };
-    stop.store(true, Ordering::Relaxed);
-    drop(queue);
-    if matches!(result, Ok(())) && thread.is_finished() {
-        let _ = thread.join();
+        t.status(session, counters);
     }
+    Ok(())
+}
+
+/// The closing summary, and --stats.
+fn report(
+    a: &LiveArgs,
+    (name, rig): (&str, &keyshape_rig::Rig),
+    session: &Session,
+    counters: &Counters,
+    seconds: f64,
+) -> Result<()> {
     let (received, malformed, dropped) = counters.get();
+    let lat = |q| quantile(&session.latencies, q);
     eprintln!(
-        "{}kslab live: {} frames solved in {:.1} s ({received} received, {dropped} dropped, {malformed} malformed, {} refused, {} not sent); latency p50 {} p99 {}",
-        if tty { "\r\x1b[K" } else { "" },
+        "{}kslab live: {} frames solved in {seconds:.1} s ({received} received, {dropped} dropped, {malformed} malformed, {} refused, {} not sent); latency p50 {} p99 {}",
+        if std::io::stderr().is_terminal() { "\r\x1b[K" } else { "" },
         session.solved,
-        started.elapsed().as_secs_f64(),
         session.refused,
         session.send_errors(),
-        ms(quantile(&session.latencies, 0.5)),
-        ms(quantile(&session.latencies, 0.99)),
+        ms(lat(0.5)),
+        ms(lat(0.99)),
     );
     if let Some(p) = &a.stats {
         let v = serde_json::json!({
-            "source": s.name,
-            "landmarks": s.rig.landmarks(),
-            "shapes": s.rig.k(),
-            "seconds": started.elapsed().as_secs_f64(),
+            "source": name,
+            "landmarks": rig.landmarks(),
+            "shapes": rig.k(),
+            "seconds": seconds,
             "solved": session.solved,
             "received": received,
             "dropped": dropped,
             "malformed": malformed,
             "refused": session.refused,
             "not_sent": session.send_errors(),
-            "latency_ms": {
-                "p50": quantile(&session.latencies, 0.5),
-                "p99": quantile(&session.latencies, 0.99),
-                "worst": quantile(&session.latencies, 1.0),
-            },
+            "latency_ms": { "p50": lat(0.5), "p99": lat(0.99), "worst": lat(1.0) },
         });
         keyshape_io::write_atomic(p, |w| {
             serde_json::to_writer_pretty(&mut *w, &v).map_err(std::io::Error::other)?;
             w.write_all(b"\n")
         })?;
     }
+    Ok(())
+}
+
+/// Runs `kslab live`.
+pub fn run(a: &LiveArgs) -> Result<()> {
+    let Some(to) = &a.to else {
+        anyhow::bail!("--to: name where the weights go (vmc:[HOST:]PORT, livelink:[HOST:]PORT, stdout; several with commas), or watch them in `kslab tui --live SOURCE`");
+    };
+    let s = setup(a)?;
+    let (mut session, loaded) = start_session(a, &s)?;
+    let stop = Arc::new(AtomicBool::new(false));
+    let recal = Arc::new(AtomicBool::new(false));
+    control(a.from.trim() == "stdin", &stop, &recal)?;
+    if let Some(n) = &s.opened.note {
+        eprintln!("{n}");
+    }
+    eprintln!(
+        "kslab live: {} → {to} ({} landmarks, {} shapes)",
+        s.name,
+        s.rig.landmarks(),
+        s.rig.k()
+    );
+    match (&a.neutral_file, loaded) {
+        (Some(p), true) => eprintln!("calibrated: loaded from {}", p.display()),
+        _ => eprintln!(
+            "look neutral: calibrating on the first {} frames",
+            a.calibrate
+        ),
+    }
+    let counters = Arc::new(Counters::default());
+    let queue = Arc::new(Queue::new(a.queue as usize, s.opened.blocking));
+    let warn: source::Warn = Box::new(|m| eprintln!("warning: {m}"));
+    let started = Instant::now();
+    let thread = s
+        .opened
+        .spawn(queue.clone(), counters.clone(), stop.clone(), warn);
+    let result = serve(a, &mut session, (&queue, &counters), (&stop, &recal));
+    stop.store(true, Ordering::Relaxed);
+    if result.is_ok() && thread.is_finished() {
+        let _ = thread.join();
+    }
+    report(
+        a,
+        (&s.name, &s.rig),
+        &session,
+        &counters,
+        started.elapsed().as_secs_f64(),
+    )?;
     result.map_err(anyhow::Error::from)
 }
 
@@ -419,16 +472,8 @@ pub(crate) fn tui(
         anyhow::bail!("--live stdin: the lab reads its keys from the terminal; pipe frames through a file source or OpenSeeFace instead");
     }
     let s = setup(&a)?;
-    let solver = LiveSolver::new(
-        s.rig.clone(),
-        RigOptions {
-            prior: a.prior,
-            ..RigOptions::live()
-        },
-        a.calibrate as usize,
-    )?;
-    let sinks = Sinks::open(&[], &s.rig, Box::new(std::io::sink()), 60.0)?;
-    let mut session = Session::new(solver, sinks, None, s.select.clone());
+    // No sinks, no recording: the screen is the output.
+    let (mut session, _) = start_session(&a, &s)?;
     let counters = Arc::new(Counters::default());
     let queue = Arc::new(Queue::new(a.queue as usize, s.opened.blocking));
     let stop = Arc::new(AtomicBool::new(false));
