@@ -144,3 +144,49 @@ fn each_actions_extreme_reaches_the_target_even_on_a_mode_two_actions_share() {
     assert!(shared >= 4, "{shared} pairs on shared target modes");
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
+
+/// An alignment naming a mode either model lacks is refused, naming both counts; one
+/// within both is taken (`cargo mutants` found `check` reached only from the command line).
+#[test]
+fn an_alignment_past_either_models_modes_is_refused() {
+    use keyshape_actions::trajectory::ModePair;
+    let (s, t) = (person("liveportrait_d6.csv"), person("liveportrait_d9.csv"));
+    let (ns, nt) = (
+        s.model.pca.components.ncols(),
+        t.model.pca.components.ncols(),
+    );
+    let pair = |sm, tm| ModeAlignment {
+        pairs: vec![ModePair {
+            source_mode: sm,
+            target_mode: tm,
+            flip: false,
+            action: "jaw_drop".into(),
+        }],
+    };
+    pair(ns - 1, nt - 1).check(&s.model, &t.model).unwrap();
+    for (sm, tm) in [(ns, 0), (0, nt), (ns, nt)] {
+        let e = pair(sm, tm)
+            .check(&s.model, &t.model)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains(&format!("the models have {ns} and {nt} modes")),
+            "{sm} → {tm}: {e}"
+        );
+    }
+}
+
+/// The normalisation's spelling reads back, a wrong one is refused, and each side's scale
+/// is that side's extent (two-sided) or the larger of the two (one-sided).
+#[test]
+fn normalisation_spellings_and_scales() {
+    for n in [Normalisation::TwoSided, Normalisation::OneSided] {
+        assert_eq!(n.name().parse::<Normalisation>().unwrap(), n);
+    }
+    assert_eq!(Normalisation::TwoSided.name(), "two-sided");
+    assert!("both".parse::<Normalisation>().is_err());
+    assert_eq!(Normalisation::TwoSided.scale(0.5, -2.0, 3.0), 3.0);
+    assert_eq!(Normalisation::TwoSided.scale(-0.5, -2.0, 3.0), 2.0);
+    assert_eq!(Normalisation::OneSided.scale(0.5, -4.0, 3.0), 4.0);
+    assert_eq!(Normalisation::OneSided.scale(-0.5, -2.0, 3.0), 3.0);
+}
