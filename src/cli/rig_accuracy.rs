@@ -62,8 +62,17 @@ pub struct RigAccuracyArgs {
     #[arg(long, default_value_t = 9.0, allow_negative_numbers = true)]
     pitch: f64,
     /// Seed of the performance, the person and the noise.
-    #[arg(long, default_value_t = 7)]
+    #[arg(long, default_value_t = 7, conflicts_with = "seeds")]
     seed: u64,
+    /// Every seed FIRST..LAST (inclusive, at most 1000 of them), each a performance, a
+    /// person and a noise of its own: per kind, each summary measure as a distribution over
+    /// the seeds — median, 10th percentile and worst (for errors: median, 90th percentile
+    /// and worst) — since one seed says little (on 68 points, 12 of 20 seeds met every
+    /// goal). --out gets every seed's rows, --tracks every seed's files
+    /// (`<kind>_s<seed>_track.csv`)
+    /// [default: one seed, --seed].
+    #[arg(long, value_name = "FIRST..LAST")]
+    seeds: Option<String>,
     /// The solve's weights: bounded, nnls or ls (as `kslab rig`).
     #[arg(long, default_value = "bounded")]
     solver: Solver,
@@ -73,8 +82,14 @@ pub struct RigAccuracyArgs {
     /// The neutral: `auto` (as `kslab rig`), `least-active`, or `lead-in` (the whole
     /// lead-in, where the truth is neutral, averaged: what a user who recorded one names
     /// with `kslab rig --neutral FIRST-LAST`).
-    #[arg(long, default_value = "auto", value_parser = ["auto", "least-active", "lead-in"])]
-    neutral: String,
+    /// [default: auto; lead-in with --live]
+    #[arg(long, value_parser = ["auto", "least-active", "lead-in"])]
+    neutral: Option<String>,
+    /// The live solve, as `kslab live` computes it frame by frame (and `kslab rig --live`
+    /// for a file): causal, calibrated on the lead-in (the neutral and the prior's scale),
+    /// no zero-phase smoothing; with --smooth, the causal temporal prior. Needs a lead-in.
+    #[arg(long)]
+    live: bool,
     /// As `kslab rig --min-determination`.
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     min_determination: f64,
@@ -86,17 +101,18 @@ pub struct RigAccuracyArgs {
     /// against ground truth"). Needs a prior.
     #[arg(long)]
     no_prior_taper: bool,
-    /// As `kslab rig --zero-phase` (offline Gaussian σ, frames; 0 for the live solve).
-    #[arg(long, default_value_t = keyshape_rig::RECOMMENDED_ZERO_PHASE, allow_negative_numbers = true)]
-    zero_phase: f64,
+    /// As `kslab rig --zero-phase` (offline Gaussian σ, frames; 0 for the live solve)
+    /// [default: 1; with --live, 0].
+    #[arg(long, allow_negative_numbers = true)]
+    zero_phase: Option<f64>,
     /// As `kslab rig --smooth` (the temporal prior λ).
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     smooth: f64,
-    /// As `kslab rig --smooth-mode`.
-    #[arg(long, default_value = "offline", value_parser = ["offline", "causal"])]
-    smooth_mode: String,
+    /// As `kslab rig --smooth-mode` [default: offline; with --live, causal].
+    #[arg(long, value_parser = ["offline", "causal"])]
+    smooth_mode: Option<String>,
     /// Write every shape's measures here (CSV: kind, shape, active, r, mae, rmse,
-    /// peak_reach, twin_leakage, idle_activation, jitter, true_jitter, lag)
+    /// peak_reach, twin_leakage, idle_activation, jitter, true_jitter, lag, seed)
     /// [default: not written].
     #[arg(long, short)]
     out: Option<PathBuf>,
@@ -133,10 +149,32 @@ pub fn run(a: &RigAccuracyArgs) -> Result<()> {
     } else {
         vec![Kind::parse(&a.kind)?]
     };
-    if a.neutral == "lead-in" && a.lead_in == 0 {
-        anyhow::bail!("--neutral lead-in needs a lead-in (--lead-in is 0)");
+    let neutral_name = match (a.neutral.as_deref(), a.live) {
+        (Some(n @ ("auto" | "least-active")), true) => anyhow::bail!(
+            "--live calibrates on the lead-in: --neutral {n} searches the whole track"
+        ),
+        (Some(n), _) => n,
+        (None, true) => "lead-in",
+        (None, false) => "auto",
+    };
+    if neutral_name == "lead-in" && a.lead_in == 0 {
+        anyhow::bail!("--neutral lead-in (and --live) needs a lead-in (--lead-in is 0)");
     }
-    let neutral = match a.neutral.as_str() {
+    let zero_phase = match (a.live, a.zero_phase) {
+        (true, Some(z)) if z != 0.0 => {
+            anyhow::bail!("--live is causal: --zero-phase {z} smooths with frames still to come")
+        }
+        (true, _) => 0.0,
+        (false, z) => z.unwrap_or(keyshape_rig::RECOMMENDED_ZERO_PHASE),
+    };
+    let causal = match (a.live, a.smooth_mode.as_deref()) {
+        (true, Some("offline")) => {
+            anyhow::bail!("--live is causal: --smooth-mode offline solves the clip at once")
+        }
+        (true, _) | (false, Some("causal")) => true,
+        (false, _) => false,
+    };
+    let neutral = match neutral_name {
         "least-active" => Neutral::LeastActive,
         "lead-in" => Neutral::Span(0, a.lead_in),
         _ => Neutral::Auto,
@@ -150,21 +188,27 @@ pub fn run(a: &RigAccuracyArgs) -> Result<()> {
         identity: a.identity,
         min_determination: a.min_determination,
         smooth: a.smooth,
-        smooth_mode: if a.smooth_mode == "causal" {
+        smooth_mode: if causal {
             keyshape_core::solve::temporal::SmoothMode::Causal
         } else {
             keyshape_core::solve::temporal::SmoothMode::Offline
         },
         prior: a.prior,
-        zero_phase: a.zero_phase,
+        zero_phase,
         taper: !a.no_prior_taper,
+        causal: a.live,
         ..Default::default()
     };
-    let mut all: Vec<(Kind, Vec<ShapeAccuracy>, Summary)> = Vec::new();
+    let seeds = seeds_of(a)?;
+    let mut all: Vec<(Kind, u64, Vec<ShapeAccuracy>, Summary)> = Vec::new();
     let progress = super::progress::Progress::new("rig-accuracy");
     progress.units("performances rendered and solved");
-    let total = kinds.len();
-    for (i, kind) in kinds.into_iter().enumerate() {
+    let runs: Vec<(Kind, u64)> = kinds
+        .iter()
+        .flat_map(|&k| seeds.iter().map(move |&s| (k, s)))
+        .collect();
+    let total = runs.len();
+    for (i, (kind, seed)) in runs.into_iter().enumerate() {
         progress.tick(i, total);
         let st = Settings {
             kind,
@@ -175,17 +219,22 @@ pub fn run(a: &RigAccuracyArgs) -> Result<()> {
             other_person: a.person == "other",
             yaw_deg: a.yaw,
             pitch_deg: a.pitch,
-            seed: a.seed,
+            seed,
             depth,
         };
         let (track, _, rows, summary) = accuracy::run(&rig, &st, &opts)?;
         if let Some(dir) = &a.tracks {
-            write_track(dir, kind, &rig, &track)?;
+            let name = match &a.seeds {
+                Some(_) => format!("{}_s{seed}", kind.name()),
+                None => kind.name().to_string(),
+            };
+            write_track(dir, &name, &rig, &track)?;
         }
-        all.push((kind, rows, summary));
+        all.push((kind, seed, rows, summary));
     }
+    progress.finish();
     if let Some(p) = &a.out {
-        let rows = all.iter().flat_map(|(kind, rows, _)| {
+        let rows = all.iter().flat_map(|(kind, seed, rows, _)| {
             rows.iter().map(move |r| AccuracyCsv {
                 kind: kind.name(),
                 shape: &r.shape,
@@ -199,18 +248,22 @@ pub fn run(a: &RigAccuracyArgs) -> Result<()> {
                 jitter: Num(r.jitter),
                 true_jitter: Num(r.true_jitter),
                 lag: r.lag,
+                seed: *seed,
             })
         });
         write_atomic(p, |w| write_rows(w, rows))?;
     }
+    if a.seeds.is_some() {
+        return print_distributions(a, &all);
+    }
     if a.json {
         let v: Vec<_> = all
             .iter()
-            .map(|(k, _, s)| json!({"kind": k.name(), "summary": s}))
+            .map(|(k, _, _, s)| json!({"kind": k.name(), "summary": s}))
             .collect();
         outln!("{}", serde_json::to_string_pretty(&v)?);
     } else {
-        for (k, _, s) in &all {
+        for (k, _, _, s) in &all {
             outln!(
                 "{:<7} mean r {:.3}  worst r {:.3} ({})  weight RMSE {:.3}  idle max {:.2} ({})  twin leakage max {:.2}  peak reach min {}  lag max {}",
                 k.name(),
@@ -244,10 +297,126 @@ struct AccuracyCsv<'a> {
     jitter: Num,
     true_jitter: Num,
     lag: Option<i64>,
+    seed: u64,
+}
+
+/// `--seeds FIRST..LAST`, or the one `--seed`.
+fn seeds_of(a: &RigAccuracyArgs) -> Result<Vec<u64>> {
+    let Some(s) = &a.seeds else {
+        return Ok(vec![a.seed]);
+    };
+    let bad = || {
+        anyhow::anyhow!("--seeds '{s}': give FIRST..LAST, two seeds with the first not after the last, at most 1000 seeds")
+    };
+    let (x, y) = s.split_once("..").ok_or_else(bad)?;
+    let (x, y): (u64, u64) = (
+        x.trim().parse().map_err(|_| bad())?,
+        y.trim().parse().map_err(|_| bad())?,
+    );
+    if x > y || y - x >= 1000 {
+        return Err(bad());
+    }
+    Ok((x..=y).collect())
+}
+
+/// The `q`-quantile of `v` (nearest rank; `v` not empty).
+fn quantile(v: &[f64], q: f64) -> f64 {
+    let mut s = v.to_vec();
+    s.sort_by(f64::total_cmp);
+    let i = ((q * s.len() as f64).ceil() as usize).clamp(1, s.len()) - 1;
+    s[i]
+}
+
+/// A measure over the seeds where more is better (r): median, 10th percentile, worst.
+fn higher(v: &[f64]) -> serde_json::Value {
+    let min = v.iter().copied().fold(f64::INFINITY, f64::min);
+    json!({"median": quantile(v, 0.5), "p10": quantile(v, 0.1), "worst": min})
+}
+
+/// A measure over the seeds where less is better (errors): median, 90th percentile, worst.
+fn lower(v: &[f64]) -> serde_json::Value {
+    let max = v.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    json!({"median": quantile(v, 0.5), "p90": quantile(v, 0.9), "worst": max})
+}
+
+/// Per kind, each summary measure as a distribution over the seeds.
+fn print_distributions(
+    a: &RigAccuracyArgs,
+    all: &[(Kind, u64, Vec<ShapeAccuracy>, Summary)],
+) -> Result<()> {
+    let mut kinds: Vec<Kind> = all.iter().map(|x| x.0).collect();
+    kinds.dedup();
+    let mut out = Vec::new();
+    for k in kinds {
+        let runs: Vec<(u64, &Summary)> = all
+            .iter()
+            .filter(|x| x.0 == k)
+            .map(|x| (x.1, &x.3))
+            .collect();
+        let col =
+            |f: &dyn Fn(&Summary) -> f64| runs.iter().map(|(_, s)| f(s)).collect::<Vec<f64>>();
+        let (mean_r, worst_r, rmse, idle) = (
+            col(&|s| s.mean_r),
+            col(&|s| s.worst_r),
+            col(&|s| s.rmse),
+            col(&|s| s.max_idle),
+        );
+        // The shape that is worst on the most seeds.
+        let mut counts: Vec<(&str, usize)> = Vec::new();
+        for (_, s) in &runs {
+            match counts.iter_mut().find(|c| c.0 == s.worst_shape) {
+                Some(c) => c.1 += 1,
+                None => counts.push((&s.worst_shape, 1)),
+            }
+        }
+        counts.sort_by(|x, y| y.1.cmp(&x.1).then(x.0.cmp(y.0)));
+        let worst_seed = runs
+            .iter()
+            .min_by(|x, y| x.1.worst_r.total_cmp(&y.1.worst_r))
+            .map(|(seed, s)| (*seed, s.worst_shape.clone()));
+        out.push(json!({
+            "kind": k.name(),
+            "seeds": runs.iter().map(|(s, _)| *s).collect::<Vec<_>>(),
+            "mean_r": higher(&mean_r),
+            "worst_r": higher(&worst_r),
+            "rmse": lower(&rmse),
+            "max_idle": lower(&idle),
+            "most_often_worst": counts.first().map(|c| json!({"shape": c.0, "seeds": c.1})),
+            "lowest_worst_r": worst_seed.map(|(seed, shape)| json!({"seed": seed, "shape": shape})),
+            "per_seed": runs.iter().map(|(seed, s)| json!({"seed": seed, "summary": s})).collect::<Vec<_>>(),
+        }));
+    }
+    if a.json {
+        outln!("{}", serde_json::to_string_pretty(&out)?);
+        return Ok(());
+    }
+    for v in &out {
+        let f = |m: &str, k: &str| v[m][k].as_f64().unwrap_or(f64::NAN);
+        outln!(
+            "{:<7} {} seeds · mean r median {:.3} p10 {:.3} worst {:.3} · worst r median {:.3} p10 {:.3} worst {:.3} (seed {}, {}) · RMSE median {:.3} p90 {:.3} worst {:.3} · idle max median {:.2} p90 {:.2} worst {:.2}",
+            v["kind"].as_str().unwrap_or(""),
+            v["seeds"].as_array().map_or(0, Vec::len),
+            f("mean_r", "median"),
+            f("mean_r", "p10"),
+            f("mean_r", "worst"),
+            f("worst_r", "median"),
+            f("worst_r", "p10"),
+            f("worst_r", "worst"),
+            v["lowest_worst_r"]["seed"],
+            v["lowest_worst_r"]["shape"].as_str().unwrap_or(""),
+            f("rmse", "median"),
+            f("rmse", "p90"),
+            f("rmse", "worst"),
+            f("max_idle", "median"),
+            f("max_idle", "p90"),
+            f("max_idle", "worst"),
+        );
+    }
+    Ok(())
 }
 
 /// `<kind>_track.csv` and `<kind>_truth.csv` in `dir`.
-fn write_track(dir: &std::path::Path, kind: Kind, rig: &Rig, t: &accuracy::Track) -> Result<()> {
+fn write_track(dir: &std::path::Path, kind: &str, rig: &Rig, t: &accuracy::Track) -> Result<()> {
     keyshape_io::create_dir_all(dir)?;
     let depth = t.points.nrows() == 3 * rig.landmarks();
     let axes: &[&str] = if depth { &["x", "y", "z"] } else { &["x", "y"] };
@@ -256,11 +425,11 @@ fn write_track(dir: &std::path::Path, kind: Kind, rig: &Rig, t: &accuracy::Track
             .iter()
             .flat_map(|i| axes.iter().map(move |a| format!("{a}{i}"))),
     );
-    write_atomic(&dir.join(format!("{}_track.csv", kind.name())), |w| {
+    write_atomic(&dir.join(format!("{kind}_track.csv")), |w| {
         write_records(w, head, frame_records(&t.points))
     })?;
     let head = std::iter::once("frame").chain(rig.names.iter().map(String::as_str));
-    write_atomic(&dir.join(format!("{}_truth.csv", kind.name())), |w| {
+    write_atomic(&dir.join(format!("{kind}_truth.csv")), |w| {
         write_records(w, head, frame_records(&t.truth))
     })?;
     Ok(())

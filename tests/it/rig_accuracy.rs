@@ -345,7 +345,7 @@ fn the_benchmark_command_writes_per_shape_measures() {
     assert!(r.stdout.starts_with("winks   mean r "), "{}", r.stdout);
     let text = std::fs::read_to_string(&out).unwrap();
     let lines: Vec<&str> = text.lines().collect();
-    assert_eq!(lines[0], "kind,shape,active,r,mae,rmse,peak_reach,twin_leakage,idle_activation,jitter,true_jitter,lag");
+    assert_eq!(lines[0], "kind,shape,active,r,mae,rmse,peak_reach,twin_leakage,idle_activation,jitter,true_jitter,lag,seed");
     assert_eq!(lines.len(), 1 + ict().k());
     let blink = lines
         .iter()
@@ -560,5 +560,169 @@ fn the_rig_command_takes_a_neutral_stretch() {
         assert_eq!(r.code, 1, "{arg}: {}", r.stderr);
         assert!(r.stderr.contains(needle), "{arg}: {}", r.stderr);
         assert!(!out.exists(), "{arg} wrote its output");
+    }
+}
+
+/// `--seeds`: each summary measure as a distribution over the seeds; the median and the
+/// worst are those of the per-seed summaries it lists, --out holds every seed's rows.
+#[test]
+fn seeds_give_distributions_of_the_per_seed_summaries() {
+    let d = tempfile::tempdir().unwrap();
+    let out = d.path().join("per_shape.csv");
+    let r = kslab(&[
+        "rig-accuracy",
+        "--kind",
+        "winks",
+        "--frames",
+        "60",
+        "--seeds",
+        "1..3",
+        "--json",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let v: serde_json::Value = serde_json::from_str(&r.stdout).unwrap();
+    let k = &v[0];
+    assert_eq!(k["kind"], "winks");
+    let mut means: Vec<f64> = k["per_seed"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| p["summary"]["mean_r"].as_f64().unwrap())
+        .collect();
+    assert_eq!(means.len(), 3);
+    means.sort_by(f64::total_cmp);
+    assert_eq!(k["mean_r"]["median"].as_f64().unwrap(), means[1]);
+    assert_eq!(k["mean_r"]["worst"].as_f64().unwrap(), means[0]);
+    let rmse: Vec<f64> = k["per_seed"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| p["summary"]["rmse"].as_f64().unwrap())
+        .collect();
+    assert_eq!(
+        k["rmse"]["worst"].as_f64().unwrap(),
+        rmse.iter().copied().fold(0.0, f64::max)
+    );
+    let text = std::fs::read_to_string(&out).unwrap();
+    for seed in 1..=3 {
+        let rows = text
+            .lines()
+            .filter(|l| l.ends_with(&format!(",{seed}")))
+            .count();
+        assert_eq!(rows, ict().k(), "seed {seed}'s rows");
+    }
+    let plain = kslab(&[
+        "rig-accuracy",
+        "--kind",
+        "winks",
+        "--frames",
+        "60",
+        "--seeds",
+        "1..3",
+    ]);
+    assert!(
+        plain.stdout.starts_with("winks   3 seeds · mean r median "),
+        "{}",
+        plain.stdout
+    );
+    for (args, code, needle) in [
+        (vec!["--seeds", "5..2"], 1, "--seeds '5..2'"),
+        (vec!["--seeds", "1..2000"], 1, "at most 1000 seeds"),
+        (vec!["--seeds", "1-3"], 1, "FIRST..LAST"),
+        (
+            vec!["--seeds", "1..3", "--seed", "4"],
+            2,
+            "cannot be used with",
+        ),
+    ] {
+        let mut all = vec!["rig-accuracy", "--kind", "winks", "--frames", "30"];
+        all.extend(args);
+        let r = kslab(&all);
+        assert_eq!(r.code, code, "{all:?}: {}", r.stderr);
+        assert!(r.stderr.contains(needle), "{all:?}: {}", r.stderr);
+    }
+}
+
+/// `--live` measures the live path: the same weights `kslab rig --live` gives the rendered
+/// track (calibrated on its lead-in), each scored against the truth it was rendered from.
+#[test]
+fn live_accuracy_is_the_causal_solves_score_against_the_truth() {
+    let d = tempfile::tempdir().unwrap();
+    let out = d.path().join("per_shape.csv");
+    let r = kslab(&[
+        "rig-accuracy",
+        "--kind",
+        "smooth",
+        "--frames",
+        "120",
+        "--seed",
+        "3",
+        "--live",
+        "--tracks",
+        d.path().to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let w = d.path().join("w.csv");
+    let rig = kslab(&[
+        "rig",
+        d.path().join("smooth_track.csv").to_str().unwrap(),
+        "--live",
+        "--neutral",
+        "0-19",
+        "--out",
+        w.to_str().unwrap(),
+    ]);
+    assert_eq!(rig.code, 0, "{}", rig.stderr);
+    let read = |p: &std::path::Path| -> Vec<Vec<f64>> {
+        std::fs::read_to_string(p)
+            .unwrap()
+            .lines()
+            .skip(1)
+            .map(|l| l.split(',').skip(1).map(|v| v.parse().unwrap()).collect())
+            .collect()
+    };
+    let (truth, got) = (read(&d.path().join("smooth_truth.csv")), read(&w));
+    let jaw = ict().names.iter().position(|n| n == "jawOpen").unwrap();
+    let col = |m: &[Vec<f64>]| m.iter().map(|row| row[jaw]).collect::<Vec<f64>>();
+    let (t, g) = (col(&truth), col(&got));
+    let n = t.len() as f64;
+    let (mt, mg) = (t.iter().sum::<f64>() / n, g.iter().sum::<f64>() / n);
+    let cov: f64 = t.iter().zip(&g).map(|(a, b)| (a - mt) * (b - mg)).sum();
+    let r_jaw = cov
+        / (t.iter().map(|a| (a - mt).powi(2)).sum::<f64>()
+            * g.iter().map(|b| (b - mg).powi(2)).sum::<f64>())
+        .sqrt();
+    let text = std::fs::read_to_string(&out).unwrap();
+    let row = text
+        .lines()
+        .find(|l| l.starts_with("smooth,jawOpen,"))
+        .unwrap();
+    let reported: f64 = row.split(',').nth(3).unwrap().parse().unwrap();
+    assert!(
+        (reported - r_jaw).abs() < 1e-9,
+        "{reported} against {r_jaw}"
+    );
+    assert!(r_jaw > 0.95, "{r_jaw}");
+    for (args, needle) in [
+        (vec!["--live", "--zero-phase", "1"], "--live is causal"),
+        (
+            vec!["--live", "--neutral", "auto"],
+            "calibrates on the lead-in",
+        ),
+        (vec!["--live", "--lead-in", "0"], "needs a lead-in"),
+        (
+            vec!["--live", "--smooth", "10", "--smooth-mode", "offline"],
+            "--live is causal",
+        ),
+    ] {
+        let mut all = vec!["rig-accuracy", "--kind", "winks", "--frames", "30"];
+        all.extend(args);
+        let r = kslab(&all);
+        assert_eq!(r.code, 1, "{all:?}: {}", r.stderr);
+        assert!(r.stderr.contains(needle), "{all:?}: {}", r.stderr);
     }
 }
