@@ -41,8 +41,8 @@ pub struct TuiArgs {
     /// [default: none: a normalised track is shown as it is, with a note]
     #[arg(long, value_name = "WxH", value_parser = super::input::parse_image_size, requires = "track")]
     image_size: Option<(f64, f64)>,
-    /// The lab live: frames from SOURCE (as `kslab live --from`: openseeface:[HOST:]PORT,
-    /// stdin, file:TRACK) solved onto the rig (--rig, or the ICT face in the shared data
+    /// The lab live: frames from SOURCE (as `kslab live --from`: `openseeface:[HOST:]PORT`,
+    /// `stdin`, `file:TRACK`) solved onto the rig (--rig, or the ICT face in the shared data
     /// folder) as they come, calibrated on the first 30 frames: the incoming landmarks over
     /// the posed rig, the named weight bars, frames per second, latency, dropped frames;
     /// `n` recalibrates, `l`/`L` turn the causal prior's λ up and down. With --image-size
