@@ -710,3 +710,42 @@ fn face_follows_one_face_of_several() {
         );
     }
 }
+
+/// A table on standard input is checked before anything starts: an image size for
+/// coordinates in pixels is refused naming the line.
+#[test]
+fn an_image_size_for_a_pixel_table_on_stdin_is_refused_naming_the_line() {
+    use std::io::Write;
+    let text =
+        std::fs::read_to_string(shared("mediapipe_face_tracks/liveportrait_d6.csv")).unwrap();
+    let head: String = text.lines().take(5).map(|l| format!("{l}\n")).collect();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_kslab"))
+        .args([
+            "live",
+            "--from",
+            "stdin",
+            "--to",
+            "stdout",
+            "--image-size",
+            "640x480",
+        ])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    child
+        .stdin
+        .take()
+        .unwrap()
+        .write_all(head.as_bytes())
+        .unwrap();
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("stdin:2:1: an image size applies to normalised coordinates"),
+        "{err}"
+    );
+    assert!(out.stdout.is_empty());
+}

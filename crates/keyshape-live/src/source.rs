@@ -278,15 +278,40 @@ fn open_stdin(mut stdin: Box<dyn BufRead + Send>, options: SourceOptions) -> Res
         Some(f) => f,
         None => keyshape_io::detect_format(at, &first)?,
     };
+    // The first row too, read here: an image size for a table in pixels (or none for a
+    // normalised one) is said before anything starts.
+    let mut row = String::new();
+    while row.trim().is_empty() {
+        row.clear();
+        if stdin.read_line(&mut row).map_err(|e| Error::io(at, e))? == 0 {
+            break;
+        }
+    }
+    let mut note = None;
+    {
+        let probe = format!("{first}{row}");
+        let mut rows =
+            keyshape_io::table::TableRows::new(at, std::io::Cursor::new(probe), format, 2)?;
+        if let Some(r) = rows.next_row()?.filter(|r| r.tracked) {
+            let normalised = r.coords.iter().all(|v| (0.0..=1.0).contains(v));
+            match options.image_size {
+                Some(_) if !normalised => {
+                    return Err(Error::parse(at, r.line, 1, "an image size applies to normalised coordinates (every x and y in [0, 1]); this row's are not"))
+                }
+                None if normalised => note = Some(normalised_note("stdin")),
+                _ => {}
+            }
+        }
+    }
     let head: Box<dyn Read + Send> =
-        Box::new(std::io::Cursor::new(first.into_bytes()).chain(stdin));
+        Box::new(std::io::Cursor::new(format!("{first}{row}").into_bytes()).chain(stdin));
     let rows = keyshape_io::table::TableRows::new(at, head, format, 2)?;
     Ok(Opened {
         layout: rows.points(),
         reader: Reader::Table(Box::new(rows)),
         name: "stdin".into(),
         blocking: false,
-        note: None,
+        note,
         fps: None,
         options,
     })
