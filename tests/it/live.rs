@@ -109,38 +109,26 @@ fn a_rendered_performance_sent_at_60_fps_comes_out_as_the_offline_causal_solve()
         s.set_nonblocking(true).unwrap();
     }
     let take = dir.path().join("take");
-    let mut child = Command::new(env!("CARGO_BIN_EXE_kslab"))
-        .args([
-            "live",
-            "--from",
-            &format!("openseeface:127.0.0.1:{osf}"),
-            "--to",
-            &format!("vmc:127.0.0.1:{vmc_port},livelink:127.0.0.1:{ll_port},stdout"),
-            "--calibrate",
-            "20",
-            // Room for a busy machine's pauses (CI runs tests side by side): this test is
-            // about what comes out, the queue's dropping has its own.
-            "--queue",
-            "256",
-            "--record",
-        ])
-        .arg(&take)
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    // Wait for the listener (its first line on stderr comes after the socket is bound).
-    let mut stderr = child.stderr.take().unwrap();
-    let mut first = [0u8; 12];
-    stderr.read_exact(&mut first).unwrap();
-    // Standard output read as it comes (a full pipe would hold the solve up).
-    let mut stdout = child.stdout.take().unwrap();
-    let reader = std::thread::spawn(move || {
-        let mut out = String::new();
-        stdout.read_to_string(&mut out).unwrap();
-        out
-    });
+    let live = Running::start(
+        Command::new(env!("CARGO_BIN_EXE_kslab"))
+            .args([
+                "live",
+                "--from",
+                &format!("openseeface:127.0.0.1:{osf}"),
+                "--to",
+                &format!("vmc:127.0.0.1:{vmc_port},livelink:127.0.0.1:{ll_port},stdout"),
+                "--calibrate",
+                "20",
+                // Room for a busy machine's pauses (CI runs tests side by side): this test is
+                // about what comes out, the queue's dropping has its own.
+                "--queue",
+                "256",
+                "--record",
+            ])
+            .arg(&take)
+            .stdin(Stdio::null()),
+        true,
+    );
     let send = UdpSocket::bind("127.0.0.1:0").unwrap();
     let to = ("127.0.0.1", osf);
     // The frames as sent: f32, as the datagrams carry them.
@@ -189,12 +177,8 @@ fn a_rendered_performance_sent_at_60_fps_comes_out_as_the_offline_causal_solve()
     }
     // The tracker stops: shown, not an error. Then Ctrl-C: exit 0, the recording complete.
     std::thread::sleep(Duration::from_millis(2400));
-    unsafe_free_kill(child.id(), libc::SIGINT);
-    let out = reader.join().unwrap();
-    let mut err = String::from_utf8_lossy(&first).into_owned();
-    stderr.read_to_string(&mut err).unwrap();
-    let status = child.wait().unwrap();
-    assert_eq!(status.code(), Some(0), "{err}");
+    let (code, out, err) = live.stop(libc::SIGINT);
+    assert_eq!(code, Some(0), "{err}");
     assert!(
         err.contains("look neutral") && err.contains("calibrated on 20 frames"),
         "{err}"
@@ -329,6 +313,55 @@ fn a_rendered_performance_sent_at_60_fps_comes_out_as_the_offline_causal_solve()
     ]);
     assert_eq!(replay.code, 0, "{}", replay.stderr);
     assert_eq!(replay.stdout, offline_text);
+}
+
+/// A `kslab live` process: its standard output read as it comes on a thread (a full pipe
+/// would hold the solve up), its standard error kept for the end.
+struct Running {
+    child: std::process::Child,
+    stderr: std::process::ChildStderr,
+    said: String,
+    reader: std::thread::JoinHandle<String>,
+}
+
+impl Running {
+    /// Starts `cmd` (its output piped); with `listening`, returns once the first line is on
+    /// standard error — a UDP source has bound its socket by then.
+    fn start(cmd: &mut Command, listening: bool) -> Running {
+        let mut child = cmd
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        let mut stderr = child.stderr.take().unwrap();
+        let mut said = String::new();
+        if listening {
+            let mut first = [0u8; 12];
+            stderr.read_exact(&mut first).unwrap();
+            said = String::from_utf8_lossy(&first).into_owned();
+        }
+        let mut stdout = child.stdout.take().unwrap();
+        let reader = std::thread::spawn(move || {
+            let mut out = String::new();
+            stdout.read_to_string(&mut out).unwrap();
+            out
+        });
+        Running {
+            child,
+            stderr,
+            said,
+            reader,
+        }
+    }
+
+    /// Sends `sig`, waits for the end: (exit code, standard output, standard error).
+    fn stop(mut self, sig: i32) -> (Option<i32>, String, String) {
+        unsafe_free_kill(self.child.id(), sig);
+        let out = self.reader.join().unwrap();
+        let mut err = self.said;
+        self.stderr.read_to_string(&mut err).unwrap();
+        (self.child.wait().unwrap().code(), out, err)
+    }
 }
 
 /// Sends `sig` to `pid`.
@@ -565,46 +598,30 @@ fn a_control_line_and_sigusr1_recalibrate_and_an_absent_receiver_stops_nothing()
     use std::io::Write;
     let track = shared("mediapipe_face_tracks/liveportrait_d6.csv");
     let nobody = free_udp_port();
-    let mut child = Command::new(env!("CARGO_BIN_EXE_kslab"))
-        .args(["live", "--from"])
-        .arg(format!("file:{}", track.display()))
-        .args([
-            "--rate",
-            "250",
-            "--calibrate",
-            "10",
-            "--landmarks",
-            "68",
-            "--to",
-        ])
-        .arg(format!("vmc:127.0.0.1:{nobody},stdout"))
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut stdout = child.stdout.take().unwrap();
-    let reader = std::thread::spawn(move || {
-        let mut out = String::new();
-        stdout.read_to_string(&mut out).unwrap();
-        out
-    });
-    let mut stdin = child.stdin.take().unwrap();
+    let mut live = Running::start(
+        Command::new(env!("CARGO_BIN_EXE_kslab"))
+            .args(["live", "--from"])
+            .arg(format!("file:{}", track.display()))
+            .args([
+                "--rate",
+                "250",
+                "--calibrate",
+                "10",
+                "--landmarks",
+                "68",
+                "--to",
+            ])
+            .arg(format!("vmc:127.0.0.1:{nobody},stdout"))
+            .stdin(Stdio::piped()),
+        false,
+    );
+    let mut stdin = live.child.stdin.take().unwrap();
     std::thread::sleep(Duration::from_millis(1000));
     writeln!(stdin, "calibrate").unwrap();
     stdin.flush().unwrap();
     std::thread::sleep(Duration::from_millis(1000));
-    unsafe_free_kill(child.id(), 10); // SIGUSR1
-    let out = reader.join().unwrap();
-    let mut err = String::new();
-    child
-        .stderr
-        .take()
-        .unwrap()
-        .read_to_string(&mut err)
-        .unwrap();
-    let status = child.wait().unwrap();
-    assert_eq!(status.code(), Some(0), "{err}");
+    let (code, out, err) = live.stop(10); // SIGUSR1
+    assert_eq!(code, Some(0), "{err}");
     assert_eq!(
         err.matches("look neutral: recalibrating").count(),
         2,
@@ -671,21 +688,7 @@ fn face_follows_one_face_of_several() {
         if let Some(id) = follow {
             cmd.args(["--face", &id.to_string()]);
         }
-        let mut child = cmd
-            .stdin(Stdio::null())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::piped())
-            .spawn()
-            .unwrap();
-        let mut stderr = child.stderr.take().unwrap();
-        let mut first = [0u8; 12];
-        stderr.read_exact(&mut first).unwrap();
-        let mut stdout = child.stdout.take().unwrap();
-        let reader = std::thread::spawn(move || {
-            let mut out = String::new();
-            stdout.read_to_string(&mut out).unwrap();
-            out
-        });
+        let live = Running::start(cmd.stdin(Stdio::null()), true);
         let send = UdpSocket::bind("127.0.0.1:0").unwrap();
         for f in 0..frames {
             // Face 5 first in the datagram, face 9 second.
@@ -698,11 +701,8 @@ fn face_follows_one_face_of_several() {
             std::thread::sleep(Duration::from_millis(5));
         }
         std::thread::sleep(Duration::from_millis(300));
-        unsafe_free_kill(child.id(), libc::SIGINT);
-        let out = reader.join().unwrap();
-        let mut err = String::new();
-        stderr.read_to_string(&mut err).unwrap();
-        assert_eq!(child.wait().unwrap().code(), Some(0), "{err}");
+        let (code, out, err) = live.stop(libc::SIGINT);
+        assert_eq!(code, Some(0), "{err}");
         assert_eq!(
             out,
             solve_alone(want),
