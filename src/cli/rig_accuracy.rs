@@ -52,8 +52,10 @@ pub struct RigAccuracyArgs {
     #[arg(long, default_value_t = 107.0, allow_negative_numbers = true)]
     iod: f64,
     /// Whose neutral face is rendered: `other` (a seeded deformation of the rig's: wider,
-    /// mouth lower, eyes apart, three bumps) or `same` (the rig's own).
-    #[arg(long, default_value = "other", value_parser = ["other", "same"])]
+    /// mouth lower, eyes apart, three bumps), `deep` (that person with a flatter or deeper
+    /// face too: depth scaled by 0.8–0.9 or 1.1–1.2, which a turned head shows) or `same`
+    /// (the rig's own).
+    #[arg(long, default_value = "other", value_parser = ["other", "deep", "same"])]
     person: String,
     /// Head yaw range, ± degrees.
     #[arg(long, default_value_t = 18.0, allow_negative_numbers = true)]
@@ -61,6 +63,12 @@ pub struct RigAccuracyArgs {
     /// Head pitch range, ± degrees.
     #[arg(long, default_value_t = 9.0, allow_negative_numbers = true)]
     pitch: f64,
+    /// A held expression on every frame, the lead-in too, so no frame is neutral: three
+    /// seeded shapes of a resting face (a half smile, pressed lips, a squint, a raised inner
+    /// brow …) whose weights sum to HOLD, breathing between 70 % and 100 % of it (0: none).
+    /// It is part of the truth.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    hold: f64,
     /// Seed of the performance, the person and the noise.
     #[arg(long, default_value_t = 7, conflicts_with = "seeds")]
     seed: u64,
@@ -216,11 +224,13 @@ pub fn run(a: &RigAccuracyArgs) -> Result<()> {
             lead_in: a.lead_in,
             noise_px: noise,
             iod_px: a.iod,
-            other_person: a.person == "other",
+            other_person: a.person != "same",
+            other_depth: a.person == "deep",
             yaw_deg: a.yaw,
             pitch_deg: a.pitch,
             seed,
             depth,
+            hold: a.hold,
         };
         let (track, _, rows, summary) = accuracy::run(&rig, &st, &opts)?;
         if let Some(dir) = &a.tracks {
@@ -277,6 +287,17 @@ pub fn run(a: &RigAccuracyArgs) -> Result<()> {
                 s.min_peak_reach.map_or("—".into(), |v| format!("{v:.2}")),
                 s.max_abs_lag,
             );
+            if let Some(n) = &s.neutral {
+                let [y, p, _] = n.view.yaw_pitch_roll;
+                outln!(
+                    "        neutral frame {} (yaw {y:.0}°, pitch {p:.0}°; first-pass expression {:.2}{}): truly holds {:.2} of expression at a head turn of {:.1}°",
+                    n.frame,
+                    n.view.activity,
+                    if n.view.looks_neutral { "" } else { ", does not look neutral" },
+                    n.true_expression,
+                    n.true_turn,
+                );
+            }
         }
     }
     Ok(())
@@ -374,8 +395,22 @@ fn print_distributions(
             .iter()
             .min_by(|x, y| x.1.worst_r.total_cmp(&y.1.worst_r))
             .map(|(seed, s)| (*seed, s.worst_shape.clone()));
+        let neutral: Vec<&accuracy::NeutralTruth> = runs
+            .iter()
+            .filter_map(|(_, s)| s.neutral.as_ref())
+            .collect();
+        let neutral = (!neutral.is_empty()).then(|| {
+            let expr: Vec<f64> = neutral.iter().map(|n| n.true_expression).collect();
+            let turn: Vec<f64> = neutral.iter().map(|n| n.true_turn).collect();
+            json!({
+                "true_expression": lower(&expr),
+                "true_turn": lower(&turn),
+                "warned": neutral.iter().filter(|n| !n.view.looks_neutral).count(),
+            })
+        });
         out.push(json!({
             "kind": k.name(),
+            "neutral": neutral,
             "seeds": runs.iter().map(|(s, _)| *s).collect::<Vec<_>>(),
             "mean_r": higher(&mean_r),
             "worst_r": higher(&worst_r),
@@ -411,6 +446,19 @@ fn print_distributions(
             f("max_idle", "p90"),
             f("max_idle", "worst"),
         );
+        if v["neutral"].is_object() {
+            let n = |m: &str, k: &str| v["neutral"][m][k].as_f64().unwrap_or(f64::NAN);
+            outln!(
+                "        neutral frame: true expression (weights summed) median {:.2} p90 {:.2} worst {:.2} · true head turn median {:.1}° p90 {:.1}° worst {:.1}° · no candidate looked neutral on {} seeds",
+                n("true_expression", "median"),
+                n("true_expression", "p90"),
+                n("true_expression", "worst"),
+                n("true_turn", "median"),
+                n("true_turn", "p90"),
+                n("true_turn", "worst"),
+                v["neutral"]["warned"],
+            );
+        }
     }
     Ok(())
 }

@@ -24,6 +24,7 @@ mod retarget;
 mod rig;
 mod rig_accuracy;
 mod rig_dense;
+mod rig_neutral;
 mod scale;
 mod settings_walk;
 mod smoothing;

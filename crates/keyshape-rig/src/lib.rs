@@ -26,7 +26,10 @@ pub mod temporal;
 
 use frame::{frame_depth, frame_points, FrameSolver};
 pub use identifiability::{identifiability, identifiability_weighted};
-pub use neutral::{NEUTRAL_CANDIDATES, NEUTRAL_SCORED_FRAMES};
+pub use neutral::{
+    NeutralView, NEUTRAL_CANDIDATES, NEUTRAL_LIPS_WARN, NEUTRAL_SCORED_FRAMES,
+    NEUTRAL_TURN_WARN_DEG,
+};
 pub use prior::{is_gaze, track_iod, EXCLUSIVE, GAZE_DAMPING};
 pub use solve::{solve_rig, zero_phase};
 
@@ -511,6 +514,9 @@ pub struct RigSolve {
     /// The neutral column of each clip's identity (empty with `Identity::None`; one with
     /// an explicit neutral).
     pub neutrals: Vec<usize>,
+    /// Per entry of `neutrals`, how that frame looks (head pose, the expression the rig as
+    /// it is sees in it); for a lead-in, its middle frame.
+    pub neutral_views: Vec<NeutralView>,
     /// The rig each range of frames was solved with: the person's (the rig with the
     /// identity applied), or the rig itself with `Identity::None`.
     pub people: Vec<(Range<usize>, Rig)>,

@@ -12,39 +12,41 @@ use keyshape_core::rbf::Rbf;
 use nalgebra::DMatrix;
 use std::ops::Range;
 
-/// Of `frames`, those that look neutral: lips no more parted and brows no higher than the
-/// median of `frames` (each as a fraction of the frame's inter-ocular distance: the inner
-/// lips' gap, iBUG 62–66 / MediaPipe 13–14; each brow's middle above its upper lid, iBUG
-/// 19–37 and 24–44 / MediaPipe 105–159 and 334–386). A frame with parted lips or raised
-/// brows is then never the neutral. All of `frames` when the rig does not read those
-/// points (or the eye corners).
-pub(super) fn neutral_looking(rig: &Rig, track: &DMatrix<f64>, frames: Vec<usize>) -> Vec<usize> {
+/// A frame's lips and brows, each as a fraction of the frame's inter-ocular distance: the
+/// inner lips' gap (iBUG 62–66 / MediaPipe 13–14) and each brow's middle above its upper lid
+/// (iBUG 19–37 and 24–44 / MediaPipe 105–159 and 334–386), averaged. `None` when the rig
+/// does not read those points (or the eye corners).
+pub(super) fn lips_and_brows(rig: &Rig, track: &DMatrix<f64>, f: usize) -> Option<(f64, f64)> {
     let (lips, brows): ([usize; 2], [[usize; 2]; 2]) = match rig.layout {
         68 => ([62, 66], [[19, 37], [24, 44]]),
         _ => ([13, 14], [[105, 159], [334, 386]]),
     };
     let at = |p: usize| rig.points.iter().position(|&q| q == p);
-    let (Some(eyes), Some(l0), Some(l1)) = (rig.eyes(), at(lips[0]), at(lips[1])) else {
-        return frames;
-    };
-    let brows: Option<Vec<[usize; 2]>> = brows
+    let eyes = rig.eyes()?;
+    let (l0, l1) = (at(lips[0])?, at(lips[1])?);
+    let brows: Vec<[usize; 2]> = brows
         .iter()
         .map(|[b, e]| Some([at(*b)?, at(*e)?]))
-        .collect();
-    let Some(brows) = brows else { return frames };
-    let pt = |i: usize, f: usize| [track[(2 * i, f)], track[(2 * i + 1, f)]];
+        .collect::<Option<_>>()?;
+    let pt = |i: usize| [track[(2 * i, f)], track[(2 * i + 1, f)]];
     let dist = |a: [f64; 2], b: [f64; 2]| ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt();
-    let measure = |f: usize| {
-        let iod = dist(pt(eyes[0], f), pt(eyes[1], f)).max(f64::MIN_POSITIVE);
-        let gap = dist(pt(l0, f), pt(l1, f)) / iod;
-        let raise = brows
-            .iter()
-            .map(|[b, e]| dist(pt(*b, f), pt(*e, f)))
-            .sum::<f64>()
-            / (2.0 * iod);
-        (gap, raise)
+    let iod = dist(pt(eyes[0]), pt(eyes[1])).max(f64::MIN_POSITIVE);
+    let gap = dist(pt(l0), pt(l1)) / iod;
+    let raise = brows.iter().map(|[b, e]| dist(pt(*b), pt(*e))).sum::<f64>() / (2.0 * iod);
+    Some((gap, raise))
+}
+
+/// Of `frames`, those that look neutral: lips no more parted and brows no higher than the
+/// median of `frames` ([`lips_and_brows`]). A frame with parted lips or raised brows is then
+/// never the neutral. All of `frames` when the rig does not read those points.
+pub(super) fn neutral_looking(rig: &Rig, track: &DMatrix<f64>, frames: Vec<usize>) -> Vec<usize> {
+    let Some(m) = frames
+        .iter()
+        .map(|&f| lips_and_brows(rig, track, f))
+        .collect::<Option<Vec<(f64, f64)>>>()
+    else {
+        return frames;
     };
-    let m: Vec<(f64, f64)> = frames.iter().map(|&f| measure(f)).collect();
     let median = |mut v: Vec<f64>| {
         v.sort_by(f64::total_cmp);
         v[v.len() / 2]
@@ -85,32 +87,128 @@ pub(super) fn evenly_spaced(r: Range<usize>, count: usize) -> Vec<usize> {
         .collect()
 }
 
+/// A neutral frame turned further than this (degrees from frontal) is reported as not
+/// looking neutral: its identity is lifted from a turned head.
+pub const NEUTRAL_TURN_WARN_DEG: f64 = 20.0;
+/// A neutral frame whose inner lips are further apart than this fraction of its
+/// inter-ocular distance is reported as not looking neutral (the ICT rig's neutral: 0.01).
+pub const NEUTRAL_LIPS_WARN: f64 = 0.08;
+
+/// How a neutral frame looks: its head pose and how much expression the rig as it is sees
+/// in it.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct NeutralView {
+    /// The frame's column in the track.
+    pub frame: usize,
+    /// Head yaw, pitch and roll in degrees ([`Camera::yaw_pitch_roll`]) of the rig's neutral
+    /// fitted to the frame.
+    pub yaw_pitch_roll: [f64; 3],
+    /// The angle in degrees between the face's forward axis and the view direction (0:
+    /// frontal).
+    pub turn: f64,
+    /// The frame's weights summed, solved with the rig as it is (no identity, every shape
+    /// free): the expression the frame holds, and the person's difference from the rig,
+    /// which reads as expression too (another person's neutral face sums to 6–9 on the
+    /// benchmark's renders), so it ranks a person's frames but says nothing alone.
+    pub activity: f64,
+    /// The inner lips' gap as a fraction of the inter-ocular distance (NaN when the rig
+    /// does not read the points).
+    pub lip_gap: f64,
+    /// Whether the frame looks neutral: turned at most [`NEUTRAL_TURN_WARN_DEG`] and the
+    /// lips parted at most [`NEUTRAL_LIPS_WARN`]. A held expression (a half smile kept
+    /// through the whole take) is not caught: without a neutral frame it cannot be told
+    /// from the person's face.
+    pub looks_neutral: bool,
+}
+
+/// The pose and first-pass activity of each of `frames` ([`NeutralView`]).
+pub(super) fn views(
+    rig: &Rig,
+    (track, depth): (&DMatrix<f64>, Option<&DMatrix<f64>>),
+    frames: &[usize],
+    opts: &RigOptions,
+    lw: &[f64],
+    iod: f64,
+) -> Result<Vec<NeutralView>> {
+    use rayon::prelude::*;
+    frames
+        .par_chunks(8)
+        .map(|chunk| -> Result<Vec<NeutralView>> {
+            let all: Vec<usize> = (0..rig.k()).collect();
+            let mut fs = FrameSolver::new(rig, all, opts.solver, opts.max_steps.max(1), lw);
+            fs.ridge = magnitude_prior(iod, opts, rig, &fs.free);
+            fs.pairs = exclusive_pairs(rig, &fs.free, &fs.ridge);
+            fs.taper = super::prior::tapering(rig, opts, &fs.free, &fs.ridge);
+            chunk
+                .iter()
+                .map(|&f| {
+                    let u = frame_points(track, f);
+                    let cam = fit_camera(&rig.neutral, &u)?;
+                    fs.depth = frame_depth(depth, f);
+                    // Each frame from rest: a warm start would carry one frame's
+                    // expression into the next candidate's.
+                    fs.w.iter_mut().for_each(|w| *w = 0.0);
+                    fs.state
+                        .iter_mut()
+                        .for_each(|b| *b = keyshape_core::solve::active_set::Bound::Lower);
+                    fs.solve(&u)?;
+                    let activity: f64 = fs.full_weights().iter().sum();
+                    let ypr = cam.yaw_pitch_roll().map(f64::to_degrees);
+                    let turn = cam.r[(2, 2)].clamp(-1.0, 1.0).acos().to_degrees();
+                    let lip_gap = lips_and_brows(rig, track, f).map_or(f64::NAN, |m| m.0);
+                    Ok(NeutralView {
+                        frame: f,
+                        yaw_pitch_roll: ypr,
+                        turn,
+                        activity,
+                        lip_gap,
+                        looks_neutral: turn <= NEUTRAL_TURN_WARN_DEG
+                            && (lip_gap.is_nan() || lip_gap <= NEUTRAL_LIPS_WARN),
+                    })
+                })
+                .collect()
+        })
+        .collect::<Result<Vec<Vec<NeutralView>>>>()
+        .map(|v| v.into_iter().flatten().collect())
+}
+
 /// The frame of `clip` whose identity best explains the clip ([`Neutral::Auto`]): for each
-/// of up to [`NEUTRAL_CANDIDATES`] evenly spaced candidates, the person's rig from that
-/// frame, its identifiability, and a solve (no temporal prior) of up to
-/// [`NEUTRAL_SCORED_FRAMES`] evenly spaced frames; the candidate with the lowest total
-/// (weighted) squared landmark error, centred over the scored frames, wins, ties to the
-/// earlier frame. A neutral face is one from which the rest of the performance is reached
-/// with the weights inside their bounds; a frame that already holds an expression (raised
-/// brows, say) leaves every frame with less of it unexplained. Centred: the candidate's own
-/// landmark noise becomes part of the person and leaves every scored frame the same
-/// residual, which the centring takes out; uncentred, that noise decided between
-/// candidates (on the benchmark's blinks it took a frame inside the held smile over the
-/// lead-in). The search scores with the plain ridge, not the tapered prior (tapered, it
-/// took the held smile again).
+/// of up to [`NEUTRAL_CANDIDATES`] evenly spaced candidates that look neutral
+/// ([`neutral_looking`]), the person's rig from that frame, its identifiability, and a solve
+/// (no temporal prior) of up to [`NEUTRAL_SCORED_FRAMES`] evenly spaced frames; the
+/// candidate with the lowest total (weighted) squared landmark error, centred over the
+/// scored frames, wins, ties to the earlier frame. A neutral face is one from which the rest
+/// of the performance is reached with the weights inside their bounds; a frame that already
+/// holds an expression (raised brows, say) leaves every frame with less of it unexplained.
+/// Centred: the candidate's own landmark noise becomes part of the person and leaves every
+/// scored frame the same residual, which the centring takes out; uncentred, that noise
+/// decided between candidates (on the benchmark's blinks it took a frame inside the held
+/// smile over the lead-in). The search scores with the plain ridge, not the tapered prior
+/// (tapered, it took the held smile again).
+///
+/// Two further rules were measured on renders (`kslab rig-accuracy --seeds 1..10`) and not
+/// adopted; docs/src/rig_accuracy.md, "The automatic neutral", has the tables:
+/// - keeping only near-frontal candidates (within 10° or 20° of the most frontal one):
+///   the error score already passes over turned frames when the person's depth differs
+///   from the rig's (`--person deep`), and where the frontal frames all hold an expression
+///   the rule lowered mean r (0.907 → 0.872 at yaw ±35°, no lead-in);
+/// - keeping the less active half (first-pass weights summed at most the median): it took
+///   the lead-in over the held smile on blinks (mean r 0.897 → 0.961) but lost elsewhere
+///   without a lead-in (smooth 0.952 → 0.938), and on the built-in track it moved the
+///   neutral from frame 41 to 46, after which `mouthFrown_*` reached 1.0 on 32 of 216
+///   frames.
 pub(super) fn best_explaining(
     rig: &Rig,
-    track: &DMatrix<f64>,
-    depth: Option<&DMatrix<f64>>,
+    (track, depth): (&DMatrix<f64>, Option<&DMatrix<f64>>),
     clip: Range<usize>,
     opts: &RigOptions,
     lw: &[f64],
 ) -> Result<usize> {
     use rayon::prelude::*;
     let candidates = neutral_looking(rig, track, evenly_spaced(clip.clone(), NEUTRAL_CANDIDATES));
-    let scored = evenly_spaced(clip, NEUTRAL_SCORED_FRAMES);
     // (Never causal: a causal solve is given its neutral.)
     let iod = super::prior::prior_iod(rig, track, opts, 0..1);
+    let scored = evenly_spaced(clip, NEUTRAL_SCORED_FRAMES);
     let scores: Vec<Result<(usize, f64)>> = candidates
         .par_iter()
         .map(|&n| -> Result<(usize, f64)> {

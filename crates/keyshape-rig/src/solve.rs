@@ -4,7 +4,7 @@
 use super::camera::{fit_camera, Camera};
 use super::frame::{frame_depth, frame_points, FrameSolver};
 use super::identifiability::identifiability_weighted;
-use super::neutral::{best_explaining, person_rig};
+use super::neutral::{best_explaining, person_rig, views};
 use super::prior::{exclusive_pairs, magnitude_prior, prior_iod, tapering};
 use super::{correspondence, temporal, Identity, Neutral, Rig, RigOptions, RigSolve, LANDMARKS};
 use keyshape_core::error::{Error, Result};
@@ -129,7 +129,7 @@ pub fn solve_rig(
                 for c in clips {
                     let n = match first {
                         Some(first) if auto == Neutral::LeastActive => least_active(c, first),
-                        _ => best_explaining(rig, track, depth, c.clone(), opts, &lw)?,
+                        _ => best_explaining(rig, (track, depth), c.clone(), opts, &lw)?,
                     };
                     people.push((c.clone(), person_rig(rig, track, depth, n..n + 1, id)?));
                     neutrals.push(n);
@@ -147,6 +147,7 @@ pub fn solve_rig(
     let shapes = identifiability_weighted(&people[0].1, &cam_n, opts.min_determination, &lw);
     let free: Vec<usize> = (0..rig.k()).filter(|&s| !shapes[s].frozen).collect();
     let mut out = run(rig, (track, depth), &people, free, opts, &lw, iod)?;
+    out.neutral_views = views(rig, (track, depth), &neutrals, opts, &lw, iod)?;
     out.shapes = shapes;
     out.neutrals = neutrals;
     out.people = people;
@@ -381,6 +382,7 @@ pub(super) fn run(
         sweeps_unconverged,
         shapes: Vec::new(),
         neutrals: Vec::new(),
+        neutral_views: Vec::new(),
         people: Vec::new(),
     })
 }

@@ -329,6 +329,7 @@ pub fn run(a: &RigArgs) -> Result<()> {
         .collect();
     let mean_rms = r.rms.iter().sum::<f64>() / r.rms.len() as f64;
     let neutral_frames: Vec<i64> = r.neutrals.iter().map(|&c| seq.frames[c]).collect();
+    warn_unneutral(&r, &seq, neutral);
     if a.json {
         let v = json!({
             "frames": seq.n_frames(),
@@ -345,6 +346,15 @@ pub fn run(a: &RigArgs) -> Result<()> {
                 (_, Neutral::Span(x, y)) => Some(format!("{}-{}", seq.frames[x], seq.frames[y - 1])),
             },
             "neutral_frames": neutral_frames,
+            "neutral_views": r.neutral_views.iter().map(|v| json!({
+                "frame": seq.frames[v.frame],
+                "yaw": v.yaw_pitch_roll[0],
+                "pitch": v.yaw_pitch_roll[1],
+                "roll": v.yaw_pitch_roll[2],
+                "turn": v.turn,
+                "lip_gap": (!v.lip_gap.is_nan()).then_some(v.lip_gap),
+                "looks_neutral": v.looks_neutral,
+            })).collect::<Vec<_>>(),
             "layout": rig.layout,
             "landmarks": rig.landmarks(),
             "irises": rig.sees_pupils(),
@@ -378,10 +388,14 @@ pub fn run(a: &RigArgs) -> Result<()> {
             opts.prior,
             opts.zero_phase,
             a.identity.name(),
-            match neutral_frames.len() {
-                0 => String::new(),
-                1 => format!(" from frame {}", neutral_frames[0]),
-                n => format!(" per clip ({n} neutral frames)"),
+            match (neutral_frames.len(), r.neutral_views.first()) {
+                (0, _) => String::new(),
+                (1, Some(v)) => format!(
+                    " from frame {} (yaw {:.0}°, pitch {:.0}°)",
+                    neutral_frames[0], v.yaw_pitch_roll[0], v.yaw_pitch_roll[1]
+                ),
+                (1, None) => format!(" from frame {}", neutral_frames[0]),
+                (n, _) => format!(" per clip ({n} neutral frames)"),
             },
             mean_rms,
             frozen.len(),
@@ -394,6 +408,37 @@ pub fn run(a: &RigArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// A warning on stderr for each neutral frame that does not look neutral (a turned head,
+/// parted lips): what was seen and what to do.
+fn warn_unneutral(r: &keyshape_rig::RigSolve, seq: &Sequence, neutral: Neutral) {
+    let searched = matches!(neutral, Neutral::Auto | Neutral::LeastActive);
+    for v in r.neutral_views.iter().filter(|v| !v.looks_neutral) {
+        let mut what = Vec::new();
+        if v.turn > keyshape_rig::NEUTRAL_TURN_WARN_DEG {
+            what.push(format!(
+                "the head is turned {:.0}° (yaw {:.0}°, pitch {:.0}°)",
+                v.turn, v.yaw_pitch_roll[0], v.yaw_pitch_roll[1]
+            ));
+        }
+        if v.lip_gap > keyshape_rig::NEUTRAL_LIPS_WARN {
+            what.push(format!(
+                "the lips are parted ({:.0} % of the eye-corner distance)",
+                100.0 * v.lip_gap
+            ));
+        }
+        let advice = if searched {
+            "no candidate frame looked neutral: record a second or two of a relaxed, frontal face at the start of a take and name it with --neutral FIRST-LAST"
+        } else {
+            "an identity taken from it reads the difference as expression: name a relaxed, frontal frame or stretch with --neutral"
+        };
+        eprintln!(
+            "warning: neutral frame {}: {}; {advice}",
+            seq.frames[v.frame],
+            what.join(", ")
+        );
+    }
 }
 
 /// The neutral lead-in `--live` takes by default: the first 30 frames, `kslab live`'s

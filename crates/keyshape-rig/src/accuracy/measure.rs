@@ -54,6 +54,23 @@ pub struct Summary {
     pub min_peak_reach: Option<f64>,
     /// The largest lag (frames, either way) of an active shape.
     pub max_abs_lag: i64,
+    /// The neutral the solve chose (its first clip's), measured against the truth; `None`
+    /// without an identity. Filled by [`run`](super::run), not by [`measure`].
+    pub neutral: Option<NeutralTruth>,
+}
+
+/// The chosen neutral frame against the truth: how much expression it truly held and how
+/// far the head was truly turned, beside what the solve saw.
+#[derive(Debug, Clone, Copy, serde::Serialize)]
+pub struct NeutralTruth {
+    /// The frame's column (a lead-in's middle frame).
+    pub frame: usize,
+    /// The true weights at the frame, summed (0 for a truly neutral frame).
+    pub true_expression: f64,
+    /// The true head turn at the frame, degrees from frontal.
+    pub true_turn: f64,
+    /// What the solve saw there ([`crate::NeutralView`]).
+    pub view: crate::NeutralView,
 }
 
 /// The left/right twin of a shape name (`_L` ↔ `_R`), if the rig has it.
@@ -168,6 +185,7 @@ pub fn measure(
             .filter_map(|r| r.lag.map(i64::abs))
             .max()
             .unwrap_or(0),
+        neutral: None,
     };
     (rows, summary)
 }

@@ -15,7 +15,7 @@ use serde::Serialize;
 
 mod measure;
 
-pub use measure::{measure, twin, ShapeAccuracy, Summary};
+pub use measure::{measure, twin, NeutralTruth, ShapeAccuracy, Summary};
 
 /// The kind of performance rendered.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -110,7 +110,29 @@ pub struct Settings {
     /// in the x axis's pixels, more negative closer to the camera, its origin an arbitrary
     /// offset (here 40 px), with the same noise as x and y.
     pub depth: bool,
+    /// With `other_person`, the other face's depth differs too: its depth about the face's
+    /// mean depth scaled by a seeded 0.8–0.9 or 1.1–1.2 (a flatter or deeper face, a nose
+    /// shorter or longer), which a frontal view barely shows and a turned head does.
+    pub other_depth: bool,
+    /// A held expression on every frame, the lead-in too, so no frame is neutral: a seeded
+    /// mix of [`HOLD_SHAPES`] whose weights sum to `hold`, breathing slowly between 70 % and
+    /// 100 % of it (the least expressive frame still holds 0.7 × `hold`). 0: none.
+    pub hold: f64,
 }
+
+/// The shapes a held expression ([`Settings::hold`]) is mixed from: a face's resting
+/// habits (a half smile, pressed lips, a squint, a raised inner brow), none of them a shape
+/// the performances move.
+pub const HOLD_SHAPES: [&str; 8] = [
+    "mouthSmile_L",
+    "mouthPress_L",
+    "mouthPress_R",
+    "cheekSquint_L",
+    "cheekSquint_R",
+    "eyeSquint_R",
+    "browInnerUp_L",
+    "mouthDimple_R",
+];
 
 impl Default for Settings {
     fn default() -> Self {
@@ -125,6 +147,8 @@ impl Default for Settings {
             pitch_deg: 9.0,
             seed: 7,
             depth: false,
+            other_depth: false,
+            hold: 0.0,
         }
     }
 }
@@ -153,6 +177,12 @@ impl Settings {
         }
         if self.iod_px <= 0.0 {
             return Err(bad("inter-ocular distance (px)", self.iod_px));
+        }
+        if !(self.hold.is_finite() && (0.0..=3.0).contains(&self.hold)) {
+            return Err(Error::invalid(format!(
+                "a held expression of {} is not allowed: give its total weight in [0, 3]",
+                self.hold
+            )));
         }
         Ok(())
     }
@@ -336,6 +366,22 @@ pub fn other_person(rig: &Rig, seed: u64) -> Rig {
     }
 }
 
+/// [`Settings::other_depth`]: `person`'s depth about its mean scaled by a seeded factor,
+/// 0.8–0.9 or 1.1–1.2.
+fn deepen(person: &mut Rig, seed: u64) {
+    let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(seed ^ 0xdee9_face);
+    let k = if rng.gen_bool(0.5) {
+        rng.gen_range(0.8..0.9)
+    } else {
+        rng.gen_range(1.1..1.2)
+    };
+    let n = person.neutral.len().max(1) as f64;
+    let mz = person.neutral.iter().map(|p| p[2]).sum::<f64>() / n;
+    for p in person.neutral.iter_mut() {
+        p[2] = mz + k * (p[2] - mz);
+    }
+}
+
 /// Per landmark of `rig`: is it on the lips, is it on an eye (lids, corners, irises)? From
 /// the track layout: iBUG 48–67 and 36–47; MediaPipe's `lips`, eye and iris groups.
 fn parts(rig: &Rig) -> (Vec<bool>, Vec<bool>) {
@@ -363,6 +409,35 @@ fn parts(rig: &Rig) -> (Vec<bool>, Vec<bool>) {
     )
 }
 
+/// Adds a held expression summing to `total` ([`Settings::hold`]) to every frame of
+/// `truth`, each weight held at most 1.
+fn hold_expression(
+    rig: &Rig,
+    truth: &mut DMatrix<f64>,
+    total: f64,
+    rng: &mut impl Rng,
+) -> Result<()> {
+    // Three of the shapes, their shares seeded; a share past 1 is spread no further.
+    let mut picks: Vec<usize> = Vec::new();
+    while picks.len() < 3 {
+        let s = index(rig, HOLD_SHAPES[rng.gen_range(0..HOLD_SHAPES.len())])?;
+        if !picks.contains(&s) {
+            picks.push(s);
+        }
+    }
+    let shares: Vec<f64> = (0..3).map(|_| rng.gen_range(0.5..1.0)).collect();
+    let sum: f64 = shares.iter().sum();
+    let phase = rng.gen_range(0.0..std::f64::consts::TAU);
+    for f in 0..truth.ncols() {
+        let breath = 0.85 + 0.15 * (std::f64::consts::TAU * f as f64 / 150.0 + phase).sin();
+        for (&s, share) in picks.iter().zip(&shares) {
+            let v = truth[(s, f)] + total * share / sum * breath;
+            truth[(s, f)] = v.min(1.0);
+        }
+    }
+    Ok(())
+}
+
 /// Renders the benchmark track of `st` through `rig`.
 pub fn render(rig: &Rig, st: &Settings) -> Result<Track> {
     st.check()?;
@@ -376,8 +451,15 @@ pub fn render(rig: &Rig, st: &Settings) -> Result<Track> {
     let total = st.lead_in + st.frames;
     let mut truth = DMatrix::zeros(rig.k(), total);
     truth.columns_mut(st.lead_in, st.frames).copy_from(&perf);
+    if st.hold > 0.0 {
+        hold_expression(rig, &mut truth, st.hold, &mut rng)?;
+    }
     let person = if st.other_person {
-        other_person(rig, st.seed)
+        let mut p = other_person(rig, st.seed);
+        if st.other_depth {
+            deepen(&mut p, st.seed);
+        }
+        p
     } else {
         rig.clone()
     };
@@ -441,6 +523,15 @@ pub fn run(
 ) -> Result<(Track, DMatrix<f64>, Vec<ShapeAccuracy>, Summary)> {
     let track = render(rig, st)?;
     let solved = solve_rig(rig, &track.points, &[], opts)?;
-    let (rows, summary) = measure(&rig.names, &track.truth, &solved.weights);
+    let (rows, mut summary) = measure(&rig.names, &track.truth, &solved.weights);
+    summary.neutral = solved.neutral_views.first().map(|v| NeutralTruth {
+        frame: v.frame,
+        true_expression: track.truth.column(v.frame).sum(),
+        true_turn: track.cameras[v.frame].r[(2, 2)]
+            .clamp(-1.0, 1.0)
+            .acos()
+            .to_degrees(),
+        view: *v,
+    });
     Ok((track, solved.weights, rows, summary))
 }
