@@ -100,8 +100,9 @@ pub const NEUTRAL_LIPS_WARN: f64 = 0.08;
 pub struct NeutralView {
     /// The frame's column in the track.
     pub frame: usize,
-    /// Head yaw, pitch and roll in degrees ([`Camera::yaw_pitch_roll`]) of the rig's neutral
-    /// fitted to the frame.
+    /// Head yaw, pitch and roll in degrees
+    /// ([`Camera::yaw_pitch_roll`](crate::camera::Camera::yaw_pitch_roll)) of the rig's
+    /// neutral fitted to the frame.
     pub yaw_pitch_roll: [f64; 3],
     /// The angle in degrees between the face's forward axis and the view direction (0:
     /// frontal).
