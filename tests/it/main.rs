@@ -25,6 +25,7 @@ mod rig;
 mod rig_accuracy;
 mod rig_dense;
 mod rig_neutral;
+mod rig_plausible;
 mod scale;
 mod settings_walk;
 mod smoothing;

@@ -19,6 +19,7 @@ mod identifiability;
 pub mod live;
 pub mod livelink;
 mod neutral;
+pub mod plausibility;
 mod prior;
 mod solve;
 pub mod study;

@@ -171,6 +171,14 @@ pub struct RigArgs {
     /// Print a JSON summary: per-shape identifiability, neutral frame, errors, steps.
     #[arg(long)]
     json: bool,
+    /// Also check the weights against the track's own geometry, where no ground truth
+    /// exists: each eye's blink against that eye's lid gap over its width, jawOpen against
+    /// the inner lips' gap, the smiles against the mouth's width (Pearson r, with the
+    /// geometry's range), each twin pair's gap on the frames where the face is symmetric,
+    /// and the shapes on (> 0.5) on more than 20 % of frames. Printed after the summary
+    /// (`--json`: `plausibility`).
+    #[arg(long)]
+    plausibility: bool,
 }
 
 /// Runs `kslab rig`.
@@ -225,6 +233,20 @@ pub fn run(a: &RigArgs) -> Result<()> {
         _ => seq.select_points(&keyshape_rig::mediapipe_to_ibug68()?)?,
     };
     seq.check_geometry()?;
+    // The 68 iBUG points' image rows, for --plausibility's geometry.
+    let track68 = if a.plausibility {
+        let s68 = match seq.points {
+            68 => None,
+            _ => Some(seq.select_points(&keyshape_rig::mediapipe_to_ibug68()?)?),
+        };
+        let s68 = s68.as_ref().unwrap_or(&seq);
+        let xy: Vec<usize> = (0..68)
+            .flat_map(|i| [s68.dims * i, s68.dims * i + 1])
+            .collect();
+        Some(s68.coords.select_rows(&xy))
+    } else {
+        None
+    };
     let dir = match &a.rig {
         Some(d) => d.clone(),
         None => shared_data("ict_facekit_face")?,
@@ -330,6 +352,10 @@ pub fn run(a: &RigArgs) -> Result<()> {
     let mean_rms = r.rms.iter().sum::<f64>() / r.rms.len() as f64;
     let neutral_frames: Vec<i64> = r.neutrals.iter().map(|&c| seq.frames[c]).collect();
     warn_unneutral(&r, &seq, neutral);
+    let plausible = track68.as_ref().map(|t| {
+        let clips = clip_ranges(seq.segments.as_deref().unwrap_or(&[]));
+        keyshape_rig::plausibility::plausibility(&rig.names, &r.weights, t, &clips)
+    });
     if a.json {
         let v = json!({
             "frames": seq.n_frames(),
@@ -370,6 +396,7 @@ pub fn run(a: &RigArgs) -> Result<()> {
             "unconverged": r.unconverged,
             "mean_steps": r.steps.iter().map(|&x| f64::from(x)).sum::<f64>() / r.steps.len() as f64,
             "min_determination": a.min_determination,
+            "plausibility": plausible,
             "identifiability": r.shapes.iter().map(|s| json!({
                 "shape": s.name,
                 "image_motion": s.image_motion,
@@ -406,8 +433,53 @@ pub fn run(a: &RigArgs) -> Result<()> {
             },
             r.unconverged
         );
+        if let Some(p) = &plausible {
+            for line in plausibility_lines(p) {
+                sayln!(taken, "{line}");
+            }
+        }
     }
     Ok(())
+}
+
+/// `--plausibility`'s report, line by line.
+fn plausibility_lines(p: &keyshape_rig::plausibility::Plausibility) -> Vec<String> {
+    let mut out = vec![format!(
+        "plausibility over {} frames (the track's own geometry; no ground truth):",
+        p.frames
+    )];
+    for g in &p.agreements {
+        out.push(format!(
+            "  {:<15} r {:>6.3} against {} (range {:.3} of the eye-corner distance)",
+            g.weights, g.r, g.geometry, g.geometry_range
+        ));
+    }
+    let mut twins: Vec<_> = p.twins.iter().collect();
+    twins.sort_by(|a, b| b.mean_gap.total_cmp(&a.mean_gap));
+    out.push(format!(
+        "  twins on symmetric frames, mean |L − R| (largest): {}",
+        twins
+            .iter()
+            .take(4)
+            .map(|t| format!("{} {:.2} ({:.2})", t.pair, t.mean_gap, t.max_gap))
+            .collect::<Vec<_>>()
+            .join(", ")
+    ));
+    let mut on: Vec<_> = p.on_rate.iter().filter(|x| x.1 > 0.2).collect();
+    on.sort_by(|a, b| b.1.total_cmp(&a.1));
+    out.push(format!(
+        "  on (> {}) on more than 20 % of frames: {}",
+        keyshape_rig::plausibility::ON,
+        if on.is_empty() {
+            "none".to_string()
+        } else {
+            on.iter()
+                .map(|(n, v)| format!("{n} {:.0} %", 100.0 * v))
+                .collect::<Vec<_>>()
+                .join(", ")
+        }
+    ));
+    out
 }
 
 /// A warning on stderr for each neutral frame that does not look neutral (a turned head,
