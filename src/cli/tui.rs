@@ -98,8 +98,10 @@ pub fn run(a: &TuiArgs) -> Result<()> {
         None => None,
         Some(d) => {
             let rig = keyshape_rig::correspondence::RigSource::new(d);
-            let view = kslab_tui::rig::rig_view(&seq, &rig)?;
-            Some((rig, view))
+            // Checked now, so a track or rig that cannot be solved fails with its reason;
+            // solved in the background once the lab is open.
+            kslab_tui::rig::prepare(&seq, &rig)?;
+            Some(rig)
         }
     };
     kslab_tui::run_sized(

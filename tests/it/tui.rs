@@ -709,15 +709,30 @@ fn the_rig_stays_with_the_lab_when_another_sequence_is_opened() {
     jobs.send(Job::Load(3, d18.display().to_string())).unwrap();
     let mut s = State::new("builtin", 216, 30.0);
     s.request = 3;
+    // The rig solves on its own worker, each step named, until its answer to request 3.
     let mut got = Vec::new();
-    while got.len() < 2 {
+    let mut steps = Vec::new();
+    loop {
         let a = results.recv_timeout(Duration::from_secs(60)).unwrap();
         got.push(format!("{a:?}").chars().take(12).collect::<String>());
+        let done = matches!(a, Action::RigSolved(3, _));
+        if let Action::RigStep(3, step) = &a {
+            steps.push(step.clone());
+        }
         update(&mut s, a);
+        if done {
+            break;
+        }
     }
     assert!(
         s.rig.is_some() && s.show_rig,
         "{got:?}: the new track is not on the rig"
+    );
+    assert!(s.rig_step.is_none(), "{:?}", s.rig_step);
+    assert!(
+        steps.iter().any(|t| t.starts_with("choosing the neutral"))
+            && steps.iter().any(|t| t.starts_with("solving 216 frames")),
+        "{steps:?}"
     );
     // A track of no layout the rig knows: the key-shape view, and the reason.
     let d = tempfile::tempdir().unwrap();
@@ -730,9 +745,13 @@ fn the_rig_stays_with_the_lab_when_another_sequence_is_opened() {
     jobs.send(Job::Load(4, plain.display().to_string()))
         .unwrap();
     s.request = 4;
-    for _ in 0..2 {
+    loop {
         let a = results.recv_timeout(Duration::from_secs(60)).unwrap();
+        let done = matches!(a, Action::RigSolved(4, _));
         update(&mut s, a);
+        if done {
+            break;
+        }
     }
     assert!(s.rig.is_none() && !s.show_rig);
     assert!(s.status.starts_with("rig: "), "{}", s.status);
@@ -910,4 +929,57 @@ fn the_readme_screen_is_the_labs_screen() {
             "{doc}: its screen block is not the lab's (UPDATE_SNAPSHOTS=1 rewrites it)"
         );
     }
+}
+
+/// The rig solves on a worker of its own, so the lab opens at once: while it solves, the
+/// header names the step, `r` says the view is coming, and a new λ reuses the neutral of the
+/// last solve — the same weights as a solve that searches for it again, without the search.
+#[test]
+fn the_rig_solves_in_the_background_and_names_its_steps() {
+    let rig =
+        keyshape_rig::correspondence::RigSource::new(crate::common::shared("ict_facekit_face"));
+    let seq = builtin_sequence().unwrap();
+    let mut s = computed_state(Settings::default());
+    let (request, loaded) = (s.request, s.loaded);
+    update(
+        &mut s,
+        Action::RigStep(
+            request,
+            "choosing the neutral: 48 candidate frames, each scored on 64".into(),
+        ),
+    );
+    let text = screen(&s, 120, 30);
+    assert!(text.contains("rig: choosing the neutral"), "{text}");
+    update(&mut s, Action::Rig);
+    assert!(
+        s.status.contains("the rig is still solving"),
+        "{}",
+        s.status
+    );
+    assert!(!s.show_rig);
+    // A λ with the neutral of the first solve: the same as searching again.
+    let mut steps = Vec::new();
+    let first =
+        kslab_tui::rig::rig_view_observed(&seq, &rig, 0.0, None, &mut |t| steps.push(t)).unwrap();
+    assert!(
+        steps.iter().any(|t| t.starts_with("choosing the neutral")),
+        "{steps:?}"
+    );
+    let mut again = Vec::new();
+    let hinted =
+        kslab_tui::rig::rig_view_observed(&seq, &rig, 100.0, first.neutral, &mut |t| again.push(t))
+            .unwrap();
+    assert!(
+        !again.iter().any(|t| t.starts_with("choosing the neutral")),
+        "{again:?}"
+    );
+    let searched = kslab_tui::rig::rig_view_smoothed(&seq, &rig, 100.0).unwrap();
+    assert_eq!(hinted.neutral, searched.neutral);
+    assert_eq!(hinted.weights, searched.weights);
+    // Its answer ends the step.
+    update(
+        &mut s,
+        Action::RigSolved(loaded, Ok(std::sync::Arc::new(first))),
+    );
+    assert!(s.rig_step.is_none() && s.show_rig);
 }

@@ -32,7 +32,7 @@ pub use neutral::{
     NEUTRAL_TURN_WARN_DEG,
 };
 pub use prior::{is_gaze, track_iod, EXCLUSIVE, GAZE_DAMPING};
-pub use solve::{solve_rig, zero_phase};
+pub use solve::{solve_rig, solve_rig_observed, zero_phase};
 
 use camera::Camera;
 use keyshape_core::error::{Error, Result};

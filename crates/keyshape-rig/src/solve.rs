@@ -21,6 +21,18 @@ pub fn solve_rig(
     clips: &[Range<usize>],
     opts: &RigOptions,
 ) -> Result<RigSolve> {
+    solve_rig_observed(rig, track, clips, opts, &mut |_| {})
+}
+
+/// [`solve_rig`], naming each step to `step` as it starts (the neutral search, the first
+/// pass, the frames) — what a waiting user reads.
+pub fn solve_rig_observed(
+    rig: &Rig,
+    track: &DMatrix<f64>,
+    clips: &[Range<usize>],
+    opts: &RigOptions,
+    step: &mut dyn FnMut(String),
+) -> Result<RigSolve> {
     let n = rig.landmarks();
     if track.nrows() != 2 * n && track.nrows() != 3 * n {
         return Err(Error::invalid(format!(
@@ -90,15 +102,23 @@ pub fn solve_rig(
     // Pass 1 (without an identity, or to find the least active frames): the rig as it is,
     // every shape free.
     let first = match (opts.identity, opts.neutral) {
-        (Identity::None, _) | (_, Neutral::LeastActive) => Some(run(
-            rig,
-            (track, depth),
-            &[(0..track.ncols(), rig.clone())],
-            all,
-            opts,
-            &lw,
-            iod,
-        )?),
+        (Identity::None, _) | (_, Neutral::LeastActive) => {
+            if opts.identity != Identity::None {
+                step(format!(
+                    "a first pass over {} frames, to find the least active",
+                    track.ncols()
+                ));
+            }
+            Some(run(
+                rig,
+                (track, depth),
+                &[(0..track.ncols(), rig.clone())],
+                all,
+                opts,
+                &lw,
+                iod,
+            )?)
+        }
         _ => None,
     };
     let least_active = |c: &Range<usize>, first: &RigSolve| {
@@ -127,6 +147,13 @@ pub fn solve_rig(
                 let mut people = Vec::new();
                 let mut neutrals = Vec::new();
                 for c in clips {
+                    if auto == Neutral::Auto {
+                        step(format!(
+                            "choosing the neutral: {} candidate frames, each scored on {}",
+                            c.len().min(super::NEUTRAL_CANDIDATES),
+                            c.len().min(super::NEUTRAL_SCORED_FRAMES)
+                        ));
+                    }
                     let n = match first {
                         Some(first) if auto == Neutral::LeastActive => least_active(c, first),
                         _ => best_explaining(rig, (track, depth), c.clone(), opts, &lw)?,
@@ -146,6 +173,15 @@ pub fn solve_rig(
     };
     let shapes = identifiability_weighted(&people[0].1, &cam_n, opts.min_determination, &lw);
     let free: Vec<usize> = (0..rig.k()).filter(|&s| !shapes[s].frozen).collect();
+    step(format!(
+        "solving {} frames{}",
+        track.ncols(),
+        if opts.smooth > 0.0 {
+            format!(", temporal prior λ {}", opts.smooth)
+        } else {
+            String::new()
+        }
+    ));
     let mut out = run(rig, (track, depth), &people, free, opts, &lw, iod)?;
     out.neutral_views = views(rig, (track, depth), &neutrals, opts, &lw, iod)?;
     out.shapes = shapes;

@@ -381,6 +381,10 @@ pub fn spawn_lab(
 ) -> (Sender<Job>, Receiver<Action>) {
     let (jobs_tx, jobs_rx) = channel::<Job>();
     let (out_tx, out_rx) = channel::<Action>();
+    // The rig solves on a thread of its own, the first track at once.
+    let rig_jobs = rig.as_ref().map(|r| {
+        super::rig_worker::spawn(r.clone(), std::sync::Arc::new(seq.clone()), out_tx.clone())
+    });
     let worker = std::thread::Builder::new().name(WORKER_THREAD.into());
     let run = move || {
         let mut engine = match target {
@@ -418,18 +422,16 @@ pub fn spawn_lab(
                         let fps = seq.fps().unwrap_or(30.0);
                         let (name, n) = (seq.source.clone(), seq.n_frames());
                         rig_smooth = 0.0;
-                        let solved = rig.as_ref().map(|r| {
-                            super::rig::rig_view(&seq, r)
-                                .map(std::sync::Arc::new)
-                                .map_err(|e| e.to_string())
-                        });
+                        if let Some(r) = &rig_jobs {
+                            let _ = r.send(super::rig_worker::RigJob::Load(
+                                id,
+                                std::sync::Arc::new(seq.clone()),
+                            ));
+                        }
                         engine = Engine::new(seq);
                         let _ = out_tx.send(Action::Loaded(id, name, n, fps));
                         if let Some(note) = note {
                             let _ = out_tx.send(Action::Notice(id, note));
-                        }
-                        if let Some(r) = solved {
-                            let _ = out_tx.send(Action::RigSolved(id, r));
                         }
                     }
                     Err(e) => {
@@ -450,12 +452,9 @@ pub fn spawn_lab(
                     }
                     // `l` / `L` also steer the rig view: its offline temporal prior.
                     let lambda = settings.smooth.min(super::rig::RIG_SMOOTH_MAX);
-                    if let Some(r) = rig.as_ref().filter(|_| lambda != rig_smooth) {
+                    if let Some(r) = rig_jobs.as_ref().filter(|_| lambda != rig_smooth) {
                         rig_smooth = lambda;
-                        let v = super::rig::rig_view_smoothed(engine.sequence(), r, lambda)
-                            .map(std::sync::Arc::new)
-                            .map_err(|e| e.to_string());
-                        let _ = out_tx.send(Action::RigSmoothed(id, v));
+                        let _ = r.send(super::rig_worker::RigJob::Smooth(id, lambda));
                     }
                     let mut abandon = || match jobs_rx.try_recv() {
                         Ok(j) => {

@@ -12,6 +12,7 @@ pub mod mesh;
 pub mod request;
 pub mod rig;
 pub mod rig_panels;
+pub mod rig_worker;
 pub mod state;
 pub mod view;
 
@@ -179,7 +180,7 @@ pub fn run(
     path: &str,
     target: Option<keyshape_retarget::target::TargetSet>,
     mesh: Option<mesh::MeshView>,
-    rig: Option<(keyshape_rig::correspondence::RigSource, rig::RigView)>,
+    rig: Option<keyshape_rig::correspondence::RigSource>,
     export_head_motion: bool,
 ) -> anyhow::Result<()> {
     run_sized(seq, path, target, mesh, rig, export_head_motion, None)
@@ -192,7 +193,7 @@ pub fn run_sized(
     path: &str,
     target: Option<keyshape_retarget::target::TargetSet>,
     mesh: Option<mesh::MeshView>,
-    rig: Option<(keyshape_rig::correspondence::RigSource, rig::RigView)>,
+    rig: Option<keyshape_rig::correspondence::RigSource>,
     export_head_motion: bool,
     image_size: Option<(f64, f64)>,
 ) -> anyhow::Result<()> {
@@ -201,12 +202,12 @@ pub fn run_sized(
     s.target_keys = target.is_some();
     s.mesh = mesh.map(std::sync::Arc::new);
     s.show_mesh = false; // the 2-D target first; `x` shows the mesh
-    s.show_rig = rig.is_some(); // opened with --rig: the rig first; `r` toggles
-    let (rig, view) = match rig {
-        Some((r, v)) => (Some(std::sync::Arc::new(r)), Some(std::sync::Arc::new(v))),
-        None => (None, None),
-    };
-    s.rig = view;
+                         // Opened with --rig: the rig view shows once its worker has solved the track (the
+                         // key-shape view meanwhile, the step named in the header); `r` toggles.
+    if rig.is_some() {
+        s.rig_step = Some("starting".into());
+    }
+    let rig = rig.map(std::sync::Arc::new);
     // The rig stays with the lab: a sequence opened with `o` is solved onto it too.
     if let Some(note) = compute::normalised_note(&seq) {
         s.normalised = true;
@@ -220,7 +221,11 @@ pub fn run_sized(
     {
         let restore_hook = restore_hook.clone();
         std::panic::set_hook(Box::new(move |info| {
-            if std::thread::current().name() != Some(compute::WORKER_THREAD) {
+            let name = std::thread::current().name().map(str::to_string);
+            if !matches!(
+                name.as_deref(),
+                Some(compute::WORKER_THREAD | rig_worker::RIG_THREAD)
+            ) {
                 restore_hook(info);
             }
         }));

@@ -5,7 +5,7 @@
 use keyshape_core::error::{Error, Result};
 use keyshape_core::sequence::Sequence;
 use keyshape_rig::correspondence::{check_layout, RigSource};
-use keyshape_rig::{solve_rig, RigOptions};
+use keyshape_rig::{solve_rig_observed, RigOptions};
 
 /// What the lab draws of a rig solve.
 #[derive(Debug, Clone)]
@@ -27,6 +27,24 @@ pub struct RigView {
     /// The offline temporal prior's λ it was solved with (0: off, the zero-phase Gaussian
     /// of [`RigOptions::recommended`] instead).
     pub smooth: f64,
+    /// The neutral frame's column the identity was taken from (a solve for another λ
+    /// reuses it instead of searching again: the search does not depend on λ).
+    pub neutral: Option<usize>,
+}
+
+/// Checks that `seq` can be solved onto the rig `source` names (its layout, the rig's
+/// points, two dimensions, no degenerate frame) and returns the rig and the track reduced
+/// to the rig's points: what the lab checks before it opens, so a bad track or rig fails
+/// at once with its reason while the solve itself runs in the background.
+pub fn prepare(seq: &Sequence, source: &RigSource) -> Result<(keyshape_rig::Rig, Sequence)> {
+    check_layout(seq.points).map_err(|e| Error::invalid(format!("--rig: {e}")))?;
+    let (_, _, rig) = source.read_for(seq.points)?;
+    let seq = seq.select_points(&rig.points)?;
+    if seq.dims != 2 {
+        return Err(Error::invalid("--rig needs a 2-D track"));
+    }
+    seq.check_geometry()?;
+    Ok((rig, seq))
 }
 
 /// Solves `seq` (68 points, or MediaPipe 468 / 478 through every point the rig covers) onto
@@ -43,15 +61,23 @@ pub const RIG_SMOOTH_MAX: f64 = keyshape_core::limits::RIG_SMOOTH.hi;
 /// [`rig_view`] with the offline temporal prior λ (the lab's `l` / `L`) in place of the
 /// zero-phase Gaussian; 0 is [`rig_view`].
 pub fn rig_view_smoothed(seq: &Sequence, source: &RigSource, smooth: f64) -> Result<RigView> {
-    check_layout(seq.points).map_err(|e| Error::invalid(format!("--rig: {e}")))?;
-    let (_, _, rig) = source.read_for(seq.points)?;
-    let seq = seq.select_points(&rig.points)?;
+    rig_view_observed(seq, source, smooth, None, &mut |_| {})
+}
+
+/// [`rig_view_smoothed`], taking the identity from the frame column `neutral` when given
+/// (a [`RigView::neutral`] of the same track: the same weights, without the search) and
+/// naming each step to `step` as it starts.
+pub fn rig_view_observed(
+    seq: &Sequence,
+    source: &RigSource,
+    smooth: f64,
+    neutral: Option<usize>,
+    step: &mut dyn FnMut(String),
+) -> Result<RigView> {
+    step("reading the rig".into());
+    let (rig, seq) = prepare(seq, source)?;
     let rig = &rig;
-    if seq.dims != 2 {
-        return Err(Error::invalid("--rig needs a 2-D track"));
-    }
-    seq.check_geometry()?;
-    let opts = if smooth > 0.0 {
+    let mut opts = if smooth > 0.0 {
         RigOptions {
             smooth,
             smooth_mode: keyshape_core::solve::temporal::SmoothMode::Offline,
@@ -61,7 +87,10 @@ pub fn rig_view_smoothed(seq: &Sequence, source: &RigSource, smooth: f64) -> Res
     } else {
         RigOptions::recommended()
     };
-    let r = solve_rig(rig, &seq.coords, &[], &opts)?;
+    if let Some(n) = neutral.filter(|&n| n < seq.n_frames()) {
+        opts.neutral = keyshape_rig::Neutral::Column(n);
+    }
+    let r = solve_rig_observed(rig, &seq.coords, &[], &opts, step)?;
     let n = seq.n_frames();
     let (mut tracked, mut fitted, mut weights) = (Vec::new(), Vec::new(), Vec::new());
     let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
@@ -99,6 +128,7 @@ pub fn rig_view_smoothed(seq: &Sequence, source: &RigSource, smooth: f64) -> Res
         rms: r.rms,
         polylines: rig.polylines(),
         smooth,
+        neutral: r.neutrals.first().copied(),
         bounds: ([cx - half, cx + half], [cy - half, cy + half]),
     })
 }

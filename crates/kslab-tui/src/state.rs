@@ -78,6 +78,8 @@ pub enum Action {
     RigSolved(u64, Result<std::sync::Arc<super::rig::RigView>, String>),
     /// The rig solved again for a request's temporal prior λ (`l` / `L`).
     RigSmoothed(u64, Result<std::sync::Arc<super::rig::RigView>, String>),
+    /// The rig's worker started a step of a request's solve (named for the screen).
+    RigStep(u64, String),
 }
 
 /// Side effects for the loop to carry out.
@@ -153,6 +155,8 @@ pub struct State {
     pub rig: Option<std::sync::Arc<super::rig::RigView>>,
     /// Show the rig view (track + posed rig, named weights) in place of the two top panels.
     pub show_rig: bool,
+    /// The step the rig's worker is on (`None` when it is idle or there is no rig).
+    pub rig_step: Option<String>,
     /// The request id of the sequence loaded last (its rig solve answers to it).
     pub loaded: u64,
     /// The key frames come from a user target set (`kslab tui --target`), not a method.
@@ -188,6 +192,7 @@ impl State {
             show_mesh: false,
             rig: None,
             show_rig: false,
+            rig_step: None,
             loaded: 0,
             target_keys: false,
             clock: 0.0,
@@ -316,6 +321,12 @@ pub fn update(s: &mut State, action: Action) -> Vec<Effect> {
         Action::Mesh if s.mesh.is_some() => s.show_mesh = !s.show_mesh,
         Action::Mesh => s.status = "no mesh: open the lab with --mesh M.obj".into(),
         Action::Rig if s.rig.is_some() => s.show_rig = !s.show_rig,
+        Action::Rig if s.rig_step.is_some() => {
+            s.status = format!(
+                "the rig is still solving ({}); its view opens when done",
+                s.rig_step.as_deref().unwrap_or("")
+            )
+        }
         Action::Rig => {
             s.status =
                 "no rig: open the lab with --rig DIR (e.g. ../shared/data/ict_facekit_face)".into()
@@ -376,7 +387,13 @@ pub fn update(s: &mut State, action: Action) -> Vec<Effect> {
                 s.status = note;
             }
         }
+        Action::RigStep(id, step) => {
+            if id == s.request || id == s.loaded {
+                s.rig_step = Some(step);
+            }
+        }
         Action::RigSmoothed(id, r) => {
+            s.rig_step = None;
             // Only the newest request's: an older λ's solve is dropped.
             if id == s.request {
                 match r {
@@ -386,6 +403,7 @@ pub fn update(s: &mut State, action: Action) -> Vec<Effect> {
             }
         }
         Action::RigSolved(id, r) => {
+            s.rig_step = None;
             if id == s.loaded {
                 match r {
                     Ok(v) => {

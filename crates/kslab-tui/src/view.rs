@@ -107,10 +107,10 @@ fn header(f: &mut Frame, s: &State, area: Rect) {
         .copied()
         .unwrap_or(s.frame as i64);
     let play = if s.playing { "▶" } else { "⏸" };
-    let busy = if s.busy || s.curves_busy {
-        format!(" {} computing", SPINNER[(s.ticks / 3 % 4) as usize])
-    } else {
-        String::new()
+    let busy = match (&s.rig_step, s.busy || s.curves_busy) {
+        (Some(step), _) => format!(" {} rig: {step}", SPINNER[(s.ticks / 3 % 4) as usize]),
+        (None, true) => format!(" {} computing", SPINNER[(s.ticks / 3 % 4) as usize]),
+        (None, false) => String::new(),
     };
     let short = s.source.rsplit('/').next().unwrap_or(&s.source);
     let keys = if s.target_keys {

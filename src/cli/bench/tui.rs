@@ -19,6 +19,10 @@ pub struct TuiBenchArgs {
     /// Point groups the lab works on (`all` = 468 points).
     #[arg(long, default_value = "all")]
     points: String,
+    /// The rig whose view is measured too (opening it, a new λ, stepping frames)
+    /// [default: ../shared/data/ict_facekit_face when it is there; none otherwise].
+    #[arg(long, value_name = "DIR")]
+    rig: Option<PathBuf>,
 }
 
 pub fn run(a: &TuiBenchArgs) -> Result<()> {
@@ -46,9 +50,10 @@ pub fn run(a: &TuiBenchArgs) -> Result<()> {
     update(&mut s, Action::Computed(Box::new(first)));
     let mut term = Terminal::new(TestBackend::new(120, 40))?;
     let mut lat = Vec::new();
+    // k up eight times, then every method in turn (greedy among them) back to the first.
     let changes: Vec<Action> = (0..8)
         .map(|_| Action::K(1))
-        .chain((0..5).map(|_| Action::Method(true)))
+        .chain((0..keyshape_core::keyshapes::Method::ALL.len()).map(|_| Action::Method(true)))
         .collect();
     let mut background = Vec::new();
     for a in changes {
@@ -80,6 +85,7 @@ pub fn run(a: &TuiBenchArgs) -> Result<()> {
         term.draw(|f| view::draw(f, &s))?;
     }
     let draw = t.elapsed().as_secs_f64() / 20.0 * 1e3;
+    let rig = rig_view_times(a, &engine_seq(&path)?, &mut s, &mut term)?;
     let mut ms: Vec<f64> = lat.iter().map(|x| x.1).collect();
     ms.sort_by(f64::total_cmp);
     outln!(
@@ -113,5 +119,82 @@ pub fn run(a: &TuiBenchArgs) -> Result<()> {
         curves * 1e3,
         rows.len()
     );
+    if let Some(r) = rig {
+        for (step, ms) in &r.open {
+            outln!("| rig view, opening: {step} | {ms:.0} ms |");
+        }
+        outln!(
+            "| **rig view open, total** (in the background: the lab answers meanwhile) | **{:.0} ms** |",
+            r.open.iter().map(|x| x.1).sum::<f64>()
+        );
+        outln!(
+            "| rig view, a new λ (`l`, λ 100: the neutral reused, no search) | {:.0} ms |",
+            r.lambda
+        );
+        outln!(
+            "| rig view, stepping a frame (→) and redrawing, median / max of 30 | {:.1} / {:.1} ms |",
+            r.step[0], r.step[1]
+        );
+    }
     Ok(())
+}
+
+/// The sequence the bench measures, as the lab loads it.
+fn engine_seq(path: &std::path::Path) -> Result<keyshape_core::sequence::Sequence> {
+    Ok(kslab_tui::compute::load(&path.display().to_string())?)
+}
+
+/// What the rig view costs: each step of opening it, a new λ, and stepping frames in it.
+struct RigTimes {
+    open: Vec<(String, f64)>,
+    lambda: f64,
+    step: [f64; 2],
+}
+
+fn rig_view_times(
+    a: &TuiBenchArgs,
+    seq: &keyshape_core::sequence::Sequence,
+    s: &mut State,
+    term: &mut Terminal<TestBackend>,
+) -> Result<Option<RigTimes>> {
+    let dir = match &a.rig {
+        Some(d) => d.clone(),
+        None => match keyshape_io::shared_data("ict_facekit_face") {
+            Ok(d) if d.exists() => d,
+            _ => return Ok(None),
+        },
+    };
+    let source = keyshape_rig::correspondence::RigSource::new(&dir);
+    // Each step's time: from its start to the next's (the last to the answer).
+    let mut marks: Vec<(String, Instant)> = Vec::new();
+    let view = kslab_tui::rig::rig_view_observed(seq, &source, 0.0, None, &mut |t| {
+        marks.push((t, Instant::now()))
+    })?;
+    let end = Instant::now();
+    let open = marks
+        .iter()
+        .enumerate()
+        .map(|(i, (t, at))| {
+            let next = marks.get(i + 1).map_or(end, |m| m.1);
+            (t.clone(), (next - *at).as_secs_f64() * 1e3)
+        })
+        .collect();
+    let t = Instant::now();
+    kslab_tui::rig::rig_view_observed(seq, &source, 100.0, view.neutral, &mut |_| {})?;
+    let lambda = t.elapsed().as_secs_f64() * 1e3;
+    s.rig = Some(std::sync::Arc::new(view));
+    s.show_rig = true;
+    let mut step = Vec::new();
+    for _ in 0..30 {
+        let t = Instant::now();
+        update(s, Action::Step(1));
+        term.draw(|f| view::draw(f, s))?;
+        step.push(t.elapsed().as_secs_f64() * 1e3);
+    }
+    step.sort_by(f64::total_cmp);
+    Ok(Some(RigTimes {
+        open,
+        lambda,
+        step: [step[step.len() / 2], step[step.len() - 1]],
+    }))
 }
