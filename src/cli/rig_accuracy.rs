@@ -109,6 +109,21 @@ pub struct RigAccuracyArgs {
     /// against ground truth"). Needs a prior.
     #[arg(long)]
     no_prior_taper: bool,
+    /// As `kslab rig --robust-landmarks`: landmarks the rig explains much worse than the
+    /// median one are down-weighted and the track solved again.
+    #[arg(long)]
+    robust_landmarks: bool,
+    /// Render through a landmark map that is wrong by up to MM millimetres: each track
+    /// point on a random vertex of the rig's mesh within MM of the map's (seeded with the
+    /// performance), while the solve reads the map as it is — a tracker whose points are not
+    /// where the map says. 0: the map itself [default: 0].
+    #[arg(
+        long,
+        value_name = "MM",
+        default_value_t = 0.0,
+        allow_negative_numbers = true
+    )]
+    map_noise: f64,
     /// As `kslab rig --zero-phase` (offline Gaussian σ, frames; 0 for the live solve)
     /// [default: 1; with --live, 0].
     #[arg(long, allow_negative_numbers = true)]
@@ -144,7 +159,19 @@ pub fn run(a: &RigAccuracyArgs) -> Result<()> {
     };
     let depth = a.landmarks.ends_with('z');
     let layout: usize = a.landmarks.trim_end_matches('z').parse()?;
-    let (_, _, rig) = keyshape_rig::correspondence::read_rig(&dir, layout, None)?;
+    let (mesh, morph, rig) = keyshape_rig::correspondence::read_rig(&dir, layout, None)?;
+    if !(a.map_noise.is_finite() && (0.0..=50.0).contains(&a.map_noise)) {
+        anyhow::bail!("--map-noise {}: give 0 to 50 millimetres", a.map_noise);
+    }
+    if a.map_noise > 0.0 && !dir.is_dir() {
+        anyhow::bail!(
+            "--map-noise moves landmarks on an ICT FaceKit folder's mesh (in cm); {} is not one",
+            dir.display()
+        );
+    }
+    if a.map_noise > 0.0 && layout == 478 {
+        anyhow::bail!("--map-noise: the 478-point layout's irises are virtual points, not mesh vertices; use --landmarks 468 or 68");
+    }
     let noise = match a.noise_iod {
         Some(p) if !(p.is_finite() && (0.0..=100.0).contains(&p)) => {
             anyhow::bail!("--noise-iod {p}: give a percentage in [0, 100]")
@@ -205,6 +232,7 @@ pub fn run(a: &RigAccuracyArgs) -> Result<()> {
         zero_phase,
         taper: !a.no_prior_taper,
         causal: a.live,
+        robust: a.robust_landmarks,
         ..Default::default()
     };
     let seeds = seeds_of(a)?;
@@ -232,7 +260,19 @@ pub fn run(a: &RigAccuracyArgs) -> Result<()> {
             depth,
             hold: a.hold,
         };
-        let (track, _, rows, summary) = accuracy::run(&rig, &st, &opts)?;
+        let (track, _, rows, summary) = if a.map_noise > 0.0 {
+            // The ICT face is in centimetres.
+            let elsewhere = accuracy::mapped_elsewhere(
+                &mesh.positions,
+                &morph,
+                &rig,
+                a.map_noise / 10.0,
+                seed,
+            )?;
+            accuracy::run_mapped(&rig, &elsewhere, &st, &opts)?
+        } else {
+            accuracy::run(&rig, &st, &opts)?
+        };
         if let Some(dir) = &a.tracks {
             let name = match &a.seeds {
                 Some(_) => format!("{}_s{seed}", kind.name()),

@@ -24,6 +24,7 @@ mod retarget;
 mod rig;
 mod rig_accuracy;
 mod rig_dense;
+mod rig_map;
 mod rig_neutral;
 mod rig_plausible;
 mod scale;

@@ -42,6 +42,9 @@ use nalgebra::DMatrix;
 use std::ops::Range;
 use std::path::Path;
 
+/// The Huber threshold of [`RigOptions::robust`], in median landmark RMS residuals.
+pub const ROBUST_C: f64 = 1.0;
+
 /// Landmarks per rig (iBUG / Multi-PIE 68, in that order).
 pub const LANDMARKS: usize = 68;
 
@@ -389,6 +392,13 @@ pub struct RigOptions {
     /// Per landmark (iBUG order), the weight of its squared error in the fit (≥ 0; all 1 is
     /// the plain least-squares fit). The camera's starting fit ignores them.
     pub landmark_weights: [f64; LANDMARKS],
+    /// Robust landmark weights: after the solve, each landmark's residual over the frames
+    /// (its mean taken out: the identity's share) is measured, and landmarks the rig
+    /// explains much worse than the median one — a tracker point the landmark map puts on
+    /// the wrong vertex moves unlike it — are down-weighted (Huber, `min(1, cσ / sᵢ)` with
+    /// σ the median landmark's RMS and c = [`ROBUST_C`]) and the track solved again, twice.
+    /// Not causal (it needs the whole track).
+    pub robust: bool,
     /// The magnitude prior (≥ 0): each frame minimises its landmark error plus `μ‖w‖²`,
     /// `μ = prior × IOD²`, IOD the track's median distance between the outer eye corners
     /// (landmarks 36 and 45), so the prior does not depend on the image's scale. What the
@@ -475,6 +485,7 @@ impl Default for RigOptions {
             zero_phase: 0.0,
             taper: false,
             causal: false,
+            robust: false,
         }
     }
 }

@@ -182,7 +182,24 @@ pub fn solve_rig_observed(
             String::new()
         }
     ));
-    let mut out = run(rig, (track, depth), &people, free, opts, &lw, iod)?;
+    let mut out = run(rig, (track, depth), &people, free.clone(), opts, &lw, iod)?;
+    if opts.robust {
+        for round in 1..=2 {
+            step(format!(
+                "weighing each landmark by how well the rig explains it ({round} of 2)"
+            ));
+            let robust = robust_weights(&people, track, &out, &lw);
+            out = run(
+                rig,
+                (track, depth),
+                &people,
+                free.clone(),
+                opts,
+                &robust,
+                iod,
+            )?;
+        }
+    }
     out.neutral_views = views(rig, (track, depth), &neutrals, opts, &lw, iod)?;
     out.shapes = shapes;
     out.neutrals = neutrals;
@@ -261,6 +278,11 @@ fn check_causal(opts: &RigOptions) -> Result<()> {
             "a causal solve cannot use the offline temporal prior (it solves a clip at once)",
         ));
     }
+    if opts.robust {
+        return Err(Error::invalid(
+            "a causal solve cannot weigh landmarks robustly: that measures each landmark over the whole track",
+        ));
+    }
     if opts.identity != Identity::None
         && matches!(opts.neutral, Neutral::Auto | Neutral::LeastActive)
     {
@@ -269,6 +291,51 @@ fn check_causal(opts: &RigOptions) -> Result<()> {
         ));
     }
     Ok(())
+}
+
+/// [`RigOptions::robust`]'s weights: per landmark, `lw` times the Huber weight
+/// `min(1, cσ / sᵢ)` of its RMS residual `sᵢ` over the frames of `out` (its mean residual
+/// taken out), σ the median landmark's.
+fn robust_weights(
+    people: &[(Range<usize>, Rig)],
+    track: &DMatrix<f64>,
+    out: &RigSolve,
+    lw: &[f64],
+) -> Vec<f64> {
+    let n = lw.len();
+    let frames = track.ncols();
+    let (mut sum, mut sq) = (vec![[0.0; 2]; n], vec![0.0; n]);
+    for (clip, person) in people {
+        for f in clip.clone() {
+            let w: Vec<f64> = out.weights.column(f).iter().copied().collect();
+            let u = frame_points(track, f);
+            for (i, p) in person.posed(&w).iter().enumerate() {
+                let e = out.cameras[f].project(p);
+                let d = [e[0] - u[i][0], e[1] - u[i][1]];
+                sum[i][0] += d[0];
+                sum[i][1] += d[1];
+                sq[i] += d[0] * d[0] + d[1] * d[1];
+            }
+        }
+    }
+    let k = frames.max(1) as f64;
+    let s: Vec<f64> = (0..n)
+        .map(|i| ((sq[i] / k - (sum[i][0] / k).powi(2) - (sum[i][1] / k).powi(2)).max(0.0)).sqrt())
+        .collect();
+    let mut sorted: Vec<f64> = s.iter().copied().filter(|v| v.is_finite()).collect();
+    sorted.sort_by(f64::total_cmp);
+    let sigma = sorted.get(sorted.len() / 2).copied().unwrap_or(0.0);
+    let c = super::ROBUST_C;
+    (0..n)
+        .map(|i| {
+            let h = if sigma > 0.0 && s[i] > c * sigma {
+                c * sigma / s[i]
+            } else {
+                1.0
+            };
+            lw[i] * h
+        })
+        .collect()
 }
 
 /// The frames a causal solve measures the prior's scale on: the neutral frame or lead-in,

@@ -109,6 +109,12 @@ pub struct RigArgs {
     /// against ground truth"). Needs a prior.
     #[arg(long)]
     no_prior_taper: bool,
+    /// Robust landmark weights: after the solve, landmarks the rig explains much worse than
+    /// the median one (their residual over the frames, the identity's share taken out) are
+    /// down-weighted (Huber) and the track solved again, twice. For a tracker whose points
+    /// are not where the landmark map says. Not with --live.
+    #[arg(long)]
+    robust_landmarks: bool,
     /// The offline, zero-phase temporal prior: each clip's weights smoothed by a Gaussian
     /// of σ frames, no lag (it needs the whole file; --live turns it off). 0 is off.
     /// Tuned on `kslab rig-accuracy` (2 already flattens speech-rate jaw motion).
@@ -303,6 +309,7 @@ pub fn run(a: &RigArgs) -> Result<()> {
         zero_phase,
         taper: !a.no_prior_taper,
         causal: a.live,
+        robust: a.robust_landmarks,
         ..Default::default()
     };
     let per_clip = match a.identity_per.as_deref() {

@@ -521,7 +521,23 @@ pub fn run(
     st: &Settings,
     opts: &RigOptions,
 ) -> Result<(Track, DMatrix<f64>, Vec<ShapeAccuracy>, Summary)> {
-    let track = render(rig, st)?;
+    run_mapped(rig, rig, st, opts)
+}
+
+/// [`run`], rendering through `render_rig` (the same shapes and track points as `rig`, its
+/// landmarks elsewhere: [`mapped_elsewhere`]) and solving with `rig`.
+pub fn run_mapped(
+    rig: &Rig,
+    render_rig: &Rig,
+    st: &Settings,
+    opts: &RigOptions,
+) -> Result<(Track, DMatrix<f64>, Vec<ShapeAccuracy>, Summary)> {
+    if render_rig.names != rig.names || render_rig.points != rig.points {
+        return Err(Error::invalid(
+            "the rendering rig must have the solving rig's shapes and track points",
+        ));
+    }
+    let track = render(render_rig, st)?;
     let solved = solve_rig(rig, &track.points, &[], opts)?;
     let (rows, mut summary) = measure(&rig.names, &track.truth, &solved.weights);
     summary.neutral = solved.neutral_views.first().map(|v| NeutralTruth {
@@ -534,4 +550,39 @@ pub fn run(
         view: *v,
     });
     Ok((track, solved.weights, rows, summary))
+}
+
+/// The rig as a tracker whose points are not where the landmark map says would render it:
+/// each landmark of `rig` moved to a random vertex of the mesh (`positions`, with the
+/// shapes `morph`) within `radius` (rig units; the ICT face is in cm) of the map's vertex,
+/// seeded — the benchmark's `--map-noise`. A landmark that is no mesh vertex (a virtual
+/// iris) is refused.
+pub fn mapped_elsewhere(
+    positions: &[[f64; 3]],
+    morph: &keyshape_io::morph::MorphTargets,
+    rig: &Rig,
+    radius: f64,
+    seed: u64,
+) -> Result<Rig> {
+    if !(radius.is_finite() && radius >= 0.0) {
+        return Err(Error::invalid(format!(
+            "a landmark map error of {radius} is not allowed: give a distance ≥ 0"
+        )));
+    }
+    let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(seed ^ 0x0a11_ce55);
+    let d2 = |a: &[f64; 3], b: &[f64; 3]| (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f64>();
+    let mut pairs = Vec::with_capacity(rig.landmarks());
+    for (l, p) in rig.neutral.iter().enumerate() {
+        let Some(v) = positions.iter().position(|q| q == p) else {
+            return Err(Error::invalid(format!(
+                "track point {} is no vertex of the rig's mesh (a virtual point): its map cannot be perturbed",
+                rig.points[l]
+            )));
+        };
+        let near: Vec<usize> = (0..positions.len())
+            .filter(|&u| d2(&positions[u], &positions[v]) <= radius * radius)
+            .collect();
+        pairs.push((rig.points[l], near[rng.gen_range(0..near.len())]));
+    }
+    Rig::from_correspondence(positions, morph, rig.layout, &pairs)
 }
