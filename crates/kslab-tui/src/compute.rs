@@ -422,16 +422,16 @@ pub fn spawn_lab(
                         let fps = seq.fps().unwrap_or(30.0);
                         let (name, n) = (seq.source.clone(), seq.n_frames());
                         rig_smooth = 0.0;
-                        if let Some(r) = &rig_jobs {
-                            let _ = r.send(super::rig_worker::RigJob::Load(
-                                id,
-                                std::sync::Arc::new(seq.clone()),
-                            ));
-                        }
+                        let for_rig = rig_jobs.as_ref().map(|_| std::sync::Arc::new(seq.clone()));
                         engine = Engine::new(seq);
                         let _ = out_tx.send(Action::Loaded(id, name, n, fps));
                         if let Some(note) = note {
                             let _ = out_tx.send(Action::Notice(id, note));
+                        }
+                        // Only after Loaded: the rig's answer (which can come at once, for a
+                        // track it refuses) must find the lab on this track.
+                        if let (Some(r), Some(seq)) = (&rig_jobs, for_rig) {
+                            let _ = r.send(super::rig_worker::RigJob::Load(id, seq));
                         }
                     }
                     Err(e) => {
