@@ -273,6 +273,16 @@ mod tests {
             set(f, 19, 15.0, -15.0, &mut t);
             set(f, 24, 75.0, -15.0, &mut t);
         }
+        // The face nearer the camera frame by frame (scaled 1 + 0.25 f) and moved: every
+        // measure is over the frame's own inter-ocular distance or eye width, so nothing
+        // below changes (a measure left unnormalised would lose its r of ±1).
+        for f in 0..frames {
+            let z = 1.0 + 0.25 * f as f64;
+            for p in 0..68 {
+                t[(2 * p, f)] = z * t[(2 * p, f)] + 7.0 * f as f64;
+                t[(2 * p + 1, f)] = z * t[(2 * p + 1, f)] - 3.0;
+            }
+        }
         let names: Vec<String> = [
             "eyeBlink_L",
             "eyeBlink_R",
