@@ -124,6 +124,14 @@ pub struct RigAccuracyArgs {
         allow_negative_numbers = true
     )]
     map_noise: f64,
+    /// As `kslab rig --refine-landmarks`: solve with the landmark map refined from the track
+    /// (landmarks weighed robustly), and measure the refined map against the one the track
+    /// was rendered through (how many landmarks sit on its vertex, the median distance).
+    #[arg(long)]
+    refine_landmarks: bool,
+    /// As `kslab rig --refine-radius` (millimetres) [default: 10].
+    #[arg(long, value_name = "MM", allow_negative_numbers = true)]
+    refine_radius: Option<f64>,
     /// As `kslab rig --zero-phase` (offline Gaussian σ, frames; 0 for the live solve)
     /// [default: 1; with --live, 0].
     #[arg(long, allow_negative_numbers = true)]
@@ -171,6 +179,12 @@ pub fn run(a: &RigAccuracyArgs) -> Result<()> {
     }
     if a.map_noise > 0.0 && layout == 478 {
         anyhow::bail!("--map-noise: the 478-point layout's irises are virtual points, not mesh vertices; use --landmarks 468 or 68");
+    }
+    let refinement = super::rig::refinement_of(a.refine_landmarks, a.refine_radius)?;
+    if refinement.is_some() && a.live {
+        anyhow::bail!(
+            "--refine-landmarks measures each landmark over the whole track: not with --live"
+        );
     }
     let noise = match a.noise_iod {
         Some(p) if !(p.is_finite() && (0.0..=100.0).contains(&p)) => {
@@ -260,18 +274,17 @@ pub fn run(a: &RigAccuracyArgs) -> Result<()> {
             depth,
             hold: a.hold,
         };
-        let (track, _, rows, summary) = if a.map_noise > 0.0 {
-            // The ICT face is in centimetres.
-            let elsewhere = accuracy::mapped_elsewhere(
-                &mesh.positions,
-                &morph,
-                &rig,
-                a.map_noise / 10.0,
-                seed,
-            )?;
-            accuracy::run_mapped(&rig, &elsewhere, &st, &opts)?
+        // The ICT face is in centimetres.
+        let elsewhere = if a.map_noise > 0.0 {
+            accuracy::mapped_elsewhere(&mesh.positions, &morph, &rig, a.map_noise / 10.0, seed)?
         } else {
-            accuracy::run(&rig, &st, &opts)?
+            rig.clone()
+        };
+        let (track, _, rows, summary) = match refinement {
+            Some(r) => {
+                accuracy::run_refined(&rig, &elsewhere, (&mesh.positions, &morph), r, &st, &opts)?
+            }
+            None => accuracy::run_mapped(&rig, &elsewhere, &st, &opts)?,
         };
         if let Some(dir) = &a.tracks {
             let name = match &a.seeds {
@@ -327,6 +340,9 @@ pub fn run(a: &RigAccuracyArgs) -> Result<()> {
                 s.min_peak_reach.map_or("—".into(), |v| format!("{v:.2}")),
                 s.max_abs_lag,
             );
+            if let Some(m) = &s.map {
+                outln!("        {}", map_line(m));
+            }
             if let Some(n) = &s.neutral {
                 let [y, p, _] = n.view.yaw_pitch_roll;
                 outln!(
@@ -341,6 +357,21 @@ pub fn run(a: &RigAccuracyArgs) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// A refined map against the render's, in a line.
+fn map_line(m: &accuracy::MapTruth) -> String {
+    format!(
+        "landmark map against the render's: {} of {} landmarks on its vertex (before {}), median off {:.1} mm (before {:.1} mm); moved per round {:?}: {} nearer the render's vertex, {} farther",
+        m.right_after,
+        m.landmarks,
+        m.right_before,
+        10.0 * m.median_off_after,
+        10.0 * m.median_off_before,
+        m.moved,
+        m.moved_nearer,
+        m.moved_farther,
+    )
 }
 
 /// A row of `--out`: one shape of one kind of track.
@@ -448,9 +479,30 @@ fn print_distributions(
                 "warned": neutral.iter().filter(|n| !n.view.looks_neutral).count(),
             })
         });
+        let maps: Vec<&accuracy::MapTruth> =
+            runs.iter().filter_map(|(_, s)| s.map.as_ref()).collect();
+        let map = (!maps.is_empty()).then(|| {
+            let share = |f: &dyn Fn(&accuracy::MapTruth) -> usize| -> Vec<f64> {
+                maps.iter()
+                    .map(|m| f(m) as f64 / m.landmarks.max(1) as f64)
+                    .collect()
+            };
+            let mm = |f: &dyn Fn(&accuracy::MapTruth) -> f64| -> Vec<f64> {
+                maps.iter().map(|m| 10.0 * f(m)).collect()
+            };
+            json!({
+                "right_before": higher(&share(&|m| m.right_before)),
+                "right_after": higher(&share(&|m| m.right_after)),
+                "median_off_mm_before": lower(&mm(&|m| m.median_off_before)),
+                "median_off_mm_after": lower(&mm(&|m| m.median_off_after)),
+                "moved_nearer": maps.iter().map(|m| m.moved_nearer).sum::<usize>(),
+                "moved_farther": maps.iter().map(|m| m.moved_farther).sum::<usize>(),
+            })
+        });
         out.push(json!({
             "kind": k.name(),
             "neutral": neutral,
+            "map": map,
             "seeds": runs.iter().map(|(s, _)| *s).collect::<Vec<_>>(),
             "mean_r": higher(&mean_r),
             "worst_r": higher(&worst_r),
@@ -486,6 +538,20 @@ fn print_distributions(
             f("max_idle", "p90"),
             f("max_idle", "worst"),
         );
+        if v["map"].is_object() {
+            let m = |m: &str, k: &str| v["map"][m][k].as_f64().unwrap_or(f64::NAN);
+            outln!(
+                "        landmark map against the render's: on its vertex median {:.0} % (before {:.0} %), p10 {:.0} % · median landmark off, median {:.1} mm (before {:.1} mm), p90 {:.1} mm · moved, over the seeds: {} nearer the render's vertex, {} farther",
+                100.0 * m("right_after", "median"),
+                100.0 * m("right_before", "median"),
+                100.0 * m("right_after", "p10"),
+                m("median_off_mm_after", "median"),
+                m("median_off_mm_before", "median"),
+                m("median_off_mm_after", "p90"),
+                v["map"]["moved_nearer"],
+                v["map"]["moved_farther"],
+            );
+        }
         if v["neutral"].is_object() {
             let n = |m: &str, k: &str| v["neutral"][m][k].as_f64().unwrap_or(f64::NAN);
             outln!(

@@ -39,13 +39,13 @@ pub struct Run {
     pub stderr: String,
 }
 
-/// Runs the `kslab` binary with `args`.
 /// A library error as the command line prints it: each setting it names as the flag
 /// (`dims` → `--dims`), as `kslab` spells them.
 pub fn as_cli(e: &keyshape_core::Error) -> String {
     e.render(&|n| format!("--{}", n.replace('_', "-")))
 }
 
+/// Runs the `kslab` binary with `args`.
 pub fn kslab(args: &[&str]) -> Run {
     let out = std::process::Command::new(env!("CARGO_BIN_EXE_kslab"))
         .args(args)
@@ -55,5 +55,15 @@ pub fn kslab(args: &[&str]) -> Run {
         code: out.status.code().unwrap_or(-1),
         stdout: String::from_utf8_lossy(&out.stdout).into_owned(),
         stderr: String::from_utf8_lossy(&out.stderr).into_owned(),
+    }
+}
+
+/// Runs each command of `cases` and checks it is refused (exit 1) with its reason on
+/// standard error.
+pub fn assert_refused(cases: &[(Vec<&str>, &str)]) {
+    for (args, needle) in cases {
+        let r = kslab(args);
+        assert_eq!(r.code, 1, "{args:?}: {}", r.stderr);
+        assert!(r.stderr.contains(needle), "{args:?}: {}", r.stderr);
     }
 }

@@ -21,6 +21,7 @@ pub mod livelink;
 mod neutral;
 pub mod plausibility;
 mod prior;
+pub mod refine;
 mod solve;
 pub mod study;
 pub mod temporal;

@@ -115,6 +115,23 @@ pub struct RigArgs {
     /// are not where the landmark map says. Not with --live.
     #[arg(long)]
     robust_landmarks: bool,
+    /// Refine the landmark map from the performance itself: solve with robust landmark
+    /// weights, move each landmark to the mesh vertex within --refine-radius of the map's
+    /// that best explains its track over the frames (only when it explains it far better),
+    /// and solve again; three rounds. For a tracker whose points are not where the map says
+    /// (any fixed map is wrong by millimetres somewhere). Save the refined map with
+    /// --save-landmarks. Not with --live.
+    #[arg(long)]
+    refine_landmarks: bool,
+    /// How far --refine-landmarks may move a landmark from the map's vertex, millimetres on
+    /// the ICT face (rig units ÷ 10 on another rig) [default: 10].
+    #[arg(long, value_name = "MM", allow_negative_numbers = true)]
+    refine_radius: Option<f64>,
+    /// Write the refined landmark map here (`landmark,vertex` CSV, as --rig-landmarks
+    /// reads), so the next take can be solved with it. Needs --refine-landmarks
+    /// [default: not written].
+    #[arg(long, value_name = "FILE")]
+    save_landmarks: Option<PathBuf>,
     /// The offline, zero-phase temporal prior: each clip's weights smoothed by a Gaussian
     /// of σ frames, no lag (it needs the whole file; --live turns it off). 0 is off.
     /// Tuned on `kslab rig-accuracy` (2 already flattens speech-rate jaw motion).
@@ -194,7 +211,13 @@ pub fn run(a: &RigArgs) -> Result<()> {
     let stdout = PathBuf::from("-");
     let out = a.out.as_ref().or((!a.json).then_some(&stdout));
     check_outputs(
-        &[out, a.pose.as_ref(), a.livelink.as_ref(), a.gltf.as_ref()],
+        &[
+            out,
+            a.pose.as_ref(),
+            a.livelink.as_ref(),
+            a.gltf.as_ref(),
+            a.save_landmarks.as_ref(),
+        ],
         &[a.png_dir.as_ref()],
         &[
             a.file.as_deref(),
@@ -204,6 +227,13 @@ pub fn run(a: &RigArgs) -> Result<()> {
     )?;
     if a.identity == Identity::None && a.neutral.is_some() {
         anyhow::bail!("--neutral does not apply with --identity none: no neutral frame is used");
+    }
+    let refinement = refinement_of(a.refine_landmarks, a.refine_radius)?;
+    if a.save_landmarks.is_some() && refinement.is_none() {
+        anyhow::bail!("--save-landmarks writes the refined landmark map: give --refine-landmarks");
+    }
+    if refinement.is_some() && a.live {
+        anyhow::bail!("--refine-landmarks measures each landmark over the whole track: not with --live (refine on a recorded take, --save-landmarks, and go live with --rig-landmarks)");
     }
     let progress = super::progress::Progress::new("rig: reading");
     let name = a
@@ -346,7 +376,28 @@ pub fn run(a: &RigArgs) -> Result<()> {
         Vec::new()
     };
     progress.step("rig: solving");
-    let r = solve_rig(&rig, &seq.coords, &clips, &opts)?;
+    let (rig, r, refined) = match refinement {
+        Some(settings) => {
+            let done = keyshape_rig::refine::refine_map(
+                (&mesh.positions, &morph),
+                &rig,
+                &seq.coords,
+                &clips,
+                &opts,
+                settings,
+                &mut |s| progress.step(&format!("rig: {s}")),
+            )?;
+            let report = (done.pairs, done.moved, done.changed);
+            (done.rig, done.solve, Some(report))
+        }
+        None => {
+            let r = solve_rig(&rig, &seq.coords, &clips, &opts)?;
+            (rig, r, None)
+        }
+    };
+    if let (Some(p), Some((pairs, _, _))) = (&a.save_landmarks, &refined) {
+        output::save_landmarks(p, pairs)?;
+    }
     progress.step("rig: writing");
     let taken = output::write_all(a, &seq, &rig, &r, &mesh, &morph, &progress)?;
     progress.finish();
@@ -404,6 +455,11 @@ pub fn run(a: &RigArgs) -> Result<()> {
             "mean_steps": r.steps.iter().map(|&x| f64::from(x)).sum::<f64>() / r.steps.len() as f64,
             "min_determination": a.min_determination,
             "plausibility": plausible,
+            "refined_map": refined.as_ref().map(|(pairs, moved, changed)| json!({
+                "landmarks": pairs.len(),
+                "moved": changed,
+                "moved_per_round": moved,
+            })),
             "identifiability": r.shapes.iter().map(|s| json!({
                 "shape": s.name,
                 "image_motion": s.image_motion,
@@ -440,6 +496,23 @@ pub fn run(a: &RigArgs) -> Result<()> {
             },
             r.unconverged
         );
+        if let Some((pairs, moved, changed)) = &refined {
+            sayln!(
+                taken,
+                "landmark map refined from the track: {changed} of {} landmarks on another vertex (moved per round: {}){}",
+                pairs.len(),
+                moved
+                    .iter()
+                    .map(usize::to_string)
+                    .collect::<Vec<_>>()
+                    .join(", "),
+                a.save_landmarks.as_ref().map_or(String::new(), |p| format!(
+                    "; saved to {} (solve the next take with --rig-landmarks {})",
+                    p.display(),
+                    p.display()
+                )),
+            );
+        }
         if let Some(p) = &plausible {
             for line in plausibility_lines(p) {
                 sayln!(taken, "{line}");
@@ -580,4 +653,24 @@ fn clip_ranges(labels: &[String]) -> Vec<std::ops::Range<usize>> {
         }
     }
     out
+}
+
+/// `--refine-landmarks` with `--refine-radius MM`: the refinement, or None; a radius
+/// without the refinement is refused.
+pub(crate) fn refinement_of(
+    refine: bool,
+    radius_mm: Option<f64>,
+) -> Result<Option<keyshape_rig::refine::Refinement>> {
+    match (refine, radius_mm) {
+        (false, Some(_)) => anyhow::bail!("--refine-radius applies to --refine-landmarks"),
+        (false, None) => Ok(None),
+        (true, Some(r)) if !(r.is_finite() && r > 0.0 && r <= 30.0) => {
+            anyhow::bail!("--refine-radius {r}: give a distance in (0, 30] millimetres")
+        }
+        (true, r) => Ok(Some(keyshape_rig::refine::Refinement {
+            // The ICT face is in centimetres.
+            radius: r.unwrap_or(10.0) / 10.0,
+            ..Default::default()
+        })),
+    }
 }

@@ -227,3 +227,16 @@ fn write_pngs(
     }
     Ok(())
 }
+
+/// `--save-landmarks`: the refined map as `landmark,vertex` rows (as `--rig-landmarks`
+/// reads them).
+pub(super) fn save_landmarks(path: &std::path::Path, pairs: &[(usize, usize)]) -> Result<()> {
+    write_atomic(path, |w| {
+        writeln!(w, "landmark,vertex")?;
+        for (l, v) in pairs {
+            writeln!(w, "{l},{v}")?;
+        }
+        Ok(())
+    })?;
+    Ok(())
+}

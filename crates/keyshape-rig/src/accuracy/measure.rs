@@ -57,6 +57,79 @@ pub struct Summary {
     /// The neutral the solve chose (its first clip's), measured against the truth; `None`
     /// without an identity. Filled by [`run`](super::run), not by [`measure`].
     pub neutral: Option<NeutralTruth>,
+    /// A refined landmark map against the map the track was rendered through; `None`
+    /// without refinement. Filled by [`run_refined`](super::run_refined).
+    pub map: Option<MapTruth>,
+}
+
+/// A landmark map refined from a rendered track, against the map the track was rendered
+/// through: how many landmarks sit on the render's vertex, and how far off the rest are.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct MapTruth {
+    /// Landmarks that are mesh vertices (the ones a map places).
+    pub landmarks: usize,
+    /// Of those, on the render's vertex in the map solved with before refinement.
+    pub right_before: usize,
+    /// The same after.
+    pub right_after: usize,
+    /// Median distance from the render's vertex before refinement (rig units).
+    pub median_off_before: f64,
+    /// The same after.
+    pub median_off_after: f64,
+    /// Per round, the landmarks it moved.
+    pub moved: Vec<usize>,
+    /// Of the landmarks whose vertex changed, how many ended nearer the render's vertex.
+    pub moved_nearer: usize,
+    /// ... and how many farther from it.
+    pub moved_farther: usize,
+}
+
+impl MapTruth {
+    /// Compares the maps of `before` and `after` (rigs with `truth`'s points) with `truth`'s,
+    /// over the landmarks of `truth` that are vertices of `positions`.
+    pub fn of(
+        positions: &[[f64; 3]],
+        truth: &crate::Rig,
+        before: &crate::Rig,
+        after: &crate::Rig,
+        moved: &[usize],
+    ) -> MapTruth {
+        let on_mesh: Vec<usize> = (0..truth.landmarks())
+            .filter(|&l| positions.contains(&truth.neutral[l]))
+            .collect();
+        let dist =
+            |a: &[f64; 3], b: &[f64; 3]| (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f64>().sqrt();
+        let stats = |rig: &crate::Rig| {
+            let mut d: Vec<f64> = on_mesh
+                .iter()
+                .map(|&l| dist(&rig.neutral[l], &truth.neutral[l]))
+                .collect();
+            let right = d.iter().filter(|v| **v == 0.0).count();
+            d.sort_by(f64::total_cmp);
+            (right, d.get(d.len() / 2).copied().unwrap_or(0.0))
+        };
+        let (mut moved_nearer, mut moved_farther) = (0, 0);
+        for &l in &on_mesh {
+            let (b, a) = (
+                dist(&before.neutral[l], &truth.neutral[l]),
+                dist(&after.neutral[l], &truth.neutral[l]),
+            );
+            moved_nearer += usize::from(a < b);
+            moved_farther += usize::from(a > b);
+        }
+        let (right_before, median_off_before) = stats(before);
+        let (right_after, median_off_after) = stats(after);
+        MapTruth {
+            landmarks: on_mesh.len(),
+            right_before,
+            right_after,
+            median_off_before,
+            median_off_after,
+            moved: moved.to_vec(),
+            moved_nearer,
+            moved_farther,
+        }
+    }
 }
 
 /// The chosen neutral frame against the truth: how much expression it truly held and how
@@ -186,6 +259,7 @@ pub fn measure(
             .max()
             .unwrap_or(0),
         neutral: None,
+        map: None,
     };
     (rows, summary)
 }

@@ -7,6 +7,7 @@
 //! agreement with another estimator (py-feat) is not it.
 
 use super::camera::Camera;
+use super::refine::{refine_map, Refinement};
 use super::{solve_rig, Rig, RigOptions};
 use keyshape_core::error::{Error, Result};
 use nalgebra::DMatrix;
@@ -15,7 +16,7 @@ use serde::Serialize;
 
 mod measure;
 
-pub use measure::{measure, twin, NeutralTruth, ShapeAccuracy, Summary};
+pub use measure::{measure, twin, MapTruth, NeutralTruth, ShapeAccuracy, Summary};
 
 /// The kind of performance rendered.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -532,13 +533,48 @@ pub fn run_mapped(
     st: &Settings,
     opts: &RigOptions,
 ) -> Result<(Track, DMatrix<f64>, Vec<ShapeAccuracy>, Summary)> {
+    solve_rendered(rig, render_rig, st, &mut |track| {
+        Ok((solve_rig(rig, &track.points, &[], opts)?, None))
+    })
+}
+
+/// [`run_mapped`], solving with the map refined from the track ([`refine_map`] over the
+/// mesh `positions` with shapes `morph`), and measuring the refined map against the one the
+/// track was rendered through ([`Summary::map`]).
+pub fn run_refined(
+    rig: &Rig,
+    render_rig: &Rig,
+    mesh: (&[[f64; 3]], &keyshape_io::morph::MorphTargets),
+    refinement: Refinement,
+    st: &Settings,
+    opts: &RigOptions,
+) -> Result<(Track, DMatrix<f64>, Vec<ShapeAccuracy>, Summary)> {
+    let positions = mesh.0;
+    solve_rendered(rig, render_rig, st, &mut |track| {
+        let refined = refine_map(mesh, rig, &track.points, &[], opts, refinement, &mut |_| {})?;
+        let truth = MapTruth::of(positions, render_rig, rig, &refined.rig, &refined.moved);
+        Ok((refined.solve, Some(truth)))
+    })
+}
+
+/// A rendered track's solve, and how the map it solved with compares with the render's.
+type Solved = (crate::RigSolve, Option<MapTruth>);
+
+/// Renders `st` through `render_rig`, solves it with `solve` (the solve, and how the map
+/// it solved with compares with the render's) and measures it.
+fn solve_rendered(
+    rig: &Rig,
+    render_rig: &Rig,
+    st: &Settings,
+    solve: &mut dyn FnMut(&Track) -> Result<Solved>,
+) -> Result<(Track, DMatrix<f64>, Vec<ShapeAccuracy>, Summary)> {
     if render_rig.names != rig.names || render_rig.points != rig.points {
         return Err(Error::invalid(
             "the rendering rig must have the solving rig's shapes and track points",
         ));
     }
     let track = render(render_rig, st)?;
-    let solved = solve_rig(rig, &track.points, &[], opts)?;
+    let (solved, map) = solve(&track)?;
     let (rows, mut summary) = measure(&rig.names, &track.truth, &solved.weights);
     summary.neutral = solved.neutral_views.first().map(|v| NeutralTruth {
         frame: v.frame,
@@ -549,6 +585,7 @@ pub fn run_mapped(
             .to_degrees(),
         view: *v,
     });
+    summary.map = map;
     Ok((track, solved.weights, rows, summary))
 }
 
