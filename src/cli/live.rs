@@ -88,8 +88,9 @@ pub struct LiveArgs {
         allow_negative_numbers = true
     )]
     smooth: f64,
-    /// The magnitude prior (as `kslab rig --prior`).
-    #[arg(long, default_value_t = keyshape_rig::RECOMMENDED_PRIOR, allow_negative_numbers = true)]
+    /// The magnitude prior (as `kslab rig --live --prior`; tuned on the causal path, above
+    /// the offline default 0.0026).
+    #[arg(long, default_value_t = keyshape_rig::LIVE_PRIOR, allow_negative_numbers = true)]
     prior: f64,
     /// When the session ends, write its figures here as JSON: frames solved, received,
     /// dropped, malformed, refused, datagrams not sent, seconds, and the latency from a

@@ -101,9 +101,10 @@ pub struct RigAccuracyArgs {
     /// As `kslab rig --min-determination`.
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     min_determination: f64,
-    /// As `kslab rig --prior` (the magnitude prior, μ = PRIOR × IOD²).
-    #[arg(long, default_value_t = keyshape_rig::RECOMMENDED_PRIOR, allow_negative_numbers = true)]
-    prior: f64,
+    /// As `kslab rig --prior` (the magnitude prior, μ = PRIOR × IOD²) [default: 0.0026;
+    /// with --live, 0.004].
+    #[arg(long, allow_negative_numbers = true)]
+    prior: Option<f64>,
     /// The plain ridge μ‖w‖² instead of the tapered prior (the default: each shape's pull
     /// 2μw(1 − w)² fades as it comes on, so peaks are reached; see docs/src/rig_accuracy.md, "Rig accuracy
     /// against ground truth"). Needs a prior.
@@ -228,7 +229,12 @@ pub fn run(a: &RigAccuracyArgs) -> Result<()> {
         "lead-in" => Neutral::Span(0, a.lead_in),
         _ => Neutral::Auto,
     };
-    if a.no_prior_taper && a.prior == 0.0 {
+    let prior = a.prior.unwrap_or(if a.live {
+        keyshape_rig::LIVE_PRIOR
+    } else {
+        keyshape_rig::RECOMMENDED_PRIOR
+    });
+    if a.no_prior_taper && prior == 0.0 {
         anyhow::bail!("--no-prior-taper: there is no prior to taper (--prior 0)");
     }
     let opts = RigOptions {
@@ -242,7 +248,7 @@ pub fn run(a: &RigAccuracyArgs) -> Result<()> {
         } else {
             keyshape_core::solve::temporal::SmoothMode::Offline
         },
-        prior: a.prior,
+        prior,
         zero_phase,
         taper: !a.no_prior_taper,
         causal: a.live,

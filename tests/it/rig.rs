@@ -1360,3 +1360,45 @@ fn nth_accessor_start(json: &str, n: usize) -> usize {
     }
     i
 }
+
+/// The live path has its own magnitude prior by default (`LIVE_PRIOR`, tuned on the causal
+/// path alone), `--prior` overrides it, and `kslab rig --live` and `rig-accuracy --live`
+/// both use it: the JSON summary says which prior ran, and the weights differ from the
+/// live path run with the offline default's.
+#[test]
+fn the_live_path_takes_its_own_prior_and_prior_overrides_it() {
+    let prior = |args: &[&str]| {
+        let mut all = vec!["rig", "--json"];
+        all.extend_from_slice(args);
+        let r = kslab(&all);
+        assert_eq!(r.code, 0, "{}", r.stderr);
+        let v: serde_json::Value = serde_json::from_str(&r.stdout).unwrap();
+        v["prior"].as_f64().unwrap()
+    };
+    assert_eq!(prior(&[]), keyshape_rig::RECOMMENDED_PRIOR);
+    assert_eq!(prior(&["--live"]), keyshape_rig::LIVE_PRIOR);
+    assert_eq!(prior(&["--live", "--prior", "0.001"]), 0.001);
+    assert_eq!(
+        keyshape_rig::RigOptions::live().prior,
+        keyshape_rig::LIVE_PRIOR
+    );
+    let idle = |args: &[&str]| {
+        let mut all = vec![
+            "rig-accuracy",
+            "--live",
+            "--kind",
+            "smooth",
+            "--noise",
+            "1",
+            "--json",
+        ];
+        all.extend_from_slice(args);
+        let r = kslab(&all);
+        assert_eq!(r.code, 0, "{}", r.stderr);
+        let v: serde_json::Value = serde_json::from_str(&r.stdout).unwrap();
+        v[0]["summary"]["max_idle"].as_f64().unwrap()
+    };
+    let (own, offline) = (idle(&[]), idle(&["--prior", "0.0026"]));
+    assert_ne!(own, offline);
+    assert_eq!(own, idle(&["--prior", "0.004"]));
+}

@@ -101,9 +101,9 @@ pub struct RigArgs {
     /// (eyeLook*) held 100× harder — 68 points have no pupils — and mutually exclusive pairs
     /// (smile/frown, blink/wide, jawLeft/jawRight …) paying for being on together; tapered
     /// (its pull fades as a shape comes on) unless --no-prior-taper. 0 is off. Tuned on
-    /// `kslab rig-accuracy`.
-    #[arg(long, default_value_t = keyshape_rig::RECOMMENDED_PRIOR, allow_negative_numbers = true)]
-    prior: f64,
+    /// `kslab rig-accuracy` [default: 0.0026; with --live, 0.004, tuned on the causal path].
+    #[arg(long, allow_negative_numbers = true)]
+    prior: Option<f64>,
     /// The plain ridge μ‖w‖² instead of the tapered prior (the default: each shape's pull
     /// 2μw(1 − w)² fades as it comes on, so peaks are reached; see docs/src/rig_accuracy.md, "Rig accuracy
     /// against ground truth"). Needs a prior.
@@ -324,7 +324,12 @@ pub fn run(a: &RigArgs) -> Result<()> {
     if a.smooth_mode.is_some() && a.smooth.unwrap_or(0.0) == 0.0 {
         anyhow::bail!("--smooth-mode applies to the temporal prior: give --smooth λ > 0");
     }
-    if a.no_prior_taper && a.prior == 0.0 {
+    let prior = a.prior.unwrap_or(if a.live {
+        keyshape_rig::LIVE_PRIOR
+    } else {
+        keyshape_rig::RECOMMENDED_PRIOR
+    });
+    if a.no_prior_taper && prior == 0.0 {
         anyhow::bail!("--no-prior-taper: there is no prior to taper (--prior 0)");
     }
     let opts = RigOptions {
@@ -335,7 +340,7 @@ pub fn run(a: &RigArgs) -> Result<()> {
         smooth: a.smooth.unwrap_or(0.0),
         smooth_mode,
         landmark_weights: keyshape_rig::landmark_weights(&a.landmark_weight)?,
-        prior: a.prior,
+        prior,
         zero_phase,
         taper: !a.no_prior_taper,
         causal: a.live,
