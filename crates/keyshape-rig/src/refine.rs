@@ -130,6 +130,8 @@ pub fn refine_map(
     let mut current = start.clone();
     let mut rig_now = rig.clone();
     let mut moved = Vec::new();
+    // The solve of the map as it stands, when no landmark has moved since.
+    let mut settled = None;
     for round in 1..=settings.rounds {
         step(format!(
             "refining the landmark map (round {round} of {}): solving",
@@ -179,14 +181,20 @@ pub fn refine_map(
             .collect();
         let n_moved = next.iter().zip(&current).filter(|(a, b)| a != b).count();
         moved.push(n_moved);
-        current = next;
-        rig_now = with_vertices(rig, positions, &offsets, &current);
         if n_moved == 0 {
+            settled = Some(solve);
             break;
         }
+        current = next;
+        rig_now = with_vertices(rig, positions, &offsets, &current);
     }
-    step("refining the landmark map: the last solve".to_string());
-    let solve = solve_rig_observed(&rig_now, track, clips, &opts, &mut |_| {})?;
+    let solve = match settled {
+        Some(solve) => solve,
+        None => {
+            step("refining the landmark map: the last solve".to_string());
+            solve_rig_observed(&rig_now, track, clips, &opts, &mut |_| {})?
+        }
+    };
     let pairs = current
         .iter()
         .enumerate()
