@@ -433,6 +433,14 @@ mod tests {
             worst(&unrefined.weights),
             worst(&done.solve.weights)
         );
+        // The radius binds: at 0.45 the render's vertex (0.57 away) is out of reach, and
+        // nothing moves.
+        let near = Refinement {
+            radius: 0.45,
+            rounds: 3,
+        };
+        let kept = refine_map((&pos, &morph), &rig, &track, &[], &opts, near, &mut |_| {}).unwrap();
+        assert_eq!(kept.changed, 0, "{:?}", kept.pairs);
         let refuse = |settings: Refinement, opts: &RigOptions, needle: &str| {
             let e = refine_map(
                 (&pos, &morph),
