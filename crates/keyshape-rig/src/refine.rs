@@ -359,6 +359,19 @@ mod tests {
         (pos, morph)
     }
 
+    /// A track with depth gives its x and y rows per landmark; a 2-D track is itself.
+    #[test]
+    fn image_rows_take_x_and_y_of_each_landmark() {
+        let t = DMatrix::from_fn(9, 2, |r, c| (10 * r + c) as f64);
+        let xy = image_rows(&t, 3);
+        assert_eq!(xy.nrows(), 6);
+        for (i, r) in [0, 1, 3, 4, 6, 7].into_iter().enumerate() {
+            assert_eq!(xy.row(i), t.row(r));
+        }
+        let flat = DMatrix::from_fn(6, 2, |r, c| (r + c) as f64);
+        assert_eq!(image_rows(&flat, 3), flat);
+    }
+
     /// Rendered through one map and solved through another, noise-free: the refinement
     /// moves the landmarks whose vertices move differently to the render's vertices, and a
     /// landmark no shape tells apart stays where the map put it.
