@@ -454,6 +454,27 @@ mod tests {
             worst(&unrefined.weights),
             worst(&done.solve.weights)
         );
+        // Another person: each landmark's rest position moved in the face's plane, by as
+        // much as the shapes move it. The vertex search's per-landmark offset takes that up
+        // and the same vertices are found (scored without the offset, they are not).
+        let mut person = render.clone();
+        for (l, p) in person.neutral.iter_mut().enumerate() {
+            let l = l as f64;
+            p[0] += 0.4 * (l * 1.7).sin();
+            p[1] += 0.3 * (l * 2.3).cos();
+        }
+        let theirs = person.render(&weights, &cams);
+        let found = refine_map(
+            (&pos, &morph),
+            &rig,
+            &theirs,
+            &[],
+            &opts,
+            settings,
+            &mut |_| {},
+        )
+        .unwrap();
+        assert_eq!(found.pairs, done.pairs);
         // The radius binds: at 0.45 the render's vertex (0.57 away) is out of reach, and
         // nothing moves.
         let near = Refinement {
