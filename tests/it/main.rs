@@ -36,3 +36,4 @@ mod tiny_tracks;
 mod transfer;
 mod tui;
 mod weights_png;
+mod where_things_live;
