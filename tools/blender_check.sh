@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Imports a GLB written by kslab into Blender (headless) and prints what Blender made of it:
-# meshes, shape keys and actions (issue 16: "imports in Blender with shape keys and an
+# meshes, shape keys and actions (the goal: "imports in Blender with shape keys and an
 # action"). Needs blender (apt-get install blender; checked with 3.4.1). Not part of CI (a
 # 300 MB install). Usage:
 #   kslab rig ../shared/data/pyfeat_samples/news_sample_compact.csv --gltf /tmp/rig.glb

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Mutation testing of the numeric core (issue 12): one plausible bug at a time, the whole test
+# Mutation testing of the numeric core: one plausible bug at a time, the whole test
 # suite after each. Needs `cargo install cargo-mutants`. Usage:
 #   tools/mutants.sh                      # every file below (3,583 mutants: ~12 hours on 2 cores)
 #   tools/mutants.sh -f crates/keyshape-core/src/decompose.rs  # just these files (replaces the list)

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Regenerates every picture the README shows (docs/src/images/*.png) from the current code, on the real
-# tracks in ../shared/data (issue 14 item 6). About two minutes on 2 cores. Usage:
+# tracks in ../shared/data. About two minutes on 2 cores. Usage:
 #   tools/readme_pictures.sh            # writes docs/src/images/*.png; review them before committing
 # The template picture needs an SVG renderer: python3 with cairosvg (pip install cairosvg);
 # without it that one picture is skipped with a note (the SVG itself comes from kslab).
@@ -30,7 +30,7 @@ cp "$T/fig6_face_pexels/curves_nnls.png" docs/src/images/fig6_face_pexels_nnls.p
 $K run -q experiments/chuang_fig4_5_lips_d6.toml --out "$T/fig45"
 cp "$T/fig45/strip.png" docs/src/images/fig4_5_lips_d6_strip.png
 
-# The smoothing study on d6 (issue 15).
+# The smoothing study on d6.
 $K run -q experiments/smooth_lips_d6.toml --out "$T/smooth_d6"
 cp "$T/smooth_d6/smoothing.png" docs/src/images/smoothing_lips_d6.png
 
@@ -49,7 +49,7 @@ $K map -q "$D6" --actions assets/cosker/actions_liveportrait_d6.json \
   --morph $S/ict_facekit_face --morph-png-dir "$T/morph" > /dev/null
 cp "$T/morph/morph_000058.png" docs/src/images/cosker_morph_ict_d6_58.png
 
-# The whole-face SVG template (issue 14 item 1), rendered for the README.
+# The whole-face SVG template, rendered for the README.
 $K template -q --k 4 --out "$T/template.svg" > /dev/null
 if python3 -c 'import cairosvg' 2> /dev/null; then
   python3 -c "import cairosvg, sys; cairosvg.svg2png(url=sys.argv[1], write_to='docs/src/images/template_face.png', output_width=800)" "$T/template.svg"
@@ -57,11 +57,11 @@ else
   echo "skipped docs/src/images/template_face.png: pip install cairosvg to render the SVG" >&2
 fi
 
-# kslab rig (issue 16): track and fitted rig on the news sample, frame 200.
+# kslab rig: track and fitted rig on the news sample, frame 200.
 $K rig -q $S/pyfeat_samples/news_sample_compact.csv --out "$T/rig_w.csv" --png-dir "$T/rig" > /dev/null
 cp "$T/rig/rig_000200.png" docs/src/images/rig_news_200.png
 
-# Corpus studies (issue 17): the cross-sequence curves and LS − NNLS per sequence.
+# Corpus studies: the cross-sequence curves and LS − NNLS per sequence.
 $K run -q experiments/corpus_fig6_face_ibug68.toml --out "$T/corpus_face" > /dev/null
 cp "$T/corpus_face/corpus_nnls.png" docs/src/images/corpus_fig6_face_ibug68_nnls.png
 $K run -q experiments/corpus_fig6_lips_ibug68.toml --out "$T/corpus_lips" > /dev/null

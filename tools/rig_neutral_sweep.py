@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""How much the neutral frame matters for agreement with py-feat (issue 16, README "Against
+"""How much the neutral frame matters for agreement with py-feat (README "Against
 py-feat's own scores"). Solves the news sample from every STEP-th frame as `--neutral`
 (default 3: 159 solves, about a minute), then prints, over those solves, the correlation of
 the mean r (the summary of `tools/rig_vs_pyfeat.py`) with how active py-feat scores the

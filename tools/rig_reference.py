@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""A small numpy/SciPy reference rig solver for `kslab rig-accuracy --tracks DIR` (issue 39).
+"""A small numpy/SciPy reference rig solver for `kslab rig-accuracy --tracks DIR`.
 
 Per frame: a scaled-orthographic camera and bounded weights (0 <= w <= 1) with a ridge
 mu * ||w||^2, fitted by alternation (camera by an SVD fit of the posed 3-D landmarks,

@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Per-shape correlation of `kslab rig` weights with py-feat's own ARKit-style scores on the
-news sample (issue 16, study (ii)). Usage:
+news sample (the rig study's part (ii)). Usage:
 
     kslab rig ../shared/data/pyfeat_samples/news_sample_compact.csv --out w.csv [options]
     python3 tools/rig_vs_pyfeat.py w.csv [more.csv …]

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Tables the smoothing study (issue 15) across tracks for the README.
+"""Tables the smoothing study across tracks for the README.
 
 Usage: for t in d6 d9 d18 pexels; do kslab run experiments/smooth_lips_$t.toml --out out/smooth_$t; done
        python3 tools/smooth_summary.py out/smooth_d6 out/smooth_d9 out/smooth_d18 out/smooth_pexels

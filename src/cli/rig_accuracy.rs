@@ -1,4 +1,4 @@
-//! `kslab rig-accuracy`: the rig accuracy benchmark (issue 39). Performances rendered
+//! `kslab rig-accuracy`: the rig accuracy benchmark. Performances rendered
 //! through the rig from known weights are solved back with `kslab rig`'s solve, and every
 //! shape is measured against the truth.
 

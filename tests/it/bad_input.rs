@@ -259,7 +259,7 @@ fn retarget_writes_metrics_frames_and_a_reviewed_frame_picture() {
     assert_eq!(r.code, 0, "{}", r.stderr);
     let v: serde_json::Value = serde_json::from_str(&r.stdout).unwrap();
     // Measured: target RMS 0.64386 px, jitter 0.339549 (LS, 12 spread keys, built-in lips;
-    // the RMS second difference, √ of the mean square 0.115294 reported before issue 41).
+    // the RMS second difference, √ of the mean square 0.115294 reported before jitter had one definition).
     let (trms, jitter) = (
         v["target_rms"].as_f64().unwrap(),
         v["jitter"].as_f64().unwrap(),

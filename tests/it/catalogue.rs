@@ -1,7 +1,7 @@
 //! The bad-input catalogue: every case is a set of files, a command line, the exact exit
 //! code, a piece of the message that names the file / line / value, and the outputs that
 //! must not exist afterwards. Each case failed (wrong result, panic or exit 0) before the
-//! fix it guards (issue 11); a new bad input found in the field becomes one more row.
+//! fix it guards; a new bad input found in the field becomes one more row.
 
 use crate::common::shared;
 use std::path::Path;
@@ -73,8 +73,8 @@ const CASES: &[Case] = &[
     Case { name: "info --no-align", files: &[], args: &["info", "--no-align"], code: 1, needle: "--no-align does not apply to info", absent: &[] },
     Case { name: "map --apng without a second person", files: &[], args: &["map", "--actions", "assets/cosker/actions_liveportrait_d6.json", "--out", "{d}/m.csv", "--apng", "{d}/m.png"], code: 2, needle: "--target-sequence", absent: &["m.csv", "m.png"] },
     Case { name: "map with nothing to do", files: &[], args: &["map", "--actions", "assets/cosker/actions_liveportrait_d6.json"], code: 1, needle: "nothing to do", absent: &[] },
-    // (A MediaPipe track onto the ICT mesh was refused here until issue 41 made
-    // `mediapipe_to_ict` from the rig's 468 → 68 correspondence; a track of a layout no
+    // (A MediaPipe track onto the ICT mesh was refused here until
+    // `mediapipe_to_ict` was made from the rig's 468 → 68 correspondence; a track of a layout no
     // correspondence knows still is.)
     Case { name: "transfer: a track of no known layout onto the ICT mesh", files: &[("three.csv", PLAIN)], args: &["transfer", "{d}/three.csv", "--mesh", "{shared}/ict_facekit_face/neutral_face.obj", "--obj-dir", "{d}/objs"], code: 1, needle: "no built-in feature correspondence fits a 3-point track onto a 9409-vertex mesh", absent: &["objs"] },
     Case { name: "transfer: features for another layout", files: &[], args: &["transfer", "{shared}/pyfeat_samples/news_sample_compact.csv", "--mesh", "{shared}/ict_facekit_face/neutral_face.obj", "--features", "mediapipe_to_canonical"], code: 1, needle: "features mediapipe_to_canonical are for 468-point mediapipe_face_mesh_468 tracks", absent: &[] },
@@ -107,7 +107,7 @@ const CASES: &[Case] = &[
     Case { name: "png dir under a file", files: &[("f", "x")], args: &["retarget", "--points", "lips", "--k", "3", "--out", "{d}/w.csv", "--png-dir", "{d}/f/frames"], code: 1, needle: "cannot make this directory", absent: &["w.csv"] },
     Case { name: "two outputs, one path", files: &[], args: &["curves", "--methods", "spread", "--k", "2..3", "--out", "{d}/c", "--png", "{d}/c"], code: 1, needle: "named as two outputs", absent: &["c"] },
     Case { name: "a device as output (was written into)", files: &[], args: &["solve", "--keys", "3", "--out", "/dev/full"], code: 1, needle: "/dev/full: is a device: kslab writes regular files, /dev/null or standard output", absent: &[] },
-    // ---- counts bounded and options checked in experiment files (issue 41) ----
+    // ---- counts bounded and options checked in experiment files ----
     Case { name: "TOML bootstrap 2^61 (panicked)", files: &[("b.toml", "title = \"x\"\ninputs = [\"{shared}/mediapipe_face_tracks/liveportrait_d6.csv\"]\nmethods = [\"spread\"]\nk = \"2..3\"\nbootstrap = 2305843009213693952\n")], args: &["run", "{d}/b.toml", "--out", "{d}/out"], code: 1, needle: "b.toml:5:1: bootstrap: 2305843009213693952 resamples: give 1 to 100000", absent: &["out"] },
     Case { name: "TOML rig frames 10^12 (ran for ever)", files: &[("r.toml", "title = \"x\"\ninput = \"builtin\"\n[rig]\nframes = 1000000000000\n")], args: &["run", "{d}/r.toml", "--out", "{d}/out"], code: 1, needle: "r.toml:4:1: frames: 1000000000000 frames: give 1 to 1000000", absent: &["out"] },
     Case { name: "TOML a method twice", files: &[("m.toml", "title = \"x\"\ninput = \"builtin\"\nmethods = [\"spread\", \"spread\"]\nk = \"2..3\"\n")], args: &["run", "{d}/m.toml", "--out", "{d}/out"], code: 1, needle: "m.toml:3:1: methods: spread is listed twice", absent: &["out"] },
@@ -129,7 +129,7 @@ const CASES: &[Case] = &[
     Case { name: "the default standard output and --png -", files: &[], args: &["solve", "--keys", "3", "--png", "-"], code: 1, needle: "both would go to standard output", absent: &[] },
     Case { name: "hull on two identical frames (panicked)", files: &[("twin.csv", "frame,x0,y0,x1,y1,x2,y2\n0,0,0,1,0,0,1\n1,0,0,1,0,0,1\n")], args: &["keys", "{d}/twin.csv", "--no-align", "--method", "hull"], code: 1, needle: "the convex hull (--method hull) needs at least 2 distinct shapes, but the sequence has 1 (2 frames, the rest repeats)", absent: &[] },
     Case { name: "solve with hull on two identical frames (panicked)", files: &[("twin.csv", "frame,x0,y0,x1,y1,x2,y2\n0,0,0,1,0,0,1\n1,0,0,1,0,0,1\n")], args: &["solve", "{d}/twin.csv", "--no-align", "--method", "hull", "--out", "{d}/w.csv"], code: 1, needle: "needs at least 2 distinct shapes", absent: &["w.csv"] },
-    // ---- kslab live: bad options fail before anything starts (issue 51) ----
+    // ---- kslab live: bad options fail before anything starts ----
     Case { name: "live: an unknown source scheme", files: &[], args: &["live", "--from", "webcam:0", "--to", "stdout"], code: 1, needle: "--from 'webcam:0': not a source", absent: &[] },
     Case { name: "live: a source port out of range", files: &[], args: &["live", "--from", "openseeface:70000", "--to", "vmc"], code: 1, needle: "port '70000' is not a port number", absent: &[] },
     Case { name: "live: a sink port of 0", files: &[], args: &["live", "--from", "openseeface", "--to", "vmc:0"], code: 1, needle: "--to vmc:0: port '0'", absent: &[] },
@@ -138,7 +138,7 @@ const CASES: &[Case] = &[
     Case { name: "live: a track no rig reads", files: &[("p.csv", PLAIN)], args: &["live", "--from", "file:{d}/p.csv", "--to", "stdout", "--record", "{d}/take"], code: 1, needle: "this one has 3 points", absent: &["take"] },
     Case { name: "live: an image size for a track in pixels", files: &[("p.csv", PLAIN)], args: &["live", "--from", "file:{d}/p.csv", "--to", "stdout", "--image-size", "10x10"], code: 1, needle: "an image size applies to normalised coordinates", absent: &[] },
     Case { name: "live: --rate on a live source", files: &[], args: &["live", "--from", "openseeface", "--to", "stdout", "--rate", "30"], code: 1, needle: "--rate applies to a file source", absent: &[] },
-    // ---- outputs as one set (issue 41) ----
+    // ---- outputs as one set ----
     Case { name: "two outputs, one file spelled two ways", files: &[], args: &["curves", "--methods", "spread", "--k", "2..3", "--out", "{d}/c.csv", "--png", "{d}/./c.csv"], code: 1, needle: "c.csv: named as two outputs", absent: &["c.csv"] },
     Case { name: "rig --smooth-mode without --smooth", files: &[], args: &["rig", "--smooth-mode", "causal", "--out", "{d}/w.csv"], code: 1, needle: "--smooth-mode applies to the temporal prior", absent: &["w.csv"] },
     Case { name: "rig --live --smooth-mode offline", files: &[], args: &["rig", "--live", "--smooth", "10", "--smooth-mode", "offline", "--out", "{d}/w.csv"], code: 1, needle: "--live is causal: --smooth-mode offline", absent: &["w.csv"] },
@@ -252,7 +252,7 @@ fn run(args: &[&str]) -> (i32, String, String) {
 
 /// `--out` through a symbolic link writes the file the link names and keeps the link; a
 /// dangling link creates its target; `-` is standard output; a device is written, not
-/// replaced (issue 11 item 10).
+/// replaced.
 #[cfg(unix)]
 #[test]
 fn outputs_go_through_links_and_into_special_files() {
@@ -307,7 +307,7 @@ fn outputs_go_through_links_and_into_special_files() {
 }
 
 /// A link to the input is the input: refused, input untouched; so is a retarget that would
-/// write over its own --target SVG (issue 11 item 9).
+/// write over its own --target SVG.
 #[cfg(unix)]
 #[test]
 fn an_output_that_is_an_input_by_another_name_is_refused() {
@@ -361,7 +361,7 @@ fn an_output_that_is_an_input_by_another_name_is_refused() {
     assert_eq!(std::fs::read(&svg).unwrap(), before);
 }
 
-/// A FIFO is refused at once instead of blocking (issue 11 item 16).
+/// A FIFO is refused at once instead of blocking.
 #[cfg(unix)]
 #[test]
 fn a_fifo_input_is_refused_without_blocking() {
@@ -379,7 +379,7 @@ fn a_fifo_input_is_refused_without_blocking() {
     assert!(err.contains("pipe.csv: is not a regular file"), "{err}");
 }
 
-/// A gzip of several members is read whole (issue 11 item 11); trailing junk is not gzip.
+/// A gzip of several members is read whole; trailing junk is not gzip.
 #[test]
 fn every_member_of_a_multi_member_gzip_is_read() {
     use flate2::{write::GzEncoder, Compression};
@@ -405,7 +405,7 @@ fn every_member_of_a_multi_member_gzip_is_read() {
     assert!(err.contains("m.csv.gz: not a valid gzip file"), "{err}");
 }
 
-/// A full standard output is an error, not a panic (issue 11 item 13).
+/// A full standard output is an error, not a panic.
 #[cfg(target_os = "linux")]
 #[test]
 fn a_full_standard_output_is_an_error() {
@@ -435,7 +435,7 @@ fn a_full_standard_output_is_an_error() {
 }
 
 /// `--regions` names every weight column `region/w_N` (no duplicates) and keeps the
-/// regions' keys apart in JSON (issue 11 item 4).
+/// regions' keys apart in JSON.
 #[test]
 fn region_weights_are_named_by_region() {
     let d = tempfile::tempdir().unwrap();
@@ -487,8 +487,7 @@ fn each_region_gets_the_k_of_its_regions_file() {
     assert_eq!((count("eyes"), count("mouth")), (10, 12), "{keys:?}");
 }
 
-/// `retarget --target T.svg` uses the frames the template's groups stand for (issue 11
-/// item 5): a template of frames chosen by hand is retargeted on exactly those frames.
+/// `retarget --target T.svg` uses the frames the template's groups stand for: a template of frames chosen by hand is retargeted on exactly those frames.
 #[test]
 fn a_target_template_brings_its_own_key_frames() {
     let d = tempfile::tempdir().unwrap();
@@ -534,8 +533,7 @@ fn a_target_template_brings_its_own_key_frames() {
     assert!(err.contains("--k applies with --method"), "{err}");
 }
 
-/// `info --points lips` reports the lips' coordinate ranges, not the whole face's (issue 11
-/// item 8), checked against the ranges computed here from the built-in sequence.
+/// `info --points lips` reports the lips' coordinate ranges, not the whole face's, checked against the ranges computed here from the built-in sequence.
 #[test]
 fn info_ranges_are_those_of_the_selected_points() {
     use keyshape_core::sequence::Layout;
@@ -553,8 +551,8 @@ fn info_ranges_are_those_of_the_selected_points() {
     assert!(lips[0].0 > seq.ranges()[0].0 + 10.0);
 }
 
-/// Greedy over more frames than its Gram matrix allows used to be refused (issue 11 item
-/// 15); since issue 17 it runs without that matrix (least squares exactly, nnls on a
+/// Greedy over more frames than its Gram matrix allows used to be refused;
+/// now it runs without that matrix (least squares exactly, nnls on a
 /// subsample with exact errors) and the curve has every k.
 #[test]
 fn greedy_beyond_the_gram_limit_runs_without_the_frames_gram_matrix() {
@@ -592,7 +590,7 @@ fn greedy_beyond_the_gram_limit_runs_without_the_frames_gram_matrix() {
 
 /// Default data paths do not depend on the current directory: `intensity` run from `/`
 /// finds the news sample beside the repository, and `KSLAB_SHARED` overrides it with an
-/// error naming the path tried (issue 11 item 6).
+/// error naming the path tried.
 #[test]
 fn default_data_paths_do_not_depend_on_the_current_directory() {
     let bin = env!("CARGO_BIN_EXE_kslab");
@@ -627,7 +625,7 @@ fn default_data_paths_do_not_depend_on_the_current_directory() {
     );
 }
 
-/// `--head-motion` decides once for every output (issue 11 item 7): with `apply` the CSV
+/// `--head-motion` decides once for every output: with `apply` the CSV
 /// carries the per-frame pose and the pictures differ from `none`; the relative motion for
 /// a target with its own points rotates and scales about the target's centre.
 #[test]
@@ -705,7 +703,7 @@ fn head_motion_is_one_choice_for_every_output() {
     }
 }
 
-/// Issue 14 item 12: every subcommand's usage shows the input as optional `[FILE]` (the
+/// Every subcommand's usage shows the input as optional `[FILE]` (the
 /// built-in sequence), and every option that takes a value either is required (it is in the
 /// usage line) or says its default.
 #[test]

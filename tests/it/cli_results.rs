@@ -1,4 +1,4 @@
-//! What a command tells its user (issue 41, item 5): `solve` chooses its own keys as `keys`
+//! What a command tells its user: `solve` chooses its own keys as `keys`
 //! does, `keys` and `solve` report the same overall RMS for the same keys, and `curves`,
 //! `smooth` and `run` end with the line a user wants.
 
@@ -153,8 +153,8 @@ fn curves_smooth_and_run_end_with_their_result() {
     assert!(out.contains("lowest error: "), "{out}");
 }
 
-/// A file of several clips solved with one identity says that `--identity-per clip` exists
-/// (issue 41, item 6); asking for either says nothing.
+/// A file of several clips solved with one identity says that `--identity-per clip` exists;
+/// asking for either says nothing.
 #[test]
 fn rig_on_a_file_of_clips_names_the_per_clip_identity() {
     let news = shared("pyfeat_samples/news_sample_compact.csv");

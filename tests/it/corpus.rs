@@ -1,4 +1,4 @@
-//! Corpus studies (issue 17): many sequences in one experiment, aggregated; shards and
+//! Corpus studies: many sequences in one experiment, aggregated; shards and
 //! their merge give exactly the unsharded report; the scheduler set-ups (Slurm for real,
 //! the Kubernetes manifest against its schemas).
 
@@ -652,7 +652,7 @@ fn shard_options_are_checked_and_read_from_the_schedulers() {
     ]))
     .unwrap_err();
     assert!(e.to_string().contains("gaps or a step"), "{e}");
-    // Issue 41: a step without a maximum, and a task id outside the array, picked a
+    // A step without a maximum, and a task id outside the array, picked a
     // wrong shard.
     let e = Shard::from_env(&env(&[
         ("SLURM_ARRAY_TASK_ID", "2"),
@@ -957,7 +957,7 @@ fn aggregates_of_hand_made_results_with_ties_are_exact() {
     assert!((r.source_diff.mean + 0.4 / 3.0).abs() < 1e-15, "{r:?}");
 }
 
-/// A partial report is validated as an input (issue 41, items 11–12): a damaged value, an
+/// A partial report is validated as an input: a damaged value, an
 /// impossible count or a repeated curve point is refused by name, nothing is written.
 #[test]
 fn merge_refuses_a_partial_with_values_no_run_gives() {
@@ -1056,7 +1056,7 @@ fn merge_refuses_a_partial_with_values_no_run_gives() {
     }
 }
 
-/// One file counts once in a corpus however it is spelled (issue 41, item 13): `p.csv` and
+/// One file counts once in a corpus however it is spelled: `p.csv` and
 /// `./p.csv`, a symbolic link and a hard link to it were each counted twice.
 #[test]
 fn a_corpus_counts_one_file_once_however_it_is_named() {

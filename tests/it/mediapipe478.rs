@@ -1,4 +1,4 @@
-//! MediaPipe Face Landmarker's own output (issue 41, item 3): 478 points (the Face Mesh
+//! MediaPipe Face Landmarker's own output: 478 points (the Face Mesh
 //! 468 and two irises of five points) through every subcommand that takes a MediaPipe
 //! file, and its default normalised coordinates detected, said, and turned into pixels by
 //! `--image-size`.
@@ -357,7 +357,7 @@ fn normalised_coordinates_are_detected_said_and_scaled_to_pixels() {
     assert!(r.stderr.contains("not an image size"), "{}", r.stderr);
 }
 
-/// The lab reads normalised tracks too (issue 41, item 3): `--image-size` scales the first
+/// The lab reads normalised tracks too: `--image-size` scales the first
 /// one and every normalised one opened with `o`, a pixel track opened later is left as it
 /// is, and a track left normalised is said in the status line — only while it is loaded.
 #[test]

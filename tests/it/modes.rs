@@ -1115,7 +1115,7 @@ fn normalisation_names_are_the_spelling_the_options_read() {
 
 /// `kslab actions` chooses the frames `tools/choose_actions.py` chose for the shipped files
 /// (the oracle), works on iBUG-68 tracks too, and an actions file used with another track
-/// is refused (issue 41, item 4).
+/// is refused.
 #[test]
 fn kslab_actions_reproduces_the_shipped_files_and_is_checked_against_its_track() {
     use crate::common::kslab;

@@ -1,4 +1,4 @@
-//! Oracles for numbers the other tests did not pin down (issue 12 items 3–5): each test
+//! Oracles for numbers the other tests did not pin down: each test
 //! here fails on a plausible one-line bug that the suite used to let through.
 
 use keyshape_actions::intensity::median3;

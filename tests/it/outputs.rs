@@ -1,4 +1,4 @@
-//! Outputs as one set (issue 41, items 10, 14 and 16): a command's files appear together or
+//! Outputs as one set: a command's files appear together or
 //! not at all, two outputs that are one file are refused however spelled, temporaries are
 //! never opened through a planted link, a replaced file keeps its permission bits, a closed
 //! standard output is an error, and a degenerate frame is refused by every path that fits a

@@ -270,7 +270,7 @@ fn tables_read_from_the_file_equal_the_whole_text_parse() {
     }
 }
 
-/// The coordinate bound is where results stay right (issue 41, item 13): a real track
+/// The coordinate bound is where results stay right: a real track
 /// scaled by 10^e, for e up to the bound's 30, gives the same condition number and the same
 /// errors relative to its scale — and a coordinate past the bound is refused by name.
 #[test]
@@ -320,7 +320,7 @@ fn results_are_scale_free_up_to_the_coordinate_bound() {
 }
 
 /// A column read twice (a second `x0`, `x_0`, `frame` or `detected`) is refused at its
-/// field, not read from whichever copy came last (issue 41, item 13).
+/// field, not read from whichever copy came last.
 #[test]
 fn a_coordinate_or_frame_column_given_twice_is_refused() {
     let d = tempfile::tempdir().unwrap();
@@ -360,7 +360,7 @@ fn a_coordinate_or_frame_column_given_twice_is_refused() {
 }
 
 /// A UTF-8 byte-order mark is read past by every reader, as the CSV reader always did
-/// (issue 41, item 15: JSON and `.pts` refused it).
+/// (JSON and `.pts` refused it).
 #[test]
 fn a_byte_order_mark_is_read_past_by_every_reader() {
     let d = tempfile::tempdir().unwrap();
@@ -380,7 +380,7 @@ fn a_byte_order_mark_is_read_past_by_every_reader() {
 }
 
 /// A gzip file cut off mid-stream is the file's error, said as a gzip error with no
-/// made-up line or column (issue 41, item 15).
+/// made-up line or column.
 #[test]
 fn a_gzip_cut_off_mid_stream_is_a_file_error() {
     use std::io::Write;

@@ -49,8 +49,8 @@ fn coincident_feature_points_are_a_clear_error() {
 
 #[test]
 fn jitter_is_the_rms_second_difference() {
-    // w_t = t²: second difference 2 everywhere, so jitter 2 (one definition everywhere,
-    // issue 41 item 5; it was the mean square, 4).
+    // w_t = t²: second difference 2 everywhere, so jitter 2 (one definition everywhere;
+    // it was the mean square, 4).
     let w = DMatrix::from_fn(2, 10, |_, t| (t * t) as f64);
     assert!((jitter(&[w]) - 2.0).abs() < 1e-12);
     assert_eq!(jitter(&[DMatrix::from_element(3, 10, 0.7)]), 0.0);
@@ -409,7 +409,7 @@ fn nnls_removes_the_distortion_ls_shows_with_traced_targets_on_real_lips() {
     assert!(ls0.target_rms().unwrap() < nnls0.target_rms().unwrap());
 }
 
-/// Issue 14 item 1: the whole-face template is readable — every panel captioned with its key
+/// The whole-face template is readable — every panel captioned with its key
 /// number and source frame, one labelled sub-group per layout group (lips outer and inner
 /// told apart), the mesh interior as dots instead of one polyline through ~400 points — and
 /// dots left alone follow a redrawn contour, while a dot the artist moved stays where it was
@@ -614,7 +614,7 @@ fn cartoon_outline_margin(seq: &keyshape_core::sequence::Sequence, align: bool, 
     worst
 }
 
-/// Issue 14 item 2: the built-in cartoon keeps its drawn features inside its own outline on
+/// The built-in cartoon keeps its drawn features inside its own outline on
 /// every aligned frame of every real track, not only on the mean shape it is fitted to, and
 /// where the source has a feature close to it (within 0.02 IOD) the cartoon is no closer
 /// (yaw brings a brow end within 0.3 % of an IOD of the oval in two MediaPipe tracks).

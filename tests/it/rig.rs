@@ -1,4 +1,4 @@
-//! Issue 16: a tracked performance solved onto the ICT FaceKit rig — camera recovery,
+//! A tracked performance solved onto the ICT FaceKit rig — camera recovery,
 //! known weights solved back, identity, identifiability, Live Link Face CSV, bad rigs.
 
 use crate::common::{kslab, shared};
@@ -474,7 +474,7 @@ fn kslab_rig_writes_weights_pose_and_live_link_and_its_options_take_effect() {
     );
     assert_eq!(std::fs::read_dir(&pngs).unwrap().count(), 477);
     assert!(pngs.join("rig_000200.png").exists());
-    // The right panel is the rig's mesh posed by the weights, shaded (issue 41, item 9):
+    // The right panel is the rig's mesh posed by the weights, shaded:
     // most of it is grey, not white paper, and a smiling frame differs from a neutral one
     // there.
     let right_half = |f: &str| -> Vec<u8> {
@@ -560,7 +560,7 @@ fn kslab_rig_writes_weights_pose_and_live_link_and_its_options_take_effect() {
     let pose = std::fs::read_to_string(&p).unwrap();
     assert!(pose.starts_with("frame,yaw_deg,pitch_deg,roll_deg,scale,tx,ty,rms\n"));
     // The fitted head pose follows py-feat's own estimate (measured |r| = 0.974 yaw, 0.974
-    // pitch, 0.925 roll with the plain solve; 0.969 pitch with issue 39's default priors,
+    // pitch, 0.925 roll with the plain solve; 0.969 pitch with the default priors,
     // which let fewer shapes stand in for head pitch; py-feat's yaw has the opposite sign,
     // and py-feat is another estimator, not the truth).
     let ours = keyshape_io::read_columns(
@@ -953,7 +953,7 @@ fn the_rig_experiment_measures_recovery_and_agreement_with_py_feat() {
     }
     // Measured: the auto neutral lifts agreement (mean r 0.403 → 0.464, median 0.447 →
     // 0.594) and nearly halves the landmark error (6.9 → 3.9 px), with either identity.
-    // Issue 39 moved these twice: candidates kept to closed lips and resting brows (median
+    // The neutral search moved these twice: candidates kept to closed lips and resting brows (median
     // 0.606 → 0.631), then the candidates' scores centred (frame 263 → 385, another of the
     // sample's 20 people: mean 0.466 → 0.464, median 0.631 → 0.594). One identity serves
     // twenty people here, so which person is the neutral is close to arbitrary.
@@ -1129,7 +1129,7 @@ fn a_gltf_rig_with_a_landmark_list_solves_like_the_folder_it_came_from() {
     ]);
     assert_eq!(r.code, 1);
     assert!(r.stderr.contains("needs --rig-landmarks"), "{}", r.stderr);
-    // A list with a folder takes effect (issue 39: a correspondence of any length): the 51
+    // A list with a folder takes effect (a correspondence of any length): the 51
     // inner points without the jaw line solve, and differently; a list naming a point past
     // the track's 68 is refused by name, nothing written.
     let inner = d.path().join("inner.csv");
@@ -1168,7 +1168,7 @@ fn a_gltf_rig_with_a_landmark_list_solves_like_the_folder_it_came_from() {
     assert!(!w4.exists());
 }
 
-/// A damaged rig folder is refused by name, nothing written (issue 41, item 13): an empty or
+/// A damaged rig folder is refused by name, nothing written: an empty or
 /// header-only offsets file, an offset given twice, empty, repeated or comma names, and
 /// offsets out of all proportion (1e40 zeroed every weight; 1e308 wrote an infinite float
 /// into the GLB).
@@ -1273,7 +1273,7 @@ fn a_damaged_rig_folder_is_refused_by_name() {
 }
 
 /// glTF positions are VEC3 FLOAT: an accessor of another component type or shape was read
-/// as garbage (issue 41, item 13), and one that cannot be read said "no positions".
+/// as garbage, and one that cannot be read said "no positions".
 #[test]
 fn a_gltf_rig_with_positions_of_the_wrong_type_is_refused() {
     let d = tempfile::tempdir().unwrap();

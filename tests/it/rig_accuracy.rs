@@ -1,4 +1,4 @@
-//! Issue 39: the rig's weights measured against ground truth. Tracks rendered through the
+//! The rig's weights measured against ground truth. Tracks rendered through the
 //! ICT rig from known weights are solved back; the default solve (magnitude prior, no
 //! freezing, zero-phase smoothing) must meet the issue's goals, its per-frame optimum must
 //! meet its KKT conditions, and a noise-free render must come back exactly.

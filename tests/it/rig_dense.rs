@@ -1,4 +1,4 @@
-//! Issue 39, item 3: every landmark the tracker gives. MediaPipe tracks solve through the
+//! Every landmark the tracker gives. MediaPipe tracks solve through the
 //! dense 468 → ICT correspondence (and with 478 points the iris centres); the
 //! correspondence is checked on what its derivation did not use, noise-free renders come
 //! back exactly, the benchmark's goals hold, and bad correspondences are refused.
@@ -493,7 +493,7 @@ fn a_rig_folder_that_is_not_ict_needs_its_own_dense_correspondence() {
     assert_eq!(rig.points, vec![33, 263, 1, 152, 61]);
 }
 
-/// The automatic neutral takes no frame with parted lips or raised brows (issue 39): on
+/// The automatic neutral takes no frame with parted lips or raised brows: on
 /// LivePortrait's d18 (neutral, then "oo", then a scream) it took frame 156, lips parted at
 /// 0.038 of the inter-ocular distance against the track's median 0.018; its candidates are
 /// now the frames whose lips and brows are at most the candidates' medians (measured: frame

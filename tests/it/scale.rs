@@ -1,4 +1,4 @@
-//! Long tracks (issue 17): greedy beyond the frames' Gram matrix, generated tracks, and
+//! Long tracks: greedy beyond the frames' Gram matrix, generated tracks, and
 //! peak memory through the real binary.
 
 use crate::common::shared;

@@ -1,4 +1,4 @@
-//! The smoothing study (issue 15): the post-filters against hand-computed values, the
+//! The smoothing study: the post-filters against hand-computed values, the
 //! study's measures (jitter, lag, the clean reference's low-pass) on signals whose answer is
 //! known, the equal-jitter table's interpolation, and `kslab smooth` end to end with its
 //! refusals.

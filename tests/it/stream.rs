@@ -1,4 +1,4 @@
-//! `kslab solve --stream` (issue 17): weights written while the file is read, in memory
+//! `kslab solve --stream`: weights written while the file is read, in memory
 //! independent of its length — and byte for byte the in-memory solve's CSV.
 
 use crate::common::{kslab, shared};

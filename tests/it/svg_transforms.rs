@@ -1,5 +1,5 @@
 //! A redrawn template is read as drawn: every transform on a key group, on a nested group or
-//! on a path changes the key shape read back (issue 11 item 2: a `scale(…)` on the group was
+//! on a path changes the key shape read back (a `scale(…)` on the group was
 //! read as if it were not there). Checked on hand-made edits with exact expectations and on
 //! a file saved by Inkscape 1.2.2 (tests/data/README.md says how it was made).
 
@@ -210,7 +210,7 @@ fn a_template_saved_by_inkscape_is_read_as_drawn() {
 }
 
 /// A key panel deleted or scaled to nothing was read as one key fewer, exit 0, and a
-/// coordinate an SVG cannot hold was "not a number?" (issue 41, items 13 and 15).
+/// coordinate an SVG cannot hold was "not a number?".
 #[test]
 fn a_missing_or_vanished_key_and_an_impossible_coordinate_are_named() {
     let path = data("template_lips3.svg");

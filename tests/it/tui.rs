@@ -344,7 +344,7 @@ fn clicking_the_error_chart_picks_the_nearest_method_and_k() {
 }
 
 /// A job that panics becomes that job's error, and the worker goes on: the next job is
-/// answered (issue 11 item 14: a dead worker left "computing…" spinning forever).
+/// answered (a dead worker left "computing…" spinning forever).
 #[test]
 fn a_panicking_job_does_not_kill_the_worker() {
     use kslab_tui::compute::{spawn, Job};
@@ -591,7 +591,7 @@ fn keys_that_do_not_apply_say_why_and_the_hull_shows_its_k() {
     assert_eq!(line.chars().count(), 12);
 }
 
-/// Issue 16 item 8: `kslab tui --rig DIR` — the track solved onto the ICT rig when the lab
+/// `kslab tui --rig DIR` — the track solved onto the ICT rig when the lab
 /// opens; `r` shows the tracked landmarks with the posed rig and the rig's weights as named
 /// bars, largest first (on frame 150, the scream, jawOpen among the first). Without a rig,
 /// `r` says how to get one.
@@ -624,7 +624,7 @@ fn the_rig_view_names_the_largest_weights_and_r_toggles_it() {
         pos.windows(2).all(|p| p[0] < p[1]),
         "bars out of order: {first:?}"
     );
-    // The lower panels describe the rig solve too (issue 41, item 8): the frame's largest
+    // The lower panels describe the rig solve too: the frame's largest
     // weights and the landmark error over time, with no key-shape chart, bars or key marks.
     // (At the scream both lead: jawOpen, and the smile that stretches the mouth's corners.)
     let over = text.find("over time: ").unwrap();
@@ -669,7 +669,7 @@ fn the_rig_view_names_the_largest_weights_and_r_toggles_it() {
     assert!(text.contains("key frames") && text.contains("◆"), "{text}");
 }
 
-/// In the open prompt a space is part of the path, not play / pause (issue 41, item 8: `o`
+/// In the open prompt a space is part of the path, not play / pause (`o`
 /// dropped spaces from a path).
 #[test]
 fn a_space_in_the_open_prompt_is_part_of_the_path() {
@@ -697,7 +697,7 @@ fn a_space_in_the_open_prompt_is_part_of_the_path() {
 }
 
 /// A sequence opened with `o` in a lab started with `--rig` is solved onto the rig too
-/// (issue 41, item 8: the rig was forgotten), and a track the rig cannot take says why.
+/// (the rig was forgotten), and a track the rig cannot take says why.
 #[test]
 fn the_rig_stays_with_the_lab_when_another_sequence_is_opened() {
     use kslab_tui::compute::{spawn_with_rig, Job};
@@ -757,7 +757,7 @@ fn the_rig_stays_with_the_lab_when_another_sequence_is_opened() {
     assert!(s.status.starts_with("rig: "), "{}", s.status);
 }
 
-/// `l` steers the rig view too (issue 39, item 5): a request with λ solves the rig again with
+/// `l` steers the rig view too: a request with λ solves the rig again with
 /// the offline temporal prior at that λ — a larger λ, smoother weights — and the screen says
 /// which prior it shows; an older request's rig is dropped.
 #[test]
@@ -820,7 +820,7 @@ fn l_solves_the_rig_view_again_with_the_offline_prior() {
 }
 
 /// The worker's first answer is what the screen shows; the split view's solvers follow and
-/// join the same request (issue 41, item 8), and a stale answer is dropped.
+/// join the same request, and a stale answer is dropped.
 #[test]
 fn the_split_view_follows_the_first_answer_and_joins_its_request() {
     let mut engine = Engine::new(builtin_sequence().unwrap());
@@ -848,7 +848,7 @@ fn the_split_view_follows_the_first_answer_and_joins_its_request() {
     assert!(!screen(&s, 100, 30).contains("computing LS and NNLS"));
 }
 
-/// At 80 × 24 (issue 41, item 8): the chart's legend names every method, the header keeps
+/// At 80 × 24: the chart's legend names every method, the header keeps
 /// a long file name, and at k ≥ 15 every key still shows its weight as a shade and a value.
 #[test]
 fn eighty_columns_keep_the_legend_the_file_name_and_the_weights() {

@@ -97,7 +97,7 @@ fn solve_and_retarget_write_the_picture_and_never_over_their_input() {
 }
 
 /// NNLS / bounded weights have no negative half: the scale runs 0 … max, and the key frames
-/// are marked on the time axis (issue 41, item 9).
+/// are marked on the time axis.
 #[test]
 fn nonnegative_weights_get_a_one_sided_scale_and_marked_key_frames() {
     use keyshape_lab::render::weights::weights_picture_marked;

@@ -248,7 +248,7 @@ mod tests {
         assert_eq!(spell_settings(cut, &|n| format!("--{n}")), "use dims");
     }
 
-    /// Columns are 1-based: an unknown one is left out, never printed as 0 (issue 41, 15).
+    /// Columns are 1-based: an unknown one is left out, never printed as 0.
     #[test]
     fn unknown_places_are_left_out() {
         assert_eq!(Error::parse("a.csv", 3, 2, "m").to_string(), "a.csv:3:2: m");

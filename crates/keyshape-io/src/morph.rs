@@ -1,7 +1,7 @@
 //! Morph targets as sparse offsets from a neutral mesh (the ICT face's expression shapes,
 //! a glTF rig's targets): read from CSV, checked, blended (`E = N + Σ wᵢ dᵢ`, w in [0, 1])
 //! and written as GLB. Paper 002 §3.3 (Eq. 8) drives them from action trajectories
-//! (`cosker::morph`); the rig solves for their weights (`rig`).
+//! (`keyshape_actions::morph`); the rig solves for their weights (`keyshape_rig`).
 
 use keyshape_core::error::{Error, Result};
 use std::path::Path;

@@ -1,4 +1,4 @@
-//! Long synthetic tracks for scale tests and `kslab bench scale` (issue 17): real shapes of
+//! Long synthetic tracks for scale tests and `kslab bench scale`: real shapes of
 //! the built-in sequence (216 frames of MediaPipe's 468 points, or the 68 iBUG points read
 //! through the built-in 468 → 68 correspondence), strung together smoothly for as many
 //! frames as asked. Every 12 frames the track heads for another real frame (a smoothstep

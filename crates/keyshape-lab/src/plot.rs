@@ -326,7 +326,7 @@ mod cut_tests {
         assert_eq!(cut_at_x(whole.clone(), 1.0), (whole, None));
     }
 
-    /// The smoothing plot ends 5 % past the unsmoothed jitter (issue 41, item 9): One Euro
+    /// The smoothing plot ends 5 % past the unsmoothed jitter: One Euro
     /// at β = 0.5 jittering more than no smoothing no longer squashes the band where the
     /// approaches compete, and its legend says where it went.
     #[test]

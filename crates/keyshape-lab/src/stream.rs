@@ -1,4 +1,4 @@
-//! A streamed solve (issue 17): the weights of a landmark table of any length, written
+//! A streamed solve: the weights of a landmark table of any length, written
 //! while it is read, in memory independent of its length.
 //!
 //! The whole-sequence steps are done in passes over the file instead of in memory: one pass

@@ -1,5 +1,5 @@
-//! Which track point each rig landmark is read from, and which mesh vertex it sits on
-//! (issue 39): the iBUG-68 path, the dense MediaPipe 468 path and any `landmark,vertex` CSV.
+//! Which track point each rig landmark is read from, and which mesh vertex it sits on:
+//! the iBUG-68 path, the dense MediaPipe 468 path and any `landmark,vertex` CSV.
 //!
 //! A track layout is known by its point count: 68 (iBUG / Multi-PIE), 468 (MediaPipe Face
 //! Mesh) or 478 (MediaPipe Face Landmarker: the 468 and two irises). A correspondence names,

@@ -1,4 +1,4 @@
-//! A tracked performance solved onto a blendshape rig (issue 16): the rig's 68 landmark
+//! A tracked performance solved onto a blendshape rig: the rig's 68 landmark
 //! vertices under a per-frame scaled orthographic camera, fitted jointly with the shape
 //! weights, warm-started from the previous frame, with the person's identity taken from a
 //! neutral frame and the shapes a 2-D track cannot see frozen.

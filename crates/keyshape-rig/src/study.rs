@@ -1,4 +1,4 @@
-//! The rig-solve study (issue 16 item 7): (i) recovery of known weights from synthetic
+//! The rig-solve study: (i) recovery of known weights from synthetic
 //! tracks rendered through the rig under a moving head with landmark noise, per solver and
 //! noise level; (ii) agreement with a peer's ARKit-style scores (py-feat's) on a real track.
 

@@ -1,4 +1,4 @@
-//! The rig's offline temporal prior (issue 39): with each frame's head pose from the
+//! The rig's offline temporal prior: with each frame's head pose from the
 //! per-frame solve, the weights of a whole clip minimise
 //!
 //! `Σ_t ‖u_t − P_t(N + D w_t)‖² + μ-terms(w_t) + λ Σ_t ‖w_t − w_{t−1}‖²`

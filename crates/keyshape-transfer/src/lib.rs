@@ -94,7 +94,7 @@ impl Transfer {
 
     /// Writes the transfer of `frames` source shapes (columns, `fps`) as GLB: the skin as
     /// glTF's linear-blend skinning, one joint per feature point animated by its
-    /// translation (`io::gltf::write_skinned_glb`).
+    /// translation ([`keyshape_io::gltf::write_skinned_glb`]).
     pub fn write_glb(
         &self,
         w: &mut dyn std::io::Write,

@@ -1,4 +1,4 @@
-//! The rig view of the lab (issue 16 item 8, `kslab tui FILE --rig DIR`): the track solved
+//! The rig view of the lab (`kslab tui FILE --rig DIR`): the track solved
 //! onto a blendshape rig once when the lab opens; `r` shows the tracked landmarks with the
 //! posed rig's under the fitted head pose, and the rig's weights as named bars.
 

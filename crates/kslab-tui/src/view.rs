@@ -415,7 +415,7 @@ mod tests {
         0.2126 * lin(c[0]) + 0.7152 * lin(c[1]) + 0.0722 * lin(c[2])
     }
 
-    /// Issue 41 item 8: greedy (20, 20, 20), kmeans2-mean (10, 90, 30) and kmeans3-mean
+    /// Greedy (20, 20, 20), kmeans2-mean (10, 90, 30) and kmeans3-mean
     /// (110, 20, 120) vanished on a dark terminal, and kmeans2 and kmeans2-mean shared a
     /// green. Every method now reads on black and on white and differs from every other.
     #[test]

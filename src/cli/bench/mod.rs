@@ -37,7 +37,7 @@ enum What {
     Live(live::LiveBenchArgs),
     /// Rig solve throughput (camera + 55 ICT shapes per frame) on one core.
     Rig(rig::RigBenchArgs),
-    /// Wall time and peak memory of solve, keys and curves on long generated tracks (issue 17).
+    /// Wall time and peak memory of solve, keys and curves on long generated tracks.
     Scale(scale::ScaleArgs),
     /// Input-to-redraw latency of the lab when k or the method changes.
     Tui(tui::TuiBenchArgs),

@@ -1,4 +1,4 @@
-//! `kslab bench scale` (issue 17): wall time and peak memory of whole subcommands on long
+//! `kslab bench scale`: wall time and peak memory of whole subcommands on long
 //! generated tracks (`keyshape_io::synthetic`), each run as its own process so
 //! its peak resident set is its own.
 

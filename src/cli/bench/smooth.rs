@@ -1,5 +1,5 @@
 //! `kslab bench smooth`: the offline temporal prior against the unsmoothed batch NNLS on the
-//! same frames (issue 15's goal: under 10×), and its memory at growing lengths.
+//! same frames (the goal: under 10×), and its memory at growing lengths.
 
 use super::nnls::{tile, time};
 use anyhow::{Context, Result};

@@ -93,7 +93,7 @@ pub struct RigArgs {
     /// Shapes whose image motion is explained by other shapes beyond this share (their
     /// determination, 0–1, at the neutral frame's head pose) are frozen at 0; 0 (the
     /// default) freezes only shapes that do not move the landmarks: what others explain is
-    /// settled by --prior instead (freezing lost shapes the performance used; issue 39).
+    /// settled by --prior instead (freezing lost shapes the performance used).
     #[arg(long, default_value_t = 0.0)]
     min_determination: f64,
     /// The magnitude prior (≥ 0): each frame minimises its landmark error plus μ‖w‖², with

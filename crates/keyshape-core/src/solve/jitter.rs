@@ -1,4 +1,4 @@
-//! Jitter, one definition for every report (issue 41, item 5): the RMS of the second
+//! Jitter, one definition for every report: the RMS of the second
 //! temporal difference, within segments (a clip boundary or a gap in the frame numbers is
 //! not motion). For weights it is per weight (weight units per frame²); for retargeted points
 //! per point, the RMS length of a point's second difference (px per frame²).

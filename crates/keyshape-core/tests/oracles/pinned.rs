@@ -1,4 +1,4 @@
-//! Oracles for numbers the other tests did not pin down (issue 12 items 3–5), the core's
+//! Oracles for numbers the other tests did not pin down, the core's
 //! share (the rest, on paper 002's intensities, is in the root's `tests/it/oracles.rs`): each
 //! test here fails on a plausible one-line bug that the suite used to let through.
 
@@ -255,7 +255,7 @@ fn negative_share_tolerance_scales_with_the_largest_weight() {
     assert_eq!(a.negative_share(), 0.25);
     // exactly at −tolerance is not negative
     assert_eq!(d(vec![1.0, -1e-9, 0.5, 0.5]).negative_share(), 0.0);
-    // an LS weight of −3e-14 is rounding, not "−0.0 %" (issue 11 item 8); −0.25 counts
+    // an LS weight of −3e-14 is rounding, not "−0.0 %"; −0.25 counts
     assert_eq!(d(vec![1.0, -3e-14, 0.5, 0.5]).negative_share(), 0.0);
     assert_eq!(d(vec![1.0, -0.25, 0.5, 0.5]).negative_share(), 0.25);
 }

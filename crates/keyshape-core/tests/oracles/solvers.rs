@@ -236,7 +236,7 @@ proptest! {
 /// A weight whose gradient is 22× the solver's own stopping tolerance must be freed:
 /// `S = [e₁ e₂]`, `q = e₁ + 1e-11·e₂` has the exact NNLS (and bounded) solution (1, 1e-11).
 /// A solver that stopped 100× later (tolerance 4.4e-11 here) would leave w₂ at 0 — which
-/// the KKT bound of the proptests (relative 1e-8) cannot see (issue 12 item 1).
+/// the KKT bound of the proptests (relative 1e-8) cannot see.
 #[test]
 fn a_gradient_above_the_stopping_tolerance_frees_its_weight() {
     let s = DMatrix::from_row_slice(3, 2, &[1.0, 0.0, 0.0, 1.0, 0.0, 0.0]);
@@ -260,7 +260,7 @@ fn a_gradient_above_the_stopping_tolerance_frees_its_weight() {
 /// A problem that forces Lawson–Hanson's step back: the largest gradient frees s₁ first,
 /// freeing s₃ then drives w₁ negative, so the step stops where w₁ reaches 0 and s₁ leaves.
 /// The optimum (brute force over active sets, exact in fractions) is (0, 9/7, 19/7);
-/// taking the full step and clipping gives (0, 2, 13/3) instead (issue 12 item 2).
+/// taking the full step and clipping gives (0, 2, 13/3) instead.
 #[test]
 fn the_lawson_hanson_step_back_reaches_the_exact_optimum() {
     let s = DMatrix::from_row_slice(3, 3, &[-1.0, -3.0, 1.0, -2.0, 1.0, -1.0, 2.0, 0.0, 1.0]);

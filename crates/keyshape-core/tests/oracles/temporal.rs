@@ -1,4 +1,4 @@
-//! The temporal prior (issue 15): λ = 0 is the plain solve, the offline solution meets the
+//! The temporal prior: λ = 0 is the plain solve, the offline solution meets the
 //! KKT conditions of its objective (checked here from the objective's gradient written out,
 //! not through the library), LS matches a dense solve of the whole system, segments do not
 //! couple, causal frames meet their own KKT conditions, and jitter falls with λ on a real

@@ -1,4 +1,4 @@
-//! The jitter-against-error study (issue 15): does a temporal prior inside the solver beat
+//! The jitter-against-error study: does a temporal prior inside the solver beat
 //! a filter applied to the weights afterwards?
 //!
 //! One key set (a heuristic's frames), one solver. For every approach and setting — no

@@ -72,7 +72,7 @@ pub struct Spec {
     /// The jitter-against-error study of the temporal prior and post-filters, optional.
     #[serde(default)]
     pub smooth: Option<super::smoothing::SmoothStudySettings>,
-    /// The rig-solve study (issue 16): recovery of known weights on synthetic tracks of the
+    /// The rig-solve study: recovery of known weights on synthetic tracks of the
     /// ICT rig, and (with a py-feat input) agreement with its ARKit-style scores, optional.
     #[serde(default)]
     pub rig: Option<keyshape_rig::study::RigStudySettings>,

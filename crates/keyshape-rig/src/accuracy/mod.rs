@@ -1,4 +1,4 @@
-//! The rig accuracy benchmark (issue 39): performances rendered through a rig from known
+//! The rig accuracy benchmark: performances rendered through a rig from known
 //! weights — another person's neutral, a neutral lead-in, a moving head, landmark noise — are
 //! solved back, and every shape's weights are measured against the truth: Pearson r, MAE,
 //! RMSE, peak reach, twin leakage, idle activation, jitter and lag.

@@ -1,4 +1,4 @@
-//! Corpus studies (issue 17): one experiment over many sequences — many people, or the
+//! Corpus studies: one experiment over many sequences — many people, or the
 //! clips of one file — with the error curves (paper 000 Fig. 6) and the `[retarget]` study
 //! (Figs. 4–5) run on each and aggregated across them: per method and k the mean error and
 //! a bootstrap 95 % interval over sequences, how often each method wins, paired

@@ -1,4 +1,4 @@
-//! `[rig]`: the rig-solve study (issue 16) — recovery of known weights from synthetic tracks
+//! `[rig]`: the rig-solve study — recovery of known weights from synthetic tracks
 //! of the ICT rig, and, with a py-feat input, agreement with the input's own ARKit-style
 //! scores. Writes `rig_recovery.csv`, `rig_vs_input_scores.csv` and
 //! `rig_vs_input_summary.csv`.
