@@ -9,7 +9,7 @@ inter-ocular distance, so head distance does not matter) is extreme:
   brow_lower_L/R  min brow-to-eye height
   eyes_wide       max mean eyelid gap (|p159 - p145| + |p386 - p374|) / 2
   blink           min mean eyelid gap
-Usage: python3 tools/choose_actions.py ../shared/data/mediapipe_face_tracks/liveportrait_d6.csv > assets/cosker/actions_liveportrait_d6.json
+Usage: python3 tools/choose_actions.py ../shared/data/mediapipe_face_tracks/liveportrait_d6.csv > assets/actions/actions_liveportrait_d6.json
 """
 import csv
 import json

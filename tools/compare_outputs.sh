@@ -44,7 +44,7 @@ cli=(
   "retarget --method spread --k 8 --solver ls --head-motion none --out {OUT}/retarget_aligned.csv"
   "rig $D/mediapipe_face_tracks/liveportrait_d6.csv --out {OUT}/rig.csv --pose {OUT}/rig_pose.csv --livelink {OUT}/rig_livelink.csv"
   "rig-accuracy --kind smooth --out {OUT}/accuracy.csv --tracks {OUT}/acc"
-  "map $D/mediapipe_face_tracks/liveportrait_d6.csv --actions assets/cosker/actions_liveportrait_d6.json --out {OUT}/map.csv"
+  "map $D/mediapipe_face_tracks/liveportrait_d6.csv --actions assets/actions/actions_liveportrait_d6.json --out {OUT}/map.csv"
   "smooth --method spread --k 8 --solver nnls --out {OUT}/smooth"
 )
 for side in old new; do

@@ -44,8 +44,8 @@ cp "$T/ict/frame_000164.png" docs/src/images/transfer_ict_news164.png
 # Paper 002: Table 2 on d6, and d6's jaw drop on the ICT face's morph targets (frame 58).
 $K run -q experiments/cosker_orthogonality_d6.toml --out "$T/orth_d6"
 cp "$T/orth_d6/orthogonality.png" docs/src/images/cosker_orthogonality_d6.png
-$K map -q "$D6" --actions assets/cosker/actions_liveportrait_d6.json \
-  --target-sequence "$D9" --target-actions assets/cosker/actions_liveportrait_d9.json \
+$K map -q "$D6" --actions assets/actions/actions_liveportrait_d6.json \
+  --target-sequence "$D9" --target-actions assets/actions/actions_liveportrait_d9.json \
   --morph $S/ict_facekit_face --morph-png-dir "$T/morph" > /dev/null
 cp "$T/morph/morph_000058.png" docs/src/images/cosker_morph_ict_d6_58.png
 

@@ -233,7 +233,7 @@ fn a_face_landmarker_track_maps_through_action_modes() {
     };
     assert_eq!(
         frames(&actions),
-        frames("assets/cosker/actions_liveportrait_d6.json")
+        frames("assets/actions/actions_liveportrait_d6.json")
     );
     ok(&["modes", t, "--actions", &actions]);
     ok(&[

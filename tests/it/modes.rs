@@ -180,7 +180,7 @@ fn table_2_on_d6_is_a_measurement_with_blended_regions() {
     let defs = ModeRegions::builtin(&layout).unwrap();
     let actions = Actions::read(std::path::Path::new(concat!(
         env!("CARGO_MANIFEST_DIR"),
-        "/assets/cosker/actions_liveportrait_d6.json"
+        "/assets/actions/actions_liveportrait_d6.json"
     )))
     .unwrap();
     let study = |o: &RegionOptions| {
@@ -524,7 +524,7 @@ fn person(
         .weights(&layout, &prep.seq.coords, 2, &RegionOptions::default())
         .unwrap();
     let acts = Actions::read(std::path::Path::new(&format!(
-        "{}/assets/cosker/{actions}",
+        "{}/assets/actions/{actions}",
         env!("CARGO_MANIFEST_DIR")
     )))
     .unwrap();
@@ -1139,7 +1139,7 @@ fn kslab_actions_reproduces_the_shipped_files_and_is_checked_against_its_track()
         let r = kslab(&["actions", track.to_str().unwrap()]);
         assert_eq!(r.code, 0, "{}", r.stderr);
         let shipped =
-            std::fs::read_to_string(format!("assets/cosker/actions_liveportrait_{p}.json"))
+            std::fs::read_to_string(format!("assets/actions/actions_liveportrait_{p}.json"))
                 .unwrap();
         assert_eq!(frames(&r.stdout), frames(&shipped), "{p}");
         assert!(r.stderr.starts_with("9 actions chosen on "), "{}", r.stderr);
@@ -1161,7 +1161,7 @@ fn kslab_actions_reproduces_the_shipped_files_and_is_checked_against_its_track()
             cmd,
             d9.to_str().unwrap(),
             "--actions",
-            "assets/cosker/actions_liveportrait_d6.json",
+            "assets/actions/actions_liveportrait_d6.json",
         ];
         if cmd == "map" {
             args.extend(["--out", "/dev/null"]);

@@ -71,7 +71,7 @@ fn every_setting_of_every_subcommand_refuses_or_takes_zero_minus_one_nan_1e300_a
         .display()
         .to_string();
     let actions = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("assets/cosker/actions_liveportrait_d6.json")
+        .join("assets/actions/actions_liveportrait_d6.json")
         .display()
         .to_string();
     let ict = shared("ict_facekit_face").display().to_string();

@@ -20,7 +20,7 @@ impl MorphMapping {
     /// The built-in mapping of the d6/d9 action names onto ICT's ARKit-style shapes.
     pub fn builtin() -> Result<MorphMapping> {
         serde_json::from_str(include_str!(
-            "../../../assets/cosker/morph_mapping_ict.json"
+            "../../../assets/actions/morph_mapping_ict.json"
         ))
         .map_err(|e| Error::invalid(format!("built-in mapping: {e}")))
     }

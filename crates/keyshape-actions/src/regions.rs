@@ -39,18 +39,20 @@ pub struct ModeRegions {
 impl ModeRegions {
     /// The built-in regions of a layout.
     pub fn builtin(layout: &Layout) -> Result<ModeRegions> {
-        let text = match layout.family() {
-            "mediapipe_face_mesh_468" => {
-                include_str!("../../../assets/cosker/regions_mediapipe_face_mesh_468.json")
-            }
-            "ibug68" => include_str!("../../../assets/cosker/regions_ibug68.json"),
-            other => {
-                return Err(Error::invalid(format!(
-                    "no built-in Cosker regions for layout {other}"
-                )))
-            }
-        };
-        serde_json::from_str(text).map_err(|e| Error::invalid(format!("built-in regions: {e}")))
+        keyshape_io::builtin_json(
+            "Cosker regions",
+            layout.family(),
+            &[
+                (
+                    "mediapipe_face_mesh_468",
+                    include_str!("../../../assets/actions/regions_mediapipe_face_mesh_468.json"),
+                ),
+                (
+                    "ibug68",
+                    include_str!("../../../assets/actions/regions_ibug68.json"),
+                ),
+            ],
+        )
     }
 
     /// Reads a regions file.

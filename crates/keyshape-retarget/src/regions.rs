@@ -39,18 +39,20 @@ pub struct Regions {
 impl Regions {
     /// The built-in regions of a layout.
     pub fn builtin(layout: &Layout) -> Result<Regions> {
-        let text = match layout.family() {
-            "mediapipe_face_mesh_468" => {
-                include_str!("../../../assets/regions/mediapipe_face_mesh_468.json")
-            }
-            "ibug68" => include_str!("../../../assets/regions/ibug68.json"),
-            other => {
-                return Err(Error::invalid(format!(
-                    "no built-in regions for layout {other}"
-                )))
-            }
-        };
-        serde_json::from_str(text).map_err(|e| Error::invalid(format!("built-in regions: {e}")))
+        keyshape_io::builtin_json(
+            "regions",
+            layout.family(),
+            &[
+                (
+                    "mediapipe_face_mesh_468",
+                    include_str!("../../../assets/regions/mediapipe_face_mesh_468.json"),
+                ),
+                (
+                    "ibug68",
+                    include_str!("../../../assets/regions/ibug68.json"),
+                ),
+            ],
+        )
     }
 
     /// Reads a regions file.
