@@ -2,6 +2,7 @@
 //! ([`crate::render`]) and the terminal chart both draw from a [`PlotSpec`].
 
 use keyshape_core::keyshapes::curves::CurveRow;
+use keyshape_core::keyshapes::Method;
 
 /// How a series is drawn.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -93,19 +94,33 @@ pub const LOG_SPAN: f64 = 10.0;
 
 /// Colour and style of each key-shape method, after paper 000 Fig. 6 (spread solid blue,
 /// k-means dashed green / magenta, hull a red dot) plus ours; the k-means centre-of-mass
-/// variants (`kmeansN-mean`) solid in a darker shade of their k-means colour.
-pub fn method_style(method: &str) -> ([u8; 3], Style) {
-    match method {
-        "spread" => ([31, 90, 200], Style::Line),
-        "kmeans2" => ([30, 150, 60], Style::Dashed),
-        "kmeans3" => ([190, 40, 190], Style::Dashed),
-        "kmeans2-mean" => ([10, 90, 30], Style::Line),
-        "kmeans3-mean" => ([110, 20, 120], Style::Line),
-        "hull" => ([220, 30, 30], Style::Marker),
-        "greedy" => ([20, 20, 20], Style::Line),
-        "random" => ([150, 150, 150], Style::Dashed),
-        _ => ([230, 140, 20], Style::Dashed),
+/// variants (`kmeansN-mean`) solid in a darker shade of their k-means colour. Keyed on
+/// [`Method`], with no default: a new method does not compile until it has its style.
+pub fn method_style(method: &Method) -> ([u8; 3], Style) {
+    match *method {
+        Method::Spread => ([31, 90, 200], Style::Line),
+        Method::KMeans {
+            pcs: 2,
+            mean: false,
+        } => ([30, 150, 60], Style::Dashed),
+        Method::KMeans {
+            pcs: 3,
+            mean: false,
+        } => ([190, 40, 190], Style::Dashed),
+        Method::KMeans { pcs: 2, mean: true } => ([10, 90, 30], Style::Line),
+        Method::KMeans { pcs: 3, mean: true } => ([110, 20, 120], Style::Line),
+        // k-means on another count of components (`kmeans4`, `kmeans4-mean`).
+        Method::KMeans { .. } => ([230, 140, 20], Style::Dashed),
+        Method::Hull => ([220, 30, 30], Style::Marker),
+        Method::Greedy => ([20, 20, 20], Style::Line),
+        Method::Random => ([150, 150, 150], Style::Dashed),
     }
+}
+
+/// [`method_style`] of a method named as the curves' rows name it; a name that is no
+/// method (a hand-edited report) is drawn grey and dotted, apart from every method.
+pub fn named_style(name: &str) -> ([u8; 3], Style) {
+    Method::parse(name).map_or(([120, 120, 120], Style::Marker), |m| method_style(&m))
 }
 
 /// The error-curve plot (per-point RMS against k) for one solver's rows.
@@ -119,7 +134,7 @@ pub fn curves_plot(rows: &[CurveRow], solver: &str, title: &str, units: &str) ->
     let series = methods
         .iter()
         .map(|m| {
-            let (color, style) = method_style(m);
+            let (color, style) = named_style(m);
             let mut points: Vec<(f64, f64)> = rows
                 .iter()
                 .filter(|r| r.solver == solver && r.method == *m)
@@ -283,7 +298,7 @@ pub fn interval_plot(
     let mut bands = Vec::new();
     let mut lines = Vec::new();
     for (name, pts) in curves {
-        let (color, style) = method_style(name);
+        let (color, style) = named_style(name);
         let mut pts = pts.clone();
         pts.sort_by(|a, b| a.0.total_cmp(&b.0));
         let mut edge: Vec<(f64, f64)> = pts.iter().map(|p| (p.0, p.3)).collect();
@@ -357,5 +372,27 @@ mod cut_tests {
             "one-euro beta 0.5 (off right: jitter to 2.00)"
         );
         assert_eq!(spec.series[1].name, "ema");
+    }
+}
+
+#[cfg(test)]
+mod style_tests {
+    use super::{method_style, named_style};
+    use keyshape_core::keyshapes::Method;
+
+    /// Every method of the plots is drawn its own way, found again from its name; a name
+    /// that is no method is drawn apart from all of them.
+    #[test]
+    fn each_method_has_a_style_of_its_own_found_from_its_name() {
+        let styles: Vec<_> = Method::ALL.iter().map(method_style).collect();
+        for (i, a) in styles.iter().enumerate() {
+            for b in &styles[..i] {
+                assert_ne!(a, b);
+            }
+        }
+        for (m, s) in Method::ALL.iter().zip(&styles) {
+            assert_eq!(named_style(&m.name()), *s, "{m:?}");
+        }
+        assert!(!styles.contains(&named_style("no-such-method")));
     }
 }

@@ -31,19 +31,33 @@ pub(super) fn colour(rgb: [u8; 3]) -> Color {
 /// Each method's colour in the lab. A terminal may be dark or light, so every colour is of
 /// middle luminance — a WCAG contrast of at least 2.5 against black and against white — and
 /// each differs from every other (the PNG plots, on white, tell the k-means variants apart
-/// by dashes as well; a terminal chart has only colour).
-pub fn lab_rgb(method: &str) -> [u8; 3] {
-    match method {
-        "spread" => [70, 130, 255],
-        "kmeans2" => [40, 170, 60],
-        "kmeans3" => [210, 60, 210],
-        "kmeans2-mean" => [0, 160, 160],
-        "kmeans3-mean" => [150, 100, 255],
-        "hull" => [235, 50, 50],
-        "greedy" => [230, 140, 0],
-        "random" => [140, 140, 140],
-        _ => [200, 120, 60],
+/// by dashes as well; a terminal chart has only colour). Keyed on [`Method`], with no
+/// default: a new method does not compile until it has its colour.
+pub fn lab_rgb(method: &Method) -> [u8; 3] {
+    match *method {
+        Method::Spread => [70, 130, 255],
+        Method::KMeans {
+            pcs: 2,
+            mean: false,
+        } => [40, 170, 60],
+        Method::KMeans {
+            pcs: 3,
+            mean: false,
+        } => [210, 60, 210],
+        Method::KMeans { pcs: 2, mean: true } => [0, 160, 160],
+        Method::KMeans { pcs: 3, mean: true } => [150, 100, 255],
+        // k-means on another count of components (the lab offers 2 and 3 only).
+        Method::KMeans { .. } => [200, 120, 60],
+        Method::Hull => [235, 50, 50],
+        Method::Greedy => [230, 140, 0],
+        Method::Random => [140, 140, 140],
     }
+}
+
+/// [`lab_rgb`] of a method named as the curves' rows name it; a name that is no method is
+/// grey.
+fn named_rgb(name: &str) -> [u8; 3] {
+    Method::parse(name).map_or([120, 120, 120], |m| lab_rgb(&m))
 }
 
 /// The chart's legend in at most `width` characters: every method, named as short as it
@@ -79,7 +93,7 @@ pub(super) fn error_chart(f: &mut Frame, s: &State, area: Rect) {
     );
     let mut title = vec![Span::raw(head)];
     for (m, name) in Method::ALL.iter().zip(names) {
-        let rgb = lab_rgb(&m.name());
+        let rgb = lab_rgb(m);
         title.push(Span::styled(
             format!("{name} "),
             Style::default().fg(colour(rgb)),
@@ -118,7 +132,7 @@ pub(super) fn error_chart(f: &mut Frame, s: &State, area: Rect) {
     let mut datasets: Vec<Dataset> = series
         .iter()
         .map(|(m, pts)| {
-            let rgb = lab_rgb(m);
+            let rgb = named_rgb(m);
             let kind = if pts.len() == 1 {
                 GraphType::Scatter
             } else {

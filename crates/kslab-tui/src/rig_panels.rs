@@ -3,6 +3,7 @@
 
 use super::rig::RigView;
 use super::view::lab_rgb;
+use keyshape_core::keyshapes::Method;
 use ratatui::layout::Rect;
 use ratatui::style::{Color, Style};
 use ratatui::symbols::Marker;
@@ -26,8 +27,15 @@ pub fn largest(r: &RigView, t: usize, n: usize) -> Vec<usize> {
 /// A shape's colour in the rig charts: the lab's palette by rank, so the three followed
 /// shapes read apart on dark and light terminals.
 fn rank_rgb(rank: usize) -> [u8; 3] {
-    const RANKED: [&str; FOLLOWED] = ["spread", "greedy", "kmeans3"];
-    lab_rgb(RANKED[rank % FOLLOWED])
+    const RANKED: [Method; FOLLOWED] = [
+        Method::Spread,
+        Method::Greedy,
+        Method::KMeans {
+            pcs: 3,
+            mean: false,
+        },
+    ];
+    lab_rgb(&RANKED[rank % FOLLOWED])
 }
 
 fn rgb(c: [u8; 3]) -> Color {

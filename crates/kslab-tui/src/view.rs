@@ -420,7 +420,7 @@ mod tests {
     /// green. Every method now reads on black and on white and differs from every other.
     #[test]
     fn every_method_reads_on_dark_and_light_terminals_and_differs_from_the_others() {
-        let all: Vec<[u8; 3]> = Method::ALL.iter().map(|m| lab_rgb(&m.name())).collect();
+        let all: Vec<[u8; 3]> = Method::ALL.iter().map(lab_rgb).collect();
         for (m, &c) in Method::ALL.iter().zip(&all) {
             let l = luminance(c);
             let on_black = (l + 0.05) / 0.05;

@@ -298,7 +298,7 @@ pub fn write_corpus(o: &CorpusOutcome, dir: &Path) -> Result<Vec<PathBuf>> {
                 &format!("RMS error per point (IOD), {}", s.name()),
             );
             for r in o.own_k.iter().filter(|r| r.solver == s.name()) {
-                let (color, _) = crate::plot::method_style(&r.method);
+                let (color, _) = crate::plot::named_style(&r.method);
                 let errors = o.results.iter().zip(&r.ks).filter_map(|(u, &k)| {
                     u.curves
                         .iter()
