@@ -165,13 +165,13 @@ pub struct StudySettings {
     #[serde(default)]
     pub train_clips: Option<(usize, usize)>,
     /// K of the soft KNN.
-    #[serde(default = "ten")]
+    #[serde(default = "default_k")]
     pub k: usize,
     /// Polynomial degree.
-    #[serde(default = "five")]
+    #[serde(default = "default_degree")]
     pub degree: usize,
     /// Labelling threshold on the scores.
-    #[serde(default = "point_four")]
+    #[serde(default = "default_threshold")]
     pub threshold: f64,
     /// Reference shape subtracted per clip.
     #[serde(default)]
@@ -184,13 +184,16 @@ pub struct StudySettings {
     pub evaluation: Evaluation,
 }
 
-fn ten() -> usize {
+/// The soft KNN's K by default (paper 002 §4).
+fn default_k() -> usize {
     10
 }
-fn five() -> usize {
+/// The smoothing polynomial's degree by default.
+fn default_degree() -> usize {
     5
 }
-fn point_four() -> f64 {
+/// The labelling threshold by default.
+fn default_threshold() -> f64 {
     0.4
 }
 

@@ -38,7 +38,7 @@ pub struct FrameRecord {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub time: Option<f64>,
     /// False for a failed frame.
-    #[serde(default = "yes")]
+    #[serde(default = "valid_unless_said")]
     pub valid: bool,
     /// Segment id (e.g. a clip).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -48,7 +48,8 @@ pub struct FrameRecord {
     pub coords: Vec<f64>,
 }
 
-fn yes() -> bool {
+/// A frame without `valid` is a tracked frame.
+fn valid_unless_said() -> bool {
     true
 }
 

@@ -36,13 +36,13 @@ pub struct Spec {
     #[serde(default)]
     pub format: Option<Format>,
     /// 2 or 3.
-    #[serde(default = "two")]
+    #[serde(default = "default_dims")]
     pub dims: usize,
     /// Point groups (e.g. `lips`); None = whole face.
     #[serde(default)]
     pub points: Option<String>,
     /// Remove 2-D head motion first.
-    #[serde(default = "yes")]
+    #[serde(default = "on")]
     pub align: bool,
     /// Also sweep the curves on the raw (unaligned) coordinates and draw both side by side
     /// (needs `align = true`).
@@ -52,10 +52,10 @@ pub struct Spec {
     #[serde(default, deserialize_with = "methods", serialize_with = "method_names")]
     pub methods: Vec<Method>,
     /// Inclusive k range of the curves.
-    #[serde(default = "k_default", deserialize_with = "k_range")]
+    #[serde(default = "default_k", deserialize_with = "k_range")]
     pub k: (usize, usize),
     /// Solvers of the curves.
-    #[serde(default = "nnls_only")]
+    #[serde(default = "default_solvers")]
     pub solvers: Vec<Solver>,
     /// A retargeting study (paper 000 Figs. 4–5), optional.
     #[serde(default)]
@@ -77,13 +77,13 @@ pub struct Spec {
     #[serde(default)]
     pub rig: Option<keyshape_rig::study::RigStudySettings>,
     /// Seed for kmeans and random.
-    #[serde(default = "seven")]
+    #[serde(default = "default_seed")]
     pub seed: u64,
     /// Greedy shortlist for nnls/bounded.
-    #[serde(default = "eight")]
+    #[serde(default = "default_shortlist")]
     pub shortlist: usize,
     /// Write PNG plots.
-    #[serde(default = "yes")]
+    #[serde(default = "on")]
     pub png: bool,
 }
 
@@ -99,10 +99,10 @@ pub struct RetargetSpec {
     /// Solvers compared (the first is the one whose distortion the strip shows).
     pub solvers: Vec<Solver>,
     /// Tracing noise levels on the built-in target, in inter-ocular distances.
-    #[serde(default = "zero_noise")]
+    #[serde(default = "noise_free")]
     pub trace_noise: Vec<f64>,
     /// Frames in the strip of worst frames (0 = none).
-    #[serde(default = "four")]
+    #[serde(default = "default_strip")]
     pub strip: usize,
 }
 
@@ -113,7 +113,7 @@ pub struct ModesSpec {
     /// Actions file, relative to the spec.
     pub actions: String,
     /// Modes of each model.
-    #[serde(default = "ten")]
+    #[serde(default = "default_modes")]
     pub modes: usize,
     /// Region boundaries: `blended` (the paper's, default) or `disjoint`.
     #[serde(default)]
@@ -134,7 +134,7 @@ pub struct MapSpec {
     /// Second person's actions.
     pub target_actions: String,
     /// Modes of each model.
-    #[serde(default = "ten")]
+    #[serde(default = "default_modes")]
     pub modes: usize,
     /// Folder of the ICT face (optional).
     #[serde(default)]
@@ -150,20 +150,25 @@ pub struct MapSpec {
     pub normalisation: Normalisation,
 }
 
-fn ten() -> usize {
+/// Modes of each model by default.
+fn default_modes() -> usize {
     10
 }
 
-fn zero_noise() -> Vec<f64> {
+/// The built-in target traced without noise.
+fn noise_free() -> Vec<f64> {
     vec![0.0]
 }
-fn four() -> usize {
+/// Frames in the strip of worst frames by default.
+fn default_strip() -> usize {
     4
 }
-fn k_default() -> (usize, usize) {
+/// The curves' k range by default.
+fn default_k() -> (usize, usize) {
     (2, 24)
 }
-fn nnls_only() -> Vec<Solver> {
+/// The curves' solvers by default: NNLS alone.
+fn default_solvers() -> Vec<Solver> {
     vec![Solver::Nnls]
 }
 
@@ -178,16 +183,20 @@ pub(crate) fn method_name<S: serde::Serializer>(
     s.serialize_str(&m.name())
 }
 
-fn two() -> usize {
+/// Tracks are 2-D unless said.
+fn default_dims() -> usize {
     2
 }
-fn yes() -> bool {
+/// A switch that is on unless turned off.
+fn on() -> bool {
     true
 }
-fn seven() -> u64 {
+/// The k-means and random seed by default.
+fn default_seed() -> u64 {
     7
 }
-fn eight() -> usize {
+/// Greedy's shortlist by default.
+fn default_shortlist() -> usize {
     8
 }
 
