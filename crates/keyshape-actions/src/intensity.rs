@@ -204,9 +204,9 @@ impl Default for StudySettings {
     fn default() -> Self {
         StudySettings {
             train_clips: None,
-            k: 10,
-            degree: 5,
-            threshold: 0.4,
+            k: default_k(),
+            degree: default_degree(),
+            threshold: default_threshold(),
             centring: Centring::ClipMean,
             neutral_frames: None,
             evaluation: Evaluation::Split,
