@@ -28,13 +28,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         keys.iter().map(|&c| prep.seq.frames[c]).collect::<Vec<_>>()
     );
     for solver in [Solver::Ls, Solver::Nnls] {
-        let d = decompose(
-            &prep.seq.coords,
-            prep.seq.points,
-            &keys,
-            None,
-            &SolveOptions::new(solver),
-        )?;
+        let d = decompose(&prep, &keys, None, &SolveOptions::new(solver))?;
         let first: Vec<String> = d
             .weights
             .column(n / 3)

@@ -142,8 +142,7 @@ pub fn run(a: &SolveArgs) -> Result<()> {
     opts.rcond = a.rcond;
     let segs = segments(&seq.frames, seq.segments.as_deref());
     let (d, smoothed) = decompose_smoothed(
-        &seq.coords,
-        seq.points,
+        &prep,
         &cols,
         neutral,
         &opts,

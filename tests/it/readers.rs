@@ -282,8 +282,7 @@ fn results_are_scale_free_up_to_the_coordinate_bound() {
     let solve = |seq: &keyshape_core::sequence::Sequence| {
         let prep = prepare(seq, &opts).unwrap();
         let d = decompose(
-            &prep.seq.coords,
-            prep.seq.points,
+            &prep,
             &[1, 30, 60, 90],
             None,
             &SolveOptions::new(Solver::Nnls),

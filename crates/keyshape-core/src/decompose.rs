@@ -162,22 +162,56 @@ impl Decomposition {
 /// rounding, not a negative weight.
 pub const NEGATIVE_TOLERANCE: f64 = 1e-9;
 
-/// Solves weights for every column of `coords` (shapes with `points` points) on the key
-/// shapes at `key_columns`; with `neutral`, on deltas from that frame.
+/// Solves weights for every frame of `prep` (its selected, aligned shapes) on the key
+/// shapes at the columns `key_columns`; with `neutral`, on deltas from that frame.
 pub fn decompose(
-    coords: &DMatrix<f64>,
-    points: usize,
+    prep: &Prepared,
     key_columns: &[usize],
     neutral: Option<usize>,
     opts: &SolveOptions,
 ) -> Result<Decomposition> {
-    decompose_smoothed(coords, points, key_columns, neutral, opts, None).map(|(d, _)| d)
+    decompose_coords(
+        &prep.seq.coords,
+        prep.seq.points,
+        key_columns,
+        neutral,
+        opts,
+    )
 }
 
 /// [`decompose`] with a temporal prior over `segments` (frame column ranges) in the
 /// coordinates the solve uses (deltas from the neutral in delta mode); also returns what
 /// the smoothed solve reported.
 pub fn decompose_smoothed(
+    prep: &Prepared,
+    key_columns: &[usize],
+    neutral: Option<usize>,
+    opts: &SolveOptions,
+    smoothing: Option<(&Smoothing, &[std::ops::Range<usize>])>,
+) -> Result<(Decomposition, Option<Smoothed>)> {
+    solve_columns(
+        &prep.seq.coords,
+        prep.seq.points,
+        key_columns,
+        neutral,
+        opts,
+        smoothing,
+    )
+}
+
+/// [`decompose`] on a matrix of shapes (one column each, `points` points of two or three
+/// coordinates): the algebra without a prepared sequence, for shapes made by hand.
+pub fn decompose_coords(
+    coords: &DMatrix<f64>,
+    points: usize,
+    key_columns: &[usize],
+    neutral: Option<usize>,
+    opts: &SolveOptions,
+) -> Result<Decomposition> {
+    solve_columns(coords, points, key_columns, neutral, opts, None).map(|(d, _)| d)
+}
+
+fn solve_columns(
     coords: &DMatrix<f64>,
     points: usize,
     key_columns: &[usize],

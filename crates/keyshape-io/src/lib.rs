@@ -21,7 +21,7 @@
 //!     .map(|&f| prep.seq.column_of_frame(f))
 //!     .collect::<Result<_, _>>()?;
 //! let nnls = SolveOptions::new(Solver::Nnls);
-//! let d = decompose(&prep.seq.coords, prep.seq.points, &keys, None, &nnls)?;
+//! let d = decompose(&prep, &keys, None, &nnls)?;
 //! assert_eq!(d.negative_share(), 0.0);
 //! assert!(d.mean_rms() < 5.0); // pixels
 //! # Ok::<(), keyshape_core::Error>(())

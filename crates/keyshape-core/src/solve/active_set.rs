@@ -121,7 +121,7 @@ impl Workspace {
     /// Sets the outer-iteration cap per frame (the default is `3k + 20`, which no problem
     /// met so far reaches): a frame stopped by it keeps feasible weights and reports
     /// `converged: false`.
-    pub fn with_cap(mut self, cap: u32) -> Workspace {
+    pub(crate) fn with_cap(mut self, cap: u32) -> Workspace {
         self.cap = cap;
         self
     }

@@ -30,7 +30,7 @@ pub fn solve_spd(a: &mut [f64], p: usize, rhs: &mut [f64]) -> bool {
 
 /// Solves `L Lᵀ x = rhs` in place for the Cholesky factor `L` (`p × p`, lower triangle,
 /// row-major with row stride `ld ≥ p`): forward `L y = rhs`, then backward `Lᵀ x = y`.
-pub fn solve_factored(l: &[f64], ld: usize, p: usize, rhs: &mut [f64]) {
+pub(crate) fn solve_factored(l: &[f64], ld: usize, p: usize, rhs: &mut [f64]) {
     // Forward: L y = rhs.
     for i in 0..p {
         let mut v = rhs[i];

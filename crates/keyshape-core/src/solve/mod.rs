@@ -12,7 +12,7 @@
 pub mod active_set;
 pub mod chol;
 pub mod filters;
-pub mod jacobi;
+pub(crate) mod jacobi;
 pub mod jitter;
 pub mod lstsq;
 pub mod temporal;

@@ -141,7 +141,7 @@ proptest! {
         prop_assume!(an.distinct >= 3);
         let keys = Method::Spread.heuristic(&KeyOptions::default()).select(&an, 3).unwrap().columns;
         let e = an.error(&keys, solver).unwrap();
-        let d = keyshape_core::decompose::decompose(&q, 1, &keys, None, &SolveOptions::new(solver)).unwrap();
+        let d = keyshape_core::decompose::decompose_coords(&q, 1, &keys, None, &SolveOptions::new(solver)).unwrap();
         let direct = d.total_sq_error();
         let scale = q.norm_squared();
         prop_assert!((e - direct).abs() <= 1e-8 * scale + 1e-9, "gram {e} vs direct {direct}");

@@ -2,7 +2,7 @@
 //! share (the rest, on paper 002's intensities, is in the root's `tests/it/oracles.rs`): each
 //! test here fails on a plausible one-line bug that the suite used to let through.
 
-use keyshape_core::decompose::decompose;
+use keyshape_core::decompose::decompose_coords;
 use keyshape_core::keyshapes::{Analysis, KeyOptions, Method};
 use keyshape_core::rbf::Rbf;
 use keyshape_core::solve::{SolveOptions, Solver};
@@ -17,7 +17,7 @@ use nalgebra::{DMatrix, DVector};
 fn an_error_that_overflows_with_finite_weights_is_refused() {
     let q = DMatrix::from_column_slice(4, 2, &[1.0, 0.0, 0.0, 0.0, 1e160, 0.0, 0.0, 1e160]);
     for solver in Solver::ALL {
-        let e = decompose(&q, 2, &[0], None, &SolveOptions::new(solver))
+        let e = decompose_coords(&q, 2, &[0], None, &SolveOptions::new(solver))
             .err()
             .unwrap_or_else(|| panic!("{solver}: an infinite error was accepted"))
             .to_string();
@@ -39,7 +39,7 @@ fn per_frame_rms_divides_by_the_point_count() {
         &[1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 3.0, 2.0, 0.0, 0.0, 4.0],
     );
     for solver in Solver::ALL {
-        let d = decompose(&q, 2, &[0], None, &SolveOptions::new(solver)).unwrap();
+        let d = decompose_coords(&q, 2, &[0], None, &SolveOptions::new(solver)).unwrap();
         let rms = d.rms();
         assert_eq!(rms[0], 0.0, "{solver}");
         assert!(
@@ -269,7 +269,7 @@ fn decompose_takes_every_frame_as_a_key_and_solves_deltas_exactly() {
         3,
         &[1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0],
     );
-    let d = decompose(&q, 2, &[0, 1, 2], None, &SolveOptions::new(Solver::Nnls)).unwrap();
+    let d = decompose_coords(&q, 2, &[0, 1, 2], None, &SolveOptions::new(Solver::Nnls)).unwrap();
     assert_eq!(d.total_sq_error(), 0.0);
     // delta mode: neutral n, keys a and b; frames n + 0.25 (a − n) + 0.5 (b − n)
     let n = [1.0, 1.0, 3.0, 1.0];
@@ -281,7 +281,7 @@ fn decompose_takes_every_frame_as_a_key_and_solves_deltas_exactly() {
     let cols: Vec<f64> = [n, a, b].iter().flatten().copied().chain(mix).collect();
     let q = DMatrix::from_column_slice(4, 4, &cols);
     for solver in Solver::ALL {
-        let d = decompose(&q, 2, &[1, 2], Some(0), &SolveOptions::new(solver)).unwrap();
+        let d = decompose_coords(&q, 2, &[1, 2], Some(0), &SolveOptions::new(solver)).unwrap();
         assert!(
             (d.weights[(0, 3)] - 0.25).abs() < 1e-12,
             "{solver}: {}",
