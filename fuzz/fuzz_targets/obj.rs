@@ -1,6 +1,6 @@
-//! The OBJ mesh reader. The body is `keyshape_lab::fuzzing::obj`, shared with
+//! The OBJ mesh reader. The body is `keyshape_experiments::fuzzing::obj`, shared with
 //! the smoke test that runs in every `cargo test` (tests/it/fuzz_smoke.rs).
 #![no_main]
 use libfuzzer_sys::fuzz_target;
 
-fuzz_target!(|data: &[u8]| keyshape_lab::fuzzing::obj(data));
+fuzz_target!(|data: &[u8]| keyshape_experiments::fuzzing::obj(data));

@@ -1,6 +1,6 @@
-//! The experiment spec reader (TOML). The body is `keyshape_lab::fuzzing::toml`, shared with
+//! The experiment spec reader (TOML). The body is `keyshape_experiments::fuzzing::toml`, shared with
 //! the smoke test that runs in every `cargo test` (tests/it/fuzz_smoke.rs).
 #![no_main]
 use libfuzzer_sys::fuzz_target;
 
-fuzz_target!(|data: &[u8]| keyshape_lab::fuzzing::toml(data));
+fuzz_target!(|data: &[u8]| keyshape_experiments::fuzzing::toml(data));

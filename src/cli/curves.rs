@@ -8,7 +8,7 @@ use clap::Args;
 use keyshape_core::keyshapes::curves::sweep;
 use keyshape_core::keyshapes::{Analysis, Method};
 use keyshape_core::solve::Solver;
-use keyshape_lab::report::write_curves_csv;
+use keyshape_experiments::report::write_curves_csv;
 use std::path::PathBuf;
 
 /// Arguments of `kslab curves`.
@@ -116,7 +116,7 @@ pub fn run(a: &CurvesArgs) -> Result<()> {
             );
             // One name per solver whatever else is asked: NAME_<solver>.png.
             let path = suffixed(png, s.name());
-            keyshape_lab::report::write_curves_png(&rows, s.name(), &title, &path)?;
+            keyshape_experiments::report::write_curves_png(&rows, s.name(), &title, &path)?;
             eprintln!("wrote {}", path.display());
         }
     }

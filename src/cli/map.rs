@@ -15,8 +15,8 @@ use keyshape_io::csv_out::write_records;
 use keyshape_io::morph::MorphTargets;
 use keyshape_io::obj::{read_obj, write_obj};
 use keyshape_io::{read_sequence, write_atomic, ReadOptions};
-use keyshape_lab::render::face::{bounds_of, col, render_panels, Layer, Panel};
-use keyshape_lab::render::{apng::write_apng, save_png};
+use keyshape_pictures::render::face::{bounds_of, col, render_panels, Layer, Panel};
+use keyshape_pictures::render::{apng::write_apng, save_png};
 use keyshape_retarget::setup::polylines_for;
 use nalgebra::DMatrix;
 use std::path::{Path, PathBuf};
@@ -324,12 +324,12 @@ fn morph(
     }
     if let Some(d) = &a.morph_png_dir {
         keyshape_io::create_dir_all(d)?;
-        let mb = keyshape_lab::render::mesh::mesh_bounds(&mesh.positions);
+        let mb = keyshape_pictures::render::mesh::mesh_bounds(&mesh.positions);
         let mut out = mesh.positions.clone();
         for t in (0..n).step_by(every) {
             progress.tick(t, n);
             targets.blend(&mesh.positions, w.column(t).as_slice(), &mut out);
-            let pic = keyshape_lab::render::mesh::wireframe(
+            let pic = keyshape_pictures::render::mesh::wireframe(
                 &out,
                 &mesh.faces,
                 &[],

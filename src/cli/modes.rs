@@ -145,12 +145,12 @@ pub fn run(a: &ModesArgs) -> Result<()> {
             format!("{what}: action-specific model"),
             format!("{what}: plain PCA"),
         );
-        let pm = keyshape_lab::render::heat::heat_maps(
+        let pm = keyshape_pictures::render::heat::heat_maps(
             &[(t1.as_str(), &st.action_model), (t2.as_str(), &st.plain)],
             &st.names,
             44,
         )?;
-        keyshape_lab::render::save_png(&pm, p)?;
+        keyshape_pictures::render::save_png(&pm, p)?;
         eprintln!("wrote {}", p.display());
     }
     progress.finish();

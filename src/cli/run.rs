@@ -4,10 +4,10 @@
 use super::progress::Progress;
 use anyhow::{bail, Result};
 use clap::Args;
-use keyshape_lab::experiment::corpus::{self, Shard};
-use keyshape_lab::experiment::{run as run_spec, Spec};
-use keyshape_lab::report::corpus::write_corpus;
-use keyshape_lab::report::write_outcome;
+use keyshape_experiments::experiment::corpus::{self, Shard};
+use keyshape_experiments::experiment::{run as run_spec, Spec};
+use keyshape_experiments::report::corpus::write_corpus;
+use keyshape_experiments::report::write_outcome;
 use std::path::PathBuf;
 
 /// Arguments of `kslab run`.

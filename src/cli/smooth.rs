@@ -5,7 +5,7 @@ use anyhow::Result;
 use clap::Args;
 use keyshape_core::keyshapes::Method;
 use keyshape_core::solve::Solver;
-use keyshape_lab::experiment::smoothing::{smoothing_study_in_place, SmoothStudySettings};
+use keyshape_experiments::experiment::smoothing::{smoothing_study_in_place, SmoothStudySettings};
 use std::path::PathBuf;
 
 /// Arguments of `kslab smooth`.
@@ -107,8 +107,9 @@ pub fn run(a: &SmoothArgs) -> Result<()> {
         st.key_count(),
         a.solver
     );
-    let (files, figures) =
-        keyshape_lab::experiment::studies::smooth::write_smoothing(&rows, &title, &a.out, true)?;
+    let (files, figures) = keyshape_experiments::experiment::studies::smooth::write_smoothing(
+        &rows, &title, &a.out, true,
+    )?;
     progress.finish();
     let none = rows.iter().find(|r| r.approach == "none");
     if let Some(n) = none {
@@ -121,8 +122,9 @@ pub fn run(a: &SmoothArgs) -> Result<()> {
             rows.len() - 1
         );
     }
-    let at = keyshape_lab::experiment::smoothing::at_equal_jitter(&rows, &[0.75, 0.5, 0.35]);
-    if let Some(line) = keyshape_lab::experiment::smoothing::summary(&at) {
+    let at =
+        keyshape_experiments::experiment::smoothing::at_equal_jitter(&rows, &[0.75, 0.5, 0.35]);
+    if let Some(line) = keyshape_experiments::experiment::smoothing::summary(&at) {
         outln!("{line}");
     }
     for f in files.iter().chain(

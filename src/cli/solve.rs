@@ -176,14 +176,14 @@ pub fn run(a: &SolveArgs) -> Result<()> {
                 s.order
             ))
         );
-        let pm = keyshape_lab::render::weights::weights_picture_marked(
+        let pm = keyshape_pictures::render::weights::weights_picture_marked(
             &d.weights,
             &labels,
             &seq.frames,
             &title,
             &keys,
         )?;
-        keyshape_lab::render::save_png(&pm, png)?;
+        keyshape_pictures::render::save_png(&pm, png)?;
     }
     match &a.out {
         Some(path) => write_atomic(path, |w| write_csv(w, seq, &keys, &d))?,
@@ -246,9 +246,9 @@ pub fn run(a: &SolveArgs) -> Result<()> {
     Ok(())
 }
 
-/// `kslab solve --stream`: [`keyshape_lab::stream::stream_solve`] into the CSV as it goes.
+/// `kslab solve --stream`: [`keyshape_io::stream::stream_solve`] into the CSV as it goes.
 fn run_stream(a: &SolveArgs, smoothing: Option<Smoothing>) -> Result<()> {
-    use keyshape_lab::stream::{stream_solve, StreamOptions};
+    use keyshape_io::stream::{stream_solve, StreamOptions};
     let Some(path) = a.input.file.as_deref() else {
         anyhow::bail!("--stream reads a FILE in several passes: give one (the built-in sequence is 216 frames: drop --stream)");
     };

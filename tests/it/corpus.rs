@@ -3,8 +3,8 @@
 //! the Kubernetes manifest against its schemas).
 
 use crate::common::{kslab, shared};
-use keyshape_lab::experiment::corpus::{self, interval, Shard};
-use keyshape_lab::experiment::Spec;
+use keyshape_experiments::experiment::corpus::{self, interval, Shard};
+use keyshape_experiments::experiment::Spec;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
@@ -831,7 +831,7 @@ fn the_kubernetes_manifests_validate_and_run_an_indexed_job_reading_its_shard() 
 /// (target and source) are exactly the per-sequence ones.
 #[test]
 fn aggregates_of_hand_made_results_with_ties_are_exact() {
-    use keyshape_lab::experiment::corpus::{
+    use keyshape_experiments::experiment::corpus::{
         aggregate, CurvePoint, RetargetPoint, Unit, UnitResult,
     };
     let spec = Spec::from_str(
@@ -1060,7 +1060,7 @@ fn merge_refuses_a_partial_with_values_no_run_gives() {
 /// `./p.csv`, a symbolic link and a hard link to it were each counted twice.
 #[test]
 fn a_corpus_counts_one_file_once_however_it_is_named() {
-    use keyshape_lab::experiment::{corpus, Spec};
+    use keyshape_experiments::experiment::{corpus, Spec};
     let (_scratch, d) = tmp("twice");
     std::fs::copy(
         shared("mediapipe_face_tracks/liveportrait_d18.csv"),

@@ -1,7 +1,7 @@
 //! Experiment specs, the runner, and the reviewed snapshots of what it writes.
 
-use keyshape_lab::experiment::{run, Spec};
-use keyshape_lab::report::write_outcome;
+use keyshape_experiments::experiment::{run, Spec};
+use keyshape_experiments::report::write_outcome;
 use std::path::{Path, PathBuf};
 
 pub fn repo(rel: &str) -> PathBuf {
@@ -179,8 +179,8 @@ fn smoke_experiment_matches_its_reviewed_snapshots() {
     // What the picture must show, through its specification: titles, one series per
     // method in order with its paper-000 style, and every (k, RMS) of the CSV — so a
     // dropped title, swapped curves or a missing last point fail here as well as in pixels.
-    use keyshape_lab::plot::{curves_plot, Style};
-    let title = keyshape_lab::report::curves_title(&spec.title, "nnls", spec.align);
+    use keyshape_pictures::plot::{curves_plot, Style};
+    let title = keyshape_experiments::report::curves_title(&spec.title, "nnls", spec.align);
     let plot = curves_plot(&outcome.rows, "nnls", &title, "px");
     assert_eq!(
         plot.title,
@@ -277,7 +277,7 @@ fn image_size(p: &Path) -> (u32, u32) {
 /// 1-2-5 ticks; `kslab curves --png` names its files by solver whatever the solver count.
 #[test]
 fn log_axis_for_curves_spanning_decades_and_stable_png_names() {
-    use keyshape_lab::plot::{PlotSpec, Series, Style};
+    use keyshape_pictures::plot::{PlotSpec, Series, Style};
     let spec = |ys: &[f64]| PlotSpec {
         title: String::new(),
         x_label: String::new(),
@@ -302,14 +302,14 @@ fn log_axis_for_curves_spanning_decades_and_stable_png_names() {
         "a zero cannot go on a log axis"
     );
     assert_eq!(
-        keyshape_lab::render::log_ticks(0.04, 7.0),
+        keyshape_pictures::render::log_ticks(0.04, 7.0),
         vec![0.05, 0.1, 0.2, 0.5, 1.0, 2.0, 5.0]
     );
     assert_eq!(
-        keyshape_lab::render::log_ticks(0.001, 50.0),
+        keyshape_pictures::render::log_ticks(0.001, 50.0),
         vec![0.001, 0.01, 0.1, 1.0, 10.0]
     );
-    assert!(keyshape_lab::render::render_plot(&spec(&[20.0, 2.0, 0.2]), 400, 300).is_ok());
+    assert!(keyshape_pictures::render::render_plot(&spec(&[20.0, 2.0, 0.2]), 400, 300).is_ok());
 
     let dir = tempfile::tempdir().unwrap();
     let png = dir.path().join("c.png");

@@ -2,11 +2,11 @@
 //! the stable toolchain in every `cargo test`: each seed in fuzz/seeds/<target>/ and a few
 //! thousand byte-level mutations of it (bit flips, byte insertions and deletions,
 //! truncation, repeated and swapped slices) go through the same code
-//! (`keyshape_lab::fuzzing`). No panic, and
+//! (`keyshape_experiments::fuzzing`). No panic, and
 //! whatever parses satisfies the readers' invariants. The long runs are `tools/fuzz.sh`
 //! (cargo fuzz, nightly); see docs/src/testing.md.
 
-use keyshape_lab::fuzzing;
+use keyshape_experiments::fuzzing;
 use std::path::PathBuf;
 
 const MUTATIONS_PER_SEED: usize = 300;

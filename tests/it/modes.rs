@@ -749,9 +749,9 @@ fn morph_gltf_passes_the_khronos_validator() {
         "/experiments/cosker_transfer_d6_to_d9.toml"
     );
     let (spec, base) =
-        keyshape_lab::experiment::Spec::from_path(std::path::Path::new(spec)).unwrap();
-    let o = keyshape_lab::experiment::run(&spec, &base, &|_, _| {}).unwrap();
-    keyshape_lab::report::write_outcome(&o, dir.path()).unwrap();
+        keyshape_experiments::experiment::Spec::from_path(std::path::Path::new(spec)).unwrap();
+    let o = keyshape_experiments::experiment::run(&spec, &base, &|_, _| {}).unwrap();
+    keyshape_experiments::report::write_outcome(&o, dir.path()).unwrap();
     let glb = dir.path().join("morph.glb");
     assert!(glb.exists());
     crate::common::assert_valid_gltf(&glb);
@@ -909,8 +909,8 @@ fn orthogonality_picture_has_both_axes_and_a_scale() {
     m[(0, 2)] = 1.0;
     m[(0, 1)] = 0.0;
     let cell = 40u32;
-    let pm = keyshape_lab::render::heat::heat_maps(&[("t", &m)], &names, cell).unwrap();
-    let longest = keyshape_lab::render::text::width("a_much_longer_name", 11.0) as u32;
+    let pm = keyshape_pictures::render::heat::heat_maps(&[("t", &m)], &names, cell).unwrap();
+    let longest = keyshape_pictures::render::text::width("a_much_longer_name", 11.0) as u32;
     assert!(
         pm.height() >= 40 + longest + 3 * cell + 20 + 56,
         "{}",

@@ -357,7 +357,7 @@ fn damaged_svg_templates_are_explained() {
 fn apng_has_one_frame_per_sequence_frame() {
     let dir = tempfile::tempdir().unwrap();
     let p = dir.path().join("a.png");
-    keyshape_lab::render::apng::write_apng(&p, 3, 30.0, &|i| {
+    keyshape_pictures::render::apng::write_apng(&p, 3, 30.0, &|i| {
         let mut pm = tiny_skia::Pixmap::new(8, 8).unwrap();
         pm.fill(tiny_skia::Color::from_rgba8(i as u8 * 80, 0, 0, 255));
         Ok(pm)

@@ -10,7 +10,7 @@ use keyshape_core::solve::filters::{gaussian_lowpass, PostFilter};
 use keyshape_core::solve::jitter::jitter;
 use keyshape_core::solve::Solver;
 use keyshape_core::stats::lag;
-use keyshape_lab::experiment::smoothing::{at_equal_jitter, SmoothRow};
+use keyshape_experiments::experiment::smoothing::{at_equal_jitter, SmoothRow};
 use nalgebra::DMatrix;
 
 fn close(a: &[f64], b: &[f64], tol: f64) {

@@ -2,7 +2,7 @@
 //! the diverging scale at that weight, a one-frame spike survives when frames outnumber
 //! pixels, and the commands write it (and refuse to write it over their input).
 
-use keyshape_lab::render::weights::{diverging, weights_picture};
+use keyshape_pictures::render::weights::{diverging, weights_picture};
 use nalgebra::DMatrix;
 
 fn pixel(pm: &tiny_skia::Pixmap, x: u32, y: u32) -> [u8; 3] {
@@ -100,7 +100,7 @@ fn solve_and_retarget_write_the_picture_and_never_over_their_input() {
 /// are marked on the time axis.
 #[test]
 fn nonnegative_weights_get_a_one_sided_scale_and_marked_key_frames() {
-    use keyshape_lab::render::weights::weights_picture_marked;
+    use keyshape_pictures::render::weights::weights_picture_marked;
     let n = 1100;
     let w = DMatrix::from_fn(2, n, |i, t| if (t / 100) % 2 == i { 1.0 } else { 0.0 });
     let labels = vec!["w_3".to_string(), "w_550".to_string()];

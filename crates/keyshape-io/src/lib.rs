@@ -5,7 +5,8 @@
 //! detected) and [`builtin_sequence`]; [`write_atomic`] (a file appears whole or not at
 //! all) and [`OutputSet`] (several files, all or none); [`csv_out`] for tables. The modules
 //! hold the rest: meshes ([`obj`]), morph targets ([`morph`]), GLB ([`gltf`]), JSON tracks,
-//! synthetic long tracks for benchmarks.
+//! synthetic long tracks for benchmarks, and the solve of a track of any length streamed
+//! from its file to its weights ([`stream`]).
 //!
 //! A whole solve, from the built-in sequence to blend weights:
 //!
@@ -36,6 +37,7 @@ pub mod morph;
 pub mod obj;
 mod pts;
 
+pub mod stream;
 pub mod synthetic;
 pub mod table;
 

@@ -112,8 +112,8 @@ pub(super) fn error_chart(f: &mut Frame, s: &State, area: Rect) {
         );
         return;
     };
-    // The same plot description the PNG renderer draws (keyshape_lab::plot).
-    let spec = keyshape_lab::plot::curves_plot(rows, s.settings.solver.name(), "", "px");
+    // The same plot description the PNG renderer draws (keyshape_pictures::plot).
+    let spec = keyshape_pictures::plot::curves_plot(rows, s.settings.solver.name(), "", "px");
     let ((_, xmax), (_, ymax)) = spec.bounds().unwrap_or(((2.0, 24.0), (0.0, 1.0)));
     let (xmax, ymax) = (xmax.max(2.0), ymax.max(1e-9));
     let series: Vec<(String, Vec<(f64, f64)>)> = spec

@@ -8,8 +8,8 @@ use anyhow::{Context, Result};
 use keyshape_core::keyshapes::Method;
 use keyshape_io::csv_out::{pose_cells, write_records, POSE_COLUMNS};
 use keyshape_io::{fmt_num, write_atomic};
-use keyshape_lab::render::face::{bounds_of, col, render_frame, FrameShapes};
-use keyshape_lab::render::save_png;
+use keyshape_pictures::render::face::{bounds_of, col, render_frame, FrameShapes};
+use keyshape_pictures::render::save_png;
 use std::path::{Path, PathBuf};
 
 /// The folder for the next export in `base`: `kslab-export`, then `kslab-export-2`, `-3` …,
@@ -222,14 +222,14 @@ fn export_rig(s: &State, r: &super::rig::RigView, dir: &Path) -> Result<Vec<Stri
         (r.bounds.0[0], r.bounds.0[1]),
         (r.bounds.1[0], r.bounds.1[1]),
     );
-    let panel = keyshape_lab::render::face::Panel {
+    let panel = keyshape_pictures::render::face::Panel {
         title: format!(
             "frame {} · landmark RMS {}",
             frames[t],
             keyshape_core::stats::sig(r.rms[t], 3)
         ),
         layers: vec![
-            keyshape_lab::render::face::Layer {
+            keyshape_pictures::render::face::Layer {
                 name: "tracked",
                 shape: &tracked,
                 dims: 2,
@@ -237,7 +237,7 @@ fn export_rig(s: &State, r: &super::rig::RigView, dir: &Path) -> Result<Vec<Stri
                 color: [20, 20, 20],
                 dashed: false,
             },
-            keyshape_lab::render::face::Layer {
+            keyshape_pictures::render::face::Layer {
                 name: "fitted rig, posed by the weights, head pose",
                 shape: &fitted,
                 dims: 2,
@@ -252,7 +252,7 @@ fn export_rig(s: &State, r: &super::rig::RigView, dir: &Path) -> Result<Vec<Stri
     let top = keyshape_rig::largest_weights(&r.names, &r.weights[t], 2);
     let png = dir.join("view.png");
     save_png(
-        &keyshape_lab::render::face::render_panels(&[panel], &format!("rig: {top}"), 480)?,
+        &keyshape_pictures::render::face::render_panels(&[panel], &format!("rig: {top}"), 480)?,
         &png,
     )?;
     Ok(vec![csv.display().to_string(), png.display().to_string()])

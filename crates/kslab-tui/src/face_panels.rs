@@ -15,7 +15,7 @@ use ratatui::widgets::{Block, Paragraph};
 use ratatui::Frame;
 
 pub(super) fn bounds(ms: &[&DMatrix<f64>], dims: usize) -> ([f64; 2], [f64; 2]) {
-    let ((x0, y0), (x1, y1)) = keyshape_lab::render::face::bounds_of(ms, dims);
+    let ((x0, y0), (x1, y1)) = keyshape_pictures::render::face::bounds_of(ms, dims);
     let (cx, cy, half) = (
         (x0 + x1) / 2.0,
         (y0 + y1) / 2.0,

@@ -5,8 +5,8 @@ use anyhow::Result;
 use keyshape_core::decompose::Prepared;
 use keyshape_core::sequence::Sequence;
 use keyshape_core::stats::sig;
-use keyshape_lab::render::face::{bounds_of, col, render_frame, FrameShapes};
-use keyshape_lab::render::{apng::write_apng, save_png};
+use keyshape_pictures::render::face::{bounds_of, col, render_frame, FrameShapes};
+use keyshape_pictures::render::{apng::write_apng, save_png};
 use keyshape_retarget::setup::polylines_for;
 use keyshape_retarget::{with_head_motion, Retargeted};
 use nalgebra::DMatrix;
@@ -43,7 +43,7 @@ pub(super) fn write_weights_png(
         .collect();
     keys.sort_unstable();
     keys.dedup();
-    let pm = keyshape_lab::render::weights::weights_picture_marked(
+    let pm = keyshape_pictures::render::weights::weights_picture_marked(
         &all, columns, &s.frames, &title, &keys,
     )?;
     save_png(&pm, png)?;

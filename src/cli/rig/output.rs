@@ -122,7 +122,9 @@ fn write_pngs(
     morph: &MorphTargets,
     tick: &dyn Fn(usize, usize),
 ) -> Result<()> {
-    use keyshape_lab::render::face::{bounds_of, col, render_panels, Layer, Panel, ShadedMesh};
+    use keyshape_pictures::render::face::{
+        bounds_of, col, render_panels, Layer, Panel, ShadedMesh,
+    };
     let lines = rig.polylines();
     // The pictures are of the image: x and y of a track with depth.
     let coords = if seq.dims == 3 {
@@ -223,7 +225,10 @@ fn write_pngs(
             ro.to_degrees()
         );
         let pm = render_panels(&panels, &caption, 420)?;
-        keyshape_lab::render::save_png(&pm, &dir.join(format!("rig_{:06}.png", seq.frames[f])))?;
+        keyshape_pictures::render::save_png(
+            &pm,
+            &dir.join(format!("rig_{:06}.png", seq.frames[f])),
+        )?;
     }
     Ok(())
 }

@@ -14,13 +14,13 @@
 //! tables (MediaPipe, OpenFace, py-feat, plain CSV), gzipped or not. The offline temporal
 //! prior needs the whole sequence and is refused; the causal one streams.
 
+use crate::detect_format;
+use crate::table::TableRows;
 use keyshape_core::align::{align_to, centre, procrustes_mean};
 use keyshape_core::error::{setting, Error, Result};
 use keyshape_core::sequence::{Format, Layout};
 use keyshape_core::solve::temporal::{CausalShared, SmoothMode, Smoothing};
 use keyshape_core::solve::{lstsq, residuals, solve_batch, SolveOptions, CHUNK};
-use keyshape_io::detect_format;
-use keyshape_io::table::TableRows;
 use nalgebra::DMatrix;
 use std::io::{BufRead, BufReader, Read};
 use std::path::Path;
@@ -95,7 +95,7 @@ fn open(path: &Path) -> Result<Box<dyn Read>> {
             ),
         ));
     }
-    keyshape_io::open_input(path)
+    crate::open_input(path)
 }
 
 /// The format: as given, or detected from the name and the first line.

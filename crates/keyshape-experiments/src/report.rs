@@ -3,11 +3,11 @@
 pub mod corpus;
 
 use crate::experiment::{Outcome, Output, STUDIES};
-use crate::plot::curves_plot;
-use crate::render::{render_plot, save_png};
 use keyshape_core::error::{Error, Result};
 use keyshape_core::keyshapes::curves::CurveRow;
 use keyshape_io::csv_out::{write_rows, Num};
+use keyshape_pictures::plot::curves_plot;
+use keyshape_pictures::render::{render_plot, save_png};
 use serde::Serialize;
 use serde_json::json;
 use std::io::Write;
@@ -72,7 +72,7 @@ pub fn write_aligned_vs_raw_png(
         "px",
     );
     let mut r = curves_plot(raw, solver, &format!("{title}: raw coordinates"), "px");
-    let top = |p: &crate::plot::PlotSpec| p.bounds().map_or(0.0, |b| b.1 .1);
+    let top = |p: &keyshape_pictures::plot::PlotSpec| p.bounds().map_or(0.0, |b| b.1 .1);
     let y = top(&a).max(top(&r));
     a.y_at_least = Some(y);
     r.y_at_least = Some(y);

@@ -285,7 +285,7 @@ pub fn spaced_top(score: &[f64], count: usize, gap: usize) -> Vec<usize> {
 /// One row per strip frame: the source with the first solver's reconstruction, then per
 /// solver the target-domain truth with that solver's retargeted shape.
 pub fn render_strip(s: &Strip) -> Result<tiny_skia::Pixmap> {
-    use crate::render::face::{bounds_of, col, render_panels, Layer, Panel};
+    use keyshape_pictures::render::face::{bounds_of, col, render_panels, Layer, Panel};
     let mut all = vec![&s.truth];
     all.extend(s.solvers.iter().map(|x| &x.target));
     let tb = bounds_of(&all, s.dims);
@@ -351,7 +351,7 @@ pub fn render_strip(s: &Strip) -> Result<tiny_skia::Pixmap> {
         let caption = format!("frame {frame}   (tracing noise {} IOD)", s.trace_noise);
         rows.push(render_panels(&panels, &caption, 300)?);
     }
-    crate::render::face::stack(&rows)
+    keyshape_pictures::render::face::stack(&rows)
 }
 
 #[cfg(test)]

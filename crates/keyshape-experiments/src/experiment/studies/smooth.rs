@@ -4,10 +4,10 @@
 
 use super::{Context, Finding, Output, Study};
 use crate::experiment::smoothing::{at_equal_jitter, smoothing_study, summary, SmoothRow};
-use crate::render::{render_plot, save_png};
 use keyshape_core::error::{Error, Result};
 use keyshape_io::csv_out::{opt, write_rows, Num};
 use keyshape_io::write_atomic;
+use keyshape_pictures::render::{render_plot, save_png};
 use serde::Serialize;
 use serde_json::{Map, Value};
 use std::any::Any;
@@ -134,17 +134,17 @@ pub fn write_smoothing(
     if png {
         // Both scorings side by side on one y scale: against G(q), which carries the
         // tracker's jitter, and against the clean reference.
-        let mut a = crate::plot::smoothing_plot(
+        let mut a = crate::experiment::smoothing_plot::smoothing_plot(
             rows,
             &format!("{title}: vs tracked (lower left is better)"),
             false,
         );
-        let mut c = crate::plot::smoothing_plot(
+        let mut c = crate::experiment::smoothing_plot::smoothing_plot(
             rows,
             &format!("{title}: vs clean (lower left is better)"),
             true,
         );
-        let top = |p: &crate::plot::PlotSpec| p.bounds().map_or(0.0, |b| b.1 .1);
+        let top = |p: &keyshape_pictures::plot::PlotSpec| p.bounds().map_or(0.0, |b| b.1 .1);
         let y = top(&a).max(top(&c));
         a.y_at_least = Some(y);
         c.y_at_least = Some(y);

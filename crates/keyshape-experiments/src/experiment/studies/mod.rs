@@ -120,7 +120,7 @@ impl Output<'_> {
 
     /// Saves a picture as a figure (listed in `report.json`, and after the other files).
     pub fn figure(&mut self, name: &str, picture: &tiny_skia::Pixmap) -> Result<()> {
-        crate::render::save_png(picture, &self.dir.join(name))?;
+        keyshape_pictures::render::save_png(picture, &self.dir.join(name))?;
         self.figures.push(name.to_string());
         Ok(())
     }

@@ -99,7 +99,7 @@ impl Finding for ModesFinding {
         });
         out.rows("orthogonality.csv", rows)?;
         if out.spec.png {
-            let pm = crate::render::heat::heat_maps(
+            let pm = keyshape_pictures::render::heat::heat_maps(
                 &[
                     ("action-specific model", &st.action_model),
                     ("plain PCA", &st.plain),

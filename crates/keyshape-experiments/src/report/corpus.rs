@@ -1,11 +1,11 @@
 //! Writes a corpus study's report (the same files from a whole run and from `kslab merge`).
 
 use crate::experiment::corpus::CorpusOutcome;
-use crate::plot::{interval_plot, IntervalCurve, Series, Style};
-use crate::render::{render_plot, save_png};
 use keyshape_core::error::Result;
 use keyshape_io::csv_out::{write_rows, Num};
 use keyshape_io::write_atomic;
+use keyshape_pictures::plot::{interval_plot, IntervalCurve, Series, Style};
+use keyshape_pictures::render::{render_plot, save_png};
 use serde::Serialize;
 use serde_json::json;
 use std::io::Write;
@@ -298,7 +298,7 @@ pub fn write_corpus(o: &CorpusOutcome, dir: &Path) -> Result<Vec<PathBuf>> {
                 &format!("RMS error per point (IOD), {}", s.name()),
             );
             for r in o.own_k.iter().filter(|r| r.solver == s.name()) {
-                let (color, _) = crate::plot::named_style(&r.method);
+                let (color, _) = keyshape_pictures::plot::named_style(&r.method);
                 let errors = o.results.iter().zip(&r.ks).filter_map(|(u, &k)| {
                     u.curves
                         .iter()
@@ -356,7 +356,7 @@ pub fn write_corpus(o: &CorpusOutcome, dir: &Path) -> Result<Vec<PathBuf>> {
 
 /// The first two solvers' target-domain difference per sequence against tracing noise
 /// (thin grey lines), with the mean over its 95 % interval.
-fn retarget_plot(o: &CorpusOutcome) -> Option<crate::plot::PlotSpec> {
+fn retarget_plot(o: &CorpusOutcome) -> Option<keyshape_pictures::plot::PlotSpec> {
     let rt = o.spec.retarget.as_ref()?;
     let (a, b) = (rt.solvers.first()?.name(), rt.solvers.get(1)?.name());
     let rows: Vec<_> = o
@@ -429,7 +429,7 @@ fn retarget_plot(o: &CorpusOutcome) -> Option<crate::plot::PlotSpec> {
         style: Style::Dashed,
         color: [20, 20, 20],
     });
-    Some(crate::plot::PlotSpec {
+    Some(keyshape_pictures::plot::PlotSpec {
         title: format!(
             "{}: target-domain error, {a} − {b}, per sequence",
             o.spec.title

@@ -19,6 +19,7 @@
 
 pub mod corpus;
 pub mod smoothing;
+pub mod smoothing_plot;
 pub mod spec;
 pub mod studies;
 
