@@ -77,7 +77,7 @@ fn known_weights_rendered_under_a_moving_head_are_solved_back_exactly() {
     let rig = ict();
     let frames = 80;
     let cams = head_sweep(frames);
-    let names = keyshape_rig::study::default_shapes();
+    let names = keyshape_experiments::experiment::rig_study::default_shapes();
     let mut truth = DMatrix::zeros(rig.k(), frames);
     for (j, n) in names.iter().enumerate() {
         let s = shape(&rig, n);
@@ -360,7 +360,7 @@ fn the_person_rig_of_each_frame_reproduces_the_reported_error() {
 /// predicts the other groups' mean.
 #[test]
 fn leave_one_group_out_ridge_predicts_affine_outputs_exactly() {
-    use keyshape_rig::study::leave_one_group_out_ridge;
+    use keyshape_experiments::experiment::rig_study::leave_one_group_out_ridge;
     let n = 60;
     let x = DMatrix::from_fn(n, 3, |f, j| ((f * (j + 2)) as f64 * 0.37).sin() + j as f64);
     let x = x.insert_column(3, 5.0); // a constant feature is dropped, not divided by 0

@@ -23,7 +23,6 @@ pub mod plausibility;
 mod prior;
 pub mod refine;
 mod solve;
-pub mod study;
 pub mod temporal;
 
 use frame::{frame_depth, frame_points, FrameSolver};

@@ -18,6 +18,7 @@
 //! ```
 
 pub mod corpus;
+pub mod rig_study;
 pub mod smoothing;
 pub mod smoothing_plot;
 pub mod spec;

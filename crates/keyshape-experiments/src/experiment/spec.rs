@@ -75,7 +75,7 @@ pub struct Spec {
     /// The rig-solve study: recovery of known weights on synthetic tracks of the
     /// ICT rig, and (with a py-feat input) agreement with its ARKit-style scores, optional.
     #[serde(default)]
-    pub rig: Option<keyshape_rig::study::RigStudySettings>,
+    pub rig: Option<super::rig_study::RigStudySettings>,
     /// Seed for kmeans and random.
     #[serde(default = "default_seed")]
     pub seed: u64,

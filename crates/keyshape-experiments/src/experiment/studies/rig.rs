@@ -4,9 +4,9 @@
 //! `rig_vs_input_summary.csv`.
 
 use super::{Context, Finding, Output, Study};
+use crate::experiment::rig_study::{PeerRow, PeerSummary, RecoveryRow};
 use keyshape_core::error::{Error, Result};
 use keyshape_io::csv_out::{opt, Num};
-use keyshape_rig::study::{PeerRow, PeerSummary, RecoveryRow};
 use serde::Serialize;
 use serde_json::{json, Map, Value};
 use std::any::Any;
@@ -31,7 +31,7 @@ impl Study for RigStudy {
             return Ok(None);
         };
         let rig = keyshape_rig::Rig::read_ict(&keyshape_io::shared_data("ict_facekit_face")?)?;
-        let recovery = keyshape_rig::study::recovery(&rig, st)?;
+        let recovery = crate::experiment::rig_study::recovery(&rig, st)?;
         let (peer, peer_summary) = if st.against_input_scores {
             against_input_scores(cx, &rig)?
         } else {
@@ -85,7 +85,7 @@ fn against_input_scores(
     }
     let cols = keyshape_io::read_columns(&p, &names)?;
     let scores: Vec<(String, Vec<f64>)> = names.iter().map(|n| n.to_string()).zip(cols).collect();
-    keyshape_rig::study::against_peer(rig, &seq.coords, &scores, seq.segments.as_deref())
+    crate::experiment::rig_study::against_peer(rig, &seq.coords, &scores, seq.segments.as_deref())
 }
 
 /// What `[rig]` found.

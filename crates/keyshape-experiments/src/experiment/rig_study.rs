@@ -2,12 +2,12 @@
 //! tracks rendered through the rig under a moving head with landmark noise, per solver and
 //! noise level; (ii) agreement with a peer's ARKit-style scores (py-feat's) on a real track.
 
-use super::camera::Camera;
-use super::livelink::arkit_name;
-use super::{solve_rig, Identity, Neutral, Rig, RigOptions};
 use keyshape_core::error::{Error, Result};
 use keyshape_core::solve::Solver;
 use keyshape_core::stats::correlation;
+use keyshape_rig::camera::Camera;
+use keyshape_rig::livelink::arkit_name;
+use keyshape_rig::{solve_rig, Identity, Neutral, Rig, RigOptions};
 use nalgebra::DMatrix;
 use rand::{Rng, SeedableRng};
 use serde::{Deserialize, Serialize};
