@@ -448,28 +448,34 @@ fn intensity_centring_and_spread_follow_their_definitions() {
     assert_eq!((one.median, one.q1, one.q3, one.clips), (0.3, 0.3, 0.3, 1));
 }
 
-/// What a settings file leaves out is the paper's set-up, the same as `Default` (K = 10,
-/// degree 5, threshold 0.4, clip-mean centring, the 1–14 split).
+/// What an experiment file's `[intensity]` leaves out is the paper's set-up, the study's
+/// `Default` (K = 10, degree 5, threshold 0.4, clip-mean centring, the 1–14 split); a key
+/// given is taken, and a key the section does not have is refused.
 #[test]
 fn study_settings_left_out_of_a_file_are_the_defaults() {
     use keyshape_actions::intensity::{Centring, Evaluation, StudySettings};
-    for text in ["{}", r#"{"threshold": 0.5}"#] {
-        let st: StudySettings = serde_json::from_str(text).unwrap();
-        assert_eq!((st.k, st.degree), (10, 5), "{text}");
-        assert_eq!(
-            (st.centring, st.evaluation),
-            (Centring::ClipMean, Evaluation::Split)
-        );
-        assert_eq!((st.train_clips, st.neutral_frames), (None, None));
-    }
-    let st: StudySettings = serde_json::from_str("{}").unwrap();
+    use keyshape_experiments::experiment::spec::IntensitySpec;
+    let read = |text: &str| serde_json::from_str::<IntensitySpec>(text).map(|s| s.settings());
     let d = StudySettings::default();
+    assert_eq!(read("{}").unwrap(), d);
+    assert_eq!((d.k, d.degree, d.threshold), (10, 5, 0.4));
     assert_eq!(
-        (st.k, st.degree, st.threshold),
-        (d.k, d.degree, d.threshold)
+        (d.centring, d.evaluation),
+        (Centring::ClipMean, Evaluation::Split)
     );
-    assert_eq!(st.threshold, 0.4);
+    assert_eq!((d.train_clips, d.neutral_frames), (None, None));
     assert_eq!(d.train_range(), (1, 14));
+    let half = read(r#"{"threshold": 0.5, "evaluation": "leave-one-clip-out"}"#).unwrap();
+    assert_eq!(
+        half,
+        StudySettings {
+            threshold: 0.5,
+            evaluation: Evaluation::LeaveOneClipOut,
+            ..d.clone()
+        }
+    );
+    let e = read(r#"{"kk": 3}"#).unwrap_err().to_string();
+    assert!(e.contains("unknown field `kk`"), "{e}");
 }
 
 #[test]

@@ -157,44 +157,25 @@ impl std::str::FromStr for Evaluation {
     }
 }
 
-/// Settings of the intensity study.
-#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
-#[serde(deny_unknown_fields)]
+/// Settings of the intensity study: plain parameters (an experiment file's `[intensity]`
+/// section is read into them by keyshape-experiments; `kslab intensity` fills them from
+/// its flags). Serialised as the reports print them.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct StudySettings {
     /// Training clips, inclusive range (split evaluation only; default 1..14).
-    #[serde(default)]
     pub train_clips: Option<(usize, usize)>,
     /// K of the soft KNN.
-    #[serde(default = "default_k")]
     pub k: usize,
     /// Polynomial degree.
-    #[serde(default = "default_degree")]
     pub degree: usize,
     /// Labelling threshold on the scores.
-    #[serde(default = "default_threshold")]
     pub threshold: f64,
     /// Reference shape subtracted per clip.
-    #[serde(default)]
     pub centring: Centring,
     /// Frames of the neutral segment (`centring = "neutral"` only).
-    #[serde(default)]
     pub neutral_frames: Option<usize>,
     /// Split or leave-one-clip-out.
-    #[serde(default)]
     pub evaluation: Evaluation,
-}
-
-/// The soft KNN's K by default (paper 002 §4).
-fn default_k() -> usize {
-    10
-}
-/// The smoothing polynomial's degree by default.
-fn default_degree() -> usize {
-    5
-}
-/// The labelling threshold by default.
-fn default_threshold() -> f64 {
-    0.4
 }
 
 /// The default training clips of the split evaluation.
@@ -204,9 +185,10 @@ impl Default for StudySettings {
     fn default() -> Self {
         StudySettings {
             train_clips: None,
-            k: default_k(),
-            degree: default_degree(),
-            threshold: default_threshold(),
+            // Paper 002 §4's K, and its smoothing polynomial's degree.
+            k: 10,
+            degree: 5,
+            threshold: 0.4,
             centring: Centring::ClipMean,
             neutral_frames: None,
             evaluation: Evaluation::Split,

@@ -1,6 +1,7 @@
 //! The experiment file: TOML parsed into [`Spec`], checked, with errors naming file, line,
 //! column and key.
 
+use keyshape_actions::intensity::{Centring, Evaluation, StudySettings};
 use keyshape_actions::modes::{Boundary, RegionOptions};
 use keyshape_actions::trajectory::Normalisation;
 use keyshape_core::error::{Error, Result};
@@ -65,7 +66,7 @@ pub struct Spec {
     pub modes: Option<ModesSpec>,
     /// Paper 002 soft-KNN intensity study (the input must be a py-feat table), optional.
     #[serde(default)]
-    pub intensity: Option<keyshape_actions::intensity::StudySettings>,
+    pub intensity: Option<IntensitySpec>,
     /// Paper 002 trajectory mapping onto a second person and the ICT morph targets, optional.
     #[serde(default)]
     pub map: Option<MapSpec>,
@@ -121,6 +122,61 @@ pub struct ModesSpec {
     /// Averaging-filter radius of blended boundaries, a fraction of the face's size.
     #[serde(default)]
     pub blend_radius: Option<f64>,
+}
+
+/// `[intensity]`: paper 002's soft-KNN intensity study, read into
+/// [`StudySettings`](keyshape_actions::intensity::StudySettings); a key left out takes the
+/// study's default.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct IntensitySpec {
+    /// Training clips, inclusive range (split evaluation only; default 1..14).
+    #[serde(default)]
+    pub train_clips: Option<(usize, usize)>,
+    /// K of the soft KNN.
+    #[serde(default = "intensity_k")]
+    pub k: usize,
+    /// Polynomial degree.
+    #[serde(default = "intensity_degree")]
+    pub degree: usize,
+    /// Labelling threshold on the scores.
+    #[serde(default = "intensity_threshold")]
+    pub threshold: f64,
+    /// Reference shape subtracted per clip: `clip-mean`, `causal` or `neutral`.
+    #[serde(default)]
+    pub centring: Centring,
+    /// Frames of the neutral segment (`centring = "neutral"` only).
+    #[serde(default)]
+    pub neutral_frames: Option<usize>,
+    /// `split` or `leave-one-clip-out`.
+    #[serde(default)]
+    pub evaluation: Evaluation,
+}
+
+impl IntensitySpec {
+    /// The study's parameters.
+    pub fn settings(&self) -> StudySettings {
+        StudySettings {
+            train_clips: self.train_clips,
+            k: self.k,
+            degree: self.degree,
+            threshold: self.threshold,
+            centring: self.centring,
+            neutral_frames: self.neutral_frames,
+            evaluation: self.evaluation,
+        }
+    }
+}
+
+/// The intensity study's defaults, from the study's own.
+fn intensity_k() -> usize {
+    StudySettings::default().k
+}
+fn intensity_degree() -> usize {
+    StudySettings::default().degree
+}
+fn intensity_threshold() -> f64 {
+    StudySettings::default().threshold
 }
 
 /// `[map]`: trajectories onto a second person's model and onto morph targets.
@@ -461,7 +517,7 @@ impl Spec {
                 .map_err(|e| ("blend_radius", e.to_string()))?;
         }
         if let Some(i) = &spec.intensity {
-            i.check().map_err(|e| {
+            i.settings().check().map_err(|e| {
                 let key = if i.train_clips.is_some() && e.to_string().contains("train clips") {
                     "train_clips"
                 } else if e.to_string().contains("threshold") {

@@ -22,7 +22,11 @@ impl Study for IntensityStudy {
         let Some(st) = &cx.spec.intensity else {
             return Ok(None);
         };
-        let table = study_with_format(&cx.base.join(&cx.spec.input), cx.spec.format, st)?;
+        let table = study_with_format(
+            &cx.base.join(&cx.spec.input),
+            cx.spec.format,
+            &st.settings(),
+        )?;
         Ok(Some(Box::new(IntensityFinding(table))))
     }
 
