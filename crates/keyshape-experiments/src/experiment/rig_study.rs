@@ -10,68 +10,9 @@ use keyshape_rig::livelink::arkit_name;
 use keyshape_rig::{solve_rig, Identity, Neutral, Rig, RigOptions};
 use nalgebra::DMatrix;
 use rand::{Rng, SeedableRng};
-use serde::{Deserialize, Serialize};
+use serde::Serialize;
 
-/// `[rig]` of an experiment.
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct RigStudySettings {
-    /// Shapes driven in the synthetic tracks (rig names).
-    #[serde(default = "default_shapes")]
-    pub shapes: Vec<String>,
-    /// Frames per synthetic track.
-    #[serde(default = "default_frames")]
-    pub frames: usize,
-    /// Landmark noise levels, standard deviation in pixels (the rig is drawn at 8 px/cm,
-    /// an inter-ocular distance of about 71 px).
-    #[serde(default = "default_noise")]
-    pub noise_px: Vec<f64>,
-    /// Solvers compared.
-    #[serde(default = "default_solvers")]
-    pub solvers: Vec<Solver>,
-    /// Causal temporal priors λ also tried with the bounded solver (none by default).
-    #[serde(default)]
-    pub smooth: Vec<f64>,
-    /// Seed of the weights and the noise.
-    #[serde(default = "default_seed")]
-    pub seed: u64,
-    /// Also correlate the input's own rig solve with its ARKit-style score columns
-    /// (py-feat's `mouthSmileLeft` …), for each identity.
-    #[serde(default)]
-    pub against_input_scores: bool,
-}
-
-/// The dozen shapes the recovery study drives by default.
-pub fn default_shapes() -> Vec<String> {
-    [
-        "jawOpen",
-        "mouthSmile_L",
-        "mouthSmile_R",
-        "browInnerUp_L",
-        "eyeBlink_L",
-        "eyeBlink_R",
-        "mouthRollUpper",
-        "browDown_R",
-        "mouthFunnel",
-        "cheekPuff_L",
-        "mouthStretch_L",
-        "noseSneer_L",
-    ]
-    .map(String::from)
-    .to_vec()
-}
-fn default_frames() -> usize {
-    300
-}
-fn default_noise() -> Vec<f64> {
-    vec![0.0, 0.5, 1.0, 2.0]
-}
-fn default_solvers() -> Vec<Solver> {
-    vec![Solver::Ls, Solver::Nnls, Solver::Bounded]
-}
-fn default_seed() -> u64 {
-    7
-}
+pub use super::spec::{default_shapes, RigStudySettings};
 
 /// One shape's recovery at one solver and noise level.
 #[derive(Debug, Clone, Serialize)]

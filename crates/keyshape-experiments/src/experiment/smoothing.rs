@@ -27,68 +27,11 @@ use keyshape_core::solve::temporal::{segments, smooth_from, SmoothMode, Smoothin
 use keyshape_core::solve::{solve_batch, SolveOptions, Solver};
 use keyshape_core::stats::lag;
 use nalgebra::DMatrix;
-use serde::{Deserialize, Serialize};
+use serde::Serialize;
+
+use super::spec::{all_families, default_lambdas, default_sigma};
+pub use super::spec::{SmoothStudySettings, FAMILIES};
 use std::ops::Range;
-
-/// Settings of the study. A filter family's setting list left out (`None`) takes its
-/// defaults; a family left out of `filters` is not run, and naming its settings then is an
-/// error (an option that cannot take effect).
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct SmoothStudySettings {
-    /// Heuristic choosing the key frames.
-    #[serde(
-        deserialize_with = "super::spec::method",
-        serialize_with = "super::spec::method_name"
-    )]
-    pub method: Method,
-    /// Key shapes (default 12; refused with `hull`, which gives its own k).
-    #[serde(default)]
-    pub k: Option<usize>,
-    /// Solver.
-    #[serde(default = "nnls")]
-    pub solver: Solver,
-    /// λ values of the prior.
-    #[serde(default = "default_lambdas")]
-    pub lambdas: Vec<f64>,
-    /// Post-filter families to compare: `moving-average`, `ema`, `one-euro` (default all).
-    #[serde(default = "all_families")]
-    pub filters: Vec<String>,
-    /// Moving-average windows (odd; default 3, 5, 9, 15, 25).
-    #[serde(default)]
-    pub windows: Option<Vec<usize>>,
-    /// Exponential moving-average factors (default 0.7, 0.5, 0.3, 0.15, 0.08).
-    #[serde(default)]
-    pub alphas: Option<Vec<f64>>,
-    /// One Euro minimum cutoffs, Hz (each with every beta of `one_euro_betas`, speed
-    /// cutoff 1 Hz; default 8, 4, 2, 1, 0.5).
-    #[serde(default)]
-    pub one_euro_cutoffs: Option<Vec<f64>>,
-    /// One Euro betas (cutoff increase per unit of weight speed, Hz per 1/s): one curve
-    /// each (default 0.05, 0.5).
-    #[serde(default)]
-    pub one_euro_betas: Option<Vec<f64>>,
-    /// Standard deviation (frames) of the zero-phase Gaussian low-pass that makes the clean
-    /// reference.
-    #[serde(default = "default_sigma")]
-    pub clean_sigma: f64,
-}
-
-/// The post-filter families, in the order the study runs them.
-pub const FAMILIES: [&str; 3] = ["moving-average", "ema", "one-euro"];
-
-fn all_families() -> Vec<String> {
-    FAMILIES.iter().map(|f| f.to_string()).collect()
-}
-fn nnls() -> Solver {
-    Solver::Nnls
-}
-fn default_lambdas() -> Vec<f64> {
-    vec![1.0, 10.0, 100.0, 1000.0, 10000.0]
-}
-fn default_sigma() -> f64 {
-    2.0
-}
 
 impl SmoothStudySettings {
     /// Defaults for a method, k (None: 12, or the hull's own) and solver.

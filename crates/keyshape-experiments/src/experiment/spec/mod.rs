@@ -1,14 +1,16 @@
 //! The experiment file: TOML parsed into [`Spec`], checked, with errors naming file, line,
 //! column and key.
 
-use keyshape_actions::intensity::{Centring, Evaluation, StudySettings};
-use keyshape_actions::modes::{Boundary, RegionOptions};
-use keyshape_actions::trajectory::Normalisation;
+use keyshape_actions::modes::RegionOptions;
+
 use keyshape_core::error::{Error, Result};
 use keyshape_core::keyshapes::Method;
 use keyshape_core::sequence::Format;
 use keyshape_core::solve::Solver;
 use serde::{Deserialize, Deserializer, Serialize};
+
+mod sections;
+pub use sections::*;
 use std::path::{Path, PathBuf};
 
 /// An experiment file.
@@ -72,11 +74,11 @@ pub struct Spec {
     pub map: Option<MapSpec>,
     /// The jitter-against-error study of the temporal prior and post-filters, optional.
     #[serde(default)]
-    pub smooth: Option<super::smoothing::SmoothStudySettings>,
+    pub smooth: Option<SmoothStudySettings>,
     /// The rig-solve study: recovery of known weights on synthetic tracks of the
     /// ICT rig, and (with a py-feat input) agreement with its ARKit-style scores, optional.
     #[serde(default)]
-    pub rig: Option<super::rig_study::RigStudySettings>,
+    pub rig: Option<RigStudySettings>,
     /// Seed for kmeans and random.
     #[serde(default = "default_seed")]
     pub seed: u64,
@@ -88,137 +90,6 @@ pub struct Spec {
     pub png: bool,
 }
 
-/// `[retarget]`: LS against NNLS through a target face.
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct RetargetSpec {
-    /// Heuristic choosing the key frames.
-    #[serde(deserialize_with = "method", serialize_with = "method_name")]
-    pub method: Method,
-    /// Number of key shapes.
-    pub k: usize,
-    /// Solvers compared (the first is the one whose distortion the strip shows).
-    pub solvers: Vec<Solver>,
-    /// Tracing noise levels on the built-in target, in inter-ocular distances.
-    #[serde(default = "noise_free")]
-    pub trace_noise: Vec<f64>,
-    /// Frames in the strip of worst frames (0 = none).
-    #[serde(default = "default_strip")]
-    pub strip: usize,
-}
-
-/// `[modes]`: the orthogonality table (paper 002 Table 2).
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct ModesSpec {
-    /// Actions file, relative to the spec.
-    pub actions: String,
-    /// Modes of each model.
-    #[serde(default = "default_modes")]
-    pub modes: usize,
-    /// Region boundaries: `blended` (the paper's, default) or `disjoint`.
-    #[serde(default)]
-    pub boundary: Boundary,
-    /// Averaging-filter radius of blended boundaries, a fraction of the face's size.
-    #[serde(default)]
-    pub blend_radius: Option<f64>,
-}
-
-/// `[intensity]`: paper 002's soft-KNN intensity study, read into
-/// [`StudySettings`](keyshape_actions::intensity::StudySettings); a key left out takes the
-/// study's default.
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct IntensitySpec {
-    /// Training clips, inclusive range (split evaluation only; default 1..14).
-    #[serde(default)]
-    pub train_clips: Option<(usize, usize)>,
-    /// K of the soft KNN.
-    #[serde(default = "intensity_k")]
-    pub k: usize,
-    /// Polynomial degree.
-    #[serde(default = "intensity_degree")]
-    pub degree: usize,
-    /// Labelling threshold on the scores.
-    #[serde(default = "intensity_threshold")]
-    pub threshold: f64,
-    /// Reference shape subtracted per clip: `clip-mean`, `causal` or `neutral`.
-    #[serde(default)]
-    pub centring: Centring,
-    /// Frames of the neutral segment (`centring = "neutral"` only).
-    #[serde(default)]
-    pub neutral_frames: Option<usize>,
-    /// `split` or `leave-one-clip-out`.
-    #[serde(default)]
-    pub evaluation: Evaluation,
-}
-
-impl IntensitySpec {
-    /// The study's parameters.
-    pub fn settings(&self) -> StudySettings {
-        StudySettings {
-            train_clips: self.train_clips,
-            k: self.k,
-            degree: self.degree,
-            threshold: self.threshold,
-            centring: self.centring,
-            neutral_frames: self.neutral_frames,
-            evaluation: self.evaluation,
-        }
-    }
-}
-
-/// The intensity study's defaults, from the study's own.
-fn intensity_k() -> usize {
-    StudySettings::default().k
-}
-fn intensity_degree() -> usize {
-    StudySettings::default().degree
-}
-fn intensity_threshold() -> f64 {
-    StudySettings::default().threshold
-}
-
-/// `[map]`: trajectories onto a second person's model and onto morph targets.
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct MapSpec {
-    /// Source actions file.
-    pub actions: String,
-    /// Second person's sequence.
-    pub target_sequence: String,
-    /// Second person's actions.
-    pub target_actions: String,
-    /// Modes of each model.
-    #[serde(default = "default_modes")]
-    pub modes: usize,
-    /// Folder of the ICT face (optional).
-    #[serde(default)]
-    pub morph: Option<String>,
-    /// Region boundaries: `blended` (the paper's, default) or `disjoint`.
-    #[serde(default)]
-    pub boundary: Boundary,
-    /// Averaging-filter radius of blended boundaries, a fraction of the face's size.
-    #[serde(default)]
-    pub blend_radius: Option<f64>,
-    /// Trajectory normalisation: `two-sided` (the paper's, default) or `one-sided`.
-    #[serde(default)]
-    pub normalisation: Normalisation,
-}
-
-/// Modes of each model by default.
-fn default_modes() -> usize {
-    10
-}
-
-/// The built-in target traced without noise.
-fn noise_free() -> Vec<f64> {
-    vec![0.0]
-}
-/// Frames in the strip of worst frames by default.
-fn default_strip() -> usize {
-    4
-}
 /// The curves' k range by default.
 fn default_k() -> (usize, usize) {
     (2, 24)
