@@ -20,7 +20,6 @@ mod modes;
 mod oracles;
 mod outputs;
 mod readers;
-mod retarget;
 mod rig;
 mod rig_accuracy;
 mod rig_dense;

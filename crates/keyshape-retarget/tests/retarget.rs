@@ -1,7 +1,9 @@
-//! Retargeting: RBF interpolation, target sets, SVG round trips, regions, head motion,
-//! metrics, pictures, and the Figs. 4–5 finding on real lips.
+//! Retargeting (paper 000): RBF interpolation, target sets, SVG round trips, regions, head
+//! motion, metrics, and the Figs. 4–5 finding on real lips.
 
-use crate::common::shared;
+// Test code: a failed unwrap is a failed test with its message.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
 use keyshape_core::decompose::{prepare, PrepareOptions};
 use keyshape_core::rbf::Rbf;
 use keyshape_core::sequence::Layout;
@@ -14,6 +16,108 @@ use keyshape_retarget::target::{TargetKey, TargetSet};
 use keyshape_retarget::{jitter, retarget, with_head_motion, KeyPlan, Target};
 use nalgebra::DMatrix;
 use proptest::prelude::*;
+
+/// `../shared/data/<rel>` beside the repository.
+fn shared(rel: &str) -> std::path::PathBuf {
+    std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../../shared/data")
+        .join(rel)
+}
+
+fn builtin_lips() -> (
+    keyshape_core::sequence::Sequence,
+    keyshape_core::decompose::Prepared,
+) {
+    let seq = builtin_sequence().unwrap();
+    let prep = prepare(&seq, &PrepareOptions::group_aligned("lips")).unwrap();
+    (seq, prep)
+}
+
+fn template_of(
+    prep: &keyshape_core::decompose::Prepared,
+    cols: &[usize],
+) -> (String, Vec<(i64, Vec<f64>)>) {
+    let s = &prep.seq;
+    let keys: Vec<(i64, Vec<f64>)> = cols
+        .iter()
+        .map(|&c| (s.frames[c], s.coords.column(c).iter().copied().collect()))
+        .collect();
+    let lines = keyshape_retarget::setup::named_polylines_for(
+        prep.layout.as_ref().unwrap(),
+        &prep.point_indices,
+    );
+    let mut buf = Vec::new();
+    write_template(&mut buf, &keys, s.points, &lines).unwrap();
+    (String::from_utf8(buf).unwrap(), keys)
+}
+
+/// The smallest signed distance (in inter-ocular distances) by which the built-in cartoon
+/// keeps every feature point inside the face's outline, over every frame of `seq` mapped
+/// through the warp G — negative when a point crosses it. MediaPipe: every point off the
+/// face oval is inside the oval polygon. iBUG 68 has no closed outline (the jaw stops at the
+/// ears): every brow and eye point lies between the jaw's ends (points 0 and 16) in x.
+fn cartoon_outline_margin(seq: &keyshape_core::sequence::Sequence, align: bool, warp: bool) -> f64 {
+    let prep = prepare(
+        seq,
+        &PrepareOptions {
+            points: None,
+            align,
+        },
+    )
+    .unwrap();
+    let layout = prep.layout.clone().unwrap();
+    let (g, iod) = builtin_target(seq, &prep).unwrap();
+    let mapped = if warp {
+        g.apply_all(&prep.seq.coords)
+    } else {
+        prep.seq.coords.clone()
+    };
+    let mut worst = f64::INFINITY;
+    for f in 0..mapped.ncols() {
+        let c = mapped.column(f);
+        let pt = |i: usize| [c[2 * i], c[2 * i + 1]];
+        if let Some(oval) = layout.groups.get("face_oval") {
+            let ring: Vec<[f64; 2]> = oval.polylines[0].iter().map(|&i| pt(i)).collect();
+            let drawn = [
+                "left_eyebrow",
+                "right_eyebrow",
+                "left_eye",
+                "right_eye",
+                "lips",
+                "nose",
+            ];
+            for i in drawn
+                .iter()
+                .flat_map(|g| layout.groups[*g].points.iter().copied())
+            {
+                let p = pt(i);
+                let (mut inside, mut dist) = (false, f64::INFINITY);
+                for w in ring.windows(2) {
+                    let (a, b) = (w[0], w[1]);
+                    if (a[1] > p[1]) != (b[1] > p[1])
+                        && p[0] < a[0] + (p[1] - a[1]) / (b[1] - a[1]) * (b[0] - a[0])
+                    {
+                        inside = !inside;
+                    }
+                    let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+                    let t = (((p[0] - a[0]) * dx + (p[1] - a[1]) * dy) / (dx * dx + dy * dy))
+                        .clamp(0.0, 1.0);
+                    dist = dist.min((p[0] - a[0] - t * dx).hypot(p[1] - a[1] - t * dy));
+                }
+                worst = worst.min(if inside { dist } else { -dist } / iod);
+            }
+        } else {
+            let (l, r) = (pt(0)[0].min(pt(16)[0]), pt(0)[0].max(pt(16)[0]));
+            for name in ["left_eyebrow", "right_eyebrow", "left_eye", "right_eye"] {
+                for &i in &layout.groups[name].points {
+                    let x = pt(i)[0];
+                    worst = worst.min((x - l).min(r - x) / iod);
+                }
+            }
+        }
+    }
+    worst
+}
 
 proptest! {
     #[test]
@@ -54,15 +158,6 @@ fn jitter_is_the_rms_second_difference() {
     let w = DMatrix::from_fn(2, 10, |_, t| (t * t) as f64);
     assert!((jitter(&[w]) - 2.0).abs() < 1e-12);
     assert_eq!(jitter(&[DMatrix::from_element(3, 10, 0.7)]), 0.0);
-}
-
-fn builtin_lips() -> (
-    keyshape_core::sequence::Sequence,
-    keyshape_core::decompose::Prepared,
-) {
-    let seq = builtin_sequence().unwrap();
-    let prep = prepare(&seq, &PrepareOptions::group_aligned("lips")).unwrap();
-    (seq, prep)
 }
 
 #[test]
@@ -257,24 +352,6 @@ fn target_sets_check_counts_and_point_counts() {
     assert!(e.contains("same point count"), "{e}");
 }
 
-fn template_of(
-    prep: &keyshape_core::decompose::Prepared,
-    cols: &[usize],
-) -> (String, Vec<(i64, Vec<f64>)>) {
-    let s = &prep.seq;
-    let keys: Vec<(i64, Vec<f64>)> = cols
-        .iter()
-        .map(|&c| (s.frames[c], s.coords.column(c).iter().copied().collect()))
-        .collect();
-    let lines = keyshape_retarget::setup::named_polylines_for(
-        prep.layout.as_ref().unwrap(),
-        &prep.point_indices,
-    );
-    let mut buf = Vec::new();
-    write_template(&mut buf, &keys, s.points, &lines).unwrap();
-    (String::from_utf8(buf).unwrap(), keys)
-}
-
 #[test]
 fn svg_template_round_trips_and_reads_edits_through_transforms() {
     let seq = builtin_sequence().unwrap();
@@ -351,22 +428,6 @@ fn damaged_svg_templates_are_explained() {
         "not a template",
     );
     check(svg.replace("</svg>", ""), "not valid SVG/XML");
-}
-
-#[test]
-fn apng_has_one_frame_per_sequence_frame() {
-    let dir = tempfile::tempdir().unwrap();
-    let p = dir.path().join("a.png");
-    keyshape_pictures::render::apng::write_apng(&p, 3, 30.0, &|i| {
-        let mut pm = tiny_skia::Pixmap::new(8, 8).unwrap();
-        pm.fill(tiny_skia::Color::from_rgba8(i as u8 * 80, 0, 0, 255));
-        Ok(pm)
-    })
-    .unwrap();
-    let dec = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(&p).unwrap()));
-    let reader = dec.read_info().unwrap();
-    let actl = reader.info().animation_control().unwrap();
-    assert_eq!(actl.num_frames, 3);
 }
 
 #[test]
@@ -544,74 +605,6 @@ fn the_face_template_is_grouped_captioned_and_its_dots_follow_the_contours() {
         "{e}"
     );
     assert!(e.contains("t.svg:"), "names the file, line and column: {e}");
-}
-
-/// The smallest signed distance (in inter-ocular distances) by which the built-in cartoon
-/// keeps every feature point inside the face's outline, over every frame of `seq` mapped
-/// through the warp G — negative when a point crosses it. MediaPipe: every point off the
-/// face oval is inside the oval polygon. iBUG 68 has no closed outline (the jaw stops at the
-/// ears): every brow and eye point lies between the jaw's ends (points 0 and 16) in x.
-fn cartoon_outline_margin(seq: &keyshape_core::sequence::Sequence, align: bool, warp: bool) -> f64 {
-    let prep = prepare(
-        seq,
-        &PrepareOptions {
-            points: None,
-            align,
-        },
-    )
-    .unwrap();
-    let layout = prep.layout.clone().unwrap();
-    let (g, iod) = builtin_target(seq, &prep).unwrap();
-    let mapped = if warp {
-        g.apply_all(&prep.seq.coords)
-    } else {
-        prep.seq.coords.clone()
-    };
-    let mut worst = f64::INFINITY;
-    for f in 0..mapped.ncols() {
-        let c = mapped.column(f);
-        let pt = |i: usize| [c[2 * i], c[2 * i + 1]];
-        if let Some(oval) = layout.groups.get("face_oval") {
-            let ring: Vec<[f64; 2]> = oval.polylines[0].iter().map(|&i| pt(i)).collect();
-            let drawn = [
-                "left_eyebrow",
-                "right_eyebrow",
-                "left_eye",
-                "right_eye",
-                "lips",
-                "nose",
-            ];
-            for i in drawn
-                .iter()
-                .flat_map(|g| layout.groups[*g].points.iter().copied())
-            {
-                let p = pt(i);
-                let (mut inside, mut dist) = (false, f64::INFINITY);
-                for w in ring.windows(2) {
-                    let (a, b) = (w[0], w[1]);
-                    if (a[1] > p[1]) != (b[1] > p[1])
-                        && p[0] < a[0] + (p[1] - a[1]) / (b[1] - a[1]) * (b[0] - a[0])
-                    {
-                        inside = !inside;
-                    }
-                    let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
-                    let t = (((p[0] - a[0]) * dx + (p[1] - a[1]) * dy) / (dx * dx + dy * dy))
-                        .clamp(0.0, 1.0);
-                    dist = dist.min((p[0] - a[0] - t * dx).hypot(p[1] - a[1] - t * dy));
-                }
-                worst = worst.min(if inside { dist } else { -dist } / iod);
-            }
-        } else {
-            let (l, r) = (pt(0)[0].min(pt(16)[0]), pt(0)[0].max(pt(16)[0]));
-            for name in ["left_eyebrow", "right_eyebrow", "left_eye", "right_eye"] {
-                for &i in &layout.groups[name].points {
-                    let x = pt(i)[0];
-                    worst = worst.min((x - l).min(r - x) / iod);
-                }
-            }
-        }
-    }
-    worst
 }
 
 /// The built-in cartoon keeps its drawn features inside its own outline on
