@@ -2,6 +2,9 @@
 //! default), with a per-frame head pose; weights, pose and Live Link Face CSV out.
 
 mod output;
+mod summary;
+
+use summary::{print_summary, summary_json, warn_unneutral, Done, Refined};
 
 use super::check_outputs;
 use anyhow::{Context, Result};
@@ -11,7 +14,6 @@ use keyshape_core::solve::temporal::SmoothMode;
 use keyshape_core::solve::Solver;
 use keyshape_io::{read_sequence, shared_data, ReadOptions};
 use keyshape_rig::{solve_rig, Identity, Neutral, RigOptions};
-use serde_json::json;
 use std::path::PathBuf;
 
 /// Arguments of `kslab rig`.
@@ -206,6 +208,54 @@ pub struct RigArgs {
 
 /// Runs `kslab rig`.
 pub fn run(a: &RigArgs) -> Result<()> {
+    let refinement = checked_args(a)?;
+    let progress = super::progress::Progress::new("rig: reading");
+    let (name, seq) = read_track(a)?;
+    let track68 = plausibility_rows(a, &seq)?;
+    let (dir, mesh, morph, rig, seq) = read_rig(a, seq, &name)?;
+    let opts = options_of(a, &seq)?;
+    let neutral = opts.neutral;
+    let (per_clip, clips) = clips_of(a, &seq, &name, neutral)?;
+    progress.step("rig: solving");
+    let (rig, r, refined) = solve(
+        &rig,
+        (&mesh, &morph),
+        &seq,
+        &clips,
+        &opts,
+        refinement,
+        &progress,
+    )?;
+    if let (Some(p), Some((pairs, _, _))) = (&a.save_landmarks, &refined) {
+        output::save_landmarks(p, pairs)?;
+    }
+    progress.step("rig: writing");
+    let taken = output::write_all(a, &seq, &rig, &r, &mesh, &morph, &progress)?;
+    progress.finish();
+    warn_unneutral(&r, &seq, neutral);
+    let plausible = track68.as_ref().map(|t| {
+        let clips = clip_ranges(seq.segments.as_deref().unwrap_or(&[]));
+        keyshape_rig::plausibility::plausibility(&rig.names, &r.weights, t, &clips)
+    });
+    let done = Done {
+        seq: &seq,
+        rig: &rig,
+        r: &r,
+        opts: &opts,
+        refined: refined.as_ref(),
+        plausible: plausible.as_ref(),
+    };
+    if a.json {
+        let v = summary_json(a, &done, &dir, per_clip);
+        outln!("{}", serde_json::to_string_pretty(&v)?);
+    } else {
+        print_summary(a, &done, taken)?;
+    }
+    Ok(())
+}
+
+/// Step 1: the outputs may be written, and the options fit together; the refinement asked.
+fn checked_args(a: &RigArgs) -> Result<Option<keyshape_rig::refine::Refinement>> {
     super::check_json_stdout(a.json, a.out.as_ref())?;
     // Without --out (and --json) the weights go to standard output, as with `--out -`.
     let stdout = PathBuf::from("-");
@@ -235,7 +285,12 @@ pub fn run(a: &RigArgs) -> Result<()> {
     if refinement.is_some() && a.live {
         anyhow::bail!("--refine-landmarks measures each landmark over the whole track: not with --live (refine on a recorded take, --save-landmarks, and go live with --rig-landmarks)");
     }
-    let progress = super::progress::Progress::new("rig: reading");
+    Ok(refinement)
+}
+
+/// Step 2: the track read (the built-in one without a file), in image pixels, its layout
+/// checked and, with `--landmarks 68`, reduced to the 68 iBUG points; with its name.
+fn read_track(a: &RigArgs) -> Result<(String, Sequence)> {
     let name = a
         .file
         .as_ref()
@@ -269,20 +324,37 @@ pub fn run(a: &RigArgs) -> Result<()> {
         _ => seq.select_points(&keyshape_rig::mediapipe_to_ibug68()?)?,
     };
     seq.check_geometry()?;
-    // The 68 iBUG points' image rows, for --plausibility's geometry.
-    let track68 = if a.plausibility {
+    Ok((name, seq))
+}
+
+/// Step 3: the 68 iBUG points' image rows, for `--plausibility`'s geometry (None without
+/// it).
+fn plausibility_rows(a: &RigArgs, seq: &Sequence) -> Result<Option<nalgebra::DMatrix<f64>>> {
+    Ok(if a.plausibility {
         let s68 = match seq.points {
             68 => None,
             _ => Some(seq.select_points(&keyshape_rig::mediapipe_to_ibug68()?)?),
         };
-        let s68 = s68.as_ref().unwrap_or(&seq);
+        let s68 = s68.as_ref().unwrap_or(seq);
         let xy: Vec<usize> = (0..68)
             .flat_map(|i| [s68.dims * i, s68.dims * i + 1])
             .collect();
         Some(s68.coords.select_rows(&xy))
     } else {
         None
-    };
+    })
+}
+
+type RigRead = (
+    PathBuf,
+    keyshape_io::obj::Mesh,
+    keyshape_io::morph::MorphTargets,
+    keyshape_rig::Rig,
+    Sequence,
+);
+
+/// Step 4: the rig (a folder or a glTF file), and the track reduced to the points it reads.
+fn read_rig(a: &RigArgs, seq: Sequence, name: &str) -> Result<RigRead> {
     let dir = match &a.rig {
         Some(d) => d.clone(),
         None => shared_data("ict_facekit_face")?,
@@ -303,7 +375,13 @@ pub fn run(a: &RigArgs) -> Result<()> {
         );
     }
     let seq = seq.select_points(&rig.points)?;
-    let neutral = neutral_of(a, &seq)?;
+    Ok((dir, mesh, morph, rig, seq))
+}
+
+/// Step 5: the solve's options from the flags (the neutral, the causal path's refusals,
+/// the priors).
+fn options_of(a: &RigArgs, seq: &Sequence) -> Result<RigOptions> {
+    let neutral = neutral_of(a, seq)?;
     if a.live && a.identity_per.as_deref() == Some("clip") {
         anyhow::bail!("--live takes one neutral lead-in for the track: --identity-per clip searches each clip for its own");
     }
@@ -332,7 +410,7 @@ pub fn run(a: &RigArgs) -> Result<()> {
     if a.no_prior_taper && prior == 0.0 {
         anyhow::bail!("--no-prior-taper: there is no prior to taper (--prior 0)");
     }
-    let opts = RigOptions {
+    Ok(RigOptions {
         solver: a.solver,
         identity: a.identity,
         neutral,
@@ -346,7 +424,17 @@ pub fn run(a: &RigArgs) -> Result<()> {
         causal: a.live,
         robust: a.robust_landmarks,
         ..Default::default()
-    };
+    })
+}
+
+/// Step 6: one identity for the track, or one per clip (`--identity-per clip`), and the
+/// clips' frame ranges then.
+fn clips_of(
+    a: &RigArgs,
+    seq: &Sequence,
+    name: &str,
+    neutral: Neutral,
+) -> Result<(bool, Vec<std::ops::Range<usize>>)> {
     let per_clip = match a.identity_per.as_deref() {
         Some("clip") => {
             if seq.segments.is_none() {
@@ -380,15 +468,27 @@ pub fn run(a: &RigArgs) -> Result<()> {
     } else {
         Vec::new()
     };
-    progress.step("rig: solving");
-    let (rig, r, refined) = match refinement {
+    Ok((per_clip, clips))
+}
+
+/// Step 7: the solve, through the landmark map refined from the track when asked.
+fn solve(
+    rig: &keyshape_rig::Rig,
+    (mesh, morph): (&keyshape_io::obj::Mesh, &keyshape_io::morph::MorphTargets),
+    seq: &Sequence,
+    clips: &[std::ops::Range<usize>],
+    opts: &RigOptions,
+    refinement: Option<keyshape_rig::refine::Refinement>,
+    progress: &super::progress::Progress,
+) -> Result<(keyshape_rig::Rig, keyshape_rig::RigSolve, Option<Refined>)> {
+    Ok(match refinement {
         Some(settings) => {
             let done = keyshape_rig::refine::refine_map(
-                (&mesh.positions, &morph),
-                &rig,
+                (&mesh.positions, morph),
+                rig,
                 &seq.coords,
-                &clips,
-                &opts,
+                clips,
+                opts,
                 settings,
                 &mut |s| progress.step(&format!("rig: {s}")),
             )?;
@@ -396,206 +496,10 @@ pub fn run(a: &RigArgs) -> Result<()> {
             (done.rig, done.solve, Some(report))
         }
         None => {
-            let r = solve_rig(&rig, &seq.coords, &clips, &opts)?;
-            (rig, r, None)
+            let r = solve_rig(rig, &seq.coords, clips, opts)?;
+            (rig.clone(), r, None)
         }
-    };
-    if let (Some(p), Some((pairs, _, _))) = (&a.save_landmarks, &refined) {
-        output::save_landmarks(p, pairs)?;
-    }
-    progress.step("rig: writing");
-    let taken = output::write_all(a, &seq, &rig, &r, &mesh, &morph, &progress)?;
-    progress.finish();
-    let frozen: Vec<&str> = r
-        .shapes
-        .iter()
-        .filter(|s| s.frozen)
-        .map(|s| s.name.as_str())
-        .collect();
-    let mean_rms = r.rms.iter().sum::<f64>() / r.rms.len() as f64;
-    let neutral_frames: Vec<i64> = r.neutrals.iter().map(|&c| seq.frames[c]).collect();
-    warn_unneutral(&r, &seq, neutral);
-    let plausible = track68.as_ref().map(|t| {
-        let clips = clip_ranges(seq.segments.as_deref().unwrap_or(&[]));
-        keyshape_rig::plausibility::plausibility(&rig.names, &r.weights, t, &clips)
-    });
-    if a.json {
-        let v = json!({
-            "frames": seq.n_frames(),
-            "rig": dir.display().to_string(),
-            "shapes": rig.k(),
-            "solver": a.solver.name(),
-            "identity": a.identity.name(),
-            "identity_per": if per_clip { "clip" } else { "track" },
-            "neutral": match (a.identity, neutral) {
-                (Identity::None, _) => None,
-                (_, Neutral::Auto) => Some("auto".to_string()),
-                (_, Neutral::LeastActive) => Some("least-active".to_string()),
-                (_, Neutral::Column(c)) => Some(seq.frames[c].to_string()),
-                (_, Neutral::Span(x, y)) => Some(format!("{}-{}", seq.frames[x], seq.frames[y - 1])),
-            },
-            "neutral_frames": neutral_frames,
-            "neutral_views": r.neutral_views.iter().map(|v| json!({
-                "frame": seq.frames[v.frame],
-                "yaw": v.yaw_pitch_roll[0],
-                "pitch": v.yaw_pitch_roll[1],
-                "roll": v.yaw_pitch_roll[2],
-                "turn": v.turn,
-                "lip_gap": (!v.lip_gap.is_nan()).then_some(v.lip_gap),
-                "looks_neutral": v.looks_neutral,
-            })).collect::<Vec<_>>(),
-            "layout": rig.layout,
-            "landmarks": rig.landmarks(),
-            "irises": rig.sees_pupils(),
-            "landmark_weights": opts.landmark_weights.to_vec(),
-            "smooth": opts.smooth,
-            "smooth_mode": opts.smooth_mode.name(),
-            "sweeps": r.sweeps,
-            "sweeps_unconverged": r.sweeps_unconverged,
-            "prior": opts.prior,
-            "prior_taper": opts.taper,
-            "zero_phase": opts.zero_phase,
-            "mean_rms": mean_rms,
-            "unconverged": r.unconverged,
-            "mean_steps": r.steps.iter().map(|&x| f64::from(x)).sum::<f64>() / r.steps.len() as f64,
-            "min_determination": a.min_determination,
-            "plausibility": plausible,
-            "refined_map": refined.as_ref().map(|(pairs, moved, changed)| json!({
-                "landmarks": pairs.len(),
-                "moved": changed,
-                "moved_per_round": moved,
-            })),
-            "identifiability": r.shapes.iter().map(|s| json!({
-                "shape": s.name,
-                "image_motion": s.image_motion,
-                "determination": s.determination,
-                "frozen": s.frozen,
-            })).collect::<Vec<_>>(),
-        });
-        outln!("{}", serde_json::to_string_pretty(&v)?);
-    } else {
-        sayln!(
-            taken,
-            "{} frames onto {} shapes ({}, prior {}, zero-phase σ {}), identity {}{}: RMS landmark error {:.3}, {} frozen{}, {} frames unconverged",
-            seq.n_frames(),
-            rig.k(),
-            a.solver.name(),
-            opts.prior,
-            opts.zero_phase,
-            a.identity.name(),
-            match (neutral_frames.len(), r.neutral_views.first()) {
-                (0, _) => String::new(),
-                (1, Some(v)) => format!(
-                    " from frame {} (yaw {:.0}°, pitch {:.0}°)",
-                    neutral_frames[0], v.yaw_pitch_roll[0], v.yaw_pitch_roll[1]
-                ),
-                (1, None) => format!(" from frame {}", neutral_frames[0]),
-                (n, _) => format!(" per clip ({n} neutral frames)"),
-            },
-            mean_rms,
-            frozen.len(),
-            if frozen.is_empty() {
-                String::new()
-            } else {
-                format!(" ({})", frozen.join(" "))
-            },
-            r.unconverged
-        );
-        if let Some((pairs, moved, changed)) = &refined {
-            sayln!(
-                taken,
-                "landmark map refined from the track: {changed} of {} landmarks on another vertex (moved per round: {}){}",
-                pairs.len(),
-                moved
-                    .iter()
-                    .map(usize::to_string)
-                    .collect::<Vec<_>>()
-                    .join(", "),
-                a.save_landmarks.as_ref().map_or(String::new(), |p| format!(
-                    "; saved to {} (solve the next take with --rig-landmarks {})",
-                    p.display(),
-                    p.display()
-                )),
-            );
-        }
-        if let Some(p) = &plausible {
-            for line in plausibility_lines(p) {
-                sayln!(taken, "{line}");
-            }
-        }
-    }
-    Ok(())
-}
-
-/// `--plausibility`'s report, line by line.
-fn plausibility_lines(p: &keyshape_rig::plausibility::Plausibility) -> Vec<String> {
-    let mut out = vec![format!(
-        "plausibility over {} frames (the track's own geometry; no ground truth):",
-        p.frames
-    )];
-    for g in &p.agreements {
-        out.push(format!(
-            "  {:<15} r {:>6.3} against {} (range {:.3} of the eye-corner distance)",
-            g.weights, g.r, g.geometry, g.geometry_range
-        ));
-    }
-    let mut twins: Vec<_> = p.twins.iter().collect();
-    twins.sort_by(|a, b| b.mean_gap.total_cmp(&a.mean_gap));
-    out.push(format!(
-        "  twins on symmetric frames, mean |L − R| (largest): {}",
-        twins
-            .iter()
-            .take(4)
-            .map(|t| format!("{} {:.2} ({:.2})", t.pair, t.mean_gap, t.max_gap))
-            .collect::<Vec<_>>()
-            .join(", ")
-    ));
-    let mut on: Vec<_> = p.on_rate.iter().filter(|x| x.1 > 0.2).collect();
-    on.sort_by(|a, b| b.1.total_cmp(&a.1));
-    out.push(format!(
-        "  on (> {}) on more than 20 % of frames: {}",
-        keyshape_rig::plausibility::ON,
-        if on.is_empty() {
-            "none".to_string()
-        } else {
-            on.iter()
-                .map(|(n, v)| format!("{n} {:.0} %", 100.0 * v))
-                .collect::<Vec<_>>()
-                .join(", ")
-        }
-    ));
-    out
-}
-
-/// A warning on stderr for each neutral frame that does not look neutral (a turned head,
-/// parted lips): what was seen and what to do.
-fn warn_unneutral(r: &keyshape_rig::RigSolve, seq: &Sequence, neutral: Neutral) {
-    let searched = matches!(neutral, Neutral::Auto | Neutral::LeastActive);
-    for v in r.neutral_views.iter().filter(|v| !v.looks_neutral) {
-        let mut what = Vec::new();
-        if v.turn > keyshape_rig::NEUTRAL_TURN_WARN_DEG {
-            what.push(format!(
-                "the head is turned {:.0}° (yaw {:.0}°, pitch {:.0}°)",
-                v.turn, v.yaw_pitch_roll[0], v.yaw_pitch_roll[1]
-            ));
-        }
-        if v.lip_gap > keyshape_rig::NEUTRAL_LIPS_WARN {
-            what.push(format!(
-                "the lips are parted ({:.0} % of the eye-corner distance)",
-                100.0 * v.lip_gap
-            ));
-        }
-        let advice = if searched {
-            "no candidate frame looked neutral: record a second or two of a relaxed, frontal face at the start of a take and name it with --neutral FIRST-LAST"
-        } else {
-            "an identity taken from it reads the difference as expression: name a relaxed, frontal frame or stretch with --neutral"
-        };
-        eprintln!(
-            "warning: neutral frame {}: {}; {advice}",
-            seq.frames[v.frame],
-            what.join(", ")
-        );
-    }
+    })
 }
 
 /// The neutral lead-in `--live` takes by default: the first 30 frames, `kslab live`'s
