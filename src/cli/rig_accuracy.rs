@@ -162,6 +162,42 @@ pub struct RigAccuracyArgs {
 
 pub fn run(a: &RigAccuracyArgs) -> Result<()> {
     super::check_outputs(&[a.out.as_ref()], &[a.tracks.as_ref()], &[a.rig.as_deref()])?;
+    let read = read_rig(a)?;
+    let plan = plan_of(a)?;
+    let all = render_and_solve(a, &read, &plan)?;
+    if let Some(p) = &a.out {
+        write_csv(p, &all)?;
+    }
+    if a.seeds.is_some() {
+        return print_distributions(a, &all);
+    }
+    print_summaries(a, &all)
+}
+
+/// The rig the performances are rendered through and solved onto.
+struct RigRead {
+    mesh: keyshape_io::obj::Mesh,
+    morph: keyshape_io::morph::MorphTargets,
+    rig: keyshape_rig::Rig,
+    /// The track carries depth (`--landmarks 468z`).
+    depth: bool,
+}
+
+/// What is rendered and how it is solved.
+struct Plan {
+    opts: RigOptions,
+    refinement: Option<keyshape_rig::refine::Refinement>,
+    /// Landmark noise, pixels.
+    noise: f64,
+    kinds: Vec<Kind>,
+}
+
+/// One performance's result: its kind, seed, every shape's measures and the summary.
+type Run = (Kind, u64, Vec<ShapeAccuracy>, Summary);
+
+/// The rig (`--rig`, the ICT face by default) read for `--landmarks`, and `--map-noise`
+/// checked against it.
+fn read_rig(a: &RigAccuracyArgs) -> Result<RigRead> {
     let dir = match &a.rig {
         Some(d) => d.clone(),
         None => shared_data("ict_facekit_face")?,
@@ -181,6 +217,17 @@ pub fn run(a: &RigAccuracyArgs) -> Result<()> {
     if a.map_noise > 0.0 && layout == 478 {
         anyhow::bail!("--map-noise: the 478-point layout's irises are virtual points, not mesh vertices; use --landmarks 468 or 68");
     }
+    Ok(RigRead {
+        mesh,
+        morph,
+        rig,
+        depth,
+    })
+}
+
+/// The solve's options, the refinement, the noise and the kinds, from the flags (each
+/// refused where it cannot apply).
+fn plan_of(a: &RigAccuracyArgs) -> Result<Plan> {
     let refinement = super::rig::refinement_of(a.refine_landmarks, a.refine_radius)?;
     if refinement.is_some() && a.live {
         anyhow::bail!(
@@ -255,8 +302,27 @@ pub fn run(a: &RigAccuracyArgs) -> Result<()> {
         robust: a.robust_landmarks,
         ..Default::default()
     };
+    Ok(Plan {
+        opts,
+        refinement,
+        noise,
+        kinds,
+    })
+}
+
+/// Every kind at every seed: rendered (through a map moved by `--map-noise` when asked),
+/// solved (through the refined map when asked), its track written with `--tracks`.
+fn render_and_solve(a: &RigAccuracyArgs, read: &RigRead, plan: &Plan) -> Result<Vec<Run>> {
+    let RigRead {
+        mesh,
+        morph,
+        rig,
+        depth,
+    } = read;
+    let (depth, noise, opts, refinement) = (*depth, plan.noise, &plan.opts, plan.refinement);
+    let kinds = &plan.kinds;
     let seeds = seeds_of(a)?;
-    let mut all: Vec<(Kind, u64, Vec<ShapeAccuracy>, Summary)> = Vec::new();
+    let mut all: Vec<Run> = Vec::new();
     let progress = super::progress::Progress::new("rig-accuracy");
     progress.units("performances rendered and solved");
     let runs: Vec<(Kind, u64)> = kinds
@@ -282,49 +348,54 @@ pub fn run(a: &RigAccuracyArgs) -> Result<()> {
         };
         // The ICT face is in centimetres.
         let elsewhere = if a.map_noise > 0.0 {
-            accuracy::mapped_elsewhere(&mesh.positions, &morph, &rig, a.map_noise / 10.0, seed)?
+            accuracy::mapped_elsewhere(&mesh.positions, morph, rig, a.map_noise / 10.0, seed)?
         } else {
             rig.clone()
         };
         let (track, _, rows, summary) = match refinement {
             Some(r) => {
-                accuracy::run_refined(&rig, &elsewhere, (&mesh.positions, &morph), r, &st, &opts)?
+                accuracy::run_refined(rig, &elsewhere, (&mesh.positions, morph), r, &st, opts)?
             }
-            None => accuracy::run_mapped(&rig, &elsewhere, &st, &opts)?,
+            None => accuracy::run_mapped(rig, &elsewhere, &st, opts)?,
         };
         if let Some(dir) = &a.tracks {
             let name = match &a.seeds {
                 Some(_) => format!("{}_s{seed}", kind.name()),
                 None => kind.name().to_string(),
             };
-            write_track(dir, &name, &rig, &track)?;
+            write_track(dir, &name, rig, &track)?;
         }
         all.push((kind, seed, rows, summary));
     }
     progress.finish();
-    if let Some(p) = &a.out {
-        let rows = all.iter().flat_map(|(kind, seed, rows, _)| {
-            rows.iter().map(move |r| AccuracyCsv {
-                kind: kind.name(),
-                shape: &r.shape,
-                active: r.active,
-                r: (!r.r.is_nan()).then_some(Num(r.r)),
-                mae: Num(r.mae),
-                rmse: Num(r.rmse),
-                peak_reach: opt(r.peak_reach),
-                twin_leakage: opt(r.twin_leakage),
-                idle_activation: opt(r.idle_activation),
-                jitter: Num(r.jitter),
-                true_jitter: Num(r.true_jitter),
-                lag: r.lag,
-                seed: *seed,
-            })
-        });
-        write_atomic(p, |w| write_rows(w, rows))?;
-    }
-    if a.seeds.is_some() {
-        return print_distributions(a, &all);
-    }
+    Ok(all)
+}
+
+/// `--out`: every shape's measures, a row per kind, shape and seed.
+fn write_csv(p: &std::path::Path, all: &[Run]) -> Result<()> {
+    let rows = all.iter().flat_map(|(kind, seed, rows, _)| {
+        rows.iter().map(move |r| AccuracyCsv {
+            kind: kind.name(),
+            shape: &r.shape,
+            active: r.active,
+            r: (!r.r.is_nan()).then_some(Num(r.r)),
+            mae: Num(r.mae),
+            rmse: Num(r.rmse),
+            peak_reach: opt(r.peak_reach),
+            twin_leakage: opt(r.twin_leakage),
+            idle_activation: opt(r.idle_activation),
+            jitter: Num(r.jitter),
+            true_jitter: Num(r.true_jitter),
+            lag: r.lag,
+            seed: *seed,
+        })
+    });
+    write_atomic(p, |w| write_rows(w, rows))?;
+    Ok(())
+}
+
+/// One seed's summary per kind, as text or `--json`.
+fn print_summaries(a: &RigAccuracyArgs, all: &[Run]) -> Result<()> {
     if a.json {
         let v: Vec<_> = all
             .iter()
@@ -332,7 +403,7 @@ pub fn run(a: &RigAccuracyArgs) -> Result<()> {
             .collect();
         outln!("{}", serde_json::to_string_pretty(&v)?);
     } else {
-        for (k, _, _, s) in &all {
+        for (k, _, _, s) in all {
             outln!(
                 "{:<7} mean r {:.3}  worst r {:.3} ({})  weight RMSE {:.3}  idle max {:.2} ({})  twin leakage max {:.2}  peak reach min {}  lag max {}",
                 k.name(),
