@@ -87,52 +87,12 @@ pub fn refine_map(
     step: &mut dyn FnMut(String),
 ) -> Result<Refined> {
     let (positions, morph) = mesh;
-    if !(settings.radius.is_finite() && settings.radius > 0.0) {
-        return Err(Error::invalid(format!(
-            "the landmark refinement's radius must be a distance > 0, not {}",
-            settings.radius
-        )));
-    }
-    if settings.rounds == 0 {
-        return Err(Error::invalid(
-            "the landmark refinement needs at least one round",
-        ));
-    }
-    if opts.causal {
-        return Err(Error::invalid(
-            "a causal solve cannot refine the landmark map: that measures each landmark over the whole track",
-        ));
-    }
-    if morph.names != rig.names {
-        return Err(Error::invalid(
-            "the landmark refinement's shapes must be the rig's",
-        ));
-    }
+    check(rig, morph, opts, &settings)?;
     let opts = RigOptions {
         robust: true,
         ..*opts
     };
-    let start: Vec<Option<usize>> = rig
-        .neutral
-        .iter()
-        .map(|p| positions.iter().position(|q| q == p))
-        .collect();
-    if start.iter().all(Option::is_none) {
-        return Err(Error::invalid(
-            "no landmark of the rig is a vertex of the mesh: there is no map to refine",
-        ));
-    }
-    let d2 = |a: &[f64; 3], b: &[f64; 3]| (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f64>();
-    let r2 = settings.radius * settings.radius;
-    let candidates: Vec<Vec<usize>> = start
-        .par_iter()
-        .map(|v| match v {
-            Some(v) => (0..positions.len())
-                .filter(|&u| d2(&positions[u], &positions[*v]) <= r2)
-                .collect(),
-            None => Vec::new(),
-        })
-        .collect();
+    let (start, candidates) = start_and_candidates(rig, positions, settings.radius)?;
     let offsets = vertex_offsets(morph, positions.len(), &candidates);
     let image = image_rows(track, rig.landmarks());
     let mut current = start.clone();
@@ -158,34 +118,7 @@ pub fn refine_map(
         };
         let next: Vec<Option<usize>> = (0..rig.landmarks())
             .into_par_iter()
-            .map(|l| {
-                let cur = current[l]?;
-                let now = fit.residual(l, positions[cur], &offsets[cur]);
-                let scored: Vec<(usize, f64)> = candidates[l]
-                    .iter()
-                    .map(|&v| (v, fit.residual(l, positions[v], &offsets[v])))
-                    .collect();
-                let least = scored.iter().map(|c| c.1).fold(f64::INFINITY, f64::min);
-                // Of the vertices that explain the track equally well (a tie, as between
-                // vertices no shape moves), the landmark's own, or else the nearest.
-                let tie = least * (1.0 + 1e-9) + TIE_PX2;
-                if now <= tie {
-                    return Some(cur);
-                }
-                let best = scored
-                    .iter()
-                    .filter(|c| c.1 <= tie)
-                    .min_by(|a, b| {
-                        d2(&positions[a.0], &positions[cur])
-                            .total_cmp(&d2(&positions[b.0], &positions[cur]))
-                    })
-                    .copied()?;
-                Some(if best.1 < MOVE_GAIN * now {
-                    best.0
-                } else {
-                    cur
-                })
-            })
+            .map(|l| Some(fit.next_vertex(l, current[l]?, &candidates[l], positions, &offsets)))
             .collect();
         let n_moved = next.iter().zip(&current).filter(|(a, b)| a != b).count();
         moved.push(n_moved);
@@ -216,6 +149,69 @@ pub fn refine_map(
         moved,
         changed,
     })
+}
+
+/// What the refinement refuses: a radius that is no distance, no round, a causal solve,
+/// and shapes that are not the rig's.
+fn check(rig: &Rig, morph: &MorphTargets, opts: &RigOptions, settings: &Refinement) -> Result<()> {
+    if !(settings.radius.is_finite() && settings.radius > 0.0) {
+        return Err(Error::invalid(format!(
+            "the landmark refinement's radius must be a distance > 0, not {}",
+            settings.radius
+        )));
+    }
+    if settings.rounds == 0 {
+        return Err(Error::invalid(
+            "the landmark refinement needs at least one round",
+        ));
+    }
+    if opts.causal {
+        return Err(Error::invalid(
+            "a causal solve cannot refine the landmark map: that measures each landmark over the whole track",
+        ));
+    }
+    if morph.names != rig.names {
+        return Err(Error::invalid(
+            "the landmark refinement's shapes must be the rig's",
+        ));
+    }
+    Ok(())
+}
+
+/// Each landmark's vertex in the map (None for a landmark on no vertex), and the vertices
+/// within `radius` of it, its candidates.
+#[allow(clippy::type_complexity)]
+fn start_and_candidates(
+    rig: &Rig,
+    positions: &[[f64; 3]],
+    radius: f64,
+) -> Result<(Vec<Option<usize>>, Vec<Vec<usize>>)> {
+    let start: Vec<Option<usize>> = rig
+        .neutral
+        .iter()
+        .map(|p| positions.iter().position(|q| q == p))
+        .collect();
+    if start.iter().all(Option::is_none) {
+        return Err(Error::invalid(
+            "no landmark of the rig is a vertex of the mesh: there is no map to refine",
+        ));
+    }
+    let r2 = radius * radius;
+    let candidates: Vec<Vec<usize>> = start
+        .par_iter()
+        .map(|v| match v {
+            Some(v) => (0..positions.len())
+                .filter(|&u| d2(&positions[u], &positions[*v]) <= r2)
+                .collect(),
+            None => Vec::new(),
+        })
+        .collect();
+    Ok((start, candidates))
+}
+
+/// The squared distance between two points.
+fn d2(a: &[f64; 3], b: &[f64; 3]) -> f64 {
+    (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f64>()
 }
 
 /// The image rows (x, y per landmark) of a track with 2 or 3 rows per landmark.
@@ -277,6 +273,42 @@ struct Fit<'a> {
 }
 
 impl Fit<'_> {
+    /// The vertex landmark `l` takes next, from `cur` among its `candidates`: the one whose
+    /// residual is least, when it leaves less than [`MOVE_GAIN`] of the current vertex's;
+    /// of vertices that explain the track equally well (a tie, as between vertices no shape
+    /// moves), the landmark's own, or else the nearest to it.
+    fn next_vertex(
+        &self,
+        l: usize,
+        cur: usize,
+        candidates: &[usize],
+        positions: &[[f64; 3]],
+        offsets: &[Vec<[f64; 3]>],
+    ) -> usize {
+        let now = self.residual(l, positions[cur], &offsets[cur]);
+        let scored: Vec<(usize, f64)> = candidates
+            .iter()
+            .map(|&v| (v, self.residual(l, positions[v], &offsets[v])))
+            .collect();
+        let least = scored.iter().map(|c| c.1).fold(f64::INFINITY, f64::min);
+        let tie = least * (1.0 + 1e-9) + TIE_PX2;
+        if now <= tie {
+            return cur;
+        }
+        let best = scored
+            .iter()
+            .filter(|c| c.1 <= tie)
+            .min_by(|a, b| {
+                d2(&positions[a.0], &positions[cur])
+                    .total_cmp(&d2(&positions[b.0], &positions[cur]))
+            })
+            .copied();
+        match best {
+            Some(best) if best.1 < MOVE_GAIN * now => best.0,
+            _ => cur,
+        }
+    }
+
     /// The squared 2-D residual, summed over the frames, of landmark `l` read from a vertex
     /// at `neutral` with shape offsets `offsets`, after the best constant 3-D offset per
     /// clip.
