@@ -509,87 +509,20 @@ fn lower(v: &[f64]) -> serde_json::Value {
 }
 
 /// Per kind, each summary measure as a distribution over the seeds.
-fn print_distributions(
-    a: &RigAccuracyArgs,
-    all: &[(Kind, u64, Vec<ShapeAccuracy>, Summary)],
-) -> Result<()> {
+fn print_distributions(a: &RigAccuracyArgs, all: &[Run]) -> Result<()> {
     let mut kinds: Vec<Kind> = all.iter().map(|x| x.0).collect();
     kinds.dedup();
-    let mut out = Vec::new();
-    for k in kinds {
-        let runs: Vec<(u64, &Summary)> = all
-            .iter()
-            .filter(|x| x.0 == k)
-            .map(|x| (x.1, &x.3))
-            .collect();
-        let col =
-            |f: &dyn Fn(&Summary) -> f64| runs.iter().map(|(_, s)| f(s)).collect::<Vec<f64>>();
-        let (mean_r, worst_r, rmse, idle) = (
-            col(&|s| s.mean_r),
-            col(&|s| s.worst_r),
-            col(&|s| s.rmse),
-            col(&|s| s.max_idle),
-        );
-        // The shape that is worst on the most seeds.
-        let mut counts: Vec<(&str, usize)> = Vec::new();
-        for (_, s) in &runs {
-            match counts.iter_mut().find(|c| c.0 == s.worst_shape) {
-                Some(c) => c.1 += 1,
-                None => counts.push((&s.worst_shape, 1)),
-            }
-        }
-        counts.sort_by(|x, y| y.1.cmp(&x.1).then(x.0.cmp(y.0)));
-        let worst_seed = runs
-            .iter()
-            .min_by(|x, y| x.1.worst_r.total_cmp(&y.1.worst_r))
-            .map(|(seed, s)| (*seed, s.worst_shape.clone()));
-        let neutral: Vec<&accuracy::NeutralTruth> = runs
-            .iter()
-            .filter_map(|(_, s)| s.neutral.as_ref())
-            .collect();
-        let neutral = (!neutral.is_empty()).then(|| {
-            let expr: Vec<f64> = neutral.iter().map(|n| n.true_expression).collect();
-            let turn: Vec<f64> = neutral.iter().map(|n| n.true_turn).collect();
-            json!({
-                "true_expression": lower(&expr),
-                "true_turn": lower(&turn),
-                "warned": neutral.iter().filter(|n| !n.view.looks_neutral).count(),
-            })
-        });
-        let maps: Vec<&accuracy::MapTruth> =
-            runs.iter().filter_map(|(_, s)| s.map.as_ref()).collect();
-        let map = (!maps.is_empty()).then(|| {
-            let share = |f: &dyn Fn(&accuracy::MapTruth) -> usize| -> Vec<f64> {
-                maps.iter()
-                    .map(|m| f(m) as f64 / m.landmarks.max(1) as f64)
-                    .collect()
-            };
-            let mm = |f: &dyn Fn(&accuracy::MapTruth) -> f64| -> Vec<f64> {
-                maps.iter().map(|m| 10.0 * f(m)).collect()
-            };
-            json!({
-                "right_before": higher(&share(&|m| m.right_before)),
-                "right_after": higher(&share(&|m| m.right_after)),
-                "median_off_mm_before": lower(&mm(&|m| m.median_off_before)),
-                "median_off_mm_after": lower(&mm(&|m| m.median_off_after)),
-                "moved_nearer": maps.iter().map(|m| m.moved_nearer).sum::<usize>(),
-                "moved_farther": maps.iter().map(|m| m.moved_farther).sum::<usize>(),
-            })
-        });
-        out.push(json!({
-            "kind": k.name(),
-            "neutral": neutral,
-            "map": map,
-            "seeds": runs.iter().map(|(s, _)| *s).collect::<Vec<_>>(),
-            "mean_r": higher(&mean_r),
-            "worst_r": higher(&worst_r),
-            "rmse": lower(&rmse),
-            "max_idle": lower(&idle),
-            "most_often_worst": counts.first().map(|c| json!({"shape": c.0, "seeds": c.1})),
-            "lowest_worst_r": worst_seed.map(|(seed, shape)| json!({"seed": seed, "shape": shape})),
-            "per_seed": runs.iter().map(|(seed, s)| json!({"seed": seed, "summary": s})).collect::<Vec<_>>(),
-        }));
-    }
+    let out: Vec<serde_json::Value> = kinds
+        .into_iter()
+        .map(|k| {
+            let runs: Vec<(u64, &Summary)> = all
+                .iter()
+                .filter(|x| x.0 == k)
+                .map(|x| (x.1, &x.3))
+                .collect();
+            distribution(k, &runs)
+        })
+        .collect();
     if a.json {
         outln!("{}", serde_json::to_string_pretty(&out)?);
         return Ok(());
@@ -644,6 +577,84 @@ fn print_distributions(
         }
     }
     Ok(())
+}
+
+/// One kind's measures over its seeds (`runs`: seed and summary), as the `--json` object
+/// the text is printed from.
+fn distribution(k: Kind, runs: &[(u64, &Summary)]) -> serde_json::Value {
+    let col = |f: &dyn Fn(&Summary) -> f64| runs.iter().map(|(_, s)| f(s)).collect::<Vec<f64>>();
+    let (mean_r, worst_r, rmse, idle) = (
+        col(&|s| s.mean_r),
+        col(&|s| s.worst_r),
+        col(&|s| s.rmse),
+        col(&|s| s.max_idle),
+    );
+    // The shape that is worst on the most seeds.
+    let mut counts: Vec<(&str, usize)> = Vec::new();
+    for (_, s) in runs {
+        match counts.iter_mut().find(|c| c.0 == s.worst_shape) {
+            Some(c) => c.1 += 1,
+            None => counts.push((&s.worst_shape, 1)),
+        }
+    }
+    counts.sort_by(|x, y| y.1.cmp(&x.1).then(x.0.cmp(y.0)));
+    let worst_seed = runs
+        .iter()
+        .min_by(|x, y| x.1.worst_r.total_cmp(&y.1.worst_r))
+        .map(|(seed, s)| (*seed, s.worst_shape.clone()));
+    json!({
+        "kind": k.name(),
+        "neutral": neutral_distribution(runs),
+        "map": map_distribution(runs),
+                        "seeds": runs.iter().map(|(s, _)| *s).collect::<Vec<_>>(),
+        "mean_r": higher(&mean_r),
+        "worst_r": higher(&worst_r),
+        "rmse": lower(&rmse),
+        "max_idle": lower(&idle),
+        "most_often_worst": counts.first().map(|c| json!({"shape": c.0, "seeds": c.1})),
+        "lowest_worst_r": worst_seed.map(|(seed, shape)| json!({"seed": seed, "shape": shape})),
+        "per_seed": runs.iter().map(|(seed, s)| json!({"seed": seed, "summary": s})).collect::<Vec<_>>(),
+    })
+}
+
+/// The chosen neutral frames' truth over the seeds (None without an identity).
+fn neutral_distribution(runs: &[(u64, &Summary)]) -> Option<serde_json::Value> {
+    let neutral: Vec<&accuracy::NeutralTruth> = runs
+        .iter()
+        .filter_map(|(_, s)| s.neutral.as_ref())
+        .collect();
+    (!neutral.is_empty()).then(|| {
+        let expr: Vec<f64> = neutral.iter().map(|n| n.true_expression).collect();
+        let turn: Vec<f64> = neutral.iter().map(|n| n.true_turn).collect();
+        json!({
+            "true_expression": lower(&expr),
+            "true_turn": lower(&turn),
+            "warned": neutral.iter().filter(|n| !n.view.looks_neutral).count(),
+        })
+    })
+}
+
+/// The refined map against the render's over the seeds (None without `--map-noise`).
+fn map_distribution(runs: &[(u64, &Summary)]) -> Option<serde_json::Value> {
+    let maps: Vec<&accuracy::MapTruth> = runs.iter().filter_map(|(_, s)| s.map.as_ref()).collect();
+    (!maps.is_empty()).then(|| {
+        let share = |f: &dyn Fn(&accuracy::MapTruth) -> usize| -> Vec<f64> {
+            maps.iter()
+                .map(|m| f(m) as f64 / m.landmarks.max(1) as f64)
+                .collect()
+        };
+        let mm = |f: &dyn Fn(&accuracy::MapTruth) -> f64| -> Vec<f64> {
+            maps.iter().map(|m| 10.0 * f(m)).collect()
+        };
+        json!({
+            "right_before": higher(&share(&|m| m.right_before)),
+            "right_after": higher(&share(&|m| m.right_after)),
+            "median_off_mm_before": lower(&mm(&|m| m.median_off_before)),
+            "median_off_mm_after": lower(&mm(&|m| m.median_off_after)),
+            "moved_nearer": maps.iter().map(|m| m.moved_nearer).sum::<usize>(),
+            "moved_farther": maps.iter().map(|m| m.moved_farther).sum::<usize>(),
+        })
+    })
 }
 
 /// `<kind>_track.csv` and `<kind>_truth.csv` in `dir`.
