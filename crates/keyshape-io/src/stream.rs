@@ -169,6 +169,147 @@ pub fn stream_solve(
     opts: &StreamOptions,
     sink: &mut dyn FnMut(FrameWeights<'_>) -> Result<()>,
 ) -> Result<StreamSummary> {
+    check_options(opts)?;
+    let format = format_of(path, opts.format)?;
+    let dims = opts.dims;
+    let src = path.display().to_string();
+    let table = Table { path, format, dims };
+    // Pass 1: columns of the key frames and the neutral, the segment step, the checks the
+    // in-memory path makes when it reads and prepares.
+    let mut passes = 1;
+    let found = first_pass(&table, opts)?;
+    let (n, values) = (found.n, found.values);
+    let (cols, neutral) = key_columns(&found, opts)?;
+    let selected = selected_points(values / dims, opts)?;
+    let select = |v: &[f64]| -> Vec<f64> {
+        selected
+            .iter()
+            .flat_map(|&p| v[p * dims..(p + 1) * dims].iter().copied())
+            .collect()
+    };
+
+    // The Procrustes mean: one pass for the sizes, one per round.
+    let (mean, rounds) = if opts.align {
+        let (mean, rounds) = procrustes_passes(&table, (n, values), &mut passes)?;
+        (Some(mean), rounds)
+    } else {
+        (None, 0)
+    };
+    // A frame as the solve sees it: aligned (when asked), points selected.
+    let prepare = |c: usize, v: &[f64], buf: &mut Vec<f64>| -> Result<Vec<f64>> {
+        buf.clear();
+        buf.extend_from_slice(v);
+        if let Some(m) = &mean {
+            let cen = centre(buf, dims);
+            align_to(buf, m, dims, cen, c).map_err(|e| Error::file(&src, e.to_string()))?;
+        }
+        Ok(select(buf))
+    };
+
+    // The key shapes (and the neutral).
+    passes += 1;
+    let rows = selected.len() * dims;
+    let mut buf = Vec::with_capacity(values);
+    let (s, base) = key_shapes(&table, (n, values), rows, (&cols, neutral), |c, v| {
+        prepare(c, v, &mut buf)
+    })?;
+    let pinv = lstsq::pseudo_inverse(&s, opts.solve.rcond)?;
+    let causal = match &opts.smoothing {
+        Some(sm) if sm.lambda > 0.0 => {
+            Some(CausalShared::new(&s.tr_mul(&s), opts.solve.solver, sm)?)
+        }
+        _ => None,
+    };
+
+    // The solve, chunk by chunk.
+    passes += 1;
+    let mut chunks = Chunks::new(&s, opts, causal.as_ref(), found.step, selected.len());
+    let mut chunk = DMatrix::zeros(rows, CHUNK);
+    let mut frames: Vec<i64> = Vec::with_capacity(CHUNK);
+    let mut labels: Vec<Option<String>> = Vec::with_capacity(CHUNK);
+    pass(path, format, dims, n, values, |c, frame, label, v| {
+        let mut shape = prepare(c, v, &mut buf)?;
+        if let Some(b) = &base {
+            for (x, y) in shape.iter_mut().zip(b) {
+                *x -= y;
+            }
+        }
+        chunk.column_mut(frames.len()).copy_from_slice(&shape);
+        frames.push(frame);
+        labels.push(label.map(str::to_string));
+        if frames.len() == CHUNK {
+            chunks.flush(&chunk, &frames, &labels, sink)?;
+            frames.clear();
+            labels.clear();
+        }
+        Ok(())
+    })?;
+    if !frames.is_empty() {
+        chunks.flush(&chunk, &frames, &labels, sink)?;
+    }
+    Ok(StreamSummary {
+        frames: n,
+        failed: found.failed,
+        points: selected.len(),
+        passes,
+        align_rounds: rounds,
+        rank: pinv.rank,
+        condition: pinv.condition,
+        unconverged: chunks.unconverged,
+        total_sq_error: chunks.total,
+        mean_rms: chunks.rms_sum / n as f64,
+        max_abs_weight: chunks.wmax,
+    })
+}
+
+/// The generalised Procrustes mean of the table's centred shapes: one pass for the sizes,
+/// one per round (each counted in `passes`); the mean and the rounds it took.
+fn procrustes_passes(
+    t: &Table,
+    (n, values): (usize, usize),
+    passes: &mut usize,
+) -> Result<(Vec<f64>, usize)> {
+    let mut buf = vec![0.0; values];
+    procrustes_mean(n, t.dims, |f| {
+        *passes += 1;
+        pass(t.path, t.format, t.dims, n, values, |c, _, _, v| {
+            buf.copy_from_slice(v);
+            centre(&mut buf, t.dims);
+            f(c, &buf)
+        })
+    })
+    .map_err(|e| Error::file(t.path, e.to_string()))
+}
+
+/// The table being streamed: where, in which format, with how many coordinates a point.
+struct Table<'a> {
+    path: &'a Path,
+    format: Format,
+    dims: usize,
+}
+
+/// What the first pass found.
+struct FirstPass {
+    /// Tracked frames.
+    n: usize,
+    /// Failed frames (the tracker found no face).
+    failed: usize,
+    /// Each key frame's column, when the file has it tracked.
+    key_cols: Vec<Option<usize>>,
+    neutral_col: Option<usize>,
+    /// The smallest step between consecutive frame numbers.
+    step: Option<i64>,
+    /// The first and last frame numbers.
+    lo: i64,
+    hi: i64,
+    /// Key or neutral frames the tracker failed on.
+    failed_keys: Vec<i64>,
+    /// Values per row.
+    values: usize,
+}
+
+/// The offline prior cannot stream; key shapes are needed.
+fn check_options(opts: &StreamOptions) -> Result<()> {
     if let Some(sm) = &opts.smoothing {
         sm.check()?;
         if sm.mode == SmoothMode::Offline && sm.lambda > 0.0 {
@@ -182,13 +323,14 @@ pub fn stream_solve(
     if opts.keys.is_empty() {
         return Err(Error::invalid("no key shapes given"));
     }
-    let format = format_of(path, opts.format)?;
-    let dims = opts.dims;
-    let src = path.display().to_string();
+    Ok(())
+}
 
-    // Pass 1: columns of the key frames and the neutral, the segment step, the checks the
-    // in-memory path makes when it reads and prepares.
-    let mut passes = 1;
+/// Pass 1: the key frames' and the neutral's columns, the segment step, the frame range;
+/// a degenerate frame (with alignment) or a file without a tracked frame is an error.
+fn first_pass(t: &Table, opts: &StreamOptions) -> Result<FirstPass> {
+    let (path, format, dims) = (t.path, t.format, t.dims);
+    let src = path.display().to_string();
     let (mut n, mut failed) = (0usize, 0usize);
     let mut key_cols: Vec<Option<usize>> = vec![None; opts.keys.len()];
     let mut neutral_col = None;
@@ -245,7 +387,24 @@ pub fn stream_solve(
             },
         ));
     }
-    let points = values / dims;
+    Ok(FirstPass {
+        n,
+        failed,
+        key_cols,
+        neutral_col,
+        step,
+        lo,
+        hi,
+        failed_keys,
+        values,
+    })
+}
+
+/// The key frames' columns and the neutral's, each named when the file does not have it
+/// tracked (failed, in a gap, or out of range), listed twice, or both neutral and key.
+fn key_columns(found: &FirstPass, opts: &StreamOptions) -> Result<(Vec<usize>, Option<usize>)> {
+    let (n, lo, hi) = (found.n, found.lo, found.hi);
+    let failed_keys = &found.failed_keys;
     let missing = |f: i64, what: &str| -> Error {
         if failed_keys.contains(&f) {
             Error::invalid(format!(
@@ -263,7 +422,7 @@ pub fn stream_solve(
     };
     let mut seen = std::collections::HashSet::new();
     let mut cols = Vec::with_capacity(opts.keys.len());
-    for (c, &k) in key_cols.iter().zip(&opts.keys) {
+    for (c, &k) in found.key_cols.iter().zip(&opts.keys) {
         if !seen.insert(k) {
             return Err(Error::invalid(format!(
                 "{}: frame {k} is listed twice",
@@ -273,7 +432,11 @@ pub fn stream_solve(
         cols.push(c.ok_or_else(|| missing(k, &setting("keys")))?);
     }
     let neutral = match opts.neutral {
-        Some(f) => Some(neutral_col.ok_or_else(|| missing(f, &setting("neutral")))?),
+        Some(f) => Some(
+            found
+                .neutral_col
+                .ok_or_else(|| missing(f, &setting("neutral")))?,
+        ),
         None => None,
     };
     if cols.len() > n {
@@ -289,8 +452,13 @@ pub fn stream_solve(
             ));
         }
     }
+    Ok((cols, neutral))
+}
+
+/// The points solved for: all, or the layout's groups `opts.points` names.
+fn selected_points(points: usize, opts: &StreamOptions) -> Result<Vec<usize>> {
     let layout = Layout::for_points(points);
-    let selected: Vec<usize> = match (&opts.points, &layout) {
+    Ok(match (&opts.points, &layout) {
         (None, _) => (0..points).collect(),
         (Some(spec), Some(l)) => l.select(spec)?,
         (Some(spec), None) => {
@@ -299,51 +467,25 @@ pub fn stream_solve(
                 setting("points")
             )))
         }
-    };
-    let select = |v: &[f64]| -> Vec<f64> {
-        selected
-            .iter()
-            .flat_map(|&p| v[p * dims..(p + 1) * dims].iter().copied())
-            .collect()
-    };
+    })
+}
 
-    // The Procrustes mean: one pass for the sizes, one per round.
-    let (mean, rounds) = if opts.align {
-        let mut buf = vec![0.0; values];
-        let (mean, rounds) = procrustes_mean(n, dims, |f| {
-            passes += 1;
-            pass(path, format, dims, n, values, |c, _, _, v| {
-                buf.copy_from_slice(v);
-                centre(&mut buf, dims);
-                f(c, &buf)
-            })
-        })
-        .map_err(|e| Error::file(&src, e.to_string()))?;
-        (Some(mean), rounds)
-    } else {
-        (None, 0)
-    };
-    // A frame as the solve sees it: aligned (when asked), points selected.
-    let prepare = |c: usize, v: &[f64], buf: &mut Vec<f64>| -> Result<Vec<f64>> {
-        buf.clear();
-        buf.extend_from_slice(v);
-        if let Some(m) = &mean {
-            let cen = centre(buf, dims);
-            align_to(buf, m, dims, cen, c).map_err(|e| Error::file(&src, e.to_string()))?;
-        }
-        Ok(select(buf))
-    };
-
-    // The key shapes (and the neutral).
-    passes += 1;
-    let rows = selected.len() * dims;
+/// The key-shape pass: each key frame as the solve sees it (`prepare`), less the neutral
+/// when there is one; and the neutral.
+#[allow(clippy::type_complexity)]
+fn key_shapes(
+    t: &Table,
+    (n, values): (usize, usize),
+    rows: usize,
+    (cols, neutral): (&[usize], Option<usize>),
+    mut prepare: impl FnMut(usize, &[f64]) -> Result<Vec<f64>>,
+) -> Result<(DMatrix<f64>, Option<Vec<f64>>)> {
     let mut s = DMatrix::zeros(rows, cols.len());
     let mut base: Option<Vec<f64>> = None;
-    let mut buf = Vec::with_capacity(values);
-    pass(path, format, dims, n, values, |c, _, _, v| {
+    pass(t.path, t.format, t.dims, n, values, |c, _, _, v| {
         let is_key = cols.contains(&c);
         if is_key || neutral == Some(c) {
-            let shape = prepare(c, v, &mut buf)?;
+            let shape = prepare(c, v)?;
             for (j, _) in cols.iter().enumerate().filter(|(_, &k)| k == c) {
                 s.column_mut(j).copy_from_slice(&shape);
             }
@@ -363,56 +505,90 @@ pub fn stream_solve(
     if s.iter().any(|v| !v.is_finite()) {
         return Err(Error::invalid("key shapes contain NaN or infinity"));
     }
-    let pinv = lstsq::pseudo_inverse(&s, opts.solve.rcond)?;
-    let causal = match &opts.smoothing {
-        Some(sm) if sm.lambda > 0.0 => {
-            Some(CausalShared::new(&s.tr_mul(&s), opts.solve.solver, sm)?)
-        }
-        _ => None,
-    };
-    let st = s.transpose();
+    Ok((s, base))
+}
 
-    // The solve, chunk by chunk.
-    passes += 1;
-    let k = cols.len();
-    let step = step.unwrap_or(1);
-    let mut chunk = DMatrix::zeros(rows, CHUNK);
-    let mut frames: Vec<i64> = Vec::with_capacity(CHUNK);
-    let mut labels: Vec<Option<String>> = Vec::with_capacity(CHUNK);
-    let mut state = causal.as_ref().map(|c| c.start());
-    let mut last: Option<(i64, Option<String>)> = None;
-    let (mut unconverged, mut total) = (0usize, 0.0f64);
-    let (mut rms_sum, mut wmax) = (0.0f64, 0.0f64);
-    let mut wbuf = vec![0.0; k];
-    let mut flush = |chunk: &DMatrix<f64>,
-                     frames: &[i64],
-                     labels: &[Option<String>],
-                     last: &mut Option<(i64, Option<String>)>|
-     -> Result<()> {
+/// The last pass's solver: each chunk of frames solved as the in-memory solve chunks them
+/// (with the causal prior carried across chunks, restarted at a new segment), its weights
+/// handed on, and the summary's sums kept.
+struct Chunks<'a> {
+    s: &'a DMatrix<f64>,
+    st: DMatrix<f64>,
+    opts: &'a StreamOptions,
+    causal: Option<&'a CausalShared>,
+    state: Option<keyshape_core::solve::temporal::CausalState>,
+    /// The step between frame numbers within a segment.
+    step: i64,
+    points: usize,
+    /// The last frame solved and its segment label.
+    last: Option<(i64, Option<String>)>,
+    wbuf: Vec<f64>,
+    unconverged: usize,
+    total: f64,
+    rms_sum: f64,
+    wmax: f64,
+}
+
+impl<'a> Chunks<'a> {
+    /// A solver for the key shapes `s`, the causal prior when there is one, segments of
+    /// frame step `step` (1 when unknown), errors per point over `points`.
+    fn new(
+        s: &'a DMatrix<f64>,
+        opts: &'a StreamOptions,
+        causal: Option<&'a CausalShared>,
+        step: Option<i64>,
+        points: usize,
+    ) -> Self {
+        Chunks {
+            s,
+            st: s.transpose(),
+            opts,
+            causal,
+            state: causal.map(|c| c.start()),
+            step: step.unwrap_or(1),
+            points,
+            last: None,
+            wbuf: vec![0.0; s.ncols()],
+            unconverged: 0,
+            total: 0.0,
+            rms_sum: 0.0,
+            wmax: 0.0,
+        }
+    }
+
+    /// Solves the `frames.len()` frames at the front of `chunk` and hands each frame's
+    /// weights to `sink`; non-finite weights or errors stop the stream, naming the frame.
+    fn flush(
+        &mut self,
+        chunk: &DMatrix<f64>,
+        frames: &[i64],
+        labels: &[Option<String>],
+        sink: &mut dyn FnMut(FrameWeights<'_>) -> Result<()>,
+    ) -> Result<()> {
         let m = frames.len();
         let q = chunk.columns(0, m).clone_owned();
-        let mut sol = solve_batch(&s, &q, &opts.solve)?;
-        if let (Some(cs), Some(stt)) = (&causal, state.as_mut()) {
-            let b = &st * &q;
+        let mut sol = solve_batch(self.s, &q, &self.opts.solve)?;
+        if let (Some(cs), Some(stt)) = (self.causal, self.state.as_mut()) {
+            let b = &self.st * &q;
             for t in 0..m {
                 let here = (frames[t], labels[t].clone());
-                let new_segment = match last.as_ref() {
+                let new_segment = match self.last.as_ref() {
                     None => false,
-                    Some((f, l)) => *l != here.1 || frames[t] - f != step,
+                    Some((f, l)) => *l != here.1 || frames[t] - f != self.step,
                 };
                 if new_segment {
                     *stt = cs.start();
                 }
                 let before = stt.unconverged;
-                cs.step(stt, b.column(t).as_slice(), &mut wbuf);
-                unconverged += stt.unconverged - before;
-                sol.weights.column_mut(t).copy_from_slice(&wbuf);
-                *last = Some(here);
+                cs.step(stt, b.column(t).as_slice(), &mut self.wbuf);
+                self.unconverged += stt.unconverged - before;
+                sol.weights.column_mut(t).copy_from_slice(&self.wbuf);
+                self.last = Some(here);
             }
         } else {
-            unconverged += sol.unconverged;
+            self.unconverged += sol.unconverged;
         }
-        let err = residuals(&s, &sol.weights, &q);
+        let err = residuals(self.s, &sol.weights, &q);
         for t in 0..m {
             let w = sol.weights.column(t);
             if !err[t].is_finite() || w.iter().any(|x| !x.is_finite()) {
@@ -421,10 +597,10 @@ pub fn stream_solve(
                     frames[t]
                 )));
             }
-            total += err[t];
-            let rms = (err[t] / selected.len() as f64).sqrt();
-            rms_sum += rms;
-            wmax = w.iter().fold(wmax, |m, x| m.max(x.abs()));
+            self.total += err[t];
+            let rms = (err[t] / self.points as f64).sqrt();
+            self.rms_sum += rms;
+            self.wmax = w.iter().fold(self.wmax, |m, x| m.max(x.abs()));
             sink(FrameWeights {
                 frame: frames[t],
                 rms,
@@ -432,40 +608,7 @@ pub fn stream_solve(
             })?;
         }
         Ok(())
-    };
-    pass(path, format, dims, n, values, |c, frame, label, v| {
-        let mut shape = prepare(c, v, &mut buf)?;
-        if let Some(b) = &base {
-            for (x, y) in shape.iter_mut().zip(b) {
-                *x -= y;
-            }
-        }
-        chunk.column_mut(frames.len()).copy_from_slice(&shape);
-        frames.push(frame);
-        labels.push(label.map(str::to_string));
-        if frames.len() == CHUNK {
-            flush(&chunk, &frames, &labels, &mut last)?;
-            frames.clear();
-            labels.clear();
-        }
-        Ok(())
-    })?;
-    if !frames.is_empty() {
-        flush(&chunk, &frames, &labels, &mut last)?;
     }
-    Ok(StreamSummary {
-        frames: n,
-        failed,
-        points: selected.len(),
-        passes,
-        align_rounds: rounds,
-        rank: pinv.rank,
-        condition: pinv.condition,
-        unconverged,
-        total_sq_error: total,
-        mean_rms: rms_sum / n as f64,
-        max_abs_weight: wmax,
-    })
 }
 
 #[cfg(test)]
