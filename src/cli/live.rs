@@ -409,7 +409,10 @@ pub fn run(a: &LiveArgs) -> Result<()> {
     let recal = Arc::new(AtomicBool::new(false));
     control(a.from.trim() == "stdin", &stop, &recal)?;
     if let Some(n) = &s.opened.note {
-        eprintln!("{n}");
+        eprintln!(
+            "{}",
+            keyshape_core::error::spell_settings(n, &super::output::spell_flag)
+        );
     }
     eprintln!(
         "kslab live: {} → {to} ({} landmarks, {} shapes)",

@@ -1,6 +1,7 @@
 //! What `kslab` writes and prints around the commands: outputs checked before any work,
 //! standard output as an output, and errors with the library's settings spelled as flags.
 
+use keyshape_core::error::Needed;
 use std::path::{Path, PathBuf};
 
 /// Is this output path standard output (`-`)?
@@ -55,15 +56,36 @@ pub(crate) fn broken_pipe(e: &anyhow::Error) -> bool {
 }
 
 /// An error chain as `{:#}` prints it (`outer: inner`), each library error's settings
-/// ([`keyshape_core::error::setting`]) spelled by `spell`.
+/// ([`keyshape_core::error::setting`]) spelled by `spell`, and what a library error needs
+/// ([`keyshape_core::error::Needed`]) followed by the command that makes it.
 pub(crate) fn render_error(e: &anyhow::Error, spell: &dyn Fn(&str) -> String) -> String {
     e.chain()
         .map(|c| match c.downcast_ref::<keyshape_core::Error>() {
-            Some(k) => k.render(spell),
+            Some(k) => match k.needed() {
+                Some(n) => format!("{}{}", k.render(spell), how_to_make(n)),
+                None => k.render(spell),
+            },
             None => c.to_string(),
         })
         .collect::<Vec<_>>()
         .join(": ")
+}
+
+/// The command that makes what a library error needs, as the end of its sentence. The
+/// library says what is missing; only the front end knows its commands.
+fn how_to_make(needed: &Needed) -> String {
+    match needed {
+        Needed::ActionsFor(track) => {
+            format!(" with `kslab actions {} --out FILE`", track.display())
+        }
+        Needed::Template => "; `kslab template` writes one".to_string(),
+        Needed::ShardReports => "; `kslab run EXPERIMENT --shard i/n` writes one".to_string(),
+        Needed::ContiguousArray { tasks } => {
+            format!(", such as `sbatch --array=0-{}`", tasks.saturating_sub(1))
+        }
+        // A kind added to the library later: its message says what is missing.
+        _ => String::new(),
+    }
 }
 
 /// A library setting as the command line spells it: `dims` → `--dims`, `smooth_mode` →
@@ -85,7 +107,7 @@ pub(crate) fn spell_experiment_key(name: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::{render_error, spell_experiment_key, spell_flag};
-    use keyshape_core::error::{setting, Error};
+    use keyshape_core::error::{setting, Error, Needed};
 
     #[test]
     fn settings_are_spelled_as_flags_or_as_experiment_keys() {
@@ -105,5 +127,31 @@ mod tests {
         assert_eq!(format!("{e:#}"), "reading t.csv: use dims 2");
         let plain = anyhow::anyhow!("no setting here").context("outer");
         assert_eq!(render_error(&plain, &spell_flag), format!("{plain:#}"));
+    }
+
+    /// The library names what is missing; the command line adds the command that makes it,
+    /// and only there.
+    #[test]
+    fn what_an_error_needs_is_followed_by_the_command_that_makes_it() {
+        let e = Error::needs_in(
+            "a.json",
+            Needed::ActionsFor("d6.csv".into()),
+            "chosen on d9.csv; choose this track's",
+        );
+        assert!(!e.to_string().contains("kslab"));
+        let chain = anyhow::Error::from(e);
+        assert_eq!(
+            render_error(&chain, &spell_flag),
+            "a.json: chosen on d9.csv; choose this track's with `kslab actions d6.csv --out FILE`"
+        );
+        let e = anyhow::Error::from(Error::needs(Needed::ContiguousArray { tasks: 4 }, "gaps"));
+        assert_eq!(
+            render_error(&e, &spell_flag),
+            "gaps, such as `sbatch --array=0-3`"
+        );
+        for n in [Needed::Template, Needed::ShardReports] {
+            let e = anyhow::Error::from(Error::needs(n, "missing"));
+            assert!(render_error(&e, &spell_flag).contains("`kslab "));
+        }
     }
 }

@@ -21,10 +21,11 @@ pub fn soft_knn(
         ));
     }
     if k == 0 || k > train.ncols() {
-        return Err(Error::invalid(format!(
-            "KNN: K = {k} needs 1..={} training frames",
-            train.ncols()
-        )));
+        return Err(Error::bad_setting(
+            "k",
+            k,
+            format!("KNN: K = {k} needs 1..={} training frames", train.ncols()),
+        ));
     }
     if let Some(&bad) = labels.iter().find(|&&l| l >= classes) {
         return Err(Error::invalid(format!(
@@ -112,9 +113,11 @@ impl std::str::FromStr for Centring {
             "clip-mean" => Ok(Centring::ClipMean),
             "causal" => Ok(Centring::Causal),
             "neutral" => Ok(Centring::Neutral),
-            _ => Err(keyshape_core::error::Error::invalid(format!(
-                "'{s}': choose clip-mean, causal or neutral"
-            ))),
+            _ => Err(keyshape_core::error::Error::bad_setting(
+                "centring",
+                s,
+                format!("'{s}': choose clip-mean, causal or neutral"),
+            )),
         }
     }
 }
@@ -150,9 +153,11 @@ impl std::str::FromStr for Evaluation {
         match s {
             "split" => Ok(Evaluation::Split),
             "leave-one-clip-out" => Ok(Evaluation::LeaveOneClipOut),
-            _ => Err(keyshape_core::error::Error::invalid(format!(
-                "'{s}': choose split or leave-one-clip-out"
-            ))),
+            _ => Err(keyshape_core::error::Error::bad_setting(
+                "evaluation",
+                s,
+                format!("'{s}': choose split or leave-one-clip-out"),
+            )),
         }
     }
 }
@@ -200,10 +205,14 @@ impl StudySettings {
     /// Checks the settings; an option that cannot apply is an error, not ignored.
     pub fn check(&self) -> Result<()> {
         if !(self.threshold.is_finite() && self.threshold > 0.0 && self.threshold < 1.0) {
-            return Err(Error::invalid(format!(
-                "threshold {:?} must lie in (0, 1): it is an ARKit-style score",
-                self.threshold
-            )));
+            return Err(Error::bad_setting(
+                "threshold",
+                self.threshold,
+                format!(
+                    "threshold {:?} must lie in (0, 1): it is an ARKit-style score",
+                    self.threshold
+                ),
+            ));
         }
         if self.evaluation == Evaluation::LeaveOneClipOut && self.train_clips.is_some() {
             return Err(Error::invalid(

@@ -6,7 +6,7 @@
 //! gives modes that act locally; plain PCA of the same frames mixes regions. The regions and
 //! their boundaries are in [`crate::regions`] (re-exported here).
 
-use keyshape_core::error::{setting, Error, Result};
+use keyshape_core::error::{setting, Error, Needed, Result};
 use keyshape_core::pca::Pca;
 use nalgebra::{DMatrix, DVector};
 use serde::Deserialize;
@@ -152,10 +152,11 @@ impl Actions {
                 .unwrap_or_default()
         };
         if !a.sequence.is_empty() && name(&a.sequence) != name(source) {
-            return Err(Error::file(
+            return Err(Error::needs_in(
                 path,
+                Needed::ActionsFor(source.into()),
                 format!(
-                    "these actions were chosen on {}, not on {}: their frames name other faces; choose this track's with `kslab actions {source} --out FILE`",
+                    "these actions were chosen on {}, not on {}: their frames name other faces; choose this track's",
                     a.sequence, source
                 ),
             ));
@@ -248,10 +249,11 @@ impl OrthogonalityStudy {
 /// Refuses 0 modes: `what` needs at least one.
 pub(crate) fn need_modes(modes: usize, what: &str) -> Result<()> {
     if modes == 0 {
-        return Err(Error::invalid(format!(
-            "{what} needs at least 1 mode ({})",
-            setting("modes")
-        )));
+        return Err(Error::bad_setting(
+            "modes",
+            0,
+            format!("{what} needs at least 1 mode ({})", setting("modes")),
+        ));
     }
     Ok(())
 }

@@ -188,9 +188,11 @@ impl std::str::FromStr for Boundary {
         match s {
             "blended" => Ok(Boundary::Blended),
             "disjoint" => Ok(Boundary::Disjoint),
-            _ => Err(keyshape_core::error::Error::invalid(format!(
-                "'{s}': choose blended or disjoint"
-            ))),
+            _ => Err(keyshape_core::error::Error::bad_setting(
+                "boundaries",
+                s,
+                format!("'{s}': choose blended or disjoint"),
+            )),
         }
     }
 }
@@ -247,10 +249,14 @@ impl RegionOptions {
     /// Checks the radius (finite, ≥ 0).
     pub fn check(&self) -> Result<()> {
         if !(self.blend_radius.is_finite() && self.blend_radius >= 0.0) {
-            return Err(Error::invalid(format!(
-                "blend radius {} must be a finite number ≥ 0 (a fraction of the face's size)",
-                self.blend_radius
-            )));
+            return Err(Error::bad_setting(
+                "blend_radius",
+                self.blend_radius,
+                format!(
+                    "blend radius {} must be a finite number ≥ 0 (a fraction of the face's size)",
+                    self.blend_radius
+                ),
+            ));
         }
         Ok(())
     }

@@ -37,9 +37,11 @@ impl std::str::FromStr for Normalisation {
         match s {
             "two-sided" => Ok(Normalisation::TwoSided),
             "one-sided" => Ok(Normalisation::OneSided),
-            _ => Err(keyshape_core::error::Error::invalid(format!(
-                "'{s}': choose two-sided or one-sided"
-            ))),
+            _ => Err(keyshape_core::error::Error::bad_setting(
+                "trajectory_normalise",
+                s,
+                format!("'{s}': choose two-sided or one-sided"),
+            )),
         }
     }
 }
@@ -93,7 +95,7 @@ pub fn person_model(
     let pca = artificial_pca(coords, regions, dims, modes)?;
     let m = pca.components.ncols();
     if m == 0 {
-        return Err(keyshape_core::Error::invalid(
+        return Err(keyshape_core::Error::unfit(
             "an action-specific model: the regions' training set does not vary (no mode)",
         ));
     }

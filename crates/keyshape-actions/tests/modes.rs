@@ -11,6 +11,7 @@ use keyshape_actions::modes::{
 };
 use keyshape_actions::trajectory::Normalisation;
 use keyshape_core::sequence::Layout;
+use keyshape_core::ErrorKind;
 use nalgebra::DVector;
 use proptest::prelude::*;
 use std::path::PathBuf;
@@ -298,11 +299,11 @@ fn table_2_on_d6_is_a_measurement_with_blended_regions() {
     one.actions.truncate(1);
     let e = orthogonality_study(&prep.seq.coords, &prep.seq.frames, 2, &regions, &one, 10)
         .unwrap_err()
-        .to_string();
+        .kind_is(ErrorKind::Invalid);
     assert!(e.contains("needs at least two actions"), "{e}");
     let e = orthogonality_study(&prep.seq.coords, &prep.seq.frames, 2, &regions, &two, 0)
         .unwrap_err()
-        .to_string();
+        .kind_is(ErrorKind::Setting);
     assert!(e.contains("at least 1 mode"), "{e}");
     // The summary the report gives: the mean of the 36 pairs above the diagonal.
     let mut upper = Vec::new();
@@ -319,13 +320,13 @@ fn table_2_on_d6_is_a_measurement_with_blended_regions() {
     bad.actions[0].region = "cheeks".into();
     let e = orthogonality_study(&prep.seq.coords, &prep.seq.frames, 2, &regions, &bad, 10)
         .unwrap_err()
-        .to_string();
+        .kind_is(ErrorKind::Invalid);
     assert!(e.contains("names region 'cheeks'"), "{e}");
     let mut bad = actions;
     bad.actions[1].frame = 5000;
     let e = orthogonality_study(&prep.seq.coords, &prep.seq.frames, 2, &regions, &bad, 10)
         .unwrap_err()
-        .to_string();
+        .kind_is(ErrorKind::Invalid);
     assert!(
         e.contains("frame 5000, which is not a tracked frame"),
         "{e}"
@@ -392,7 +393,9 @@ fn intensity_centring_and_spread_follow_their_definitions() {
         run(Centring::Neutral, Some(2)).unwrap(),
         [-0.5, 0.5, 4.5, -5.0, 5.0]
     );
-    let e = run(Centring::Neutral, Some(3)).unwrap_err().to_string();
+    let e = run(Centring::Neutral, Some(3))
+        .unwrap_err()
+        .kind_is(ErrorKind::Invalid);
     assert!(e.contains("clip 2 has 2 frames"), "{e}");
     // Options that cannot apply are refused.
     let bad = [
@@ -684,14 +687,17 @@ fn eq8_with_one_hot_weights_reproduces_each_morph_target() {
     assert!(w.iter().all(|v| (0.0..=1.0).contains(v)));
     let bad: MorphMapping =
         serde_json::from_str(r#"{"actions": {"smile": [["mouthGrin", 1.0]]}}"#).unwrap();
-    let e = bad.weights(&t, &names, &traj).unwrap_err().to_string();
+    let e = bad
+        .weights(&t, &names, &traj)
+        .unwrap_err()
+        .kind_is(ErrorKind::Invalid);
     assert!(e.contains("shape 'mouthGrin'"), "{e}");
     let bad: MorphMapping =
         serde_json::from_str(r#"{"actions": {"wink": [["jawOpen", 1.0]]}}"#).unwrap();
     assert!(bad
         .weights(&t, &names, &traj)
         .unwrap_err()
-        .to_string()
+        .kind_is(ErrorKind::Invalid)
         .contains("action 'wink'"));
 }
 
@@ -757,7 +763,7 @@ fn cover_fills_only_the_unnamed_points_with_their_nearest_cover_region() {
     let e = all
         .weights(&layout, &short, 2, &RegionOptions::default())
         .unwrap_err()
-        .to_string();
+        .kind_is(ErrorKind::Invalid);
     assert!(
         e.contains("region point 67 is beyond the shape's 67 points"),
         "{e}"
@@ -814,7 +820,7 @@ fn empty_or_unknown_regions_are_explained() {
     assert!(r
         .points(&layout)
         .unwrap_err()
-        .to_string()
+        .kind_is(ErrorKind::Invalid)
         .contains("region 'mouth' names no groups"));
     let r: ModeRegions = serde_json::from_str(
         r#"{"layout": "mediapipe_face_mesh_468", "regions": {"mouth": ["lipz"]}}"#,
@@ -823,14 +829,14 @@ fn empty_or_unknown_regions_are_explained() {
     assert!(r
         .points(&layout)
         .unwrap_err()
-        .to_string()
+        .kind_is(ErrorKind::Invalid)
         .contains("region 'mouth': unknown point group 'lipz'"));
     let r: ModeRegions =
         serde_json::from_str(r#"{"layout": "ibug68", "regions": {"mouth": ["lips"]}}"#).unwrap();
     assert!(r
         .points(&layout)
         .unwrap_err()
-        .to_string()
+        .kind_is(ErrorKind::Invalid)
         .contains("regions are for layout ibug68"));
 }
 
@@ -882,9 +888,9 @@ fn block_wise_pca_refuses_what_it_cannot_fit_and_fits_its_edges() {
         let blocks = Pca::fit_blocks(rows, n, &|s, w| part.columns(s, w).clone_owned());
         (blocks, part)
     };
-    let e = fit(2, 1).0.unwrap_err().to_string();
+    let e = fit(2, 1).0.unwrap_err().kind_is(ErrorKind::Unfit);
     assert!(e.contains("at least 2 frames"), "{e}");
-    let e = fit(3, 2).0.unwrap_err().to_string();
+    let e = fit(3, 2).0.unwrap_err().kind_is(ErrorKind::Invalid);
     assert!(e.contains("at least as many columns"), "{e}");
     for (rows, n) in [(2, 2), (3, 3), (3, 5)] {
         let (blocks, part) = fit(rows, n);
@@ -972,11 +978,17 @@ fn morph_mapping_weights_are_clamped_gain_sums_of_the_positive_trajectory() {
         }
     }
     let bad: MorphMapping = serde_json::from_str(r#"{"actions": {"up": [["zz", 1.0]]}}"#).unwrap();
-    let e = bad.weights(&t, &names, &traj).unwrap_err().to_string();
+    let e = bad
+        .weights(&t, &names, &traj)
+        .unwrap_err()
+        .kind_is(ErrorKind::Invalid);
     assert!(e.contains("'zz'"), "{e}");
     let bad: MorphMapping =
         serde_json::from_str(r#"{"actions": {"sideways": [["a", 1.0]]}}"#).unwrap();
-    let e = bad.weights(&t, &names, &traj).unwrap_err().to_string();
+    let e = bad
+        .weights(&t, &names, &traj)
+        .unwrap_err()
+        .kind_is(ErrorKind::Invalid);
     assert!(e.contains("'sideways'") && e.contains("up, down"), "{e}");
 }
 
@@ -1007,5 +1019,19 @@ fn normalisation_names_are_the_spelling_the_options_read() {
             serde_json::to_string(&c).unwrap(),
             format!("\"{}\"", c.name())
         );
+    }
+}
+
+/// A library error's kind checked before its words are read: a test acts on the kind, as a
+/// caller would, and reads the message only for what it must name.
+trait KindIs {
+    fn kind_is(self, kind: keyshape_core::ErrorKind) -> String;
+}
+
+impl KindIs for keyshape_core::Error {
+    #[track_caller]
+    fn kind_is(self, kind: keyshape_core::ErrorKind) -> String {
+        assert_eq!(self.kind(), kind, "{self}");
+        self.to_string()
     }
 }

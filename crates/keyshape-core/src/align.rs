@@ -120,7 +120,7 @@ pub fn centre(shape: &mut [f64], dims: usize) -> [f64; 3] {
 }
 
 fn degenerate(i: usize) -> Error {
-    Error::invalid(format!(
+    Error::unfit(format!(
         "frame column {i}: all points coincide, so the shape cannot be aligned (use {})",
         setting("no_align")
     ))

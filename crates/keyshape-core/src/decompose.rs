@@ -63,11 +63,15 @@ pub fn prepare_owned(seq: Sequence, opts: &PrepareOptions) -> Result<Prepared> {
         (None, _) => (0..seq.points).collect(),
         (Some(spec), Some(l)) => l.select(spec)?,
         (Some(spec), None) => {
-            return Err(Error::invalid(format!(
-                "{} {spec}: no built-in layout has {} points (MediaPipe has 468, iBUG 68)",
-                setting("points"),
-                seq.points
-            )))
+            return Err(Error::bad_setting(
+                "points",
+                spec,
+                format!(
+                    "{} {spec}: no built-in layout has {} points (MediaPipe has 468, iBUG 68)",
+                    setting("points"),
+                    seq.points
+                ),
+            ))
         }
     };
     let (base, head) = if opts.align {
@@ -294,7 +298,7 @@ fn solve_columns(
     if let Some(t) = (0..n)
         .find(|&t| !sq_error[t].is_finite() || sol.weights.column(t).iter().any(|w| !w.is_finite()))
     {
-        return Err(Error::invalid(format!(
+        return Err(Error::unfit(format!(
             "the solve gave non-finite weights or error at frame column {t} (coordinates too large or degenerate key shapes); nothing written"
         )));
     }

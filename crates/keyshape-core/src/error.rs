@@ -1,5 +1,14 @@
 //! The library's one error type. Every message names what went wrong and where: the file,
 //! and for parse errors the 1-based line and column, so a user can open the file and look.
+//!
+//! A caller acts on the kind ([`Error::kind`]), never on the words: a reader's place in a
+//! file ([`Error::Parse`]), a setting with its value ([`Error::Setting`]), data that cannot
+//! be fitted as asked ([`Error::Unfit`]), something another step makes first
+//! ([`Error::Needs`], which the front end turns into the command that makes it), I/O.
+//!
+//! `Display` is written by hand rather than derived (`thiserror`): a setting's name is
+//! marked in the message ([`setting`]) and each front end spells it its own way
+//! ([`Error::render`]), which a derived format string cannot do.
 
 use std::path::PathBuf;
 
@@ -8,6 +17,7 @@ pub type Result<T, E = Error> = std::result::Result<T, E>;
 
 /// Everything that can go wrong in keyshape-lab's library.
 #[derive(Debug)]
+#[non_exhaustive]
 pub enum Error {
     /// A file could not be opened, read or written. (The OS error is part of the message,
     /// not a `source`, so error chains print it once.)
@@ -35,8 +45,72 @@ pub enum Error {
         /// What is wrong.
         message: String,
     },
-    /// A setting or argument is invalid (key frame out of range, unknown group …).
+    /// A setting the caller chose is unknown, malformed or out of its range.
+    Setting {
+        /// The library's name of the setting (`dims`, `k`, `smooth_lambda` …), as marked in
+        /// the message.
+        name: String,
+        /// The value given, as text.
+        value: String,
+        /// The whole message: the setting, its value and what it takes.
+        message: String,
+    },
+    /// The data cannot be fitted as asked: too few distinct shapes, coincident points, a
+    /// system that is not positive definite, a solve that gave non-finite numbers.
+    Unfit(String),
+    /// This step needs something another step makes (actions chosen on this track, a
+    /// template with its record of the keys, a sharded run's partial reports). The message
+    /// says what is missing; a front end says how its users make it ([`Needed`]).
+    Needs {
+        /// The file found wanting, if one was.
+        path: Option<PathBuf>,
+        /// What makes the missing piece.
+        needed: Needed,
+        /// What is missing, and why.
+        message: String,
+    },
+    /// A request that does not fit the data or the other arguments (a frame or point out of
+    /// range, a key listed twice, shapes of different sizes), or a built-in table that is
+    /// malformed.
     Invalid(String),
+}
+
+/// What another step makes, for [`Error::Needs`].
+#[derive(Debug, Clone, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum Needed {
+    /// Actions (paper 002's example frames) chosen on this track.
+    ActionsFor(PathBuf),
+    /// A target template written by this program.
+    Template,
+    /// The partial reports of a sharded corpus run.
+    ShardReports,
+    /// A Slurm array whose task ids run from 0 without gaps, `tasks` of them.
+    ContiguousArray {
+        /// How many tasks the array has.
+        tasks: usize,
+    },
+}
+
+/// The kind of an [`Error`], for a caller (or a test) that acts on what went wrong rather
+/// than on its words.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum ErrorKind {
+    /// [`Error::Io`].
+    Io,
+    /// [`Error::Parse`].
+    Parse,
+    /// [`Error::File`].
+    File,
+    /// [`Error::Setting`].
+    Setting,
+    /// [`Error::Unfit`].
+    Unfit,
+    /// [`Error::Needs`].
+    Needs,
+    /// [`Error::Invalid`].
+    Invalid,
 }
 
 impl std::fmt::Display for Error {
@@ -93,14 +167,99 @@ impl Error {
                 message,
             } => format!("{}{}: {message}", path.display(), place(*line, *column)),
             Error::File { path, message } => format!("{}: {message}", path.display()),
-            Error::Invalid(message) => message.clone(),
+            Error::Needs {
+                path: Some(path),
+                message,
+                ..
+            } => format!("{}: {message}", path.display()),
+            Error::Setting { message, .. }
+            | Error::Unfit(message)
+            | Error::Needs { message, .. }
+            | Error::Invalid(message) => message.clone(),
         };
         spell_settings(&text, spell)
+    }
+
+    /// What went wrong, as a kind.
+    pub fn kind(&self) -> ErrorKind {
+        match self {
+            Error::Io { .. } => ErrorKind::Io,
+            Error::Parse { .. } => ErrorKind::Parse,
+            Error::File { .. } => ErrorKind::File,
+            Error::Setting { .. } => ErrorKind::Setting,
+            Error::Unfit(_) => ErrorKind::Unfit,
+            Error::Needs { .. } => ErrorKind::Needs,
+            Error::Invalid(_) => ErrorKind::Invalid,
+        }
+    }
+
+    /// The setting an [`Error::Setting`] names, with the value given.
+    pub fn setting(&self) -> Option<(&str, &str)> {
+        match self {
+            Error::Setting { name, value, .. } => Some((name, value)),
+            _ => None,
+        }
+    }
+
+    /// The file an error names, if it names one.
+    pub fn path(&self) -> Option<&std::path::Path> {
+        match self {
+            Error::Io { path, .. } | Error::Parse { path, .. } | Error::File { path, .. } => {
+                Some(path)
+            }
+            Error::Needs { path, .. } => path.as_deref(),
+            _ => None,
+        }
     }
 
     /// An [`Error::Invalid`] from anything printable.
     pub fn invalid(msg: impl Into<String>) -> Self {
         Error::Invalid(msg.into())
+    }
+
+    /// An [`Error::Setting`]: the setting `name` given `value`; `message` says it all,
+    /// naming the setting with [`setting`] where it appears.
+    pub fn bad_setting(
+        name: &str,
+        value: impl std::fmt::Display,
+        message: impl Into<String>,
+    ) -> Self {
+        Error::Setting {
+            name: name.to_string(),
+            value: value.to_string(),
+            message: message.into(),
+        }
+    }
+
+    /// An [`Error::Unfit`] from anything printable.
+    pub fn unfit(msg: impl Into<String>) -> Self {
+        Error::Unfit(msg.into())
+    }
+
+    /// An [`Error::Needs`]: `message` says what is missing, `needed` what makes it.
+    pub fn needs(needed: Needed, message: impl Into<String>) -> Self {
+        Error::Needs {
+            path: None,
+            needed,
+            message: message.into(),
+        }
+    }
+
+    /// [`Error::needs`] for a file found wanting: the message is placed after its path.
+    pub fn needs_in(path: impl Into<PathBuf>, needed: Needed, message: impl Into<String>) -> Self {
+        Error::Needs {
+            path: Some(path.into()),
+            needed,
+            message: message.into(),
+        }
+    }
+
+    /// What makes the missing piece of an [`Error::Needs`].
+    pub fn needed(&self) -> Option<&Needed> {
+        match self {
+            Error::Needs { needed, .. } => Some(needed),
+            _ => None,
+        }
     }
 
     /// An [`Error::File`] for `path`.
@@ -119,41 +278,6 @@ impl Error {
         }
     }
 
-    /// An error from the `csv` crate while reading `path`, at the line and 1-based field the
-    /// crate reports (a record of the wrong length names the first field missing or extra).
-    ///
-    /// The crate does not count blank lines; give the `text` that was read so the line is
-    /// counted from the byte offset instead ([`Error::csv_in`]).
-    pub fn csv(path: impl Into<PathBuf>, err: &csv::Error) -> Self {
-        Error::csv_line(path, err, err.position().map_or(0, |p| p.line()))
-    }
-
-    /// [`Error::csv`] for a reader over `text`: the line counted from the byte offset.
-    pub fn csv_in(path: impl Into<PathBuf>, err: &csv::Error, text: &[u8]) -> Self {
-        let line = err.position().map_or(0, |p| line_at(text, p.byte()));
-        Error::csv_line(path, err, line)
-    }
-
-    fn csv_line(path: impl Into<PathBuf>, err: &csv::Error, line: u64) -> Self {
-        let (column, message) = match err.kind() {
-            csv::ErrorKind::UnequalLengths {
-                expected_len, len, ..
-            } => {
-                let (expected, len) = (*expected_len, *len);
-                let plural = |n: u64| if n == 1 { "field" } else { "fields" };
-                (
-                    expected.min(len) + 1,
-                    format!(
-                        "this row has {len} {} where the first row has {expected}",
-                        plural(len)
-                    ),
-                )
-            }
-            _ => (0, format!("CSV error: {err}")),
-        };
-        Error::parse(path, line, column, message)
-    }
-
     /// An [`Error::Parse`] at `line:column` of `path`.
     pub fn parse(path: impl Into<PathBuf>, line: u64, column: u64, msg: impl Into<String>) -> Self {
         Error::Parse {
@@ -162,49 +286,6 @@ impl Error {
             column,
             message: msg.into(),
         }
-    }
-}
-
-/// The 1-based line of the first content at or after byte `byte` of `text`: the `csv` crate
-/// places a record at the blank lines before it, and does not count them in its own line.
-pub fn line_at(text: &[u8], byte: u64) -> u64 {
-    let mut end = (byte as usize).min(text.len());
-    while end < text.len() && matches!(text[end], b'\n' | b'\r') {
-        end += 1;
-    }
-    1 + text[..end].iter().filter(|&&b| b == b'\n').count() as u64
-}
-
-/// [`line_at`] for records met in order: counts forward from the last call, so reading a
-/// file costs one pass (calling [`line_at`] per record would be quadratic in its length).
-pub struct LineCounter<'a> {
-    text: &'a [u8],
-    at: usize,
-    line: u64,
-}
-
-impl<'a> LineCounter<'a> {
-    /// A counter at the start of `text`.
-    pub fn new(text: &'a [u8]) -> Self {
-        LineCounter {
-            text,
-            at: 0,
-            line: 1,
-        }
-    }
-
-    /// The line of the first content at or after byte `byte`; `byte` must not go backwards.
-    pub fn line_at(&mut self, byte: u64) -> u64 {
-        let mut end = (byte as usize).clamp(self.at, self.text.len());
-        while end < self.text.len() && matches!(self.text[end], b'\n' | b'\r') {
-            end += 1;
-        }
-        self.line += self.text[self.at..end]
-            .iter()
-            .filter(|&&b| b == b'\n')
-            .count() as u64;
-        self.at = end;
-        self.line
     }
 }
 
@@ -254,30 +335,5 @@ mod tests {
         assert_eq!(Error::parse("a.csv", 3, 2, "m").to_string(), "a.csv:3:2: m");
         assert_eq!(Error::parse("a.csv", 3, 0, "m").to_string(), "a.csv:3: m");
         assert_eq!(Error::parse("a.csv", 0, 0, "m").to_string(), "a.csv: m");
-    }
-
-    /// A csv-crate error names the line and the first field missing or extra.
-    #[test]
-    fn csv_errors_name_line_and_field() {
-        let read = |text: &str| {
-            let mut rdr = csv::Reader::from_reader(text.as_bytes());
-            let e = rdr.records().find_map(|r| r.err()).unwrap();
-            Error::csv_in("t.csv", &e, text.as_bytes()).to_string()
-        };
-        assert_eq!(
-            read("a,b,c\n1,2,3\n\n4\n"),
-            "t.csv:4:2: this row has 1 field where the first row has 3"
-        );
-        let text = b"a\n1\n\n\r\n2\n3";
-        let mut lines = LineCounter::new(text);
-        let starts = [2u64, 4, 8, 10];
-        let counted: Vec<u64> = starts.iter().map(|&b| lines.line_at(b)).collect();
-        let direct: Vec<u64> = starts.iter().map(|&b| line_at(text, b)).collect();
-        assert_eq!(counted, vec![2, 5, 6, 6]);
-        assert_eq!(counted, direct);
-        assert_eq!(
-            read("a,b\n1,2,3,4\n"),
-            "t.csv:2:3: this row has 4 fields where the first row has 2"
-        );
     }
 }

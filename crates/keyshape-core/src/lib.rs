@@ -30,7 +30,7 @@ pub mod solve;
 pub mod stats;
 
 pub use decompose::{decompose, prepare, Decomposition, PrepareOptions, Prepared};
-pub use error::{Error, Result};
+pub use error::{Error, ErrorKind, Result};
 pub use keyshapes::{Analysis, KeyOptions, Method};
 pub use sequence::{Format, Sequence};
 pub use solve::{SolveOptions, Solver};

@@ -31,7 +31,11 @@ impl Limit {
         if v.is_finite() && above_lo && v <= self.hi {
             return Ok(v);
         }
-        Err(Error::invalid(format!("{} {}", setting(name), self.why(v))))
+        Err(Error::bad_setting(
+            name,
+            v,
+            format!("{} {}", setting(name), self.why(v)),
+        ))
     }
 
     /// [`Limit::check`] for a count.
@@ -43,13 +47,14 @@ impl Limit {
             f >= self.lo
         };
         if above_lo && f <= self.hi {
-            return usize::try_from(v).map_err(|_| Error::invalid("count beyond this machine"));
+            return usize::try_from(v)
+                .map_err(|_| Error::bad_setting(name, v, "count beyond this machine"));
         }
-        Err(Error::invalid(format!(
-            "{} {}",
-            setting(name),
-            self.why_count(v)
-        )))
+        Err(Error::bad_setting(
+            name,
+            v,
+            format!("{} {}", setting(name), self.why_count(v)),
+        ))
     }
 
     /// Why `v` is refused, without the setting's name (for a message that names it

@@ -38,7 +38,7 @@ impl Pca {
     pub fn fit(coords: &DMatrix<f64>) -> Result<Pca> {
         let (rows, n) = coords.shape();
         if n < 2 {
-            return Err(Error::invalid("PCA needs at least 2 frames"));
+            return Err(Error::unfit("PCA needs at least 2 frames"));
         }
         let small_side = rows <= n;
         let denom = (n - 1) as f64;
@@ -88,7 +88,7 @@ impl Pca {
         block: &dyn Fn(usize, usize) -> DMatrix<f64>,
     ) -> Result<Pca> {
         if n < 2 {
-            return Err(Error::invalid("PCA needs at least 2 frames"));
+            return Err(Error::unfit("PCA needs at least 2 frames"));
         }
         if rows > n {
             return Err(Error::invalid(format!(

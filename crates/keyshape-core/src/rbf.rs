@@ -45,7 +45,7 @@ impl Rbf {
                 if i != j {
                     let d = dist2(p(i), p(j));
                     if d == 0.0 {
-                        return Err(Error::invalid(format!(
+                        return Err(Error::unfit(format!(
                             "RBF: feature points {i} and {j} coincide (H is singular)"
                         )));
                     }
@@ -66,7 +66,7 @@ impl Rbf {
             f64::INFINITY
         };
         if condition > 1e12 {
-            return Err(Error::invalid(format!(
+            return Err(Error::unfit(format!(
                 "RBF: feature points too close together (condition number of H {condition:.1e})"
             )));
         }

@@ -30,6 +30,7 @@
 
 pub mod atomic;
 mod builtin;
+pub mod csv_error;
 pub mod csv_out;
 pub mod gltf;
 pub mod json;
@@ -81,11 +82,11 @@ pub fn fmt_num(v: f64) -> String {
 /// Reads a tracked sequence from a file or a directory of `.pts` files.
 pub fn read_sequence(path: &Path, opts: &ReadOptions) -> Result<Sequence> {
     if opts.dims != 2 && opts.dims != 3 {
-        return Err(Error::invalid(format!(
-            "{} must be 2 or 3, got {}",
-            setting("dims"),
-            opts.dims
-        )));
+        return Err(Error::bad_setting(
+            "dims",
+            opts.dims,
+            format!("{} must be 2 or 3, got {}", setting("dims"), opts.dims),
+        ));
     }
     let meta = std::fs::metadata(path).map_err(|e| Error::io(path, e))?;
     if meta.is_dir() {
@@ -241,11 +242,11 @@ fn read_table_streamed(
 /// format by extension). What the fuzz targets call.
 pub fn parse_sequence(path: &Path, text: &str, opts: &ReadOptions) -> Result<Sequence> {
     if opts.dims != 2 && opts.dims != 3 {
-        return Err(Error::invalid(format!(
-            "{} must be 2 or 3, got {}",
-            setting("dims"),
-            opts.dims
-        )));
+        return Err(Error::bad_setting(
+            "dims",
+            opts.dims,
+            format!("{} must be 2 or 3, got {}", setting("dims"), opts.dims),
+        ));
     }
     if text.trim().is_empty() {
         return Err(Error::file(path, "file is empty"));
@@ -444,7 +445,7 @@ pub fn read_columns(path: &Path, names: &[&str]) -> Result<Vec<Vec<f64>>> {
         .from_reader(text.as_bytes());
     let header: Vec<String> = rdr
         .headers()
-        .map_err(|e| Error::csv_in(path, &e, text.as_bytes()))?
+        .map_err(|e| crate::csv_error::csv_error_in(path, &e, text.as_bytes()))?
         .iter()
         .map(str::to_string)
         .collect();
@@ -458,9 +459,9 @@ pub fn read_columns(path: &Path, names: &[&str]) -> Result<Vec<Vec<f64>>> {
         })
         .collect::<Result<_>>()?;
     let mut out = vec![Vec::new(); names.len()];
-    let mut lines = keyshape_core::error::LineCounter::new(text.as_bytes());
+    let mut lines = crate::csv_error::LineCounter::new(text.as_bytes());
     for rec in rdr.records() {
-        let rec = rec.map_err(|e| Error::csv_in(path, &e, text.as_bytes()))?;
+        let rec = rec.map_err(|e| crate::csv_error::csv_error_in(path, &e, text.as_bytes()))?;
         let line = rec.position().map_or(0, |p| lines.line_at(p.byte()));
         for (k, &c) in idx.iter().enumerate() {
             let cell = rec.get(c).unwrap_or("");

@@ -45,9 +45,10 @@ impl MorphTargets {
         let mut names = Vec::new();
         let text = super::read_text(expressions)?;
         let mut rdr = csv::Reader::from_reader(text.as_bytes());
-        let mut lines = keyshape_core::error::LineCounter::new(text.as_bytes());
+        let mut lines = crate::csv_error::LineCounter::new(text.as_bytes());
         for r in rdr.records() {
-            let r = r.map_err(|e| Error::csv_in(expressions, &e, text.as_bytes()))?;
+            let r =
+                r.map_err(|e| crate::csv_error::csv_error_in(expressions, &e, text.as_bytes()))?;
             let line = r.position().map_or(0, |p| lines.line_at(p.byte()));
             let id: usize = r
                 .get(0)
@@ -76,9 +77,9 @@ impl MorphTargets {
         let mut out = vec![Vec::new(); names.len()];
         let text = super::read_text(deltas)?;
         let mut rdr = csv::Reader::from_reader(text.as_bytes());
-        let mut lines = keyshape_core::error::LineCounter::new(text.as_bytes());
+        let mut lines = crate::csv_error::LineCounter::new(text.as_bytes());
         for r in rdr.records() {
-            let r = r.map_err(|e| Error::csv_in(deltas, &e, text.as_bytes()))?;
+            let r = r.map_err(|e| crate::csv_error::csv_error_in(deltas, &e, text.as_bytes()))?;
             let line = r.position().map_or(0, |p| lines.line_at(p.byte()));
             let num = |c: usize| -> Result<f64> {
                 r.get(c).unwrap_or("").parse::<f64>().map_err(|_| {
@@ -154,7 +155,7 @@ impl MorphTargets {
         }
         let extent = (0..3).map(|k| hi[k] - lo[k]).fold(0.0, f64::max);
         if !(extent.is_finite() && extent > 0.0) {
-            return Err(Error::invalid("the mesh has no extent"));
+            return Err(Error::unfit("the mesh has no extent"));
         }
         for (s, d) in self.deltas.iter().enumerate() {
             for &(v, o) in d {

@@ -21,9 +21,11 @@ pub fn write_long_track(w: &mut dyn Write, frames: usize, points: usize, seed: u
         468 => (0..468).collect(),
         68 => keyshape_core::sequence::mediapipe_to_ibug68()?,
         _ => {
-            return Err(Error::invalid(format!(
-                "a generated track has 68 or 468 points, not {points}"
-            )))
+            return Err(Error::bad_setting(
+                "points",
+                points,
+                format!("a generated track has 68 or 468 points, not {points}"),
+            ))
         }
     };
     let real = seq.coords.ncols();

@@ -507,7 +507,7 @@ fn coordinate_columns(
 
 /// A csv error at `line` (None: the line the csv crate counted).
 fn csv_error(path: &Path, e: &csv::Error, line: Option<u64>) -> Error {
-    match (Error::csv(path, e), line) {
+    match (crate::csv_error::csv_error(path, e), line) {
         (
             Error::Parse {
                 path,

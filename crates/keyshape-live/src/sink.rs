@@ -3,7 +3,7 @@
 
 use super::protocols::{head_quaternion, livelink_packet, vmc_bundle, vmc_names, vmc_values};
 use super::source::parse_address;
-use keyshape_core::error::{Error, Result};
+use keyshape_core::error::{setting, Error, Result};
 use keyshape_rig::livelink::{column_sources, frame_values};
 use keyshape_rig::Rig;
 use std::io::Write;
@@ -35,7 +35,7 @@ impl SinkSpec {
                 Some((a, b)) => (a, Some(b)),
                 None => (part, None),
             };
-            let what = format!("--to {part}");
+            let what = format!("{} {part}", setting("to"));
             let sink = match scheme {
                 "vmc" => SinkSpec::Vmc(parse_address(rest, "127.0.0.1", VMC_PORT, &what)?),
                 "livelink" => {
@@ -43,13 +43,22 @@ impl SinkSpec {
                 }
                 "stdout" if rest.is_none() => SinkSpec::Stdout,
                 _ => {
-                    return Err(Error::invalid(format!(
-                    "--to '{part}': not a sink (vmc:[HOST:]PORT, livelink:[HOST:]PORT or stdout)"
-                )))
+                    return Err(Error::bad_setting(
+                        "to",
+                        part,
+                        format!(
+                    "{} '{part}': not a sink (vmc:[HOST:]PORT, livelink:[HOST:]PORT or stdout)",
+                    setting("to")
+                ),
+                    ))
                 }
             };
             if out.contains(&sink) {
-                return Err(Error::invalid(format!("--to names {part} twice")));
+                return Err(Error::bad_setting(
+                    "to",
+                    part,
+                    format!("{} names {part} twice", setting("to")),
+                ));
             }
             out.push(sink);
         }
@@ -119,10 +128,9 @@ impl Sinks {
         } else {
             let v6 = vmc.iter().chain(&livelink).any(SocketAddr::is_ipv6);
             let any = if v6 { "[::]:0" } else { "0.0.0.0:0" };
-            Some(
-                UdpSocket::bind(any)
-                    .map_err(|e| Error::invalid(format!("--to: cannot open a UDP socket: {e}")))?,
-            )
+            Some(UdpSocket::bind(any).map_err(|e| {
+                Error::invalid(format!("{}: cannot open a UDP socket: {e}", setting("to")))
+            })?)
         };
         let sources = column_sources(rig);
         Ok(Sinks {

@@ -6,7 +6,7 @@
 //! thread ([`Opened::spawn`]), pushing frames into the [`Queue`].
 
 use super::{Counters, Frame, Queue, RateLimited};
-use keyshape_core::error::{Error, Result};
+use keyshape_core::error::{setting, Error, Result};
 use keyshape_core::sequence::Format;
 use std::io::{BufRead, Read};
 use std::net::{SocketAddr, ToSocketAddrs, UdpSocket};
@@ -71,16 +71,25 @@ impl SourceSpec {
                 rest,
                 "127.0.0.1",
                 OPENSEEFACE_PORT,
-                &format!("--from {s}"),
+                &format!("{} {s}", setting("from")),
             )?)),
             "stdin" if rest.is_none() => Ok(SourceSpec::Stdin),
             "file" => match rest.filter(|r| !r.is_empty()) {
                 Some(p) => Ok(SourceSpec::File(PathBuf::from(p))),
-                None => Err(Error::invalid("--from file: name the track, file:TRACK")),
+                None => Err(Error::bad_setting(
+                    "from",
+                    s,
+                    format!("{} file: name the track, file:TRACK", setting("from")),
+                )),
             },
-            _ => Err(Error::invalid(format!(
-                "--from '{s}': not a source (openseeface:[HOST:]PORT, stdin or file:TRACK)"
-            ))),
+            _ => Err(Error::bad_setting(
+                "from",
+                s,
+                format!(
+                    "{} '{s}': not a source (openseeface:[HOST:]PORT, stdin or file:TRACK)",
+                    setting("from")
+                ),
+            )),
         }
     }
 }
@@ -131,27 +140,33 @@ pub fn open(
     let options = options.clone();
     if let Some(r) = options.rate {
         if !(r.is_finite() && r > 0.0 && r <= 10_000.0) {
-            return Err(Error::invalid(format!(
-                "--rate {r}: frames per second in (0, 10000]"
-            )));
+            return Err(Error::bad_setting(
+                "rate",
+                r,
+                format!("{} {r}: frames per second in (0, 10000]", setting("rate")),
+            ));
         }
         if !matches!(spec, SourceSpec::File(_)) {
-            return Err(Error::invalid(
-                "--rate applies to a file source (file:TRACK); a live source sends at its own rate",
-            ));
+            return Err(Error::invalid(format!(
+                "{} applies to a file source (file:TRACK); a live source sends at its own rate",
+                setting("rate")
+            )));
         }
     }
     if options.face.is_some() && !matches!(spec, SourceSpec::OpenSeeFace(_)) {
-        return Err(Error::invalid(
-            "--face applies to an OpenSeeFace source, which may send several faces",
-        ));
+        return Err(Error::invalid(format!(
+            "{} applies to an OpenSeeFace source, which may send several faces",
+            setting("face")
+        )));
     }
     match spec {
         SourceSpec::OpenSeeFace(addr) => {
             if options.image_size.is_some() || options.format.is_some() {
-                return Err(Error::invalid(
-                    "--image-size and --format apply to stdin and file sources; OpenSeeFace sends pixels in its own layout",
-                ));
+                return Err(Error::invalid(format!(
+                    "{} and {} apply to stdin and file sources; OpenSeeFace sends pixels in its own layout",
+                    setting("image_size"),
+                    setting("format")
+                )));
             }
             let sock = UdpSocket::bind(addr).map_err(|e| {
                 Error::invalid(format!("openseeface: cannot listen on {addr}: {e}"))
@@ -201,7 +216,7 @@ fn open_file(path: &Path, options: SourceOptions) -> Result<Opened> {
 }
 
 fn normalised_note(name: &str) -> String {
-    format!("note: {name}: every x and y lies in [0, 1]: normalised image coordinates (MediaPipe's default); x and y are on different scales unless the video is square: give --image-size WIDTHxHEIGHT")
+    format!("note: {name}: every x and y lies in [0, 1]: normalised image coordinates (MediaPipe's default); x and y are on different scales unless the video is square: give {} WIDTHxHEIGHT", setting("image_size"))
 }
 
 /// The points of one JSON line `{"t": …, "points": [[x, y], …]}` (extra values per point,
@@ -248,9 +263,10 @@ fn open_stdin(mut stdin: Box<dyn BufRead + Send>, options: SourceOptions) -> Res
     }
     if first.trim_start().starts_with('{') {
         if options.format.is_some() {
-            return Err(Error::invalid(
-                "--format applies to a table on stdin; these are JSON lines",
-            ));
+            return Err(Error::invalid(format!(
+                "{} applies to a table on stdin; these are JSON lines",
+                setting("format")
+            )));
         }
         let (_, pts) = json_points(&first).map_err(|e| Error::parse(at, 1, 1, e))?;
         let layout = pts.len() / 2;

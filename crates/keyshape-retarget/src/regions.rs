@@ -107,7 +107,11 @@ pub fn plan(
             )));
         }
         if r.k == 0 {
-            return Err(Error::invalid(format!("region '{}' has k = 0", r.name)));
+            return Err(Error::bad_setting(
+                "k",
+                0,
+                format!("region '{}' has k = 0", r.name),
+            ));
         }
         members.push(m);
     }

@@ -14,11 +14,15 @@ pub use keyshape_core::sequence::{named_polylines_for, polylines_for};
 /// (selected) aligned points.
 pub fn builtin_target(seq: &Sequence, prep: &Prepared) -> Result<(Rbf, f64)> {
     if seq.dims != 2 {
-        return Err(Error::invalid(format!(
-            "the built-in target is 2-D: use {} 2, or give {}",
-            setting("dims"),
-            setting("target")
-        )));
+        return Err(Error::bad_setting(
+            "dims",
+            seq.dims,
+            format!(
+                "the built-in target is 2-D: use {} 2, or give {}",
+                setting("dims"),
+                setting("target")
+            ),
+        ));
     }
     let layout = prep.layout.as_ref().ok_or_else(|| {
         Error::invalid(format!(

@@ -60,10 +60,11 @@ impl TargetSet {
     /// Checks counts, finiteness and polylines.
     pub fn check(&self) -> Result<()> {
         if self.dims != 2 && self.dims != 3 {
-            return Err(Error::invalid(format!(
-                "dims must be 2 or 3, got {}",
-                self.dims
-            )));
+            return Err(Error::bad_setting(
+                "dims",
+                self.dims,
+                format!("dims must be 2 or 3, got {}", self.dims),
+            ));
         }
         let want = self.dims * self.points;
         for (i, k) in self.keys.iter().chain(self.neutral.iter()).enumerate() {

@@ -8,6 +8,7 @@ use keyshape_core::decompose::{prepare, PrepareOptions};
 use keyshape_core::rbf::Rbf;
 use keyshape_core::sequence::Layout;
 use keyshape_core::solve::Solver;
+use keyshape_core::ErrorKind;
 use keyshape_io::builtin_sequence;
 use keyshape_retarget::regions::{plan, Regions};
 use keyshape_retarget::setup::{builtin_target, polylines_for};
@@ -147,7 +148,7 @@ proptest! {
 fn coincident_feature_points_are_a_clear_error() {
     let e = Rbf::fit(&[0.0, 0.0, 1.0, 1.0, 0.0, 0.0], &[0.0; 6], 2)
         .unwrap_err()
-        .to_string();
+        .kind_is(ErrorKind::Unfit);
     assert!(e.contains("feature points 0 and 2 coincide"), "{e}");
 }
 
@@ -257,7 +258,7 @@ fn delta_mode_uses_the_neutral_and_needs_one_in_the_target() {
         Solver::Nnls,
     )
     .unwrap_err()
-    .to_string();
+    .kind_is(ErrorKind::Invalid);
     assert!(e.contains("needs a neutral shape"), "{e}");
 }
 
@@ -292,14 +293,14 @@ fn regions_blend_to_one_and_bad_regions_are_explained() {
         2,
     )
     .unwrap_err()
-    .to_string();
+    .kind_is(ErrorKind::Invalid);
     assert!(e.contains("region 'eyes' covers none"), "{e}");
     // Without blend_rest, points in no region are an error.
     let mut r = Regions::builtin(&layout).unwrap();
     r.blend_rest = false;
     let e = plan(&r, &layout, &all, mean.as_slice(), 2)
         .unwrap_err()
-        .to_string();
+        .kind_is(ErrorKind::Invalid);
     assert!(e.contains("uncovered"), "{e}");
     // Regions retarget end to end on the whole face.
     let prep = prepare(&seq, &PrepareOptions::all_aligned()).unwrap();
@@ -340,15 +341,21 @@ fn target_sets_check_counts_and_point_counts() {
         neutral: None,
     };
     assert!(set.check().is_ok());
-    let e = set.for_frames(&[3, 7, 9]).unwrap_err().to_string();
+    let e = set
+        .for_frames(&[3, 7, 9])
+        .unwrap_err()
+        .kind_is(ErrorKind::Invalid);
     assert!(e.contains("missing frames [9]"), "{e}");
-    let e = set.for_frames(&[3]).unwrap_err().to_string();
+    let e = set
+        .for_frames(&[3])
+        .unwrap_err()
+        .kind_is(ErrorKind::Invalid);
     assert!(e.contains("extra frames [7]"), "{e}");
     let bad = TargetSet {
         keys: vec![key(3, 4), key(7, 6)],
         ..set.clone()
     };
-    let e = bad.check().unwrap_err().to_string();
+    let e = bad.check().unwrap_err().kind_is(ErrorKind::Invalid);
     assert!(e.contains("same point count"), "{e}");
 }
 
@@ -408,26 +415,33 @@ fn damaged_svg_templates_are_explained() {
     let (svg, _) = template_of(&prep, &[3, 77]);
     let dir = tempfile::tempdir().unwrap();
     let p = dir.path().join("t.svg");
-    let check = |text: String, needle: &str| {
+    let check = |text: String, kind: ErrorKind, needle: &str| {
         std::fs::write(&p, text).unwrap();
-        let e = read_template(&p).unwrap_err().to_string();
+        let e = read_template(&p).unwrap_err().kind_is(kind);
         assert!(e.contains(needle), "expected '{needle}' in: {e}");
     };
     check(
         svg.replace("id=\"key-77-c1\"", "id=\"key-77-cX\""),
+        ErrorKind::File,
         "contour 'key-77-c1' is missing",
     );
     let pts_start = svg.find("points=\"").unwrap() + 8;
     let first_space = svg[pts_start..].find(' ').unwrap() + pts_start;
     check(
         format!("{}{}", &svg[..pts_start], &svg[first_space + 1..]),
+        ErrorKind::File,
         "the template had",
     );
     check(
         svg.replace("<desc id=\"kslab-template\">", "<desc>"),
+        ErrorKind::Needs,
         "not a template",
     );
-    check(svg.replace("</svg>", ""), "not valid SVG/XML");
+    check(
+        svg.replace("</svg>", ""),
+        ErrorKind::Parse,
+        "not valid SVG/XML",
+    );
 }
 
 #[test]
@@ -593,13 +607,13 @@ fn the_face_template_is_grouped_captioned_and_its_dots_follow_the_contours() {
     let end = start + svg[start..].find("/>").unwrap() + 2;
     let deleted = format!("{}{}", &svg[..start], &svg[end..]);
     std::fs::write(&p, &deleted).unwrap();
-    let e = read_template(&p).unwrap_err().to_string();
+    let e = read_template(&p).unwrap_err().kind_is(ErrorKind::File);
     assert!(
         e.contains(&format!("dot 'key-{f}-p{dot}' is missing")),
         "{e}"
     );
     std::fs::write(&p, svg.replacen(&tag, &format!("{tag}x"), 1)).unwrap();
-    let e = read_template(&p).unwrap_err().to_string();
+    let e = read_template(&p).unwrap_err().kind_is(ErrorKind::Parse);
     assert!(
         e.contains(&format!("dot 'key-{f}-p{dot}': cx=\"x")) && e.contains("is not a number"),
         "{e}"
@@ -742,4 +756,18 @@ fn retarget_errors_equal_the_full_retarget_bit_for_bit() {
         None,
         "9,000 generated frames",
     );
+}
+
+/// A library error's kind checked before its words are read: a test acts on the kind, as a
+/// caller would, and reads the message only for what it must name.
+trait KindIs {
+    fn kind_is(self, kind: keyshape_core::ErrorKind) -> String;
+}
+
+impl KindIs for keyshape_core::Error {
+    #[track_caller]
+    fn kind_is(self, kind: keyshape_core::ErrorKind) -> String {
+        assert_eq!(self.kind(), kind, "{self}");
+        self.to_string()
+    }
 }

@@ -106,18 +106,18 @@ pub fn fit_camera(x: &[[f64; 3]], u: &[[f64; 2]]) -> Result<Camera> {
     }
     let inv = xx
         .try_inverse()
-        .ok_or_else(|| Error::invalid("camera fit: the rig's landmarks are coplanar"))?;
+        .ok_or_else(|| Error::unfit("camera fit: the rig's landmarks are coplanar"))?;
     let a = ux * inv;
     // A view with no extent (its points coincide, or lie so close that their squares
     // underflow) has no camera; nalgebra's SVD would panic on what it gives.
     if !(a.iter().all(|v| v.is_finite()) && a.norm() > 0.0) {
-        return Err(Error::invalid(
+        return Err(Error::unfit(
             "camera fit: the image points have no extent (they coincide)",
         ));
     }
     let svd = a.svd(true, true);
     let (Some(uu), Some(vt)) = (svd.u, svd.v_t) else {
-        return Err(Error::invalid("camera fit: SVD failed"));
+        return Err(Error::unfit("camera fit: SVD failed"));
     };
     let r2 = uu * vt; // 2×2 · 2×3: the nearest matrix with orthonormal rows
     let r0 = Vector3::new(r2[(0, 0)], r2[(0, 1)], r2[(0, 2)]);
@@ -133,7 +133,7 @@ pub fn fit_camera(x: &[[f64; 3]], u: &[[f64; 2]]) -> Result<Camera> {
         den += a0 * a0 + a1 * a1;
     }
     if den.is_nan() || den <= 0.0 || !num.is_finite() {
-        return Err(Error::invalid("camera fit: degenerate points"));
+        return Err(Error::unfit("camera fit: degenerate points"));
     }
     let s = num / den;
     let t = [mu0 - s * r0.dot(&mx), mu1 - s * r1.dot(&mx)];

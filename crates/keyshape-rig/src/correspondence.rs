@@ -54,11 +54,11 @@ pub fn read_correspondence(path: &Path, vertices: usize) -> Result<Vec<(usize, u
 
 fn parse_correspondence(path: &Path, text: &str, vertices: usize) -> Result<Vec<(usize, usize)>> {
     let mut rdr = csv::Reader::from_reader(text.as_bytes());
-    let mut lines = keyshape_core::error::LineCounter::new(text.as_bytes());
+    let mut lines = keyshape_io::csv_error::LineCounter::new(text.as_bytes());
     let mut out: Vec<(usize, usize)> = Vec::new();
     let mut seen = std::collections::HashMap::new();
     for r in rdr.records() {
-        let r = r.map_err(|e| Error::csv_in(path, &e, text.as_bytes()))?;
+        let r = r.map_err(|e| keyshape_io::csv_error::csv_error_in(path, &e, text.as_bytes()))?;
         let line = r.position().map_or(0, |p| lines.line_at(p.byte()));
         let field = |c: usize| -> Result<usize> {
             let v = r.get(c).unwrap_or("").trim();
@@ -278,7 +278,7 @@ pub fn read_gaze_travel(path: &Path) -> Result<Vec<(String, f64)>> {
     let mut rdr = csv::Reader::from_reader(text.as_bytes());
     let header = rdr
         .headers()
-        .map_err(|e| Error::csv_in(path, &e, text.as_bytes()))?
+        .map_err(|e| keyshape_io::csv_error::csv_error_in(path, &e, text.as_bytes()))?
         .clone();
     let col = |n: &str| header.iter().position(|h| h.trim() == n);
     let (Some(name), Some(off)) = (col("shape"), col("max_abs_offset_outside_cm")) else {
@@ -287,10 +287,10 @@ pub fn read_gaze_travel(path: &Path) -> Result<Vec<(String, f64)>> {
             "has no shape and max_abs_offset_outside_cm columns: the iris points cannot be placed",
         ));
     };
-    let mut lines = keyshape_core::error::LineCounter::new(text.as_bytes());
+    let mut lines = keyshape_io::csv_error::LineCounter::new(text.as_bytes());
     let mut out = Vec::new();
     for r in rdr.records() {
-        let r = r.map_err(|e| Error::csv_in(path, &e, text.as_bytes()))?;
+        let r = r.map_err(|e| keyshape_io::csv_error::csv_error_in(path, &e, text.as_bytes()))?;
         let line = r.position().map_or(0, |p| lines.line_at(p.byte()));
         let shape = r.get(name).unwrap_or("").trim();
         if !super::is_gaze(shape) {
@@ -341,7 +341,7 @@ pub fn add_virtual_irises(rig: &mut super::Rig, travel: &[(String, f64)]) -> Res
             .filter_map(|p| rig.points.iter().position(|q| q == p))
             .collect();
         if members.len() < 3 {
-            return Err(Error::invalid(format!(
+            return Err(Error::unfit(format!(
                 "the rig reads {} points of MediaPipe's {group}: too few to place its iris",
                 members.len()
             )));

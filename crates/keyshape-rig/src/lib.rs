@@ -286,9 +286,11 @@ impl Identity {
             "none" => Ok(Identity::None),
             "offset" => Ok(Identity::Offset),
             "rbf" => Ok(Identity::Rbf),
-            _ => Err(Error::invalid(format!(
-                "unknown identity '{s}' (expected none, offset or rbf)"
-            ))),
+            _ => Err(Error::bad_setting(
+                "identity",
+                s,
+                format!("unknown identity '{s}' (expected none, offset or rbf)"),
+            )),
         }
     }
 
@@ -319,7 +321,7 @@ pub fn landmark_weights<S: AsRef<str>>(settings: &[S]) -> Result<[f64; LANDMARKS
     for s in settings {
         let s = s.as_ref();
         let (group, w) = s.split_once('=').ok_or_else(|| {
-            Error::invalid(format!(
+            Error::bad_setting("landmark_weights", s, format!(
                 "landmark weight '{s}': expected GROUP=W (GROUP one of jaw, brows, nose, eyes, lips, mouth or a landmark number)"
             ))
         })?;
@@ -329,16 +331,20 @@ pub fn landmark_weights<S: AsRef<str>>(settings: &[S]) -> Result<[f64; LANDMARKS
             .ok()
             .filter(|v: &f64| v.is_finite() && *v >= 0.0)
             .ok_or_else(|| {
-                Error::invalid(format!(
-                    "landmark weight '{s}': the weight must be a finite number ≥ 0, not '{w}'"
-                ))
+                Error::bad_setting(
+                    "landmark_weights",
+                    s,
+                    format!(
+                        "landmark weight '{s}': the weight must be a finite number ≥ 0, not '{w}'"
+                    ),
+                )
             })?;
         let range = match LANDMARK_GROUPS.iter().find(|(n, _)| *n == group) {
             Some((_, r)) => r.clone(),
             None => match group.parse::<usize>() {
                 Ok(i) if i < LANDMARKS => i..i + 1,
                 _ => {
-                    return Err(Error::invalid(format!(
+                    return Err(Error::bad_setting("landmark_weights", s, format!(
                         "landmark weight '{s}': '{group}' is not a group (jaw, brows, nose, eyes, lips, mouth) or a landmark number 0–67"
                     )))
                 }

@@ -69,7 +69,9 @@ impl LiveSolver {
     /// must be causal ([`RigOptions::live`]), with an identity of `offset` or `rbf`.
     pub fn new(rig: Rig, opts: RigOptions, calibrate: usize) -> Result<LiveSolver> {
         if calibrate == 0 {
-            return Err(Error::invalid(
+            return Err(Error::bad_setting(
+                "calibration_frames",
+                0,
                 "the calibration needs at least 1 neutral frame",
             ));
         }
@@ -204,7 +206,7 @@ impl LiveSolver {
             return Err(Error::invalid(format!("landmark {}: {v}", i / 2)));
         }
         if keyshape_core::sequence::degenerate_shape(frame, 2) {
-            return Err(Error::invalid(format!(
+            return Err(Error::unfit(format!(
                 "all {n} landmarks coincide, so no camera can be fitted to the frame"
             )));
         }
@@ -268,7 +270,7 @@ impl LiveSolver {
         let (_, _, e) = fs.solve(&u)?;
         let weights = fs.full_weights();
         if weights.iter().any(|v| !v.is_finite()) {
-            return Err(Error::invalid(
+            return Err(Error::unfit(
                 "the rig solve produced non-finite weights for the frame",
             ));
         }

@@ -155,13 +155,19 @@ pub fn refine_map(
 /// and shapes that are not the rig's.
 fn check(rig: &Rig, morph: &MorphTargets, opts: &RigOptions, settings: &Refinement) -> Result<()> {
     if !(settings.radius.is_finite() && settings.radius > 0.0) {
-        return Err(Error::invalid(format!(
-            "the landmark refinement's radius must be a distance > 0, not {}",
-            settings.radius
-        )));
+        return Err(Error::bad_setting(
+            "refine_radius",
+            settings.radius,
+            format!(
+                "the landmark refinement's radius must be a distance > 0, not {}",
+                settings.radius
+            ),
+        ));
     }
     if settings.rounds == 0 {
-        return Err(Error::invalid(
+        return Err(Error::bad_setting(
+            "refine_rounds",
+            0,
             "the landmark refinement needs at least one round",
         ));
     }
@@ -192,7 +198,7 @@ fn start_and_candidates(
         .map(|p| positions.iter().position(|q| q == p))
         .collect();
     if start.iter().all(Option::is_none) {
-        return Err(Error::invalid(
+        return Err(Error::unfit(
             "no landmark of the rig is a vertex of the mesh: there is no map to refine",
         ));
     }

@@ -64,7 +64,7 @@ pub fn solve_rig_observed(
     if let Some(c) = (0..track.ncols())
         .find(|&c| keyshape_core::sequence::degenerate_shape(track.column(c).as_slice(), 2))
     {
-        return Err(Error::invalid(format!(
+        return Err(Error::unfit(format!(
             "frame column {c}: all {n} landmarks coincide, so no camera can be fitted to it"
         )));
     }
@@ -210,29 +210,45 @@ pub fn solve_rig_observed(
 /// Checks `opts` against `rig`; returns the per-landmark weights of the fit.
 pub(super) fn check_options(rig: &Rig, opts: &RigOptions) -> Result<Vec<f64>> {
     if !(opts.min_determination >= 0.0 && opts.min_determination < 1.0) {
-        return Err(Error::invalid(format!(
-            "the minimum determination must be in [0, 1), not {}",
-            opts.min_determination
-        )));
+        return Err(Error::bad_setting(
+            "min_determination",
+            opts.min_determination,
+            format!(
+                "the minimum determination must be in [0, 1), not {}",
+                opts.min_determination
+            ),
+        ));
     }
     if !(opts.zero_phase.is_finite() && (0.0..=1000.0).contains(&opts.zero_phase)) {
-        return Err(Error::invalid(format!(
-            "the zero-phase σ must be a number of frames in [0, 1000], not {}",
-            opts.zero_phase
-        )));
+        return Err(Error::bad_setting(
+            "zero_phase",
+            opts.zero_phase,
+            format!(
+                "the zero-phase σ must be a number of frames in [0, 1000], not {}",
+                opts.zero_phase
+            ),
+        ));
     }
     keyshape_core::limits::RIG_SMOOTH.check("smooth", opts.smooth)?;
     if !(opts.prior.is_finite() && opts.prior >= 0.0) {
-        return Err(Error::invalid(format!(
-            "the magnitude prior must be a number ≥ 0, not {}",
-            opts.prior
-        )));
+        return Err(Error::bad_setting(
+            "prior",
+            opts.prior,
+            format!(
+                "the magnitude prior must be a number ≥ 0, not {}",
+                opts.prior
+            ),
+        ));
     }
     if !(opts.smooth.is_finite() && opts.smooth >= 0.0) {
-        return Err(Error::invalid(format!(
-            "the temporal prior λ must be a number ≥ 0, not {}",
-            opts.smooth
-        )));
+        return Err(Error::bad_setting(
+            "smooth",
+            opts.smooth,
+            format!(
+                "the temporal prior λ must be a number ≥ 0, not {}",
+                opts.smooth
+            ),
+        ));
     }
     if let Some((i, w)) = opts
         .landmark_weights
@@ -240,9 +256,11 @@ pub(super) fn check_options(rig: &Rig, opts: &RigOptions) -> Result<Vec<f64>> {
         .enumerate()
         .find(|(_, w)| !(w.is_finite() && **w >= 0.0))
     {
-        return Err(Error::invalid(format!(
-            "landmark {i}'s weight must be a finite number ≥ 0, not {w}"
-        )));
+        return Err(Error::bad_setting(
+            "landmark_weights",
+            w,
+            format!("landmark {i}'s weight must be a finite number ≥ 0, not {w}"),
+        ));
     }
     let lw = rig_landmark_weights(rig, opts)?;
     if opts.prior > 0.0 && rig.eyes().is_none() {
@@ -253,7 +271,7 @@ pub(super) fn check_options(rig: &Rig, opts: &RigOptions) -> Result<Vec<f64>> {
     }
     let weighted = lw.iter().filter(|w| **w > 0.0).count();
     if weighted < 4 {
-        return Err(Error::invalid(format!(
+        return Err(Error::bad_setting("landmark_weights", weighted, format!(
             "the landmark weights leave {weighted} landmarks with weight > 0; the head pose needs at least 4"
         )));
     }
@@ -267,10 +285,14 @@ fn check_causal(opts: &RigOptions) -> Result<()> {
         return Ok(());
     }
     if opts.zero_phase != 0.0 {
-        return Err(Error::invalid(format!(
-            "a causal solve cannot smooth with frames still to come: zero-phase σ {} must be 0",
-            opts.zero_phase
-        )));
+        return Err(Error::bad_setting(
+            "zero_phase",
+            opts.zero_phase,
+            format!(
+                "a causal solve cannot smooth with frames still to come: zero-phase σ {} must be 0",
+                opts.zero_phase
+            ),
+        ));
     }
     if opts.smooth > 0.0 && opts.smooth_mode == keyshape_core::solve::temporal::SmoothMode::Offline
     {
@@ -443,7 +465,7 @@ pub(super) fn run(
             rms.push((e / n as f64).sqrt());
             let w = fs.full_weights();
             if w.iter().any(|v| !v.is_finite()) {
-                return Err(Error::invalid(format!(
+                return Err(Error::unfit(format!(
                     "frame column {f}: the rig solve produced non-finite weights"
                 )));
             }

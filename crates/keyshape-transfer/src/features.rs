@@ -75,7 +75,7 @@ impl Features {
             }
             "ibug68_to_ict" => include_str!("../../../assets/features/ibug68_to_ict.json"),
             other => {
-                return Err(Error::invalid(format!(
+                return Err(Error::bad_setting("features", other, format!(
                     "no built-in features '{other}' (mediapipe_to_canonical, ibug68_to_ict, mediapipe_to_ict)"
                 )))
             }
@@ -217,7 +217,7 @@ impl Features {
         for (i, a) in self.features.iter().enumerate() {
             for b in &self.features[..i] {
                 if a.source == b.source || a.target == b.target {
-                    return Err(Error::invalid(format!(
+                    return Err(Error::unfit(format!(
                         "features '{}' and '{}' share a point (the RBF system would be singular)",
                         b.name, a.name
                     )));
@@ -236,10 +236,14 @@ impl Features {
             if !self.features.iter().any(|f| &f.group == g) {
                 let known: std::collections::BTreeSet<&str> =
                     self.features.iter().map(|f| f.group.as_str()).collect();
-                return Err(Error::invalid(format!(
-                    "no feature group '{g}' (groups: {})",
-                    known.into_iter().collect::<Vec<_>>().join(", ")
-                )));
+                return Err(Error::bad_setting(
+                    "feature_groups",
+                    g,
+                    format!(
+                        "no feature group '{g}' (groups: {})",
+                        known.into_iter().collect::<Vec<_>>().join(", ")
+                    ),
+                ));
             }
         }
         Ok(self

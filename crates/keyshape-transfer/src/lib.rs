@@ -70,9 +70,11 @@ impl Transfer {
             .map(|f| features.radius_factor.get(&f.group).copied().unwrap_or(1.5))
             .collect();
         if let Some(bad) = factors.iter().find(|f| !(f.is_finite() && **f > 0.0)) {
-            return Err(Error::invalid(format!(
-                "radius factors must be positive, got {bad}"
-            )));
+            return Err(Error::bad_setting(
+                "radius_factors",
+                bad,
+                format!("radius factors must be positive, got {bad}"),
+            ));
         }
         let radii = skin::radii(&t0, &factors);
         let skin = Skin::automatic(&mesh.positions, &t0, &radii);
@@ -240,7 +242,7 @@ pub fn person_mismatch(
                     Rbf::fit(&src, &dst, 3).ok().map(|r| (c, r))
                 })
                 .ok_or_else(|| {
-                    Error::invalid(format!(
+                    Error::unfit(format!(
                         "segment {seg}: no frame whose feature points can train an RBF"
                     ))
                 })?;

@@ -5,6 +5,7 @@
 // Test code: a failed unwrap is a failed test with its message.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
+use keyshape_core::ErrorKind;
 use keyshape_io::obj::{parse_obj, read_obj, write_obj};
 use keyshape_transfer::features::Features;
 use keyshape_transfer::skin::{radii, Skin};
@@ -69,18 +70,18 @@ fn obj_reader_reads_both_target_meshes_and_round_trips() {
 fn bad_obj_files_name_line_and_column() {
     let e = parse_obj(Path::new("m.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n")
         .unwrap_err()
-        .to_string();
+        .kind_is(ErrorKind::Parse);
     assert_eq!(
         e,
         "m.obj:4:1: face refers to vertex 4 but the file has 3 vertices"
     );
     let e = parse_obj(Path::new("m.obj"), "v 0 0 0\nv 1 x 0\n")
         .unwrap_err()
-        .to_string();
+        .kind_is(ErrorKind::Parse);
     assert_eq!(e, "m.obj:2:5: not a number: 'x'");
     let e = parse_obj(Path::new("m.obj"), "v 0 0 0\nf 1 0 1\n")
         .unwrap_err()
-        .to_string();
+        .kind_is(ErrorKind::Parse);
     assert!(e.starts_with("m.obj:2:5: face index 0"), "{e}");
 }
 
@@ -211,7 +212,7 @@ fn partial_retargeting_keeps_disabled_groups_at_neutral() {
         Some(&["lipz".to_string()]),
     )
     .unwrap_err()
-    .to_string();
+    .kind_is(ErrorKind::Setting);
     assert!(e.contains("no feature group 'lipz'"), "{e}");
 }
 
@@ -222,7 +223,7 @@ fn bad_correspondences_are_explained() {
     f.features[3].target = 99_999;
     let e = Transfer::new(ict(), f, &seq_shape, 2, None)
         .unwrap_err()
-        .to_string();
+        .kind_is(ErrorKind::Invalid);
     assert!(
         e.contains("names target vertex 99999, but the mesh has 9409"),
         "{e}"
@@ -231,12 +232,12 @@ fn bad_correspondences_are_explained() {
     f.features[4].source = f.features[2].source;
     let e = Transfer::new(ict(), f, &seq_shape, 2, None)
         .unwrap_err()
-        .to_string();
+        .kind_is(ErrorKind::Unfit);
     assert!(e.contains("share a point"), "{e}");
     let f = Features::builtin("mediapipe_to_canonical").unwrap();
     let e = Transfer::new(ict(), f, &seq_shape, 2, None)
         .unwrap_err()
-        .to_string();
+        .kind_is(ErrorKind::Invalid);
     assert!(e.contains("names source landmark"), "{e}");
 }
 
@@ -299,7 +300,11 @@ fn painted_weights_override_the_automatic_ones() {
         r#"{"weights": [{"vertex": 5, "feature": "nose_wing", "weight": 1}]}"#,
     )
     .unwrap();
-    let e = t.skin.paint(&p, &names).unwrap_err().to_string();
+    let e = t
+        .skin
+        .paint(&p, &names)
+        .unwrap_err()
+        .kind_is(ErrorKind::File);
     assert!(e.contains("no feature named 'nose_wing'"), "{e}");
     // Painted all 0, a vertex has no influence left: it stays where it is (no 0/0).
     std::fs::write(
@@ -326,7 +331,11 @@ fn painted_weights_override_the_automatic_ones() {
         ),
     ] {
         std::fs::write(&p, text).unwrap();
-        let e = t.skin.paint(&p, &names).unwrap_err().to_string();
+        let e = t
+            .skin
+            .paint(&p, &names)
+            .unwrap_err()
+            .kind_is(ErrorKind::File);
         assert!(e.contains(needle), "{e}");
         assert_eq!(t.skin.influences, before);
     }
@@ -466,4 +475,18 @@ fn no_edge_of_the_mesh_tears_at_an_ellipsoids_border() {
         worst < 0.3,
         "an edge's displacement jumps by {worst:.2} of the largest"
     );
+}
+
+/// A library error's kind checked before its words are read: a test acts on the kind, as a
+/// caller would, and reads the message only for what it must name.
+trait KindIs {
+    fn kind_is(self, kind: keyshape_core::ErrorKind) -> String;
+}
+
+impl KindIs for keyshape_core::Error {
+    #[track_caller]
+    fn kind_is(self, kind: keyshape_core::ErrorKind) -> String {
+        assert_eq!(self.kind(), kind, "{self}");
+        self.to_string()
+    }
 }

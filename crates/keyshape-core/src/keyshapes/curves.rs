@@ -39,9 +39,11 @@ pub fn sweep(
 ) -> Result<Vec<CurveRow>> {
     let (lo, hi) = (*ks.start(), *ks.end());
     if lo == 0 || lo > hi {
-        return Err(Error::invalid(format!(
-            "k range {lo}..{hi} is empty or starts at 0"
-        )));
+        return Err(Error::bad_setting(
+            "k",
+            format!("{lo}..{hi}"),
+            format!("k range {lo}..{hi} is empty or starts at 0"),
+        ));
     }
     an.check_k(hi)?;
     let total = methods.len() * solvers.len();

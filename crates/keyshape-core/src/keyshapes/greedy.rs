@@ -115,7 +115,7 @@ pub fn greedy_ls_feature_space(an: &Analysis, kmax: usize) -> Result<(Vec<usize>
             .iter()
             .max_by(|x, y| x.1.total_cmp(&y.1).then(y.0.cmp(&x.0)))
         else {
-            return Err(Error::invalid(format!(
+            return Err(Error::unfit(format!(
                 "greedy: only {} linearly independent shapes, {kmax} asked for",
                 chosen.len()
             )));
@@ -129,7 +129,7 @@ pub fn greedy_ls_feature_space(an: &Analysis, kmax: usize) -> Result<(Vec<usize>
         }
         let norm = r.norm();
         if norm.is_nan() || norm <= 0.0 {
-            return Err(Error::invalid(
+            return Err(Error::unfit(
                 "greedy: a chosen frame lies in the span of the others",
             ));
         }
@@ -203,7 +203,7 @@ pub fn greedy_gram(
             constrained_gains(k_full, &chosen, &weights, &taken, top, solver)
         };
         if gains.is_empty() {
-            return Err(Error::invalid(format!(
+            return Err(Error::unfit(format!(
                 "greedy: only {} linearly independent shapes, {kmax} asked for",
                 chosen.len()
             )));
@@ -229,7 +229,7 @@ pub fn greedy_gram(
                     best = Some((c, w, e));
                 }
             }
-            best.ok_or_else(|| Error::invalid("greedy: no candidate"))?
+            best.ok_or_else(|| Error::unfit("greedy: no candidate"))?
         };
         // K_R ← K_R − u uᵀ with u = K_R[:, c] / sqrt(K_R[c, c]).
         if solver == Solver::Ls && kr[(pick, pick)] > 0.0 {

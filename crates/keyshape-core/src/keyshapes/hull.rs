@@ -35,9 +35,7 @@ impl Heuristic for Hull {
         // Two distinct shapes span one principal axis; fewer span none.
         an.need_distinct(2, "the convex hull (--method hull)")?;
         if an.proj.nrows() == 0 {
-            return Err(Error::invalid(
-                "hull: every frame projects to the same point",
-            ));
+            return Err(Error::unfit("hull: every frame projects to the same point"));
         }
         let n = an.frames();
         let axes = an.proj.nrows().min(2);
@@ -58,9 +56,7 @@ impl Heuristic for Hull {
         }
         let extent = (hi.0 - lo.0).max(hi.1 - lo.1);
         if extent.is_nan() || extent <= 0.0 {
-            return Err(Error::invalid(
-                "hull: every frame projects to the same point",
-            ));
+            return Err(Error::unfit("hull: every frame projects to the same point"));
         }
         // Lowest frame index first, so a merged duplicate reports the earliest frame.
         let verts: Vec<Vertex> = (0..n)
@@ -73,7 +69,7 @@ impl Heuristic for Hull {
             })
             .collect();
         let tri: DelaunayTriangulation<Vertex> = DelaunayTriangulation::bulk_load_stable(verts)
-            .map_err(|e| Error::invalid(format!("hull: triangulation failed: {e:?}")))?;
+            .map_err(|e| Error::unfit(format!("hull: triangulation failed: {e:?}")))?;
         let columns = if tri.num_vertices() < 3 || tri.all_vertices_on_line() {
             line_ends(an, &pt)
         } else {

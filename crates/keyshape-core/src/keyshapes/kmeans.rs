@@ -64,7 +64,11 @@ pub fn fit(data: &Array2<f64>, k: usize, seed: u64) -> Result<Array2<f64>> {
 /// `k²/2`.
 pub fn fit_with(data: &Array2<f64>, k: usize, seed: u64, seeding: Seeding) -> Result<Array2<f64>> {
     if seeding.restarts == 0 {
-        return Err(Error::invalid("k-means needs at least one restart"));
+        return Err(Error::bad_setting(
+            "restarts",
+            seeding.restarts,
+            "k-means needs at least one restart",
+        ));
     }
     let mut rng = Xoshiro256Plus::seed_from_u64(seed);
     let trials = seeding.trials(k);
@@ -84,7 +88,7 @@ pub fn fit_with(data: &Array2<f64>, k: usize, seed: u64, seeding: Seeding) -> Re
                 .tolerance(1e-6)
                 .init_method(KMeansInit::Precomputed(start))
                 .fit(&dataset)
-                .map_err(|e| Error::invalid(format!("k-means failed: {e}")))?;
+                .map_err(|e| Error::unfit(format!("k-means failed: {e}")))?;
             Ok((model.inertia(), model.centroids().clone()))
         })
         .collect::<Result<_>>()?;
@@ -95,7 +99,7 @@ pub fn fit_with(data: &Array2<f64>, k: usize, seed: u64, seeding: Seeding) -> Re
         }
     }
     best.map(|(_, c)| c)
-        .ok_or_else(|| Error::invalid("k-means: no run converged to a finite inertia"))
+        .ok_or_else(|| Error::unfit("k-means: no run converged to a finite inertia"))
 }
 
 /// Squared distance from row `centre` to row `t` of `data`, summed over the axes in order
@@ -124,7 +128,7 @@ pub fn kmeans_plusplus(
 ) -> Result<Vec<usize>> {
     let n = data.nrows();
     let first = WeightedIndex::new(std::iter::repeat_n(1.0f64, n))
-        .map_err(|e| Error::invalid(format!("k-means: {e}")))?
+        .map_err(|e| Error::unfit(format!("k-means: {e}")))?
         .sample(rng);
     let mut chosen = vec![first];
     let mut nearest: Vec<f64> = (0..n).map(|t| sq_dist(data, first, t)).collect();
@@ -148,7 +152,7 @@ pub fn kmeans_plusplus(
             }
         }
         let Some((_, cand)) = best else {
-            return Err(Error::invalid("k-means++: no candidate drawn"));
+            return Err(Error::unfit("k-means++: no candidate drawn"));
         };
         std::mem::swap(&mut nearest, &mut kept);
         chosen.push(cand);
@@ -251,7 +255,7 @@ pub(super) fn cluster_means(
     }
     for (c, &n) in sizes.iter().enumerate() {
         if n == 0 {
-            return Err(Error::invalid(format!(
+            return Err(Error::unfit(format!(
                 "k-means: cluster {c} of {k} has no frames, so it has no mean shape (choose a smaller k)"
             )));
         }

@@ -169,7 +169,7 @@ impl Method {
             _ => match base.strip_prefix("kmeans").map(str::parse::<usize>) {
                 Some(Ok(pcs)) if (1..=64).contains(&pcs) => Method::KMeans { pcs, mean },
                 _ => {
-                    return Err(Error::invalid(format!(
+                    return Err(Error::bad_setting("method", s, format!(
                         "unknown key-shape method '{s}' (expected spread, kmeans2, kmeans3, kmeansN, kmeansN-mean, hull, greedy or random)"
                     )))
                 }
@@ -274,7 +274,7 @@ pub fn need_distinct(distinct: usize, frames: usize, need: usize, what: &str) ->
     if distinct >= need {
         return Ok(());
     }
-    Err(Error::invalid(format!(
+    Err(Error::unfit(format!(
         "{what} needs at least {need} distinct shapes, but the sequence has {distinct} ({frames} frame{}{})",
         if frames == 1 { "" } else { "s" },
         if frames > distinct && distinct > 0 { ", the rest repeats" } else { "" }
@@ -351,10 +351,10 @@ impl Analysis {
     /// Checks that `k` key shapes can be chosen.
     pub fn check_k(&self, k: usize) -> Result<()> {
         if k == 0 {
-            return Err(Error::invalid("k must be at least 1"));
+            return Err(Error::bad_setting("k", k, "k must be at least 1"));
         }
         if k > self.distinct {
-            return Err(Error::invalid(format!(
+            return Err(Error::bad_setting("k", k, format!(
                 "k = {k} key shapes asked for, but the sequence has only {} distinct shapes ({} frames)",
                 self.distinct,
                 self.frames()
@@ -463,12 +463,12 @@ impl Analysis {
             }
         }
         if bad > 0 {
-            return Err(Error::invalid(format!(
+            return Err(Error::unfit(format!(
                 "{solver} did not converge on {bad} frames (iteration cap) for {what}"
             )));
         }
         if !e.is_finite() {
-            return Err(Error::invalid("reconstruction error is not finite"));
+            return Err(Error::unfit("reconstruction error is not finite"));
         }
         Ok(e)
     }
@@ -544,7 +544,7 @@ impl Analysis {
                 );
                 // An unconverged frame would put a wrong point on an error curve.
                 if unconverged > 0 {
-                    return Err(Error::invalid(format!(
+                    return Err(Error::unfit(format!(
                         "{solver} did not converge on {unconverged} frames (iteration cap) for {keys}"
                     )));
                 }
@@ -558,7 +558,7 @@ impl Analysis {
             e += (self.sq_norms[t] - 2.0 * wt.dot(&bt) + wt.dot(&gwt)).max(0.0);
         }
         if !e.is_finite() {
-            return Err(Error::invalid("reconstruction error is not finite"));
+            return Err(Error::unfit("reconstruction error is not finite"));
         }
         Ok((w, e))
     }
@@ -571,7 +571,7 @@ impl Analysis {
     /// Errors if fewer than `n` principal axes carry variance.
     fn need_axes(&self, n: usize, what: &str) -> Result<()> {
         if self.proj.nrows() < n {
-            return Err(Error::invalid(format!(
+            return Err(Error::unfit(format!(
                 "{what} needs {n} principal axes, but only {} are available (the shapes vary along fewer: choose fewer principal components, e.g. a smaller {} or kmeans2)",
                 self.proj.nrows(),
                 setting("pcs")

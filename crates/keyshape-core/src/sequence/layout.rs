@@ -180,11 +180,15 @@ impl Layout {
             };
             for part in parts {
                 let group = self.groups.get(part).ok_or_else(|| {
-                    Error::invalid(format!(
-                        "unknown point group '{name}' for layout {} (known: {}, all)",
-                        self.name,
-                        self.names().join(", ")
-                    ))
+                    Error::bad_setting(
+                        "points",
+                        name,
+                        format!(
+                            "unknown point group '{name}' for layout {} (known: {}, all)",
+                            self.name,
+                            self.names().join(", ")
+                        ),
+                    )
                 })?;
                 out.extend(group.points.iter().copied());
             }
@@ -192,7 +196,11 @@ impl Layout {
         out.sort_unstable();
         out.dedup();
         if out.is_empty() {
-            return Err(Error::invalid(format!("point selection '{spec}' is empty")));
+            return Err(Error::bad_setting(
+                "points",
+                spec,
+                format!("point selection '{spec}' is empty"),
+            ));
         }
         if let Some(&bad) = out.iter().find(|&&p| p >= self.points) {
             return Err(Error::invalid(format!(

@@ -64,10 +64,14 @@ impl Format {
             .find(|f| f.name().eq_ignore_ascii_case(name.trim()))
             .ok_or_else(|| {
                 let names: Vec<_> = Format::ALL.iter().map(|f| f.name()).collect();
-                Error::invalid(format!(
-                    "unknown format '{name}' (expected one of: {})",
-                    names.join(", ")
-                ))
+                Error::bad_setting(
+                    "format",
+                    name,
+                    format!(
+                        "unknown format '{name}' (expected one of: {})",
+                        names.join(", ")
+                    ),
+                )
             })
     }
 }
@@ -218,9 +222,11 @@ impl Sequence {
     /// the coordinates are not normalised or a size is not a positive finite number.
     pub fn scale_to_image(&mut self, width: f64, height: f64) -> Result<()> {
         if !(width.is_finite() && width > 0.0 && height.is_finite() && height > 0.0) {
-            return Err(Error::invalid(format!(
-                "image size {width} × {height}: give positive sizes in pixels"
-            )));
+            return Err(Error::bad_setting(
+                "image_size",
+                format!("{width} × {height}"),
+                format!("image size {width} × {height}: give positive sizes in pixels"),
+            ));
         }
         if !self.is_normalised() {
             let (lo, hi) = self.ranges()[0];

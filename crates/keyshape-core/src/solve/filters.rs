@@ -90,7 +90,7 @@ impl PostFilter {
         if ok {
             Ok(())
         } else {
-            Err(Error::invalid(format!(
+            Err(Error::bad_setting("filter", self.setting(), format!(
                 "bad {} filter setting: {} (window odd ≥ 1; alpha in (0, 1]; cutoffs and rate > 0, beta ≥ 0)",
                 self.family(),
                 self.setting()

@@ -26,9 +26,11 @@ pub fn pseudo_inverse(s: &DMatrix<f64>, rcond: Option<f64>) -> Result<PseudoInve
     let (n, k) = s.shape();
     let rcond = rcond.unwrap_or_else(|| default_rcond(n, k));
     if !(0.0..1.0).contains(&rcond) {
-        return Err(Error::invalid(format!(
-            "rcond must be in [0, 1), got {rcond}"
-        )));
+        return Err(Error::bad_setting(
+            "rcond",
+            rcond,
+            format!("rcond must be in [0, 1), got {rcond}"),
+        ));
     }
     let svd = super::jacobi::svd(s);
     let sv = &svd.s;
@@ -62,7 +64,7 @@ pub fn normal_equations(s: &DMatrix<f64>, q: &DMatrix<f64>) -> Result<DMatrix<f6
     let chol = s
         .tr_mul(s)
         .cholesky()
-        .ok_or_else(|| Error::invalid("SᵀS is not positive definite (dependent key shapes)"))?;
+        .ok_or_else(|| Error::unfit("SᵀS is not positive definite (dependent key shapes)"))?;
     Ok(chol.solve(&s.tr_mul(q)))
 }
 
@@ -73,7 +75,7 @@ pub fn normal_equations_batch(s: &DMatrix<f64>, q: &DMatrix<f64>) -> Result<DMat
     let chol = s
         .tr_mul(s)
         .cholesky()
-        .ok_or_else(|| Error::invalid("SᵀS is not positive definite (dependent key shapes)"))?;
+        .ok_or_else(|| Error::unfit("SᵀS is not positive definite (dependent key shapes)"))?;
     let st = s.transpose();
     let mut out = DMatrix::zeros(k, q.ncols());
     out.as_mut_slice()

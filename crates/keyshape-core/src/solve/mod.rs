@@ -66,9 +66,11 @@ impl Solver {
             .into_iter()
             .find(|v| v.name().eq_ignore_ascii_case(s.trim()))
             .ok_or_else(|| {
-                Error::invalid(format!(
-                    "unknown solver '{s}' (expected ls, nnls or bounded)"
-                ))
+                Error::bad_setting(
+                    "solver",
+                    s,
+                    format!("unknown solver '{s}' (expected ls, nnls or bounded)"),
+                )
             })
     }
 }
@@ -165,7 +167,7 @@ pub fn solve_batch(s: &DMatrix<f64>, q: &DMatrix<f64>, opts: &SolveOptions) -> R
     let bad =
         (0..sol.weights.ncols()).find(|&j| sol.weights.column(j).iter().any(|v| !v.is_finite()));
     if let Some(j) = bad {
-        return Err(Error::invalid(format!(
+        return Err(Error::unfit(format!(
             "frame column {j}: non-finite weights (the frame holds NaN or infinity)"
         )));
     }

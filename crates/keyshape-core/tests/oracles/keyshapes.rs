@@ -2,6 +2,7 @@
 
 use keyshape_core::keyshapes::{greedy_path, Analysis, KeyOptions, Method};
 use keyshape_core::solve::{SolveOptions, Solver};
+use keyshape_core::ErrorKind;
 use nalgebra::DMatrix;
 use proptest::prelude::*;
 
@@ -210,7 +211,7 @@ fn asking_for_more_keys_than_distinct_shapes_is_a_clear_error() {
             .heuristic(&KeyOptions::default())
             .select(&an, 5)
             .unwrap_err()
-            .to_string();
+            .kind_is(ErrorKind::Setting);
         assert!(e.contains("only 4 distinct shapes"), "{m}: {e}");
     }
 }
@@ -587,7 +588,7 @@ fn hull_of_an_axis_parallel_line_orders_its_ends_by_the_direction_to_the_far_end
 #[test]
 fn hull_refuses_a_sequence_whose_frames_project_to_one_point() {
     for p in [(0.0, 0.0), (2.5, -1.0)] {
-        let e = hull_of(&[p, p, p]).unwrap_err().to_string();
+        let e = hull_of(&[p, p, p]).unwrap_err().kind_is(ErrorKind::Unfit);
         assert!(e.contains("every frame projects to the same point"), "{e}");
     }
 }
@@ -613,7 +614,7 @@ fn sweep_refuses_an_empty_k_range_and_sweeps_a_single_k() {
     for (lo, hi) in [(0, 3), (4, 3), (0, 0)] {
         let e = run(std::ops::RangeInclusive::new(lo, hi))
             .unwrap_err()
-            .to_string();
+            .kind_is(ErrorKind::Setting);
         assert!(
             e.contains(&format!("k range {lo}..{hi} is empty or starts at 0")),
             "{e}"
@@ -723,20 +724,26 @@ fn eq5_refuses_no_keys_and_keys_out_of_range_on_both_paths() {
         let q = DMatrix::from_fn(8, frames, |i, t| ((i * 13 + t * 7) % 17) as f64 + i as f64);
         let an = Analysis::new(q, 4).unwrap();
         for s in Solver::ALL {
-            let e = an.error(&[], s).unwrap_err().to_string();
+            let e = an.error(&[], s).unwrap_err().kind_is(ErrorKind::Invalid);
             assert!(e.contains("no key shapes"), "{frames} frames, {s}: {e}");
-            let e = an.weights_and_error(&[], s).unwrap_err().to_string();
+            let e = an
+                .weights_and_error(&[], s)
+                .unwrap_err()
+                .kind_is(ErrorKind::Invalid);
             assert!(e.contains("no key shapes"), "{e}");
             let e = an
                 .selection_error(&Selection::frames(vec![]), s)
                 .unwrap_err()
-                .to_string();
+                .kind_is(ErrorKind::Invalid);
             assert!(e.contains("no key shapes"), "{e}");
             let want = format!("key column {frames} out of range (0..{frames})");
             for keys in [vec![frames], vec![0, frames, 1]] {
-                let e = an.error(&keys, s).unwrap_err().to_string();
+                let e = an.error(&keys, s).unwrap_err().kind_is(ErrorKind::Invalid);
                 assert!(e.contains(&want), "{frames} frames, {s}: {e}");
-                let e = an.weights_and_error(&keys, s).unwrap_err().to_string();
+                let e = an
+                    .weights_and_error(&keys, s)
+                    .unwrap_err()
+                    .kind_is(ErrorKind::Invalid);
                 assert!(e.contains(&want), "{e}");
             }
             // The last frame is in range.
@@ -846,7 +853,7 @@ fn greedy_least_squares_refuses_more_keys_than_the_frames_span() {
     assert_eq!(an.distinct, 5);
     let want = "greedy: only 3 linearly independent shapes, 4 asked for";
     let check = |r: keyshape_core::error::Result<(Vec<usize>, Vec<f64>)>, what: &str| {
-        let e = r.unwrap_err().to_string();
+        let e = r.unwrap_err().kind_is(ErrorKind::Unfit);
         assert!(e.contains(want), "{what}: {e}");
     };
     let (keys, errs) = greedy_gram(&an, 3, Solver::Ls, 0).unwrap();
@@ -947,7 +954,9 @@ fn greedy_treats_a_numerically_zero_frame_as_no_shape() {
     for solver in Solver::ALL {
         let (keys, _) = greedy_gram(&an, 2, solver, 0).unwrap();
         assert_eq!(sorted(keys), vec![0, 1], "{solver}");
-        let e = greedy_gram(&an, 3, solver, 0).unwrap_err().to_string();
+        let e = greedy_gram(&an, 3, solver, 0)
+            .unwrap_err()
+            .kind_is(ErrorKind::Unfit);
         assert!(
             e.contains("greedy: only 2 linearly independent shapes, 3 asked for"),
             "{solver}: {e}"
@@ -957,7 +966,9 @@ fn greedy_treats_a_numerically_zero_frame_as_no_shape() {
     use keyshape_core::keyshapes::greedy_ls_feature_space;
     let (keys, _) = greedy_ls_feature_space(&an, 2).unwrap();
     assert_eq!(sorted(keys), vec![0, 1]);
-    let e = greedy_ls_feature_space(&an, 3).unwrap_err().to_string();
+    let e = greedy_ls_feature_space(&an, 3)
+        .unwrap_err()
+        .kind_is(ErrorKind::Unfit);
     assert!(
         e.contains("only 2 linearly independent shapes, 3 asked for"),
         "{e}"
@@ -1017,5 +1028,19 @@ fn the_shortlist_bound_clips_to_each_solvers_bound() {
         // The brute-force best single key agrees.
         let e: Vec<f64> = (0..3).map(|c| an.error(&[c], solver).unwrap()).collect();
         assert!(e.iter().all(|&x| e[want] <= x), "{solver}: {e:?}");
+    }
+}
+
+/// A library error's kind checked before its words are read: a test acts on the kind, as a
+/// caller would, and reads the message only for what it must name.
+trait KindIs {
+    fn kind_is(self, kind: keyshape_core::ErrorKind) -> String;
+}
+
+impl KindIs for keyshape_core::Error {
+    #[track_caller]
+    fn kind_is(self, kind: keyshape_core::ErrorKind) -> String {
+        assert_eq!(self.kind(), kind, "{self}");
+        self.to_string()
     }
 }

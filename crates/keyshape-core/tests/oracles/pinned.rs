@@ -6,6 +6,7 @@ use keyshape_core::decompose::decompose_coords;
 use keyshape_core::keyshapes::{Analysis, KeyOptions, Method};
 use keyshape_core::rbf::Rbf;
 use keyshape_core::solve::{SolveOptions, Solver};
+use keyshape_core::ErrorKind;
 use nalgebra::{DMatrix, DVector};
 
 /// A frame whose weights are finite but whose squared error overflows is refused, not
@@ -211,7 +212,10 @@ fn kmeans_mean_keys_are_the_clusters_mean_shapes() {
         assert_eq!(ef, an.error(&plain.columns, Solver::Nnls).unwrap());
         assert_ne!(e, ef);
         // Where frames are needed, the mean variant is refused with a pointer to kmeansN.
-        let msg = sel.key_frames(&m, "retargeting").unwrap_err().to_string();
+        let msg = sel
+            .key_frames(&m, "retargeting")
+            .unwrap_err()
+            .kind_is(ErrorKind::Invalid);
         assert!(msg.contains(&format!("use kmeans{pcs} ")), "{msg}");
         assert_eq!(plain.key_frames(&m, "x").unwrap(), &plain.columns[..]);
         // Names round-trip.
@@ -326,7 +330,7 @@ fn batch_solves_over_many_chunks_match_frame_by_frame_solves() {
     for solver in [Solver::Ls, Solver::Nnls] {
         let e = solve_batch(&s, &bad, &SolveOptions::new(solver))
             .unwrap_err()
-            .to_string();
+            .kind_is(ErrorKind::Unfit);
         assert!(
             e.contains(&format!("frame column {}:", CHUNK + 5)),
             "{solver}: {e}"
@@ -386,7 +390,7 @@ fn the_method_table_and_its_edges() {
     .heuristic(&KeyOptions::default())
     .select(&an, 2)
     .unwrap_err()
-    .to_string();
+    .kind_is(ErrorKind::Unfit);
     assert!(e.contains("needs 3 principal axes"), "{e}");
 }
 
@@ -461,10 +465,16 @@ fn an_iteration_cap_makes_the_error_an_error_that_counts_the_stopped_frames() {
         let free = an.error(&keys, Solver::Nnls).unwrap();
         an.max_iterations = Some(0);
         for solver in [Solver::Nnls, Solver::Bounded] {
-            let msg = an.error(&keys, solver).unwrap_err().to_string();
+            let msg = an
+                .error(&keys, solver)
+                .unwrap_err()
+                .kind_is(ErrorKind::Unfit);
             let want = format!("{solver} did not converge on {frames} frames (iteration cap) for key columns [0, 5, 11]");
             assert!(msg.contains(&want), "{frames} frames: {msg}");
-            let msg = an.selection_error(&means, solver).unwrap_err().to_string();
+            let msg = an
+                .selection_error(&means, solver)
+                .unwrap_err()
+                .kind_is(ErrorKind::Unfit);
             let want = format!("{solver} did not converge on {frames} frames (iteration cap) for the cluster mean shapes");
             assert!(msg.contains(&want), "{frames} frames: {msg}");
             if frames <= GRAM_LIMIT {
@@ -495,7 +505,10 @@ fn mean_shapes_of_the_wrong_size_are_refused_on_every_path() {
             sizes: Some(vec![1, frames - 1]),
         };
         for solver in Solver::ALL {
-            let msg = an.selection_error(&sel, solver).unwrap_err().to_string();
+            let msg = an
+                .selection_error(&sel, solver)
+                .unwrap_err()
+                .kind_is(ErrorKind::Invalid);
             assert!(
                 msg.contains("key shapes have 4 values, the frames 6"),
                 "{msg}"
@@ -521,11 +534,13 @@ fn rbf_refuses_each_malformed_input_and_nearly_coincident_points() {
         (&src[..5], &src[..5], "differ in count"),
     ];
     for (s, d, want) in cases {
-        let e = Rbf::fit(s, d, 2).unwrap_err().to_string();
+        let e = Rbf::fit(s, d, 2).unwrap_err().kind_is(ErrorKind::Invalid);
         assert!(e.contains(want), "{} points: {e}", s.len());
     }
     let close = [0.0, 0.0, 1e-13, 0.0, 1.0, 1.0];
-    let e = Rbf::fit(&close, &close, 2).unwrap_err().to_string();
+    let e = Rbf::fit(&close, &close, 2)
+        .unwrap_err()
+        .kind_is(ErrorKind::Unfit);
     assert!(e.contains("too close together"), "{e}");
     // Well separated points train, and 1e-3 apart still do (condition well below 1e12).
     assert!(Rbf::fit(&src, &src, 2).is_ok());
@@ -662,5 +677,19 @@ fn rbf_apply_all_is_apply_per_column_and_takes_empty_matrices() {
     for (rows, cols) in [(0, 4), (6, 0), (0, 0)] {
         let e = f.apply_all(&nalgebra::DMatrix::zeros(rows, cols));
         assert_eq!(e.shape(), (rows, cols));
+    }
+}
+
+/// A library error's kind checked before its words are read: a test acts on the kind, as a
+/// caller would, and reads the message only for what it must name.
+trait KindIs {
+    fn kind_is(self, kind: keyshape_core::ErrorKind) -> String;
+}
+
+impl KindIs for keyshape_core::Error {
+    #[track_caller]
+    fn kind_is(self, kind: keyshape_core::ErrorKind) -> String {
+        assert_eq!(self.kind(), kind, "{self}");
+        self.to_string()
     }
 }

@@ -90,7 +90,11 @@ pub fn recovery(rig: &Rig, st: &RigStudySettings) -> Result<Vec<RecoveryRow>> {
             })
             .collect::<Result<_>>()?;
     if st.frames < 2 {
-        return Err(Error::invalid("[rig] frames must be at least 2"));
+        return Err(Error::bad_setting(
+            "frames",
+            st.frames,
+            "[rig] frames must be at least 2",
+        ));
     }
     for &n in &st.noise_px {
         keyshape_core::limits::NOISE_PX.check("noise_px", n)?;

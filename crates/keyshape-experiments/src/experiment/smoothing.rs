@@ -62,12 +62,18 @@ impl SmoothStudySettings {
     /// Checks every setting.
     pub fn check(&self, fps: f64) -> Result<()> {
         if self.method == Method::Hull && self.k.is_some() {
-            return Err(Error::invalid(
+            return Err(Error::bad_setting(
+                "k",
+                self.k.unwrap_or_default(),
                 "k does not apply to the hull method: the hull gives its own number of key shapes",
             ));
         }
         if self.k == Some(0) {
-            return Err(Error::invalid("the smoothing study needs k ≥ 1"));
+            return Err(Error::bad_setting(
+                "k",
+                self.k.unwrap_or_default(),
+                "the smoothing study needs k ≥ 1",
+            ));
         }
         for &l in &self.lambdas {
             Smoothing {
@@ -79,10 +85,11 @@ impl SmoothStudySettings {
         }
         for f in &self.filters {
             if !FAMILIES.contains(&f.as_str()) {
-                return Err(Error::invalid(format!(
-                    "unknown filter '{f}' (filters: {})",
-                    FAMILIES.join(", ")
-                )));
+                return Err(Error::bad_setting(
+                    "filters",
+                    f,
+                    format!("unknown filter '{f}' (filters: {})", FAMILIES.join(", ")),
+                ));
             }
         }
         for (family, given, name) in [
@@ -310,7 +317,7 @@ fn study_with_keys(
             }
             let r = smooth_from(&s, q, &plain, st.solver, &sm, &segs)?;
             if r.unconverged > 0 {
-                return Err(Error::invalid(format!(
+                return Err(Error::unfit(format!(
                     "{name} λ {lambda}: the smoothed solve did not settle (KKT residual {:e})",
                     r.kkt
                 )));

@@ -91,7 +91,7 @@ impl<'a> Chunks<'a> {
         for t in 0..m {
             let w = sol.weights.column(t);
             if !err[t].is_finite() || w.iter().any(|x| !x.is_finite()) {
-                return Err(Error::invalid(format!(
+                return Err(Error::unfit(format!(
                     "the solve gave non-finite weights or error at frame {} (coordinates too large or degenerate key shapes); nothing written",
                     frames[t]
                 )));

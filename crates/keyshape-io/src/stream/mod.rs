@@ -317,7 +317,7 @@ fn check_options(opts: &StreamOptions) -> Result<()> {
     if let Some(sm) = &opts.smoothing {
         sm.check()?;
         if sm.mode == SmoothMode::Offline && sm.lambda > 0.0 {
-            return Err(Error::invalid(format!(
+            return Err(Error::bad_setting("smooth_mode", "offline", format!(
                 "the offline temporal prior solves the whole sequence at once and cannot stream: use {} causal, or drop {}",
                 setting("smooth_mode"),
                 setting("stream")
@@ -428,10 +428,11 @@ fn key_columns(found: &FirstPass, opts: &StreamOptions) -> Result<(Vec<usize>, O
     let mut cols = Vec::with_capacity(opts.keys.len());
     for (c, &k) in found.key_cols.iter().zip(&opts.keys) {
         if !seen.insert(k) {
-            return Err(Error::invalid(format!(
-                "{}: frame {k} is listed twice",
-                setting("keys")
-            )));
+            return Err(Error::bad_setting(
+                "keys",
+                k,
+                format!("{}: frame {k} is listed twice", setting("keys")),
+            ));
         }
         cols.push(c.ok_or_else(|| missing(k, &setting("keys")))?);
     }
@@ -466,10 +467,14 @@ fn selected_points(points: usize, opts: &StreamOptions) -> Result<Vec<usize>> {
         (None, _) => (0..points).collect(),
         (Some(spec), Some(l)) => l.select(spec)?,
         (Some(spec), None) => {
-            return Err(Error::invalid(format!(
+            return Err(Error::bad_setting(
+                "points",
+                spec,
+                format!(
                 "{} {spec}: no built-in layout has {points} points (MediaPipe has 468, iBUG 68)",
                 setting("points")
-            )))
+            ),
+            ))
         }
     })
 }

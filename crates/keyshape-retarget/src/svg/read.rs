@@ -3,7 +3,7 @@
 
 use super::Meta;
 use crate::target::{TargetKey, TargetSet};
-use keyshape_core::error::{Error, Result};
+use keyshape_core::error::{Error, Needed, Result};
 use std::collections::BTreeMap;
 use std::path::Path;
 
@@ -26,9 +26,10 @@ fn find_meta(path: &Path, text: &str) -> Result<Meta> {
         .descendants()
         .find(|n| n.attribute("id") == Some("kslab-template"))
         .ok_or_else(|| {
-            Error::file(
+            Error::needs_in(
                 path,
-                "no <desc id=\"kslab-template\">: not a template written by `kslab template`",
+                Needed::Template,
+                "no <desc id=\"kslab-template\">: not a template written by this program",
             )
         })?;
     let meta: Meta = serde_json::from_str(node.text().unwrap_or(""))
@@ -252,9 +253,10 @@ pub fn parse_template(path: &Path, text: &str) -> Result<TargetSet> {
                 // A template from before `origins`: its group carried only the offset.
                 let t = g.transform();
                 if (t.sx, t.kx, t.ky, t.sy) != (1.0, 0.0, 0.0, 1.0) {
-                    return Err(Error::file(
+                    return Err(Error::needs_in(
                         path,
-                        format!("group {} was scaled or rotated, and this template predates kslab's record of where each key sits; write it again with `kslab template`", g.id()),
+                        Needed::Template,
+                        format!("group {} was scaled or rotated, and this template predates the record of where each key sits; write it again", g.id()),
                     ));
                 }
                 [f64::from(t.tx), f64::from(t.ty)]

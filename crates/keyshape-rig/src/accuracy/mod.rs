@@ -52,9 +52,11 @@ impl Kind {
             .into_iter()
             .find(|k| k.name() == s)
             .ok_or_else(|| {
-                Error::invalid(format!(
-                    "'{s}' is not a performance kind (smooth, winks, blinks, speech)"
-                ))
+                Error::bad_setting(
+                    "performance",
+                    s,
+                    format!("'{s}' is not a performance kind (smooth, winks, blinks, speech)"),
+                )
             })
     }
 }
@@ -157,7 +159,8 @@ impl Default for Settings {
 impl Settings {
     /// Refuses settings no track can be made from.
     pub fn check(&self) -> Result<()> {
-        let bad = |what: &str, v: f64| Error::invalid(format!("{what} {v} is not allowed"));
+        let bad =
+            |what: &str, v: f64| Error::bad_setting(what, v, format!("{what} {v} is not allowed"));
         if self.frames < 2 || self.frames > 1_000_000 {
             return Err(bad("frames", self.frames as f64));
         }
@@ -171,19 +174,25 @@ impl Settings {
             ("pitch (°)", self.pitch_deg, 80.0),
         ] {
             if v.is_nan() || v < 0.0 || v > hi {
-                return Err(Error::invalid(format!(
-                    "{what} {v} is not allowed: give a number in [0, {hi}]"
-                )));
+                return Err(Error::bad_setting(
+                    what,
+                    v,
+                    format!("{what} {v} is not allowed: give a number in [0, {hi}]"),
+                ));
             }
         }
         if self.iod_px <= 0.0 {
             return Err(bad("inter-ocular distance (px)", self.iod_px));
         }
         if !(self.hold.is_finite() && (0.0..=3.0).contains(&self.hold)) {
-            return Err(Error::invalid(format!(
-                "a held expression of {} is not allowed: give its total weight in [0, 3]",
-                self.hold
-            )));
+            return Err(Error::bad_setting(
+                "hold",
+                self.hold,
+                format!(
+                    "a held expression of {} is not allowed: give its total weight in [0, 3]",
+                    self.hold
+                ),
+            ));
         }
         Ok(())
     }
@@ -469,7 +478,7 @@ pub fn render(rig: &Rig, st: &Settings) -> Result<Track> {
         ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt()
     };
     if iod.is_nan() || iod <= 0.0 {
-        return Err(Error::invalid("the rig's outer eye corners coincide"));
+        return Err(Error::unfit("the rig's outer eye corners coincide"));
     }
     let scale = st.iod_px / iod;
     let cameras: Vec<Camera> = (0..total)
@@ -602,9 +611,11 @@ pub fn mapped_elsewhere(
     seed: u64,
 ) -> Result<Rig> {
     if !(radius.is_finite() && radius >= 0.0) {
-        return Err(Error::invalid(format!(
-            "a landmark map error of {radius} is not allowed: give a distance ≥ 0"
-        )));
+        return Err(Error::bad_setting(
+            "map_noise",
+            radius,
+            format!("a landmark map error of {radius} is not allowed: give a distance ≥ 0"),
+        ));
     }
     let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(seed ^ 0x0a11_ce55);
     let d2 = |a: &[f64; 3], b: &[f64; 3]| (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f64>();

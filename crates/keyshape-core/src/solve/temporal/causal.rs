@@ -55,7 +55,7 @@ impl CausalShared {
         let chol_l = gl
             .clone()
             .cholesky()
-            .ok_or_else(|| Error::invalid("temporal prior: SᵀS + λI is not positive definite"))?;
+            .ok_or_else(|| Error::unfit("temporal prior: SᵀS + λI is not positive definite"))?;
         Ok(CausalShared {
             k,
             solver,
@@ -155,7 +155,7 @@ pub(super) fn causal(
         unconverged += bad;
     }
     if weights.iter().any(|v| !v.is_finite()) {
-        return Err(Error::invalid(
+        return Err(Error::unfit(
             "temporal prior: non-finite weights (a frame holds NaN or infinity)",
         ));
     }

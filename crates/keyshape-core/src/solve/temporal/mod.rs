@@ -44,9 +44,11 @@ impl std::str::FromStr for SmoothMode {
         match s {
             "offline" => Ok(SmoothMode::Offline),
             "causal" => Ok(SmoothMode::Causal),
-            _ => Err(crate::error::Error::invalid(format!(
-                "'{s}': choose offline or causal"
-            ))),
+            _ => Err(crate::error::Error::bad_setting(
+                "smooth_mode",
+                s,
+                format!("'{s}': choose offline or causal"),
+            )),
         }
     }
 }
@@ -76,16 +78,24 @@ impl Smoothing {
     /// Checks λ (finite, ≥ 0) and the order (1 or 2).
     pub fn check(&self) -> Result<()> {
         if !(self.lambda.is_finite() && self.lambda >= 0.0) {
-            return Err(Error::invalid(format!(
-                "smoothing λ must be a finite number ≥ 0, got {}",
-                self.lambda
-            )));
+            return Err(Error::bad_setting(
+                "smooth_lambda",
+                self.lambda,
+                format!(
+                    "smoothing λ must be a finite number ≥ 0, got {}",
+                    self.lambda
+                ),
+            ));
         }
         if self.order != 1 && self.order != 2 {
-            return Err(Error::invalid(format!(
-                "smoothing order must be 1 (first difference) or 2 (second difference), got {}",
-                self.order
-            )));
+            return Err(Error::bad_setting(
+                "smooth_order",
+                self.order,
+                format!(
+                    "smoothing order must be 1 (first difference) or 2 (second difference), got {}",
+                    self.order
+                ),
+            ));
         }
         Ok(())
     }

@@ -179,7 +179,7 @@ impl SegmentSystem {
             }
             h -= xa.tr_mul(&xa) + xb.tr_mul(&xb);
             Some(h.cholesky().ok_or_else(|| {
-                Error::invalid(
+                Error::unfit(
                     "temporal prior: the separator's Schur complement is not positive definite",
                 )
             })?)

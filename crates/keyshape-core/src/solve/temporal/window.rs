@@ -238,7 +238,7 @@ pub(super) fn compute_row(
 
 /// The error of a pivot `v` at frame `s` that is not positive.
 pub(super) fn not_definite(s: usize, v: f64) -> Error {
-    Error::invalid(format!(
+    Error::unfit(format!(
         "temporal prior: the banded system is not positive definite at frame {s} (pivot {v:e})"
     ))
 }

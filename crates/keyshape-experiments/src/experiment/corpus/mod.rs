@@ -28,7 +28,7 @@
 //! ```
 
 use super::Spec;
-use keyshape_core::error::{setting, Error, Result};
+use keyshape_core::error::{setting, Error, Needed, Result};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
@@ -72,9 +72,10 @@ impl Shard {
     /// Parses `i/n`.
     pub fn parse(s: &str) -> Result<Shard> {
         let bad = || {
-            shard_error(format!(
-                "'{s}': write i/n with 0 ≤ i < n (e.g. 0/4), or auto"
-            ))
+            shard_error(
+                s,
+                format!("'{s}': write i/n with 0 ≤ i < n (e.g. 0/4), or auto"),
+            )
         };
         let (i, n) = s.split_once('/').ok_or_else(bad)?;
         let (index, count) = (
@@ -93,20 +94,20 @@ impl Shard {
     /// Kubernetes Indexed Job pod (`JOB_COMPLETION_INDEX` of `KSLAB_SHARD_COUNT`, which the
     /// Job sets to its `completions`). `var` reads the environment.
     pub fn from_env(var: &dyn Fn(&str) -> Option<String>) -> Result<Shard> {
-        let num =
-            |name: &str| -> Result<Option<usize>> {
-                match var(name) {
-                    None => Ok(None),
-                    Some(v) => v.trim().parse::<usize>().map(Some).map_err(|_| {
-                        shard_error(format!("auto: {name}='{v}' is not a whole number"))
-                    }),
-                }
-            };
+        let num = |name: &str| -> Result<Option<usize>> {
+            match var(name) {
+                None => Ok(None),
+                Some(v) => v.trim().parse::<usize>().map(Some).map_err(|_| {
+                    shard_error("auto", format!("auto: {name}='{v}' is not a whole number"))
+                }),
+            }
+        };
         let shard = |index: usize, count: usize, how: &str| {
             if count == 0 || index >= count {
-                Err(shard_error(format!(
-                    "auto: {how} gives shard {index} of {count}"
-                )))
+                Err(shard_error(
+                    "auto",
+                    format!("auto: {how} gives shard {index} of {count}"),
+                ))
             } else {
                 keyshape_core::limits::SHARDS.check_count("shard", count as u64)?;
                 Ok(Shard { index, count })
@@ -114,15 +115,21 @@ impl Shard {
         };
         if let Some(id) = num("SLURM_ARRAY_TASK_ID")? {
             let count = num("SLURM_ARRAY_TASK_COUNT")?.ok_or_else(|| {
-                shard_error("auto: SLURM_ARRAY_TASK_ID is set but SLURM_ARRAY_TASK_COUNT is not")
+                shard_error(
+                    "auto",
+                    "auto: SLURM_ARRAY_TASK_ID is set but SLURM_ARRAY_TASK_COUNT is not",
+                )
             })?;
             let min = num("SLURM_ARRAY_TASK_MIN")?.unwrap_or(0);
             let max = num("SLURM_ARRAY_TASK_MAX")?;
             let contiguous = || {
-                shard_error(format!(
-                    "auto: the Slurm array has gaps or a step ({count} tasks from {min}); submit a contiguous --array=0-{}",
-                    count.saturating_sub(1)
-                ))
+                Error::needs(
+                    Needed::ContiguousArray { tasks: count },
+                    format!(
+                        "{} auto: the Slurm array has gaps or a step ({count} tasks from {min}); submit one whose task ids run from 0 without gaps",
+                        setting("shard")
+                    ),
+                )
             };
             // A step spaces the task ids out: id − min would no longer count the tasks.
             if num("SLURM_ARRAY_TASK_STEP")?.is_some_and(|step| step != 1) {
@@ -134,23 +141,29 @@ impl Shard {
                 }
             }
             if id < min || max.is_some_and(|max| id > max) {
-                return Err(shard_error(format!(
-                    "auto: SLURM_ARRAY_TASK_ID {id} lies outside the array ({min}-{})",
-                    max.map_or("?".to_string(), |m| m.to_string())
-                )));
+                return Err(shard_error(
+                    "auto",
+                    format!(
+                        "auto: SLURM_ARRAY_TASK_ID {id} lies outside the array ({min}-{})",
+                        max.map_or("?".to_string(), |m| m.to_string())
+                    ),
+                ));
             }
             return shard(id - min, count, "the Slurm array");
         }
         if let Some(id) = num("JOB_COMPLETION_INDEX")? {
             let count = num("KSLAB_SHARD_COUNT")?.ok_or_else(|| {
-                shard_error("auto: JOB_COMPLETION_INDEX is set but KSLAB_SHARD_COUNT is not (set it to the Job's completions)")
+                shard_error("auto", "auto: JOB_COMPLETION_INDEX is set but KSLAB_SHARD_COUNT is not (set it to the Job's completions)")
             })?;
             return shard(id, count, "the Indexed Job");
         }
-        Err(shard_error(format!(
+        Err(shard_error(
+            "auto",
+            format!(
             "auto: no scheduler variables (SLURM_ARRAY_TASK_ID, JOB_COMPLETION_INDEX); give {} i/n",
             setting("shard")
-        )))
+        ),
+        ))
     }
 
     /// Whether unit `u` of a corpus is this shard's.
@@ -161,8 +174,8 @@ impl Shard {
 
 /// An error in the shard setting: `shard <message>`, the setting named as the caller spells
 /// it.
-fn shard_error(message: impl std::fmt::Display) -> Error {
-    Error::invalid(format!("{} {message}", setting("shard")))
+fn shard_error(value: &str, message: impl std::fmt::Display) -> Error {
+    Error::bad_setting("shard", value, format!("{} {message}", setting("shard")))
 }
 
 impl std::fmt::Display for Shard {

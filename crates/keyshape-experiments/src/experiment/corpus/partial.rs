@@ -3,7 +3,7 @@
 use super::aggregate::{aggregate, CorpusOutcome};
 use super::{Partial, Unit, PARTIAL_FILE, PARTIAL_FORMAT};
 
-use keyshape_core::error::{Error, Result};
+use keyshape_core::error::{Error, Needed, Result};
 use std::path::{Path, PathBuf};
 
 /// Writes a shard's partial report into `dir` (atomically).
@@ -26,9 +26,10 @@ pub fn read_partial(dir: &Path) -> Result<Partial> {
         dir.to_path_buf()
     };
     if !path.exists() {
-        return Err(Error::file(
+        return Err(Error::needs_in(
             dir,
-            format!("no {PARTIAL_FILE}: not the output of `kslab run … --shard i/n`"),
+            Needed::ShardReports,
+            format!("no {PARTIAL_FILE}: not the output of a sharded run"),
         ));
     }
     let text = keyshape_io::read_text(&path)?;
