@@ -18,6 +18,7 @@ LAYERS = {
     "keyshape-experiments": 3,
     "keyshape-live": 3,
     "kslab-tui": 4,
+    "keyshape-fuzz": 4,
     "kslab": 5,
 }
 

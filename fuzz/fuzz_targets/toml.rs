@@ -1,6 +1,6 @@
-//! The experiment spec reader (TOML). The body is `keyshape_experiments::fuzzing::toml`, shared with
-//! the smoke test that runs in every `cargo test` (tests/it/fuzz_smoke.rs).
+//! The experiment spec reader (TOML). The body is `keyshape_fuzz::toml`, shared with
+//! the smoke test that runs in every `cargo test` (crates/keyshape-fuzz/tests/smoke.rs).
 #![no_main]
 use libfuzzer_sys::fuzz_target;
 
-fuzz_target!(|data: &[u8]| keyshape_experiments::fuzzing::toml(data));
+fuzz_target!(|data: &[u8]| keyshape_fuzz::toml(data));

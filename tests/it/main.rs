@@ -12,7 +12,6 @@ mod cli_results;
 mod common;
 mod corpus;
 mod experiments;
-mod fuzz_smoke;
 mod keyshapes;
 mod live;
 mod mediapipe478;

@@ -4,6 +4,4 @@
 //! keyshape-pictures.
 
 pub mod experiment;
-#[doc(hidden)]
-pub mod fuzzing;
 pub mod report;

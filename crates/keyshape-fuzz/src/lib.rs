@@ -1,6 +1,7 @@
-//! The bodies of the fuzz targets (`fuzz/fuzz_targets/*.rs`), here so that the cargo-fuzz
-//! runs (nightly) and the smoke test in every `cargo test` (`tests/it/fuzz_smoke.rs`, stable)
-//! call exactly the same code. Each takes arbitrary bytes; a reader may refuse them, but
+//! The bodies of the fuzz targets (`fuzz/fuzz_targets/*.rs`), in a crate of their own so
+//! that the cargo-fuzz runs (nightly) and the smoke test in every `cargo test`
+//! (`tests/smoke.rs`, stable) call exactly the same code, and no library carries a hidden
+//! module for them. Each takes arbitrary bytes; a reader may refuse them, but
 //! must not panic, and whatever it accepts must satisfy the reader's promises (checked with
 //! `assert!`, which is how a fuzzer sees a broken promise).
 
@@ -68,6 +69,6 @@ pub fn obj(data: &[u8]) {
 /// The experiment spec reader (TOML).
 pub fn toml(data: &[u8]) {
     if let Ok(text) = std::str::from_utf8(data) {
-        let _ = crate::experiment::Spec::from_str(Path::new("fuzz.toml"), text);
+        let _ = keyshape_experiments::experiment::Spec::from_str(Path::new("fuzz.toml"), text);
     }
 }

@@ -2,18 +2,21 @@
 //! the stable toolchain in every `cargo test`: each seed in fuzz/seeds/<target>/ and a few
 //! thousand byte-level mutations of it (bit flips, byte insertions and deletions,
 //! truncation, repeated and swapped slices) go through the same code
-//! (`keyshape_experiments::fuzzing`). No panic, and
+//! (`keyshape_fuzz`). No panic, and
 //! whatever parses satisfies the readers' invariants. The long runs are `tools/fuzz.sh`
 //! (cargo fuzz, nightly); see docs/src/testing.md.
 
-use keyshape_experiments::fuzzing;
+// Test code: a failed unwrap is a failed test with its message.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
+use keyshape_fuzz as fuzzing;
 use std::path::PathBuf;
 
 const MUTATIONS_PER_SEED: usize = 300;
 
 fn seeds(target: &str) -> Vec<Vec<u8>> {
     let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("fuzz/seeds")
+        .join("../../fuzz/seeds")
         .join(target);
     let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
         .unwrap_or_else(|e| panic!("{}: {e}", dir.display()))
