@@ -68,7 +68,7 @@ pub fn run(a: &TuiArgs) -> Result<()> {
         .file
         .as_ref()
         .map_or("builtin".to_string(), |p| p.display().to_string());
-    let mut seq = kslab_tui::compute::load(&path)?;
+    let mut seq = kslab_tui::load(&path)?;
     if let Some((w, h)) = a.image_size {
         seq.scale_to_image(w, h)
             .map_err(|e| anyhow::anyhow!("--image-size {w}x{h}: {e}"))?;
@@ -91,7 +91,7 @@ pub fn run(a: &TuiArgs) -> Result<()> {
                 seq.points,
                 obj.positions.len(),
             )?;
-            Some(kslab_tui::mesh::mesh_view(&seq, obj, features)?)
+            Some(kslab_tui::mesh_view(&seq, obj, features)?)
         }
     };
     let rig = match &a.rig {
@@ -100,7 +100,7 @@ pub fn run(a: &TuiArgs) -> Result<()> {
             let rig = keyshape_rig::correspondence::RigSource::new(d);
             // Checked now, so a track or rig that cannot be solved fails with its reason;
             // solved in the background once the lab is open.
-            kslab_tui::rig::prepare(&seq, &rig)?;
+            kslab_tui::prepare_rig(&seq, &rig)?;
             Some(rig)
         }
     };

@@ -204,7 +204,7 @@ fn a_face_landmarker_track_of_478_points_goes_through_every_subcommand() {
     // The lab's rig view takes it too.
     let seq = keyshape_io::read_sequence(Path::new(t), &Default::default()).unwrap();
     let rig = keyshape_rig::correspondence::RigSource::new(shared("ict_facekit_face"));
-    kslab_tui::rig::rig_view(&seq, &rig).unwrap();
+    kslab_tui::rig_view(&seq, &rig).unwrap();
 }
 
 #[test]
@@ -362,8 +362,8 @@ fn normalised_coordinates_are_detected_said_and_scaled_to_pixels() {
 /// is, and a track left normalised is said in the status line — only while it is loaded.
 #[test]
 fn the_lab_scales_normalised_tracks_and_says_when_it_cannot() {
-    use kslab_tui::compute::{load, load_sized, normalised_note};
-    use kslab_tui::state::{update, Action, State};
+    use kslab_tui::{load, load_sized, normalised_note};
+    use kslab_tui::{update, Action, State};
     let d = tempfile::tempdir().unwrap();
     let src = "mediapipe_face_tracks/liveportrait_d18.csv";
     let px = landmarker_track(d.path(), "px.csv", src, None);

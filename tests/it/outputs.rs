@@ -342,7 +342,7 @@ fn a_degenerate_frame_is_refused_by_name_on_every_path_that_fits_it() {
     let seq = keyshape_io::read_sequence(Path::new(&tiny), &Default::default()).unwrap();
     let rig = keyshape_rig::Rig::read_ict(&shared("ict_facekit_face")).unwrap();
     let source = keyshape_rig::correspondence::RigSource::new(shared("ict_facekit_face"));
-    let e = kslab_tui::rig::rig_view(&seq, &source)
+    let e = kslab_tui::rig_view(&seq, &source)
         .err()
         .unwrap()
         .to_string();

@@ -60,7 +60,7 @@ fn gltf_export_passes_the_khronos_validator() {
 fn the_lab_gets_a_mesh_view_per_frame() {
     let seq = keyshape_io::builtin_sequence().unwrap();
     let mesh = read_obj(&shared("mediapipe_canonical_face/canonical_face_model.obj")).unwrap();
-    let mv = kslab_tui::mesh::mesh_view(
+    let mv = kslab_tui::mesh_view(
         &seq,
         mesh,
         Features::builtin("mediapipe_to_canonical").unwrap(),

@@ -270,8 +270,9 @@ pub enum Job {
     Compute(u64, Settings),
     /// Load a sequence from a path.
     Load(u64, String),
-    /// Panics in the worker: how the tests check that a failing job cannot kill it.
-    #[doc(hidden)]
+    /// Panics in the worker: how the tests check that a failing job cannot kill it. It
+    /// exists in test builds only.
+    #[cfg(test)]
     Crash(u64),
 }
 
@@ -338,13 +339,16 @@ pub fn load(path: &str) -> Result<Sequence> {
 pub const WORKER_THREAD: &str = "kslab-worker";
 
 /// Starts the worker thread; results come back as [`Action`]s. A job that panics is
-/// reported as [`Action::Failed`] and the worker goes on with the next job.
+/// reported as [`Action::Failed`] and the worker goes on with the next job. (The binary
+/// starts it through [`spawn_lab`]; the tests through this.)
+#[cfg(test)]
 pub fn spawn(seq: Sequence, target: Option<TargetSet>) -> (Sender<Job>, Receiver<Action>) {
     spawn_with_rig(seq, target, None)
 }
 
 /// [`spawn`], with the lab's `--rig`: every sequence loaded later (`o`) is solved onto it
 /// too, answered by [`Action::RigSolved`] after its [`Action::Loaded`].
+#[cfg(test)]
 pub fn spawn_with_rig(
     seq: Sequence,
     target: Option<TargetSet>,
@@ -410,10 +414,13 @@ pub fn spawn_lab(
             // A panic in a job must not kill the worker: it becomes this job's error and the
             // worker takes the next job (the engine is replaced only by a completed load).
             let id = match &job {
-                Job::Compute(id, _) | Job::Load(id, _) | Job::Crash(id) => *id,
+                Job::Compute(id, _) | Job::Load(id, _) => *id,
+                #[cfg(test)]
+                Job::Crash(id) => *id,
             };
             let step = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| match job {
                 // The one deliberate panic: the tests' way to check the worker survives one.
+                #[cfg(test)]
                 #[allow(clippy::panic)]
                 Job::Crash(id) => panic!("job {id} crashed on purpose"),
                 Job::Load(id, path) => match load_sized(&path, image_size) {

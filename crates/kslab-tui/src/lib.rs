@@ -1,20 +1,31 @@
 //! The interactive lab (ratatui + crossterm): event → [`Action`] (a pure keymap) →
-//! [`update`] (pure) → [`view::draw`] (reads only). Solves run on a worker thread
-//! ([`compute`]); the loop is generic over the ratatui backend so tests drive it with
+//! [`update`] (pure) → [`draw`] (reads only). Solves run on a worker thread
+//! (`compute`); the loop is generic over the ratatui backend so tests drive it with
 //! `TestBackend`.
 
 mod charts;
-pub mod compute;
-pub mod export;
+mod compute;
+mod export;
 mod face_panels;
-pub mod live;
-pub mod mesh;
-pub mod request;
-pub mod rig;
-pub mod rig_panels;
-pub mod rig_worker;
-pub mod state;
-pub mod view;
+mod live;
+mod mesh;
+mod request;
+mod rig;
+mod rig_panels;
+mod rig_worker;
+mod state;
+#[cfg(test)]
+mod tests;
+mod view;
+
+// What the lab offers: its loops for the binary, the sequence loaders and views it opens
+// at start-up, and the pure state machine with its engine and screen for `kslab bench tui`.
+pub use compute::{load, load_sized, normalised_note, Engine};
+pub use export::export;
+pub use mesh::{mesh_view, MeshView};
+pub use request::Settings;
+pub use rig::{prepare as prepare_rig, rig_view, rig_view_observed, RigView};
+pub use view::draw;
 
 use crossterm::event::{
     self, Event, KeyCode, KeyEvent, KeyEventKind, KeyModifiers, MouseButton, MouseEventKind,
@@ -244,7 +255,7 @@ pub fn run_sized(
     r
 }
 
-/// Opens the live screen ([`live`]) in this terminal: frames from `queue` through
+/// Opens the live screen (`live`) in this terminal: frames from `queue` through
 /// `session` until the user quits; the terminal is restored on every exit path.
 pub fn run_live(
     session: &mut keyshape_live::session::Session,

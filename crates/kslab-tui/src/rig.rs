@@ -64,7 +64,7 @@ pub fn rig_view_smoothed(seq: &Sequence, source: &RigSource, smooth: f64) -> Res
     rig_view_observed(seq, source, smooth, None, &mut |_| {})
 }
 
-/// [`rig_view_smoothed`], taking the identity from the frame column `neutral` when given
+/// `rig_view_smoothed`, taking the identity from the frame column `neutral` when given
 /// (a [`RigView::neutral`] of the same track: the same weights, without the search) and
 /// naming each step to `step` as it starts.
 pub fn rig_view_observed(

@@ -1,7 +1,7 @@
 //! The lab's state and its pure update function: actions in, state changes and effects
 //! out. Nothing here draws or computes; tests drive it without a terminal.
 
-pub use super::request::{Computed, Settings, SolverView, SMOOTH_STEPS};
+pub use super::request::{Computed, Settings, SMOOTH_STEPS};
 use keyshape_core::keyshapes::curves::CurveRow;
 use keyshape_core::keyshapes::Method;
 use keyshape_core::solve::Solver;

@@ -10,9 +10,7 @@ use ratatui::text::{Line, Span};
 use ratatui::widgets::{Block, Borders, Clear, Paragraph, Wrap};
 use ratatui::Frame;
 
-pub use super::charts::{
-    chart_area, chart_pick, lab_rgb, legend_labels, short_label, short_value, weight_lines,
-};
+pub(crate) use super::charts::{chart_pick, lab_rgb};
 use super::charts::{error_chart, weight_bars};
 use super::face_panels::{face_panels, time_line};
 

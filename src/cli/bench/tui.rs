@@ -2,9 +2,9 @@
 
 use anyhow::Result;
 use clap::Args;
-use kslab_tui::compute::Engine;
-use kslab_tui::state::Settings;
-use kslab_tui::{update, view, Action, State};
+use kslab_tui::Engine;
+use kslab_tui::Settings;
+use kslab_tui::{draw, update, Action, State};
 use ratatui::backend::TestBackend;
 use ratatui::Terminal;
 use std::path::PathBuf;
@@ -35,7 +35,7 @@ pub fn run(a: &TuiBenchArgs) -> Result<()> {
             PathBuf::from("builtin")
         }
     });
-    let seq = kslab_tui::compute::load(&path.display().to_string())?;
+    let seq = kslab_tui::load(&path.display().to_string())?;
     let (frames, points) = (seq.n_frames(), seq.points);
     let mut engine = Engine::new(seq);
     let mut s = State::new(&path.display().to_string(), frames, 30.0);
@@ -63,7 +63,7 @@ pub fn run(a: &TuiBenchArgs) -> Result<()> {
         update(&mut s, a);
         let c = engine.compute_shown(s.request, &s.settings.clone())?;
         update(&mut s, Action::Computed(Box::new(c)));
-        term.draw(|f| view::draw(f, &s))?;
+        term.draw(|f| draw(f, &s))?;
         lat.push((
             format!("{} k={}", s.settings.method, s.settings.k),
             t.elapsed().as_secs_f64() * 1e3,
@@ -82,7 +82,7 @@ pub fn run(a: &TuiBenchArgs) -> Result<()> {
     let curves = t.elapsed().as_secs_f64();
     let t = Instant::now();
     for _ in 0..20 {
-        term.draw(|f| view::draw(f, &s))?;
+        term.draw(|f| draw(f, &s))?;
     }
     let draw = t.elapsed().as_secs_f64() / 20.0 * 1e3;
     let rig = rig_view_times(a, &engine_seq(&path)?, &mut s, &mut term)?;
@@ -141,7 +141,7 @@ pub fn run(a: &TuiBenchArgs) -> Result<()> {
 
 /// The sequence the bench measures, as the lab loads it.
 fn engine_seq(path: &std::path::Path) -> Result<keyshape_core::sequence::Sequence> {
-    Ok(kslab_tui::compute::load(&path.display().to_string())?)
+    Ok(kslab_tui::load(&path.display().to_string())?)
 }
 
 /// What the rig view costs: each step of opening it, a new λ, and stepping frames in it.
@@ -167,7 +167,7 @@ fn rig_view_times(
     let source = keyshape_rig::correspondence::RigSource::new(&dir);
     // Each step's time: from its start to the next's (the last to the answer).
     let mut marks: Vec<(String, Instant)> = Vec::new();
-    let view = kslab_tui::rig::rig_view_observed(seq, &source, 0.0, None, &mut |t| {
+    let view = kslab_tui::rig_view_observed(seq, &source, 0.0, None, &mut |t| {
         marks.push((t, Instant::now()))
     })?;
     let end = Instant::now();
@@ -180,7 +180,7 @@ fn rig_view_times(
         })
         .collect();
     let t = Instant::now();
-    kslab_tui::rig::rig_view_observed(seq, &source, 100.0, view.neutral, &mut |_| {})?;
+    kslab_tui::rig_view_observed(seq, &source, 100.0, view.neutral, &mut |_| {})?;
     let lambda = t.elapsed().as_secs_f64() * 1e3;
     s.rig = Some(std::sync::Arc::new(view));
     s.show_rig = true;
@@ -188,7 +188,7 @@ fn rig_view_times(
     for _ in 0..30 {
         let t = Instant::now();
         update(s, Action::Step(1));
-        term.draw(|f| view::draw(f, s))?;
+        term.draw(|f| draw(f, s))?;
         step.push(t.elapsed().as_secs_f64() * 1e3);
     }
     step.sort_by(f64::total_cmp);
