@@ -1,9 +1,76 @@
 //! Oracles for numbers the other tests did not pin down: each test
 //! here fails on a plausible one-line bug that the suite used to let through.
 
+// Test code: a failed unwrap is a failed test with its message.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
 use keyshape_actions::intensity::median3;
 use nalgebra::DMatrix;
 
+/// `../shared/data/<rel>` beside the repository.
+fn shared(rel: &str) -> std::path::PathBuf {
+    std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../../shared/data")
+        .join(rel)
+}
+
+/// Training labels by brute force from a py-feat table's own scores: a frame's strongest
+/// study action (mean of its columns; the first in `STUDY_ACTIONS` order on a tie) when
+/// that score is strictly above the threshold.
+fn brute_force_labels(path: &std::path::Path, threshold: f64) -> [usize; 3] {
+    use keyshape_actions::intensity::STUDY_ACTIONS;
+    let mut rd = csv::Reader::from_path(path).unwrap();
+    let header = rd.headers().unwrap().clone();
+    let col = |name: &str| header.iter().position(|h| h == name).unwrap();
+    let mut counts = [0usize; 3];
+    for rec in rd.records() {
+        let rec = rec.unwrap();
+        let score: Vec<f64> = STUDY_ACTIONS
+            .iter()
+            .map(|(_, cs)| {
+                cs.iter()
+                    .map(|c| rec[col(c)].parse::<f64>().unwrap())
+                    .sum::<f64>()
+                    / cs.len() as f64
+            })
+            .collect();
+        let (best, v) = (0..3).fold((0, f64::MIN), |m, k| {
+            if score[k] > m.1 {
+                (k, score[k])
+            } else {
+                m
+            }
+        });
+        if v > threshold {
+            counts[best] += 1;
+        }
+    }
+    counts
+}
+
+/// The news sample rewritten into `dir/name`: `edit` gets each record (as strings) and the
+/// column lookup, changes it in place and says whether to keep it.
+fn edited_news(
+    dir: &std::path::Path,
+    name: &str,
+    edit: impl Fn(&dyn Fn(&str) -> usize, &mut Vec<String>) -> bool,
+) -> std::path::PathBuf {
+    let path = shared("pyfeat_samples/news_sample_compact.csv");
+    let mut rd = csv::Reader::from_path(&path).unwrap();
+    let header = rd.headers().unwrap().clone();
+    let col = |name: &str| header.iter().position(|h| h == name).unwrap();
+    let out = dir.join(name);
+    let mut w = csv::Writer::from_path(&out).unwrap();
+    w.write_record(&header).unwrap();
+    for rec in rd.records() {
+        let mut r: Vec<String> = rec.unwrap().iter().map(str::to_string).collect();
+        if edit(&col, &mut r) {
+            w.write_record(&r).unwrap();
+        }
+    }
+    w.flush().unwrap();
+    out
+}
 /// Median of three keeps a two-sample pulse (a median of five would remove it) and removes
 /// a one-sample spike; the ends are kept.
 #[test]
@@ -119,7 +186,7 @@ fn intensity_study_refuses_thresholds_outside_the_open_unit_interval_and_empty_s
         };
         assert!(st.check().is_ok(), "{good}");
     }
-    let path = crate::common::shared("pyfeat_samples/news_sample_compact.csv");
+    let path = shared("pyfeat_samples/news_sample_compact.csv");
     for range in [(1, 20), (30, 40)] {
         let st = StudySettings {
             evaluation: Evaluation::Split,
@@ -134,71 +201,13 @@ fn intensity_study_refuses_thresholds_outside_the_open_unit_interval_and_empty_s
     }
 }
 
-/// Training labels by brute force from a py-feat table's own scores: a frame's strongest
-/// study action (mean of its columns; the first in `STUDY_ACTIONS` order on a tie) when
-/// that score is strictly above the threshold.
-fn brute_force_labels(path: &std::path::Path, threshold: f64) -> [usize; 3] {
-    use keyshape_actions::intensity::STUDY_ACTIONS;
-    let mut rd = csv::Reader::from_path(path).unwrap();
-    let header = rd.headers().unwrap().clone();
-    let col = |name: &str| header.iter().position(|h| h == name).unwrap();
-    let mut counts = [0usize; 3];
-    for rec in rd.records() {
-        let rec = rec.unwrap();
-        let score: Vec<f64> = STUDY_ACTIONS
-            .iter()
-            .map(|(_, cs)| {
-                cs.iter()
-                    .map(|c| rec[col(c)].parse::<f64>().unwrap())
-                    .sum::<f64>()
-                    / cs.len() as f64
-            })
-            .collect();
-        let (best, v) = (0..3).fold((0, f64::MIN), |m, k| {
-            if score[k] > m.1 {
-                (k, score[k])
-            } else {
-                m
-            }
-        });
-        if v > threshold {
-            counts[best] += 1;
-        }
-    }
-    counts
-}
-
-/// The news sample rewritten into `dir/name`: `edit` gets each record (as strings) and the
-/// column lookup, changes it in place and says whether to keep it.
-fn edited_news(
-    dir: &std::path::Path,
-    name: &str,
-    edit: impl Fn(&dyn Fn(&str) -> usize, &mut Vec<String>) -> bool,
-) -> std::path::PathBuf {
-    let path = crate::common::shared("pyfeat_samples/news_sample_compact.csv");
-    let mut rd = csv::Reader::from_path(&path).unwrap();
-    let header = rd.headers().unwrap().clone();
-    let col = |name: &str| header.iter().position(|h| h == name).unwrap();
-    let out = dir.join(name);
-    let mut w = csv::Writer::from_path(&out).unwrap();
-    w.write_record(&header).unwrap();
-    for rec in rd.records() {
-        let mut r: Vec<String> = rec.unwrap().iter().map(str::to_string).collect();
-        if edit(&col, &mut r) {
-            w.write_record(&r).unwrap();
-        }
-    }
-    w.flush().unwrap();
-    out
-}
-
 /// The training labels counted per action are, by brute force from the CSV's own scores,
 /// the frames whose strongest study action (mean of its columns) exceeds the threshold;
 /// leave-one-clip-out trains on every frame 19 times (20 clips).
 #[test]
 fn intensity_study_counts_the_labelled_training_frames() {
     use keyshape_actions::intensity::{study, Evaluation, StudySettings, STUDY_ACTIONS};
-    let path = crate::common::shared("pyfeat_samples/news_sample_compact.csv");
+    let path = shared("pyfeat_samples/news_sample_compact.csv");
     let st = StudySettings {
         evaluation: Evaluation::LeaveOneClipOut,
         ..Default::default()

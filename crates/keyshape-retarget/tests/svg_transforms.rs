@@ -3,13 +3,15 @@
 //! read as if it were not there). Checked on hand-made edits with exact expectations and on
 //! a file saved by Inkscape 1.2.2 (tests/data/README.md says how it was made).
 
+// Test code: a failed unwrap is a failed test with its message.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
 use keyshape_retarget::svg::{parse_template, read_template};
 use keyshape_retarget::target::TargetSet;
 use std::path::{Path, PathBuf};
-
 fn data(name: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("tests/data")
+        .join("../../tests/data")
         .join(name)
 }
 
