@@ -1,4 +1,5 @@
 //! Every reader on the real files in ../shared/data, plus round trips through JSON and .pts.
+//! Here: what runs the `kslab` binary; the library's own tests are in `crates/keyshape-io/tests/readers.rs`.
 
 use crate::common::shared;
 use keyshape_core::sequence::Format;

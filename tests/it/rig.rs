@@ -1,5 +1,6 @@
 //! A tracked performance solved onto the ICT FaceKit rig — camera recovery,
 //! known weights solved back, identity, identifiability, Live Link Face CSV, bad rigs.
+//! Here: what runs the `kslab` binary; the library's own tests are in `crates/keyshape-rig/tests/rig.rs`.
 
 use crate::common::{kslab, shared};
 use keyshape_rig::Rig;

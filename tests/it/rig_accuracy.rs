@@ -2,6 +2,7 @@
 //! ICT rig from known weights are solved back; the default solve (magnitude prior, no
 //! freezing, zero-phase smoothing) must meet the goals, its per-frame optimum must
 //! meet its KKT conditions, and a noise-free render must come back exactly.
+//! Here: what runs the `kslab` binary; the library's own tests are in `crates/keyshape-rig/tests/rig_accuracy.rs`.
 
 use crate::common::{kslab, shared};
 use keyshape_rig::Rig;

@@ -2,6 +2,7 @@
 //! dense 468 → ICT correspondence (and with 478 points the iris centres); the
 //! correspondence is checked on what its derivation did not use, noise-free renders come
 //! back exactly, the benchmark's goals hold, and bad correspondences are refused.
+//! Here: what runs the `kslab` binary; the library's own tests are in `crates/keyshape-rig/tests/rig_dense.rs`.
 
 use crate::common::{kslab, shared};
 use keyshape_rig::correspondence::read_rig;

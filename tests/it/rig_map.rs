@@ -1,6 +1,7 @@
 //! A tracker whose points are not where the landmark map says: renders through a map that
 //! is wrong by millimetres (`rig-accuracy --map-noise`), solved with the map as it is, with
 //! and without robust landmark weights (`--robust-landmarks`), against the truth.
+//! Here: what runs the `kslab` binary; the library's own tests are in `crates/keyshape-rig/tests/rig_map.rs`.
 
 use crate::common::{assert_refused, kslab, shared};
 

@@ -1,6 +1,7 @@
 //! The weights-over-time picture (`solve --png`, `retarget --png`): each cell's colour is
 //! the diverging scale at that weight, a one-frame spike survives when frames outnumber
 //! pixels, and the commands write it (and refuse to write it over their input).
+//! Here: what runs the `kslab` binary; the library's own tests are in `crates/keyshape-pictures/tests/weights_png.rs`.
 
 #[test]
 fn solve_and_retarget_write_the_picture_and_never_over_their_input() {

@@ -1,4 +1,5 @@
 //! Every reader on the real files in ../shared/data, plus round trips through JSON and .pts.
+//! (What runs the `kslab` binary is in `tests/it/readers.rs`.)
 
 // Test code: a failed unwrap is a failed test with its message.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]

@@ -1,6 +1,7 @@
 //! The weights-over-time picture (`solve --png`, `retarget --png`): each cell's colour is
 //! the diverging scale at that weight, a one-frame spike survives when frames outnumber
 //! pixels, and the commands write it (and refuse to write it over their input).
+//! (What runs the `kslab` binary is in `tests/it/weights_png.rs`.)
 
 // Test code: a failed unwrap is a failed test with its message.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]

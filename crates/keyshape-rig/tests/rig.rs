@@ -1,5 +1,6 @@
 //! A tracked performance solved onto the ICT FaceKit rig — camera recovery,
 //! known weights solved back, identity, identifiability, Live Link Face CSV, bad rigs.
+//! (What runs the `kslab` binary is in `tests/it/rig.rs`.)
 
 // Test code: a failed unwrap is a failed test with its message.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]

@@ -2,6 +2,7 @@
 //! ICT rig from known weights are solved back; the default solve (magnitude prior, no
 //! freezing, zero-phase smoothing) must meet the goals, its per-frame optimum must
 //! meet its KKT conditions, and a noise-free render must come back exactly.
+//! (What runs the `kslab` binary is in `tests/it/rig_accuracy.rs`.)
 
 // Test code: a failed unwrap is a failed test with its message.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]

@@ -2,6 +2,7 @@
 //! dense 468 → ICT correspondence (and with 478 points the iris centres); the
 //! correspondence is checked on what its derivation did not use, noise-free renders come
 //! back exactly, the benchmark's goals hold, and bad correspondences are refused.
+//! (What runs the `kslab` binary is in `tests/it/rig_dense.rs`.)
 
 // Test code: a failed unwrap is a failed test with its message.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]

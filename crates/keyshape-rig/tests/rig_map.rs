@@ -1,6 +1,7 @@
 //! A tracker whose points are not where the landmark map says: renders through a map that
 //! is wrong by millimetres (`rig-accuracy --map-noise`), solved with the map as it is, with
 //! and without robust landmark weights (`--robust-landmarks`), against the truth.
+//! (What runs the `kslab` binary is in `tests/it/rig_map.rs`.)
 
 // Test code: a failed unwrap is a failed test with its message.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
