@@ -1,6 +1,5 @@
-//! Key-shape heuristics against their peers and through the command line: k-means++ as
-//! linfa seeds it, and `kslab bench kmeans` on a real track (the rest is in the core's
-//! oracles, `crates/keyshape-core/tests/oracles/keyshapes.rs`).
+//! k-means with linfa's seeding is linfa's own ten-run fit (the other heuristics' oracles
+//! are in `crates/keyshape-core/tests/oracles/keyshapes.rs`).
 //! (What runs the `kslab` binary is in `tests/it/keyshapes.rs`.)
 
 // Test code: a failed unwrap is a failed test with its message.

@@ -1,5 +1,5 @@
-//! Long tracks: greedy beyond the frames' Gram matrix, generated tracks, and
-//! peak memory through the real binary.
+//! Long tracks: greedy beyond the frames' Gram matrix (without it, subsampled, blocked
+//! errors) chooses and reports what the exact path does.
 //! (What runs the `kslab` binary is in `tests/it/scale.rs`.)
 
 // Test code: a failed unwrap is a failed test with its message.
