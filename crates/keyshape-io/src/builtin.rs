@@ -27,3 +27,19 @@ pub fn builtin_sequence() -> Result<Sequence> {
     seq.validate()?;
     Ok(seq)
 }
+
+/// A table built into the binary for a layout family: the text `table` holds for `family`
+/// (pairs of family and JSON text), parsed. `what` names the table in the errors: a family
+/// with no table, and a table that does not parse (a fault of the build, not of the user).
+pub fn builtin_json<T: serde::de::DeserializeOwned>(
+    what: &str,
+    family: &str,
+    table: &[(&str, &str)],
+) -> Result<T> {
+    let Some((_, text)) = table.iter().find(|(f, _)| *f == family) else {
+        return Err(Error::invalid(format!(
+            "no built-in {what} for layout {family}"
+        )));
+    };
+    serde_json::from_str(text).map_err(|e| Error::invalid(format!("built-in {what}: {e}")))
+}

@@ -17,7 +17,6 @@
 //! # Ok::<(), std::io::Error>(())
 //! ```
 
-use crate::fmt_num;
 use serde::{Serialize, Serializer};
 use std::io::Write;
 
@@ -117,6 +116,17 @@ pub fn io_error(e: csv::Error) -> std::io::Error {
 /// dialect as [`write_records`], no header of its own; `flush` it at the end.
 pub fn record_writer<W: Write>(w: W) -> csv::Writer<W> {
     csv::WriterBuilder::new().has_headers(false).from_writer(w)
+}
+
+/// Formats a number for CSV output: shortest round-trip decimal, with an exponent for
+/// magnitudes below 1e-4 or from 1e15 on (so 2.5e-12 does not print as 0.0000000000025).
+pub fn fmt_num(v: f64) -> String {
+    let a = v.abs();
+    if v == 0.0 || (1e-4..1e15).contains(&a) || !v.is_finite() {
+        format!("{v}")
+    } else {
+        format!("{v:e}")
+    }
 }
 
 #[cfg(test)]

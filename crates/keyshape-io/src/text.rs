@@ -1,0 +1,145 @@
+//! A file's text and bytes as every reader takes them: size limits, gzip, a byte-order
+//! mark; named columns of a CSV; a JSON file.
+
+use keyshape_core::error::{Error, Result};
+use std::io::Read;
+use std::path::Path;
+
+/// The largest input file read, and the largest text a gzip file may expand to.
+pub const MAX_INPUT_BYTES: u64 = 4 << 30;
+/// The longest line an input may have (a 468-point 3-D MediaPipe row is about 25 KB).
+pub const MAX_LINE_BYTES: usize = 16 << 20;
+
+/// Reads a whole input file as UTF-8 text, un-gzipping `*.gz` files (every member of a
+/// multi-member gzip; trailing bytes that are not gzip are an error). Only regular files are
+/// read: a directory, a FIFO or a device (`/dev/zero`) is refused with a message, so nothing
+/// blocks or reads without end. Files over [`MAX_INPUT_BYTES`] and lines over
+/// [`MAX_LINE_BYTES`] are refused.
+pub fn read_text(path: &Path) -> Result<String> {
+    let bytes = read_bytes(path)?;
+    let gz = path.extension().is_some_and(|e| e == "gz");
+    text_from_bytes(path, bytes, gz)
+}
+
+/// Reads a whole input file's bytes (a GLB, a binary buffer) with the checks of
+/// [`read_text`], recording it as an input that no output may replace.
+pub fn read_bytes(path: &Path) -> Result<Vec<u8>> {
+    let meta = std::fs::metadata(path).map_err(|e| Error::io(path, e))?;
+    if !meta.is_file() {
+        let what = if meta.is_dir() {
+            "a directory"
+        } else {
+            "not a regular file (a device, FIFO or socket)"
+        };
+        return Err(Error::file(path, format!("is {what}; give a file")));
+    }
+    if meta.len() > MAX_INPUT_BYTES {
+        return Err(Error::file(
+            path,
+            format!(
+                "is {} bytes; inputs are limited to {MAX_INPUT_BYTES} bytes",
+                meta.len()
+            ),
+        ));
+    }
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    crate::atomic::register_input(path);
+    Ok(bytes)
+}
+
+/// [`read_text`] on bytes already in memory (`gz`: un-gzip first).
+pub fn text_from_bytes(path: &Path, bytes: Vec<u8>, gz: bool) -> Result<String> {
+    let bytes = if gz {
+        let mut out = Vec::new();
+        flate2::read::MultiGzDecoder::new(&bytes[..])
+            .take(MAX_INPUT_BYTES + 1)
+            .read_to_end(&mut out)
+            .map_err(|e| Error::file(path, format!("not a valid gzip file: {e}")))?;
+        if out.len() as u64 > MAX_INPUT_BYTES {
+            return Err(Error::file(
+                path,
+                format!("expands to more than {MAX_INPUT_BYTES} bytes"),
+            ));
+        }
+        out
+    } else {
+        bytes
+    };
+    // A UTF-8 byte-order mark (Windows editors write one) is not part of the text: every
+    // reader takes the file without it, as the CSV reader does.
+    let mut bytes = bytes;
+    if bytes.starts_with(&[0xEF, 0xBB, 0xBF]) {
+        bytes.drain(..3);
+    }
+    let mut line = 1u64;
+    let mut start = 0usize;
+    for (i, &b) in bytes.iter().enumerate() {
+        if b == b'\n' {
+            line += 1;
+            start = i + 1;
+        } else if i - start >= MAX_LINE_BYTES {
+            return Err(Error::parse(
+                path,
+                line,
+                (i - start + 1) as u64,
+                format!("line is longer than {MAX_LINE_BYTES} bytes: not a text table"),
+            ));
+        }
+    }
+    String::from_utf8(bytes).map_err(|e| {
+        let upto = &e.as_bytes()[..e.utf8_error().valid_up_to()];
+        let line = upto.iter().filter(|&&b| b == b'\n').count() as u64 + 1;
+        let col = upto.iter().rev().take_while(|&&b| b != b'\n').count() as u64 + 1;
+        Error::parse(path, line, col, "not UTF-8 text")
+    })
+}
+
+/// Named numeric columns of a CSV table, one vector per name, over every data row (for side
+/// tables such as py-feat's ARKit scores). Errors name file, line and column.
+pub fn read_columns(path: &Path, names: &[&str]) -> Result<Vec<Vec<f64>>> {
+    let text = read_text(path)?;
+    let mut rdr = csv::ReaderBuilder::new()
+        .trim(csv::Trim::All)
+        .from_reader(text.as_bytes());
+    let header: Vec<String> = rdr
+        .headers()
+        .map_err(|e| crate::csv_error::csv_error_in(path, &e, text.as_bytes()))?
+        .iter()
+        .map(str::to_string)
+        .collect();
+    let idx: Vec<usize> = names
+        .iter()
+        .map(|n| {
+            header
+                .iter()
+                .position(|h| h == n)
+                .ok_or_else(|| Error::parse(path, 1, 0, format!("no column '{n}'")))
+        })
+        .collect::<Result<_>>()?;
+    let mut out = vec![Vec::new(); names.len()];
+    let mut lines = crate::csv_error::LineCounter::new(text.as_bytes());
+    for rec in rdr.records() {
+        let rec = rec.map_err(|e| crate::csv_error::csv_error_in(path, &e, text.as_bytes()))?;
+        let line = rec.position().map_or(0, |p| lines.line_at(p.byte()));
+        for (k, &c) in idx.iter().enumerate() {
+            let cell = rec.get(c).unwrap_or("");
+            let v: f64 = cell.parse().map_err(|_| {
+                Error::parse(
+                    path,
+                    line,
+                    c as u64 + 1,
+                    format!("not a number: '{cell}' in column '{}'", names[k]),
+                )
+            })?;
+            out[k].push(v);
+        }
+    }
+    Ok(out)
+}
+
+/// Reads a JSON file into `T`; errors name the file, line and column.
+pub fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T> {
+    let text = read_text(path)?;
+    serde_json::from_str(&text)
+        .map_err(|e| Error::parse(path, e.line() as u64, e.column() as u64, e.to_string()))
+}
