@@ -215,18 +215,26 @@ impl StudySettings {
             ));
         }
         if self.evaluation == Evaluation::LeaveOneClipOut && self.train_clips.is_some() {
-            return Err(Error::invalid(
+            return Err(Error::bad_setting(
+                "train_clips",
+                format!("{:?}", self.train_clips),
                 "train clips apply to the split evaluation; leave-one-clip-out trains on every other clip",
             ));
         }
         match (self.centring, self.neutral_frames) {
-            (Centring::Neutral, None | Some(0)) => Err(Error::invalid(
+            (Centring::Neutral, None | Some(0)) => Err(Error::bad_setting(
+                "neutral_frames",
+                self.neutral_frames.unwrap_or(0),
                 "neutral centring needs the number of neutral frames at the start of each clip (≥ 1)",
             )),
-            (Centring::ClipMean | Centring::Causal, Some(_)) => Err(Error::invalid(format!(
-                "neutral frames apply only to neutral centring, not to {}",
-                self.centring.name()
-            ))),
+            (Centring::ClipMean | Centring::Causal, Some(n)) => Err(Error::bad_setting(
+                "neutral_frames",
+                n,
+                format!(
+                    "neutral frames apply only to neutral centring, not to {}",
+                    self.centring.name()
+                ),
+            )),
             _ => Ok(()),
         }
     }

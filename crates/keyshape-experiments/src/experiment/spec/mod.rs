@@ -211,10 +211,21 @@ impl Spec {
     /// in the file (an option that does not apply is refused only when given). The error
     /// names the key and says what is wrong. Run on every spec read: an experiment file,
     /// and the spec a partial report carries.
-    pub fn check(
-        &self,
-        given: &dyn Fn(&str) -> bool,
-    ) -> std::result::Result<(), (&'static str, String)> {
+    pub fn check(&self, given: &dyn Fn(&str) -> bool) -> std::result::Result<(), KeyError> {
+        self.check_inputs()?;
+        self.check_curves()?;
+        self.check_applies(given)?;
+        self.check_retarget()?;
+        self.check_rig()?;
+        self.check_sections()?;
+        if self.dims != 2 && self.dims != 3 {
+            return Err(("dims", format!("must be 2 or 3, got {}", self.dims)));
+        }
+        Ok(())
+    }
+
+    /// One `input` or a corpus of `inputs`, and what only a corpus (or only one input) takes.
+    fn check_inputs(&self) -> std::result::Result<(), KeyError> {
         let spec = self;
         match (&spec.inputs, spec.input.is_empty()) {
             (None, true) => {
@@ -279,6 +290,12 @@ impl Spec {
                 }
             }
         }
+        Ok(())
+    }
+
+    /// The error curves: a k range, methods (or a study), solvers, each named once.
+    fn check_curves(&self) -> std::result::Result<(), KeyError> {
+        let spec = self;
         if spec.k.0 == 0 || spec.k.0 > spec.k.1 {
             return Err((
                 "k",
@@ -310,7 +327,12 @@ impl Spec {
         if let Some(sv) = repeated(&spec.solvers, |s| *s) {
             return Err(("solvers", format!("{sv} is listed twice")));
         }
-        // Options that cannot apply are refused, as on the command line.
+        Ok(())
+    }
+
+    /// Options that cannot apply are refused when given, as on the command line.
+    fn check_applies(&self, given: &dyn Fn(&str) -> bool) -> std::result::Result<(), KeyError> {
+        let spec = self;
         let choosers = || {
             spec.methods
                 .iter()
@@ -334,6 +356,12 @@ impl Spec {
                 "applies to greedy with the nnls or bounded solver only".into(),
             ));
         }
+        Ok(())
+    }
+
+    /// The `[retarget]` table: its strip, k, solvers and trace noise.
+    fn check_retarget(&self) -> std::result::Result<(), KeyError> {
+        let spec = self;
         if let Some(r) = &spec.retarget {
             if keyshape_core::limits::STRIP_FRAMES
                 .check_count("strip", r.strip as u64)
@@ -361,6 +389,12 @@ impl Spec {
                 return Err(("retarget", format!("solver {sv} is listed twice")));
             }
         }
+        Ok(())
+    }
+
+    /// The `[rig]` study: its frames, noise levels and solvers.
+    fn check_rig(&self) -> std::result::Result<(), KeyError> {
+        let spec = self;
         if let Some(r) = &spec.rig {
             if !(1..=MAX_STUDY_FRAMES).contains(&r.frames) {
                 return Err((
@@ -379,6 +413,12 @@ impl Spec {
                 return Err(("rig", format!("solver {sv} is listed twice")));
             }
         }
+        Ok(())
+    }
+
+    /// The `[modes]`, `[map]`, `[intensity]` and `[smooth]` tables, checked by their own settings.
+    fn check_sections(&self) -> std::result::Result<(), KeyError> {
+        let spec = self;
         if let Some(m) = &spec.modes {
             RegionOptions::from_user(m.boundary, m.blend_radius)
                 .map_err(|e| ("blend_radius", e.to_string()))?;
@@ -388,13 +428,12 @@ impl Spec {
                 .map_err(|e| ("blend_radius", e.to_string()))?;
         }
         if let Some(i) = &spec.intensity {
+            // The key is the setting the error names, never a guess from its words.
             i.settings().check().map_err(|e| {
-                let key = if i.train_clips.is_some() && e.to_string().contains("train clips") {
-                    "train_clips"
-                } else if e.to_string().contains("threshold") {
-                    "threshold"
-                } else {
-                    "neutral_frames"
+                let key = match e.setting().map(|(name, _)| name) {
+                    Some("train_clips") => "train_clips",
+                    Some("threshold") => "threshold",
+                    _ => "neutral_frames",
                 };
                 (key, e.to_string())
             })?;
@@ -402,12 +441,12 @@ impl Spec {
         if let Some(sm) = &spec.smooth {
             sm.check(30.0).map_err(|e| ("smooth", e.to_string()))?;
         }
-        if spec.dims != 2 && spec.dims != 3 {
-            return Err(("dims", format!("must be 2 or 3, got {}", spec.dims)));
-        }
         Ok(())
     }
 }
+
+/// A refusal: the key at fault and what is wrong with it.
+type KeyError = (&'static str, String);
 
 /// 1-based line and column of a byte offset.
 fn line_col(text: &str, offset: usize) -> (u64, u64) {
