@@ -80,6 +80,20 @@ pub fn run(a: &TransferArgs) -> Result<()> {
     let progress = super::progress::Progress::new("transfer: reading");
     let prep = a.input.prepare_only()?;
     let s = &prep.seq;
+    let (tr, ncol, train) = trained(a, s)?;
+    let (deform, max_disp) = write_frames(a, &prep, &tr, &progress)?;
+    if let Some(p) = &a.gltf {
+        tr.check_gltf()?;
+        let fps = s.fps().unwrap_or(30.0);
+        write_atomic(p, |w| tr.write_glb(w, &s.coords, fps))?;
+    }
+    progress.finish();
+    report(a, s, &tr, ncol, train, deform, max_disp)
+}
+
+/// The transfer trained on the neutral frame (`--neutral`, else the first), with its
+/// painted weights; its frame column, and the seconds training took.
+fn trained(a: &TransferArgs, s: &keyshape_core::Sequence) -> Result<(Transfer, usize, f64)> {
     let mesh = read_obj(&a.mesh)?;
     let layout = keyshape_core::sequence::Layout::for_points(s.points);
     // A 478-point Face Landmarker track takes the Face Mesh 468's correspondences: their
@@ -115,6 +129,19 @@ pub fn run(a: &TransferArgs) -> Result<()> {
             .collect();
         tr.skin.paint(w, &names)?;
     }
+    Ok((tr, ncol, train))
+}
+
+/// Every frame deformed, a chunk at a time, and written (OBJ, PNG) every `--every` frames
+/// as it comes: memory holds one chunk of meshes, not the whole track's. The seconds the
+/// deforming took and the largest vertex displacement.
+fn write_frames(
+    a: &TransferArgs,
+    prep: &keyshape_core::Prepared,
+    tr: &Transfer,
+    progress: &super::progress::Progress,
+) -> Result<(f64, f64)> {
+    let s = &prep.seq;
     let every = a.every as usize;
     for dir in [&a.obj_dir, &a.png_dir].into_iter().flatten() {
         keyshape_io::create_dir_all(dir)?;
@@ -129,8 +156,6 @@ pub fn run(a: &TransferArgs) -> Result<()> {
         mesh_bounds(&tr.mesh.positions),
         bounds_of(&[&s.coords], s.dims),
     );
-    // The frames are deformed a chunk at a time and written as they come, so memory holds
-    // one chunk of meshes, not the whole track's.
     let n = s.n_frames();
     let (mut deform, mut max_disp) = (0.0, 0.0f64);
     if a.obj_dir.is_some() || a.png_dir.is_some() {
@@ -180,12 +205,20 @@ pub fn run(a: &TransferArgs) -> Result<()> {
             }
         }
     }
-    if let Some(p) = &a.gltf {
-        tr.check_gltf()?;
-        let fps = s.fps().unwrap_or(30.0);
-        write_atomic(p, |w| tr.write_glb(w, &s.coords, fps))?;
-    }
-    progress.finish();
+    Ok((deform, max_disp))
+}
+
+/// What the transfer did (`--json`, or lines): sizes, speeds, the frame it was trained on,
+/// and for several people (clips) what the identity mismatch costs.
+fn report(
+    a: &TransferArgs,
+    s: &keyshape_core::Sequence,
+    tr: &Transfer,
+    ncol: usize,
+    train: f64,
+    deform: f64,
+    max_disp: f64,
+) -> Result<()> {
     let moved = tr.skin.influences.iter().filter(|i| !i.is_empty()).count();
     let trained_on = format!(
         "the RBF is trained on one frame, {} ({}), mapped onto the mesh's neutral feature vertices; every frame goes through that one transform",
@@ -198,7 +231,7 @@ pub fn run(a: &TransferArgs) -> Result<()> {
     // Several people (clips) through one transform: what the identity mismatch costs.
     let mismatch = match &s.segments {
         Some(seg) if seg.iter().any(|c| c != &seg[0]) => Some(keyshape_transfer::person_mismatch(
-            &tr, &s.coords, &s.frames, seg,
+            tr, &s.coords, &s.frames, seg,
         )?),
         _ => None,
     };
