@@ -219,6 +219,48 @@ pub fn update(s: &mut State, action: Action) -> Vec<Effect> {
     if let Some(p) = s.prompt.clone() {
         return prompt(s, p, action);
     }
+    match action {
+        Action::Quit
+        | Action::Escape
+        | Action::Help
+        | Action::TogglePlay
+        | Action::Step(_)
+        | Action::First
+        | Action::Last
+        | Action::Speed(_)
+        | Action::Seek(_)
+        | Action::Tick(_) => {
+            playback(s, action);
+            vec![]
+        }
+        Action::Method(_)
+        | Action::K(_)
+        | Action::Group
+        | Action::Solver
+        | Action::Smooth(_)
+        | Action::Pick(..) => change_setting(s, action),
+        Action::Split
+        | Action::Mesh
+        | Action::Rig
+        | Action::Export
+        | Action::Open
+        | Action::Char(_)
+        | Action::Enter
+        | Action::Backspace => view_or_prompt(s, action),
+        Action::Computed(_)
+        | Action::Curves(..)
+        | Action::Failed(..)
+        | Action::Loaded(..)
+        | Action::SplitViews(..)
+        | Action::Notice(..)
+        | Action::RigStep(..)
+        | Action::RigSmoothed(..)
+        | Action::RigSolved(..) => answer(s, action),
+    }
+}
+
+/// Quitting, help, and moving through the frames: play, step, seek, the clock's ticks.
+fn playback(s: &mut State, action: Action) {
     let last = s.frames.saturating_sub(1);
     match action {
         Action::Quit => s.quit = true,
@@ -249,6 +291,14 @@ pub fn update(s: &mut State, action: Action) -> Vec<Effect> {
             s.frame = (s.frame + steps as usize) % s.frames;
         }
         Action::Tick(_) => {}
+        _ => {}
+    }
+}
+
+/// A setting changed (method, k, group, solver, λ, a point picked on the chart): a new
+/// request, or a status line saying why it does not apply.
+fn change_setting(s: &mut State, action: Action) -> Vec<Effect> {
+    match action {
         Action::Method(_) | Action::K(_) | Action::Pick(..) if s.target_keys => {
             s.status = "the key frames come from --target: method and k do not apply".into();
         }
@@ -317,6 +367,14 @@ pub fn update(s: &mut State, action: Action) -> Vec<Effect> {
             s.settings.k = k.clamp(1, 64);
             return s.recompute();
         }
+        _ => {}
+    }
+    vec![]
+}
+
+/// The views (split, mesh, rig), the export, and the prompts a key opens.
+fn view_or_prompt(s: &mut State, action: Action) -> Vec<Effect> {
+    match action {
         Action::Split => s.split = !s.split,
         Action::Mesh if s.mesh.is_some() => s.show_mesh = !s.show_mesh,
         Action::Mesh => s.status = "no mesh: open the lab with --mesh M.obj".into(),
@@ -335,62 +393,59 @@ pub fn update(s: &mut State, action: Action) -> Vec<Effect> {
         Action::Open => s.prompt = Some(Prompt::Open(String::new())),
         Action::Char(c) if c.is_ascii_digit() => s.prompt = Some(Prompt::Jump(c.to_string())),
         Action::Char(_) | Action::Enter | Action::Backspace => {}
-        Action::Computed(c) => {
-            if c.id == s.request {
-                s.busy = false;
-                s.status.clear();
-                s.frame = s.frame.min(c.frames.len().saturating_sub(1));
-                s.computed = Some(*c);
-            }
+        _ => {}
+    }
+    vec![]
+}
+
+/// The workers' answers: taken when they answer the newest request (or the loaded
+/// sequence), dropped when a newer one has superseded them.
+fn answer(s: &mut State, action: Action) -> Vec<Effect> {
+    match action {
+        Action::Computed(c) if c.id == s.request => {
+            s.busy = false;
+            s.status.clear();
+            s.frame = s.frame.min(c.frames.len().saturating_sub(1));
+            s.computed = Some(*c);
         }
-        Action::Curves(id, rows) => {
-            if id == s.request {
-                s.curves_busy = false;
-                s.curves = Some(rows);
-            }
+        Action::Curves(id, rows) if id == s.request => {
+            s.curves_busy = false;
+            s.curves = Some(rows);
         }
-        Action::Failed(id, msg) => {
-            if id == s.request {
-                s.busy = false;
-                s.curves_busy = false;
-                s.status = format!("error: {msg}");
-            }
+        Action::Failed(id, msg) if id == s.request => {
+            s.busy = false;
+            s.curves_busy = false;
+            s.status = format!("error: {msg}");
         }
-        Action::Loaded(id, name, frames, fps) => {
-            if id == s.request {
-                s.loaded = id;
-                s.normalised = false;
-                s.source = name;
-                s.frames = frames;
-                s.fps = fps;
-                s.frame = 0;
-                s.computed = None;
-                s.curves = None;
-                s.mesh = None;
-                s.show_mesh = false;
-                // With `--rig` the worker solves the new track onto the rig next
-                // (RigSolved); until then the key-shape view shows.
-                s.show_rig = false;
-                s.rig = None;
-                s.target_keys = false;
-                return s.recompute();
-            }
+        Action::Loaded(id, name, frames, fps) if id == s.request => {
+            s.loaded = id;
+            s.normalised = false;
+            s.source = name;
+            s.frames = frames;
+            s.fps = fps;
+            s.frame = 0;
+            s.computed = None;
+            s.curves = None;
+            s.mesh = None;
+            s.show_mesh = false;
+            // With `--rig` the worker solves the new track onto the rig next
+            // (RigSolved); until then the key-shape view shows.
+            s.show_rig = false;
+            s.rig = None;
+            s.target_keys = false;
+            return s.recompute();
         }
         Action::SplitViews(id, views) => {
             if let Some(c) = s.computed.as_mut().filter(|c| c.id == id) {
                 c.views.extend(views);
             }
         }
-        Action::Notice(id, note) => {
-            if id == s.loaded {
-                s.normalised = true;
-                s.status = note;
-            }
+        Action::Notice(id, note) if id == s.loaded => {
+            s.normalised = true;
+            s.status = note;
         }
-        Action::RigStep(id, step) => {
-            if id == s.request || id == s.loaded {
-                s.rig_step = Some(step);
-            }
+        Action::RigStep(id, step) if id == s.request || id == s.loaded => {
+            s.rig_step = Some(step);
         }
         Action::RigSmoothed(id, r) => {
             s.rig_step = None;
@@ -417,6 +472,7 @@ pub fn update(s: &mut State, action: Action) -> Vec<Effect> {
                 }
             }
         }
+        _ => {}
     }
     vec![]
 }
