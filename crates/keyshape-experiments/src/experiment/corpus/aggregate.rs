@@ -1,6 +1,7 @@
 //! Aggregation across sequences: means with bootstrap intervals, wins, paired differences.
 
 use super::{CurvePoint, RetargetPoint, UnitResult};
+use crate::experiment::spec::RetargetSpec;
 use crate::experiment::Spec;
 
 use keyshape_core::error::{Error, Result};
@@ -188,35 +189,63 @@ pub fn aggregate(spec: &Spec, results: Vec<UnitResult>) -> Result<CorpusOutcome>
         .iter()
         .map(|m| m.name())
         .partition(|m| has_all(m));
-    // rms_iod[sequence] of one (method, solver, k).
-    let curve = |m: &str, s: &str, k: usize| -> Result<Vec<f64>> {
-        results
-            .iter()
-            .map(|r| {
-                r.curves
-                    .iter()
-                    .find(|c| c.method == m && c.solver == s && c.k == k)
-                    .map(|c| c.rms / r.iod)
-                    .ok_or_else(|| {
-                        Error::invalid(format!(
-                            "sequence {} has no {m}/{s} error at k = {k}",
-                            r.unit.name
-                        ))
-                    })
-            })
-            .collect()
+    let (summary, paired, wins) = compare_methods(spec, &results, &methods, &solvers, &draws)?;
+    let own_k = own_k_rows(spec, &results, &own, &methods, &solvers, &draws)?;
+    let retarget_paired = match &spec.retarget {
+        Some(rt) => retarget_pairs(rt, &results, &draws)?,
+        None => Vec::new(),
     };
+    Ok(CorpusOutcome {
+        spec: spec.clone(),
+        results,
+        summary,
+        paired,
+        wins,
+        own_k,
+        retarget_paired,
+    })
+}
+
+/// The error over the inter-ocular distance of one (method, solver, k) on every sequence.
+fn curve(results: &[UnitResult], m: &str, s: &str, k: usize) -> Result<Vec<f64>> {
+    results
+        .iter()
+        .map(|r| {
+            r.curves
+                .iter()
+                .find(|c| c.method == m && c.solver == s && c.k == k)
+                .map(|c| c.rms / r.iod)
+                .ok_or_else(|| {
+                    Error::invalid(format!(
+                        "sequence {} has no {m}/{s} error at k = {k}",
+                        r.unit.name
+                    ))
+                })
+        })
+        .collect()
+}
+
+/// The methods that have every k, compared at each k: each one's interval and wins, each
+/// pair's paired difference, and each one's wins over the range.
+fn compare_methods(
+    spec: &Spec,
+    results: &[UnitResult],
+    methods: &[String],
+    solvers: &[&str],
+    draws: &[Vec<usize>],
+) -> Result<(Vec<SummaryRow>, Vec<PairedRow>, Vec<WinRow>)> {
+    let n = results.len();
     let mut summary = Vec::new();
     let mut paired = Vec::new();
     let mut wins: Vec<WinRow> = Vec::new();
     if !methods.is_empty() {
-        for s in &solvers {
+        for s in solvers {
             let mut total = vec![0usize; methods.len()];
             let mut contests = 0;
             for k in spec.k.0..=spec.k.1 {
                 let vals: Vec<Vec<f64>> = methods
                     .iter()
-                    .map(|m| curve(m, s, k))
+                    .map(|m| curve(results, m, s, k))
                     .collect::<Result<_>>()?;
                 let mut won = vec![0usize; methods.len()];
                 for u in 0..n {
@@ -234,7 +263,7 @@ pub fn aggregate(spec: &Spec, results: Vec<UnitResult>) -> Result<CorpusOutcome>
                         method: m.clone(),
                         solver: s.to_string(),
                         k,
-                        rms_iod: interval(&vals[mi], &draws),
+                        rms_iod: interval(&vals[mi], draws),
                         wins: won[mi],
                     });
                 }
@@ -246,7 +275,7 @@ pub fn aggregate(spec: &Spec, results: Vec<UnitResult>) -> Result<CorpusOutcome>
                             k,
                             a: methods[a].clone(),
                             b: methods[b].clone(),
-                            diff: interval(&d, &draws),
+                            diff: interval(&d, draws),
                             a_lower: d.iter().filter(|x| **x < 0.0).count(),
                             b_lower: d.iter().filter(|x| **x > 0.0).count(),
                         });
@@ -263,12 +292,26 @@ pub fn aggregate(spec: &Spec, results: Vec<UnitResult>) -> Result<CorpusOutcome>
             }
         }
     }
+    Ok((summary, paired, wins))
+}
+
+/// The methods that choose their own k (the hull): per sequence its k and error, and the
+/// other methods compared with it at that k.
+fn own_k_rows(
+    spec: &Spec,
+    results: &[UnitResult],
+    own: &[String],
+    methods: &[String],
+    solvers: &[&str],
+    draws: &[Vec<usize>],
+) -> Result<Vec<OwnKRow>> {
+    let n = results.len();
     let mut own_k = Vec::new();
-    for m in &own {
-        for s in &solvers {
+    for m in own {
+        for s in solvers {
             // Per sequence: the method's own k and error.
             let mut at: Vec<(usize, f64)> = Vec::with_capacity(n);
-            for r in &results {
+            for r in results {
                 let mine: Vec<&CurvePoint> = r
                     .curves
                     .iter()
@@ -287,7 +330,7 @@ pub fn aggregate(spec: &Spec, results: Vec<UnitResult>) -> Result<CorpusOutcome>
             }
             let own_errors: Vec<f64> = at.iter().map(|a| a.1).collect();
             let mut against = Vec::new();
-            for c in &methods {
+            for c in methods {
                 let mut d = Vec::new();
                 for (r, &(k, e)) in results.iter().zip(&at) {
                     if let Some(p) = r
@@ -313,55 +356,55 @@ pub fn aggregate(spec: &Spec, results: Vec<UnitResult>) -> Result<CorpusOutcome>
                 method: m.clone(),
                 solver: s.to_string(),
                 ks: at.iter().map(|a| a.0).collect(),
-                rms_iod: interval(&own_errors, &draws),
+                rms_iod: interval(&own_errors, draws),
                 against,
             });
         }
     }
+    Ok(own_k)
+}
+
+/// `[retarget]`'s solvers compared pairwise at each trace noise, over the sequences.
+fn retarget_pairs(
+    rt: &RetargetSpec,
+    results: &[UnitResult],
+    draws: &[Vec<usize>],
+) -> Result<Vec<RetargetPairedRow>> {
+    let n = results.len();
     let mut retarget_paired = Vec::new();
-    if let Some(rt) = &spec.retarget {
-        let get = |r: &UnitResult, s: &str, noise: f64| -> Result<RetargetPoint> {
-            r.retarget
-                .iter()
-                .find(|p| p.solver == s && p.trace_noise == noise)
-                .cloned()
-                .ok_or_else(|| {
-                    Error::invalid(format!(
-                        "sequence {} has no [retarget] row for {s} at trace noise {noise}",
-                        r.unit.name
-                    ))
-                })
-        };
-        for &noise in &rt.trace_noise {
-            for a in 0..rt.solvers.len() {
-                for b in a + 1..rt.solvers.len() {
-                    let (sa, sb) = (rt.solvers[a].name(), rt.solvers[b].name());
-                    let mut td = Vec::with_capacity(n);
-                    let mut sd = Vec::with_capacity(n);
-                    for r in &results {
-                        let (pa, pb) = (get(r, sa, noise)?, get(r, sb, noise)?);
-                        td.push((pa.target_rms - pb.target_rms) / r.iod);
-                        sd.push((pa.source_rms - pb.source_rms) / r.iod);
-                    }
-                    retarget_paired.push(RetargetPairedRow {
-                        trace_noise: noise,
-                        a: sa.to_string(),
-                        b: sb.to_string(),
-                        target_diff: interval(&td, &draws),
-                        source_diff: interval(&sd, &draws),
-                        a_lower: td.iter().filter(|x| **x < 0.0).count(),
-                    });
+    let get = |r: &UnitResult, s: &str, noise: f64| -> Result<RetargetPoint> {
+        r.retarget
+            .iter()
+            .find(|p| p.solver == s && p.trace_noise == noise)
+            .cloned()
+            .ok_or_else(|| {
+                Error::invalid(format!(
+                    "sequence {} has no [retarget] row for {s} at trace noise {noise}",
+                    r.unit.name
+                ))
+            })
+    };
+    for &noise in &rt.trace_noise {
+        for a in 0..rt.solvers.len() {
+            for b in a + 1..rt.solvers.len() {
+                let (sa, sb) = (rt.solvers[a].name(), rt.solvers[b].name());
+                let mut td = Vec::with_capacity(n);
+                let mut sd = Vec::with_capacity(n);
+                for r in results {
+                    let (pa, pb) = (get(r, sa, noise)?, get(r, sb, noise)?);
+                    td.push((pa.target_rms - pb.target_rms) / r.iod);
+                    sd.push((pa.source_rms - pb.source_rms) / r.iod);
                 }
+                retarget_paired.push(RetargetPairedRow {
+                    trace_noise: noise,
+                    a: sa.to_string(),
+                    b: sb.to_string(),
+                    target_diff: interval(&td, draws),
+                    source_diff: interval(&sd, draws),
+                    a_lower: td.iter().filter(|x| **x < 0.0).count(),
+                });
             }
         }
     }
-    Ok(CorpusOutcome {
-        spec: spec.clone(),
-        results,
-        summary,
-        paired,
-        wins,
-        own_k,
-        retarget_paired,
-    })
+    Ok(retarget_paired)
 }
