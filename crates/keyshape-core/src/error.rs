@@ -336,4 +336,38 @@ mod tests {
         assert_eq!(Error::parse("a.csv", 3, 0, "m").to_string(), "a.csv:3: m");
         assert_eq!(Error::parse("a.csv", 0, 0, "m").to_string(), "a.csv: m");
     }
+
+    /// Each constructor gives its kind; a setting error names its setting and value; a
+    /// file's errors name the file; what an error needs is given back; and the words are
+    /// the message's, a path before them when there is one.
+    #[test]
+    fn each_error_has_the_kind_a_caller_acts_on() {
+        let cases = [
+            (Error::io("a", std::io::Error::other("gone")), ErrorKind::Io),
+            (Error::parse("a", 1, 2, "m"), ErrorKind::Parse),
+            (Error::file("a", "m"), ErrorKind::File),
+            (
+                Error::bad_setting("k", 0, "k 0: give 1 to 64"),
+                ErrorKind::Setting,
+            ),
+            (Error::unfit("m"), ErrorKind::Unfit),
+            (Error::needs(Needed::Template, "m"), ErrorKind::Needs),
+            (Error::invalid("m"), ErrorKind::Invalid),
+        ];
+        for (e, kind) in &cases {
+            assert_eq!(e.kind(), *kind, "{e}");
+            let named = matches!(kind, ErrorKind::Io | ErrorKind::Parse | ErrorKind::File);
+            assert_eq!(e.path().is_some(), named, "{e}");
+        }
+        let e = Error::bad_setting("k", 0, format!("{} 0: give 1 to 64", setting("k")));
+        assert_eq!(e.setting(), Some(("k", "0")));
+        assert_eq!(e.render(&|n| format!("--{n}")), "--k 0: give 1 to 64");
+        assert_eq!(Error::unfit("m").setting(), None);
+        let e = Error::needs_in("t.svg", Needed::Template, "not a template");
+        assert_eq!(e.needed(), Some(&Needed::Template));
+        assert_eq!(e.path(), Some(std::path::Path::new("t.svg")));
+        assert_eq!(e.to_string(), "t.svg: not a template");
+        assert_eq!(Error::needs(Needed::ShardReports, "m").to_string(), "m");
+        assert_eq!(Error::invalid("m").needed(), None);
+    }
 }
