@@ -72,43 +72,13 @@ pub struct SolveArgs {
 }
 
 pub fn run(a: &SolveArgs) -> Result<()> {
-    let smoothing = a
-        .smooth
-        .map(|lambda| {
-            let s = Smoothing {
-                lambda,
-                order: a.smooth_order.unwrap_or(1),
-                mode: a.smooth_mode.unwrap_or(SmoothMode::Offline),
-            };
-            s.check().map(|_| s)
-        })
-        .transpose()?;
+    let smoothing = checked_smoothing(a)?;
     // Without --out (and --json) the weights go to standard output, as with `--out -`.
     let stdout = std::path::PathBuf::from("-");
     let out = a.out.as_ref().or((!a.json).then_some(&stdout));
     super::check_outputs(&[out, a.png.as_ref()], &[], &[a.input.file.as_deref()])?;
     super::check_json_stdout(a.json, a.out.as_ref())?;
-    // `--k` alone chooses by the default method (spread), as the help says.
-    if a.choice.keys.is_empty() && a.choice.method.is_none() && a.choice.k.is_none() {
-        anyhow::bail!("name the key frames: --keys 3,17,42, or --method spread --k 12 (as `kslab keys` chooses them)");
-    }
-    a.heuristic.check(&a.choice.methods(), a.solver)?;
-    if a.stream && a.choice.keys.is_empty() {
-        anyhow::bail!("--stream needs the key frames by number (--keys): choosing them needs the whole track in memory; run `kslab keys` first");
-    }
-    if let Some(r) = a.rcond {
-        if a.solver != Solver::Ls {
-            anyhow::bail!(
-                "--rcond is the least-squares cutoff: it does not apply to --solver {}",
-                a.solver
-            );
-        }
-        if !(r.is_finite() && (0.0..1.0).contains(&r)) {
-            anyhow::bail!(
-                "--rcond {r}: give a cutoff in [0, 1) relative to the largest singular value"
-            );
-        }
-    }
+    check_args(a)?;
     if a.stream {
         return run_stream(a, smoothing);
     }
@@ -163,27 +133,7 @@ pub fn run(a: &SolveArgs) -> Result<()> {
     }
     warn(&d);
     if let Some(png) = &a.png {
-        let labels: Vec<String> = keys.iter().map(|k| format!("w_{k}")).collect();
-        let title = format!(
-            "{}: weights over time, {} keys, {}{}",
-            super::input::track_label(&seq.source, a.input.points.as_deref()),
-            keys.len(),
-            a.solver,
-            smoothing.map_or(String::new(), |s| format!(
-                " (λ {} {} order {})",
-                s.lambda,
-                s.mode.name(),
-                s.order
-            ))
-        );
-        let pm = keyshape_pictures::render::weights::weights_picture_marked(
-            &d.weights,
-            &labels,
-            &seq.frames,
-            &title,
-            &keys,
-        )?;
-        keyshape_pictures::render::save_png(&pm, png)?;
+        write_png(a, seq, &keys, &d, smoothing, png)?;
     }
     match &a.out {
         Some(path) => write_atomic(path, |w| write_csv(w, seq, &keys, &d))?,
@@ -192,6 +142,93 @@ pub fn run(a: &SolveArgs) -> Result<()> {
         // ends the command quietly with none of its other outputs committed.
         None => write_atomic(std::path::Path::new("-"), |w| write_csv(w, seq, &keys, &d))?,
     }
+    report(a, seq, &keys, &d, smoothing, smoothed.as_ref(), &segs)
+}
+
+/// `--smooth λ` with its order and mode, checked.
+fn checked_smoothing(a: &SolveArgs) -> Result<Option<Smoothing>> {
+    Ok(a.smooth
+        .map(|lambda| {
+            let s = Smoothing {
+                lambda,
+                order: a.smooth_order.unwrap_or(1),
+                mode: a.smooth_mode.unwrap_or(SmoothMode::Offline),
+            };
+            s.check().map(|_| s)
+        })
+        .transpose()?)
+}
+
+/// The options that must hold together: key frames named or chosen, `--stream` with
+/// `--keys`, `--rcond` for least squares only and in range.
+fn check_args(a: &SolveArgs) -> Result<()> {
+    // `--k` alone chooses by the default method (spread), as the help says.
+    if a.choice.keys.is_empty() && a.choice.method.is_none() && a.choice.k.is_none() {
+        anyhow::bail!("name the key frames: --keys 3,17,42, or --method spread --k 12 (as `kslab keys` chooses them)");
+    }
+    a.heuristic.check(&a.choice.methods(), a.solver)?;
+    if a.stream && a.choice.keys.is_empty() {
+        anyhow::bail!("--stream needs the key frames by number (--keys): choosing them needs the whole track in memory; run `kslab keys` first");
+    }
+    if let Some(r) = a.rcond {
+        if a.solver != Solver::Ls {
+            anyhow::bail!(
+                "--rcond is the least-squares cutoff: it does not apply to --solver {}",
+                a.solver
+            );
+        }
+        if !(r.is_finite() && (0.0..1.0).contains(&r)) {
+            anyhow::bail!(
+                "--rcond {r}: give a cutoff in [0, 1) relative to the largest singular value"
+            );
+        }
+    }
+    Ok(())
+}
+
+/// The weights-over-time picture (`--png`), the key frames marked.
+fn write_png(
+    a: &SolveArgs,
+    seq: &keyshape_core::Sequence,
+    keys: &[i64],
+    d: &keyshape_core::Decomposition,
+    smoothing: Option<Smoothing>,
+    png: &std::path::Path,
+) -> Result<()> {
+    let labels: Vec<String> = keys.iter().map(|k| format!("w_{k}")).collect();
+    let title = format!(
+        "{}: weights over time, {} keys, {}{}",
+        super::input::track_label(&seq.source, a.input.points.as_deref()),
+        keys.len(),
+        a.solver,
+        smoothing.map_or(String::new(), |s| format!(
+            " (λ {} {} order {})",
+            s.lambda,
+            s.mode.name(),
+            s.order
+        ))
+    );
+    let pm = keyshape_pictures::render::weights::weights_picture_marked(
+        &d.weights,
+        &labels,
+        &seq.frames,
+        &title,
+        keys,
+    )?;
+    keyshape_pictures::render::save_png(&pm, png)?;
+    Ok(())
+}
+
+/// What was solved: `--json`, or one line when the weights went to a file.
+fn report(
+    a: &SolveArgs,
+    seq: &keyshape_core::Sequence,
+    keys: &[i64],
+    d: &keyshape_core::Decomposition,
+    smoothing: Option<Smoothing>,
+    smoothed: Option<&keyshape_core::solve::temporal::Smoothed>,
+    segs: &[std::ops::Range<usize>],
+) -> Result<()> {
     if a.json {
         let v = json!({
             "source": seq.source,
@@ -208,7 +245,7 @@ pub fn run(a: &SolveArgs) -> Result<()> {
             "rank": d.rank,
             "condition": d.condition,
             "unconverged_frames": d.unconverged,
-            "jitter": weight_jitter(&d.weights, &segs),
+            "jitter": weight_jitter(&d.weights, segs),
             "smoothing": smoothing.map(|s| json!({
                 "objective": s.objective(),
                 "lambda": s.lambda,
@@ -234,7 +271,7 @@ pub fn run(a: &SolveArgs) -> Result<()> {
                 s.mode.name(),
                 s.order,
                 s.lambda,
-                weight_jitter(&d.weights, &segs)
+                weight_jitter(&d.weights, segs)
             )),
             d.mean_rms(),
             d.overall_rms(),
