@@ -396,44 +396,11 @@ pub fn study_with_format(
     st: &StudySettings,
 ) -> Result<Study> {
     use keyshape_core::decompose::{prepare, PrepareOptions};
-    use keyshape_io::{read_columns, read_sequence, ReadOptions};
+    use keyshape_io::{read_sequence, ReadOptions};
     st.check()?;
     let seq = read_sequence(path, &ReadOptions { format, dims: 2 })?;
-    let clips: Vec<usize> = seq
-        .segments
-        .as_ref()
-        .ok_or_else(|| {
-            Error::file(
-                path,
-                format!(
-                    "read with the {} reader, which keeps no `clip` column (only the py-feat reader does): the study needs clips (people) to test on; force the py-feat reader if the file is one",
-                    seq.format
-                ),
-            )
-        })?
-        .iter()
-        .map(|c| {
-            c.parse::<f64>()
-                .map(|v| v as usize)
-                .map_err(|_| Error::file(path, format!("clip id '{c}' is not a number")))
-        })
-        .collect::<Result<_>>()?;
-    let names: Vec<&str> = STUDY_ACTIONS
-        .iter()
-        .flat_map(|(_, c)| c.iter().copied())
-        .collect();
-    let cols = read_columns(path, &names)?;
-    let mut truth = Vec::new();
-    let mut at = 0;
-    for (_, c) in STUDY_ACTIONS {
-        let n = c.len();
-        truth.push(
-            (0..seq.n_frames())
-                .map(|t| (at..at + n).map(|k| cols[k][t]).sum::<f64>() / n as f64)
-                .collect::<Vec<f64>>(),
-        );
-        at += n;
-    }
+    let clips = clip_ids(path, &seq)?;
+    let truth = action_truth(path, &seq)?;
     let prep = prepare(&seq, &PrepareOptions::all_aligned())?;
     let mut x = prep.seq.coords.clone();
     centre(&mut x, &clips, st)?;
@@ -443,29 +410,7 @@ pub fn study_with_format(
         .collect::<std::collections::BTreeSet<usize>>()
         .into_iter()
         .collect();
-    // Folds: (training clips, test clips).
-    let folds: Vec<(Vec<usize>, Vec<usize>)> = match st.evaluation {
-        Evaluation::Split => {
-            let (a, b) = st.train_range();
-            let (tr, te): (Vec<usize>, Vec<usize>) = ids.iter().partition(|&&c| c >= a && c <= b);
-            if tr.is_empty() || te.is_empty() {
-                return Err(Error::invalid(format!(
-                    "train clips {a}..{b} leave no training or no test frames"
-                )));
-            }
-            vec![(tr, te)]
-        }
-        Evaluation::LeaveOneClipOut => {
-            if ids.len() < 2 {
-                return Err(Error::invalid(
-                    "leave-one-clip-out needs at least two clips",
-                ));
-            }
-            ids.iter()
-                .map(|&c| (ids.iter().copied().filter(|&o| o != c).collect(), vec![c]))
-                .collect()
-        }
-    };
+    let folds = folds(&ids, st)?;
     let n_act = STUDY_ACTIONS.len();
     let mut pooled: Vec<[Vec<f64>; 4]> = (0..n_act).map(|_| Default::default()).collect();
     let mut labelled = vec![0usize; n_act];
@@ -535,7 +480,95 @@ pub fn study_with_format(
             }
         }
     }
-    let rows = STUDY_ACTIONS
+    let rows = study_rows(&clip_rows, &pooled, &labelled);
+    Ok(Study {
+        train_frames,
+        test_frames,
+        test_clips,
+        features: features_text(st),
+        actions: rows,
+        clips: clip_rows,
+    })
+}
+
+/// Each frame's clip (person) as a number: the study tests on clips it did not train on.
+fn clip_ids(path: &std::path::Path, seq: &keyshape_core::Sequence) -> Result<Vec<usize>> {
+    seq
+        .segments
+        .as_ref()
+        .ok_or_else(|| {
+            Error::file(
+                path,
+                format!(
+                    "read with the {} reader, which keeps no `clip` column (only the py-feat reader does): the study needs clips (people) to test on; force the py-feat reader if the file is one",
+                    seq.format
+                ),
+            )
+        })?
+        .iter()
+        .map(|c| {
+            c.parse::<f64>()
+                .map(|v| v as usize)
+                .map_err(|_| Error::file(path, format!("clip id '{c}' is not a number")))
+        })
+        .collect::<Result<_>>()
+}
+
+/// Each study action's score per frame: the mean of its ARKit-style columns in the table.
+fn action_truth(path: &std::path::Path, seq: &keyshape_core::Sequence) -> Result<Vec<Vec<f64>>> {
+    let names: Vec<&str> = STUDY_ACTIONS
+        .iter()
+        .flat_map(|(_, c)| c.iter().copied())
+        .collect();
+    let cols = keyshape_io::read_columns(path, &names)?;
+    let mut truth = Vec::new();
+    let mut at = 0;
+    for (_, c) in STUDY_ACTIONS {
+        let n = c.len();
+        truth.push(
+            (0..seq.n_frames())
+                .map(|t| (at..at + n).map(|k| cols[k][t]).sum::<f64>() / n as f64)
+                .collect::<Vec<f64>>(),
+        );
+        at += n;
+    }
+    Ok(truth)
+}
+
+/// The folds, as (training clips, test clips): one split, or each clip left out in turn.
+fn folds(ids: &[usize], st: &StudySettings) -> Result<Vec<(Vec<usize>, Vec<usize>)>> {
+    Ok(match st.evaluation {
+        Evaluation::Split => {
+            let (a, b) = st.train_range();
+            let (tr, te): (Vec<usize>, Vec<usize>) = ids.iter().partition(|&&c| c >= a && c <= b);
+            if tr.is_empty() || te.is_empty() {
+                return Err(Error::invalid(format!(
+                    "train clips {a}..{b} leave no training or no test frames"
+                )));
+            }
+            vec![(tr, te)]
+        }
+        Evaluation::LeaveOneClipOut => {
+            if ids.len() < 2 {
+                return Err(Error::invalid(
+                    "leave-one-clip-out needs at least two clips",
+                ));
+            }
+            ids.iter()
+                .map(|&c| (ids.iter().copied().filter(|&o| o != c).collect(), vec![c]))
+                .collect()
+        }
+    })
+}
+
+/// One row per action: its correlations pooled over the test clips and their spread
+/// clip by clip.
+fn study_rows(
+    clip_rows: &[ClipRow],
+    pooled: &[[Vec<f64>; 4]],
+    labelled: &[usize],
+) -> Vec<StudyRow> {
+    STUDY_ACTIONS
         .iter()
         .enumerate()
         .map(|(k, (name, _))| {
@@ -558,12 +591,12 @@ pub fn study_with_format(
                 clips_smoothed: per(|r| r.smoothed),
             }
         })
-        .collect();
-    Ok(Study {
-        train_frames,
-        test_frames,
-        test_clips,
-        features: format!(
+        .collect()
+}
+
+/// How the features were made, for the report.
+fn features_text(st: &StudySettings) -> String {
+    format!(
             "68 landmarks aligned by generalised Procrustes over the whole table, minus each clip's {} shape",
             match st.centring {
                 Centring::ClipMean => "mean (all its frames)".to_string(),
@@ -573,8 +606,5 @@ pub fn study_with_format(
                     st.neutral_frames.unwrap_or(1)
                 ),
             }
-        ),
-        actions: rows,
-        clips: clip_rows,
-    })
+        )
 }
