@@ -92,9 +92,9 @@ fn worst_kkt(
                 }
             }
         }
-        for (a, b) in EXCLUSIVE {
+        for (a, b, share) in EXCLUSIVE {
             let (a, b) = (at(a), at(b));
-            let gamma = 2.0 * (ridge[a] * ridge[b]).sqrt();
+            let gamma = share * 2.0 * (ridge[a] * ridge[b]).sqrt();
             grad[a] += gamma * w[b];
             grad[b] += gamma * w[a];
         }
@@ -161,6 +161,39 @@ fn the_default_solve_meets_the_goals_on_a_smooth_performance() {
         s.mean_r >= 0.88 && s.worst_r >= 0.5 && s.rmse <= 0.09,
         "{s:?}"
     );
+}
+
+/// The hardest shape over 20 seeds (68 points, 0.5 px, the lead-in as the neutral, no
+/// smoothing: the settings `tools/rig_reference.py` was run at). The worst shape's 10th
+/// percentile over the seeds is at least the ridge reference's 0.636 on the smooth
+/// performance, whose smiles and frowns are on together at random (measured 0.679; 0.564
+/// with the full smile / frown term of the exclusive pairs), and its median is at least the
+/// 0.805 it was (measured 0.851). The same seeds with the smile / frown pairs at the full
+/// term give the old figure, so the test fails on it.
+#[test]
+fn the_hardest_shape_over_seeds_is_at_least_the_references() {
+    let rig = ict();
+    let opts = RigOptions {
+        neutral: Neutral::Span(0, Settings::default().lead_in),
+        zero_phase: 0.0,
+        ..RigOptions::recommended()
+    };
+    let worst: Vec<(f64, String)> = (1..=20)
+        .map(|seed| {
+            let st = Settings {
+                seed,
+                ..Settings::default()
+            };
+            let s = accuracy::run(&rig, &st, &opts).unwrap().3;
+            (s.worst_r, s.worst_shape)
+        })
+        .collect();
+    let mut r: Vec<f64> = worst.iter().map(|w| w.0).collect();
+    r.sort_by(f64::total_cmp);
+    // Nearest rank over 20: the 10th percentile is the 2nd lowest, the median the 10th.
+    let (p10, median) = (r[1], r[9]);
+    assert!(p10 >= 0.636, "p10 {p10:.3}: {worst:?}");
+    assert!(median >= 0.805, "median {median:.3}: {worst:?}");
 }
 
 /// Winks, the goal at 68 points: every one-sided shape comes through (r ≥ 0.95) and

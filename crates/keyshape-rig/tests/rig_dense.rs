@@ -134,8 +134,9 @@ fn noise_free_dense_renders_come_back_exactly() {
 
 /// With MediaPipe's depth (`--dims 3`): a noise-free render with depth (z in x's pixels,
 /// more negative closer, an arbitrary origin) comes back exactly with the priors off, and
-/// on the benchmark depth raises the smooth performance's worst shape (measured 0.944 →
-/// 0.983 at 0.5 px).
+/// on the benchmark depth raises the smooth performance's worst shape and lowers its RMSE
+/// (measured 0.976 → 0.992 and 0.032 → 0.019 at 0.5 px; 0.944 → 0.983 before the smile /
+/// frown pairs' term was cut to a twentieth, which lifted the flat solve's mouthFrown_L).
 #[test]
 fn depth_rows_are_fitted_and_help() {
     let rig = dense(468);
@@ -158,15 +159,15 @@ fn depth_rows_are_fitted_and_help() {
     };
     let (_, _, _, deep) = accuracy::run(&rig, &st, &RigOptions::recommended()).unwrap();
     assert!(
-        deep.worst_r > flat.worst_r + 0.02,
+        deep.worst_r > flat.worst_r + 0.01,
         "{deep:?} against {flat:?}"
     );
-    assert!(deep.rmse < flat.rmse, "{deep:?} against {flat:?}");
+    assert!(deep.rmse < 0.75 * flat.rmse, "{deep:?} against {flat:?}");
 }
 
 /// The goals for MediaPipe 468 (smooth performance, another person with a lead-in,
-/// 0.5 px, default settings): mean r ≥ 0.97, worst ≥ 0.90, RMSE ≤ 0.06 (measured 0.992 /
-/// 0.944 / 0.040); winks: each one-sided shape ≥ 0.85 at its peaks (measured 0.85 at the
+/// 0.5 px, default settings): mean r ≥ 0.97, worst ≥ 0.90, RMSE ≤ 0.06 (measured 0.995 /
+/// 0.976 / 0.032); winks: each one-sided shape ≥ 0.85 at its peaks (measured 0.85 at the
 /// lowest), its twin < 0.15, every other shape < 0.4.
 #[test]
 fn the_dense_solve_meets_the_goals() {

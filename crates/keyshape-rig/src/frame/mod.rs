@@ -35,8 +35,9 @@ pub(super) struct FrameSolver<'a> {
     /// The magnitude prior: per free shape, μᵢ in `Σ μᵢ wᵢ²` added to the error.
     pub(super) ridge: Vec<f64>,
     /// Mutually exclusive pairs (free indices a, b) and γ in `γ w_a w_b` added to the error:
-    /// with γ = 2√(μ_a μ_b) the pair's prior is `(√μ_a w_a + √μ_b w_b)²`, convex, and shapes
-    /// that undo each other (smile and frown) pay for being on together.
+    /// with γ ≤ 2√(μ_a μ_b) the pair's prior stays convex (at the bound it is
+    /// `(√μ_a w_a + √μ_b w_b)²`), and shapes that undo each other (blink and wide) pay for
+    /// being on together.
     pub(super) pairs: Vec<(usize, usize, f64)>,
     /// The frame's depth observations (towards the viewer, track units) when the track has
     /// depth (`--dims 3`): each landmark's third row, `s r₃·p + tz`, is fitted too.
