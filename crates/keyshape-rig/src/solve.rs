@@ -33,72 +33,15 @@ pub fn solve_rig_observed(
     opts: &RigOptions,
     step: &mut dyn FnMut(String),
 ) -> Result<RigSolve> {
-    let n = rig.landmarks();
-    if track.nrows() != 2 * n && track.nrows() != 3 * n {
-        return Err(Error::invalid(format!(
-            "the rig reads {n} landmarks (2 or 3 rows each), but the track has {} rows: select the rig's points (Rig::points) from the track first",
-            track.nrows(),
-        )));
-    }
-    // A track with depth (x, y, z per landmark): its image rows, and its depth rows with
-    // the sign turned to point towards the viewer (MediaPipe's z is more negative closer).
-    let (image, depth) = if track.nrows() == 3 * n {
-        let xy: Vec<usize> = (0..n).flat_map(|i| [3 * i, 3 * i + 1]).collect();
-        let z: Vec<usize> = (0..n).map(|i| 3 * i + 2).collect();
-        (track.select_rows(&xy), Some(-track.select_rows(&z)))
-    } else {
-        (track.clone(), None)
-    };
+    let (image, depth) = image_and_depth(rig, track)?;
     let track = &image;
     let depth = depth.as_ref();
-    if track.ncols() == 0 {
-        return Err(Error::invalid("the track has no frames"));
-    }
-    if let Some((i, v)) = track.iter().enumerate().find(|(_, v)| !v.is_finite()) {
-        return Err(Error::invalid(format!(
-            "frame column {}: landmark {} is {v}",
-            i / track.nrows(),
-            (i % track.nrows()) / 2
-        )));
-    }
-    if let Some(c) = (0..track.ncols())
-        .find(|&c| keyshape_core::sequence::degenerate_shape(track.column(c).as_slice(), 2))
-    {
-        return Err(Error::unfit(format!(
-            "frame column {c}: all {n} landmarks coincide, so no camera can be fitted to it"
-        )));
-    }
+    check_frames(track, rig.landmarks())?;
     let lw = check_options(rig, opts)?;
-    let whole = std::iter::once(0..track.ncols()).collect::<Vec<_>>();
-    let clips: &[Range<usize>] = if clips.is_empty() { &whole[..] } else { clips };
-    if clips.iter().any(|c| c.end > track.ncols() || c.is_empty())
-        || clips.windows(2).any(|w| w[0].end != w[1].start)
-        || clips[0].start != 0
-        || clips[clips.len() - 1].end != track.ncols()
-    {
-        return Err(Error::invalid(
-            "rig solve: clips must cover the frames in order",
-        ));
-    }
-    if let Neutral::Column(c) = opts.neutral {
-        if c >= track.ncols() {
-            return Err(Error::invalid(format!(
-                "neutral frame column {c} is past the track's {} frames",
-                track.ncols()
-            )));
-        }
-    }
-    if let Neutral::Span(a, b) = opts.neutral {
-        if a >= b || b > track.ncols() {
-            return Err(Error::invalid(format!(
-                "neutral frame columns {a}..{b} are not a stretch of the track's {} frames",
-                track.ncols()
-            )));
-        }
-    }
+    let clips = covering(clips, track.ncols())?;
+    check_neutral(opts.neutral, track.ncols())?;
     // The magnitude prior's scale: the whole track's, or a causal solve's neutral frames'.
     let iod = prior_iod(rig, track, opts, neutral_frames(opts.neutral));
-    let all: Vec<usize> = (0..rig.k()).collect();
     // Pass 1 (without an identity, or to find the least active frames): the rig as it is,
     // every shape free.
     let first = match (opts.identity, opts.neutral) {
@@ -109,61 +52,14 @@ pub fn solve_rig_observed(
                     track.ncols()
                 ));
             }
-            Some(run(
-                rig,
-                (track, depth),
-                &[(0..track.ncols(), rig.clone())],
-                all,
-                opts,
-                &lw,
-                iod,
-            )?)
+            let whole = [(0..track.ncols(), rig.clone())];
+            let all: Vec<usize> = (0..rig.k()).collect();
+            Some(run(rig, (track, depth), &whole, all, opts, &lw, iod)?)
         }
         _ => None,
     };
-    let least_active = |c: &Range<usize>, first: &RigSolve| {
-        c.clone()
-            .min_by(|&a, &b| {
-                let s = |f: usize| first.weights.column(f).sum();
-                s(a).total_cmp(&s(b))
-            })
-            .unwrap_or(c.start)
-    };
-    let (people, neutrals): (Vec<(Range<usize>, Rig)>, Vec<usize>) =
-        match (opts.identity, opts.neutral, &first) {
-            (Identity::None, _, _) => (vec![(0..track.ncols(), rig.clone())], Vec::new()),
-            (id, Neutral::Column(n), _) => (
-                vec![(
-                    0..track.ncols(),
-                    person_rig(rig, track, depth, n..n + 1, id)?,
-                )],
-                vec![n],
-            ),
-            (id, Neutral::Span(a, b), _) => (
-                vec![(0..track.ncols(), person_rig(rig, track, depth, a..b, id)?)],
-                vec![(a + b) / 2],
-            ),
-            (id, auto, first) => {
-                let mut people = Vec::new();
-                let mut neutrals = Vec::new();
-                for c in clips {
-                    if auto == Neutral::Auto {
-                        step(format!(
-                            "choosing the neutral: {} candidate frames, each scored on {}",
-                            c.len().min(super::NEUTRAL_CANDIDATES),
-                            c.len().min(super::NEUTRAL_SCORED_FRAMES)
-                        ));
-                    }
-                    let n = match first {
-                        Some(first) if auto == Neutral::LeastActive => least_active(c, first),
-                        _ => best_explaining(rig, (track, depth), c.clone(), opts, &lw)?,
-                    };
-                    people.push((c.clone(), person_rig(rig, track, depth, n..n + 1, id)?));
-                    neutrals.push(n);
-                }
-                (people, neutrals)
-            }
-        };
+    let (people, neutrals) =
+        identities(rig, (track, depth), &clips, opts, &lw, first.as_ref(), step)?;
     // Identifiability at the first clip's neutral view (the rig and the view decide it,
     // not the person); the frozen shapes are the same in every clip.
     let cam_n = match (neutrals.first(), &first) {
@@ -205,6 +101,137 @@ pub fn solve_rig_observed(
     out.neutrals = neutrals;
     out.people = people;
     Ok(out)
+}
+
+/// A track's image rows, and with depth (x, y, z per landmark) its depth rows with the
+/// sign turned to point towards the viewer (MediaPipe's z is more negative closer).
+fn image_and_depth(
+    rig: &Rig,
+    track: &DMatrix<f64>,
+) -> Result<(DMatrix<f64>, Option<DMatrix<f64>>)> {
+    let n = rig.landmarks();
+    if track.nrows() == 3 * n {
+        let xy: Vec<usize> = (0..n).flat_map(|i| [3 * i, 3 * i + 1]).collect();
+        let z: Vec<usize> = (0..n).map(|i| 3 * i + 2).collect();
+        Ok((track.select_rows(&xy), Some(-track.select_rows(&z))))
+    } else if track.nrows() == 2 * n {
+        Ok((track.clone(), None))
+    } else {
+        Err(Error::invalid(format!(
+            "the rig reads {n} landmarks (2 or 3 rows each), but the track has {} rows: select the rig's points (Rig::points) from the track first",
+            track.nrows(),
+        )))
+    }
+}
+
+/// Refuses a track (image rows, `n` landmarks) with no frames, a value that is not finite,
+/// or a frame whose landmarks all coincide (no camera fits it).
+fn check_frames(track: &DMatrix<f64>, n: usize) -> Result<()> {
+    if track.ncols() == 0 {
+        return Err(Error::invalid("the track has no frames"));
+    }
+    if let Some((i, v)) = track.iter().enumerate().find(|(_, v)| !v.is_finite()) {
+        return Err(Error::invalid(format!(
+            "frame column {}: landmark {} is {v}",
+            i / track.nrows(),
+            (i % track.nrows()) / 2
+        )));
+    }
+    if let Some(c) = (0..track.ncols())
+        .find(|&c| keyshape_core::sequence::degenerate_shape(track.column(c).as_slice(), 2))
+    {
+        return Err(Error::unfit(format!(
+            "frame column {c}: all {n} landmarks coincide, so no camera can be fitted to it"
+        )));
+    }
+    Ok(())
+}
+
+/// The clips, or the whole track as one when none are given; refused unless they cover the
+/// `frames` in order.
+fn covering(clips: &[Range<usize>], frames: usize) -> Result<Vec<Range<usize>>> {
+    if clips.is_empty() {
+        return Ok(vec![0..frames]);
+    }
+    if clips.iter().any(|c| c.end > frames || c.is_empty())
+        || clips.windows(2).any(|w| w[0].end != w[1].start)
+        || clips[0].start != 0
+        || clips[clips.len() - 1].end != frames
+    {
+        return Err(Error::invalid(
+            "rig solve: clips must cover the frames in order",
+        ));
+    }
+    Ok(clips.to_vec())
+}
+
+/// Refuses a named neutral column or stretch that is not inside the track's `frames`.
+fn check_neutral(neutral: Neutral, frames: usize) -> Result<()> {
+    match neutral {
+        Neutral::Column(c) if c >= frames => Err(Error::invalid(format!(
+            "neutral frame column {c} is past the track's {frames} frames"
+        ))),
+        Neutral::Span(a, b) if a >= b || b > frames => Err(Error::invalid(format!(
+            "neutral frame columns {a}..{b} are not a stretch of the track's {frames} frames"
+        ))),
+        _ => Ok(()),
+    }
+}
+
+/// Who is in each clip: per clip (or for the whole track) the rig with the person's
+/// identity applied, and the neutral frame it came from. `first` is the pass without an
+/// identity, which the least-active rule reads.
+fn identities(
+    rig: &Rig,
+    (track, depth): (&DMatrix<f64>, Option<&DMatrix<f64>>),
+    clips: &[Range<usize>],
+    opts: &RigOptions,
+    lw: &[f64],
+    first: Option<&RigSolve>,
+    step: &mut dyn FnMut(String),
+) -> Result<(Vec<(Range<usize>, Rig)>, Vec<usize>)> {
+    let whole = 0..track.ncols();
+    Ok(match (opts.identity, opts.neutral) {
+        (Identity::None, _) => (vec![(whole, rig.clone())], Vec::new()),
+        (id, Neutral::Column(n)) => (
+            vec![(whole, person_rig(rig, track, depth, n..n + 1, id)?)],
+            vec![n],
+        ),
+        (id, Neutral::Span(a, b)) => (
+            vec![(whole, person_rig(rig, track, depth, a..b, id)?)],
+            vec![(a + b) / 2],
+        ),
+        (id, auto) => {
+            let mut people = Vec::new();
+            let mut neutrals = Vec::new();
+            for c in clips {
+                if auto == Neutral::Auto {
+                    step(format!(
+                        "choosing the neutral: {} candidate frames, each scored on {}",
+                        c.len().min(super::NEUTRAL_CANDIDATES),
+                        c.len().min(super::NEUTRAL_SCORED_FRAMES)
+                    ));
+                }
+                let n = match first {
+                    Some(first) if auto == Neutral::LeastActive => least_active(c, first),
+                    _ => best_explaining(rig, (track, depth), c.clone(), opts, lw)?,
+                };
+                people.push((c.clone(), person_rig(rig, track, depth, n..n + 1, id)?));
+                neutrals.push(n);
+            }
+            (people, neutrals)
+        }
+    })
+}
+
+/// The frame of clip `c` whose weights in the pass without an identity sum least.
+fn least_active(c: &Range<usize>, first: &RigSolve) -> usize {
+    c.clone()
+        .min_by(|&a, &b| {
+            let s = |f: usize| first.weights.column(f).sum();
+            s(a).total_cmp(&s(b))
+        })
+        .unwrap_or(c.start)
 }
 
 /// Checks `opts` against `rig`; returns the per-landmark weights of the fit.
