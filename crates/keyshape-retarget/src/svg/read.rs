@@ -209,23 +209,15 @@ fn unreadable_points(text: &str, id: &str) -> String {
 
 /// Parses template text (`path` names the file in errors).
 pub fn parse_template(path: &Path, text: &str) -> Result<TargetSet> {
-    let text = text.to_string();
-    let meta = find_meta(path, &text)?;
+    let meta = find_meta(path, text)?;
     if meta.loose_dots {
-        check_dots(path, &text)?;
+        check_dots(path, text)?;
     }
-    let tree = usvg::Tree::from_str(&text, &usvg::Options::default())
+    let tree = usvg::Tree::from_str(text, &usvg::Options::default())
         .map_err(|e| Error::file(path, format!("SVG: {e}")))?;
     let (mut groups, mut paths) = (Vec::new(), Vec::new());
     collect(tree.root(), &mut groups, &mut paths);
     let mut keys = Vec::new();
-    // Sub-groups of a panel (`key-<frame>-lips`, `key-<frame>-loose`) are not keys.
-    let is_sub_group = |id: &str| {
-        let r = &id["key-".len()..];
-        let digits = r.strip_prefix('-').unwrap_or(r);
-        let n = digits.chars().take_while(|c| c.is_ascii_digit()).count();
-        n > 0 && digits[n..].starts_with('-')
-    };
     for g in groups
         .iter()
         .filter(|g| g.id().starts_with("key-") && !is_sub_group(g.id()))
@@ -236,124 +228,196 @@ pub fn parse_template(path: &Path, text: &str) -> Result<TargetSet> {
                 format!("group id '{}' is not key-<frame number>", g.id()),
             )
         })?;
-        // Document coordinates → the key shape's own: minus the template's offset.
-        let origin = match meta.origins.get(&frame) {
-            Some(o) => *o,
-            None if !meta.origins.is_empty() => {
-                return Err(Error::file(
-                    path,
-                    format!(
-                        "group {} is not a key of this template (its keys: {:?})",
-                        g.id(),
-                        meta.origins.keys().collect::<Vec<_>>()
-                    ),
-                ))
-            }
-            None => {
-                // A template from before `origins`: its group carried only the offset.
-                let t = g.transform();
-                if (t.sx, t.kx, t.ky, t.sy) != (1.0, 0.0, 0.0, 1.0) {
-                    return Err(Error::needs_in(
-                        path,
-                        Needed::Template,
-                        format!("group {} was scaled or rotated, and this template predates the record of where each key sits; write it again", g.id()),
-                    ));
-                }
-                [f64::from(t.tx), f64::from(t.ty)]
-            }
+        let origin = key_origin(path, &meta, g, frame)?;
+        let panel = Panel {
+            path,
+            text,
+            meta: &meta,
+            id: g.id(),
+            origin,
+            paths: paths
+                .iter()
+                .filter(|p| p.id().starts_with(&format!("{}-", g.id())))
+                .map(|p| (p.id().to_string(), *p))
+                .collect(),
         };
-        let mut sum = vec![0.0; 2 * meta.points];
-        let mut count = vec![0usize; meta.points];
-        let mine: BTreeMap<String, &usvg::Path> = paths
-            .iter()
-            .filter(|p| p.id().starts_with(&format!("{}-", g.id())))
-            .map(|p| (p.id().to_string(), *p))
-            .collect();
-        let mut loose: Vec<usize> = Vec::new();
-        for (c, line) in meta.polylines.iter().enumerate() {
-            let is_rest = meta.rest && c + 1 == meta.polylines.len();
-            if is_rest && meta.loose_dots {
-                for &pi in line {
-                    let id = format!("{}-p{pi}", g.id());
-                    let p = mine.get(&id).ok_or_else(|| {
-                        Error::file(
-                            path,
-                            format!("dot '{id}' is missing (keep the template's ids; move dots, do not delete them)"),
-                        )
-                    })?;
-                    let v = vertices(p);
-                    let centre = |d: usize| {
-                        let lo = v.iter().map(|q| q[d]).fold(f64::INFINITY, f64::min);
-                        let hi = v.iter().map(|q| q[d]).fold(f64::NEG_INFINITY, f64::max);
-                        (lo + hi) / 2.0
-                    };
-                    let xy = [centre(0), centre(1)];
-                    if !(xy[0].is_finite() && xy[1].is_finite()) {
-                        return Err(Error::file(
-                            path,
-                            format!("dot '{id}': its position is not a finite number"),
-                        ));
-                    }
-                    sum[2 * pi] += xy[0] - origin[0];
-                    sum[2 * pi + 1] += xy[1] - origin[1];
-                    count[pi] += 1;
-                    loose.push(pi);
-                }
-                continue;
-            }
-            let id = if is_rest {
-                format!("{}-rest", g.id())
-            } else {
-                format!("{}-c{c}", g.id())
-            };
-            let p = mine.get(&id).ok_or_else(|| {
-                if text.contains(&format!("id=\"{id}\"")) {
-                    Error::file(
-                        path,
-                        format!(
-                            "contour '{id}' is in the file, but its points could not be read ({})",
-                            unreadable_points(&text, &id)
-                        ),
-                    )
-                } else {
-                    Error::file(
-                        path,
-                        format!("contour '{id}' is missing (keep the template's ids)"),
-                    )
-                }
-            })?;
-            let v = vertices(p);
-            if v.len() != line.len() {
-                return Err(Error::file(path, format!("contour '{id}' has {} points, the template had {} (move points, do not add or remove them)", v.len(), line.len())));
-            }
-            for (&pi, xy) in line.iter().zip(v) {
-                if !(xy[0].is_finite() && xy[1].is_finite()) {
-                    return Err(Error::file(
-                        path,
-                        format!("contour '{id}': point {pi} is not a finite number"),
-                    ));
-                }
-                sum[2 * pi] += xy[0] - origin[0];
-                sum[2 * pi + 1] += xy[1] - origin[1];
-                count[pi] += 1;
-            }
-        }
-        if let Some(p) = count.iter().position(|&c| c == 0) {
-            return Err(Error::file(
-                path,
-                format!("key-{frame}: point {p} is on no contour"),
-            ));
-        }
-        let mut coords: Vec<f64> = sum
-            .iter()
-            .enumerate()
-            .map(|(i, v)| v / count[i / 2] as f64)
-            .collect();
+        let (mut coords, loose) = panel.points(frame)?;
         if let Some(orig) = meta.shapes.get(&frame).filter(|o| o.len() == coords.len()) {
             follow_contours(&mut coords, orig, &loose);
         }
         keys.push(TargetKey { frame, coords });
     }
+    check_keys(path, &meta, &keys)?;
+    // Drawing contours: the template's, without the run of loose points.
+    let mut polylines = meta.polylines.clone();
+    if meta.rest {
+        polylines.pop();
+    }
+    let set = TargetSet {
+        kslab_target: 1,
+        dims: 2,
+        points: meta.points,
+        polylines,
+        keys,
+        neutral: None,
+    };
+    set.check().map_err(|e| Error::file(path, e.to_string()))?;
+    Ok(set)
+}
+
+/// Sub-groups of a panel (`key-<frame>-lips`, `key-<frame>-loose`) are not keys.
+fn is_sub_group(id: &str) -> bool {
+    let r = &id["key-".len()..];
+    let digits = r.strip_prefix('-').unwrap_or(r);
+    let n = digits.chars().take_while(|c| c.is_ascii_digit()).count();
+    n > 0 && digits[n..].starts_with('-')
+}
+
+/// Where key `frame`'s panel `g` sits in the document: its coordinates minus this are the
+/// key shape's own.
+fn key_origin(path: &Path, meta: &Meta, g: &usvg::Group, frame: i64) -> Result<[f64; 2]> {
+    match meta.origins.get(&frame) {
+        Some(o) => Ok(*o),
+        None if !meta.origins.is_empty() => Err(Error::file(
+            path,
+            format!(
+                "group {} is not a key of this template (its keys: {:?})",
+                g.id(),
+                meta.origins.keys().collect::<Vec<_>>()
+            ),
+        )),
+        None => {
+            // A template from before `origins`: its group carried only the offset.
+            let t = g.transform();
+            if (t.sx, t.kx, t.ky, t.sy) != (1.0, 0.0, 0.0, 1.0) {
+                return Err(Error::needs_in(
+                    path,
+                    Needed::Template,
+                    format!("group {} was scaled or rotated, and this template predates the record of where each key sits; write it again", g.id()),
+                ));
+            }
+            Ok([f64::from(t.tx), f64::from(t.ty)])
+        }
+    }
+}
+
+/// One key's panel of a template being read: its group's id, where it sits, and its paths
+/// by id.
+struct Panel<'a> {
+    path: &'a Path,
+    text: &'a str,
+    meta: &'a Meta,
+    id: &'a str,
+    origin: [f64; 2],
+    paths: BTreeMap<String, &'a usvg::Path>,
+}
+
+impl Panel<'_> {
+    /// The key's points (x, y interleaved, its own coordinates), each the mean over the
+    /// contours it is on, and the loose dots among them.
+    fn points(&self, frame: i64) -> Result<(Vec<f64>, Vec<usize>)> {
+        let meta = self.meta;
+        let mut sum = vec![0.0; 2 * meta.points];
+        let mut count = vec![0usize; meta.points];
+        let mut add = |pi: usize, xy: [f64; 2]| {
+            sum[2 * pi] += xy[0] - self.origin[0];
+            sum[2 * pi + 1] += xy[1] - self.origin[1];
+            count[pi] += 1;
+        };
+        let mut loose: Vec<usize> = Vec::new();
+        for (c, line) in meta.polylines.iter().enumerate() {
+            let is_rest = meta.rest && c + 1 == meta.polylines.len();
+            if is_rest && meta.loose_dots {
+                for &pi in line {
+                    add(pi, self.dot(pi)?);
+                    loose.push(pi);
+                }
+                continue;
+            }
+            let id = if is_rest {
+                format!("{}-rest", self.id)
+            } else {
+                format!("{}-c{c}", self.id)
+            };
+            for (&pi, xy) in line.iter().zip(self.contour(&id, line.len())?) {
+                if !(xy[0].is_finite() && xy[1].is_finite()) {
+                    return Err(Error::file(
+                        self.path,
+                        format!("contour '{id}': point {pi} is not a finite number"),
+                    ));
+                }
+                add(pi, xy);
+            }
+        }
+        if let Some(p) = count.iter().position(|&c| c == 0) {
+            return Err(Error::file(
+                self.path,
+                format!("key-{frame}: point {p} is on no contour"),
+            ));
+        }
+        let coords = sum
+            .iter()
+            .enumerate()
+            .map(|(i, v)| v / count[i / 2] as f64)
+            .collect();
+        Ok((coords, loose))
+    }
+
+    /// Loose point `pi`'s dot: the centre of its drawing, in document coordinates.
+    fn dot(&self, pi: usize) -> Result<[f64; 2]> {
+        let id = format!("{}-p{pi}", self.id);
+        let p = self.paths.get(&id).ok_or_else(|| {
+            Error::file(
+                self.path,
+                format!("dot '{id}' is missing (keep the template's ids; move dots, do not delete them)"),
+            )
+        })?;
+        let v = vertices(p);
+        let centre = |d: usize| {
+            let lo = v.iter().map(|q| q[d]).fold(f64::INFINITY, f64::min);
+            let hi = v.iter().map(|q| q[d]).fold(f64::NEG_INFINITY, f64::max);
+            (lo + hi) / 2.0
+        };
+        let xy = [centre(0), centre(1)];
+        if !(xy[0].is_finite() && xy[1].is_finite()) {
+            return Err(Error::file(
+                self.path,
+                format!("dot '{id}': its position is not a finite number"),
+            ));
+        }
+        Ok(xy)
+    }
+
+    /// Contour `id`'s points, in document coordinates; refused unless it has the
+    /// template's `len`.
+    fn contour(&self, id: &str, len: usize) -> Result<Vec<[f64; 2]>> {
+        let p = self.paths.get(id).ok_or_else(|| {
+            if self.text.contains(&format!("id=\"{id}\"")) {
+                Error::file(
+                    self.path,
+                    format!(
+                        "contour '{id}' is in the file, but its points could not be read ({})",
+                        unreadable_points(self.text, id)
+                    ),
+                )
+            } else {
+                Error::file(
+                    self.path,
+                    format!("contour '{id}' is missing (keep the template's ids)"),
+                )
+            }
+        })?;
+        let v = vertices(p);
+        if v.len() != len {
+            return Err(Error::file(self.path, format!("contour '{id}' has {} points, the template had {len} (move points, do not add or remove them)", v.len())));
+        }
+        Ok(v)
+    }
+}
+
+/// Refuses a template read back with no keys, a key the template wrote missing, or a key
+/// whose points all coincide.
+fn check_keys(path: &Path, meta: &Meta, keys: &[TargetKey]) -> Result<()> {
     if keys.is_empty() {
         return Err(Error::file(path, "no <g id=\"key-<frame>\"> groups found"));
     }
@@ -373,7 +437,7 @@ pub fn parse_template(path: &Path, text: &str) -> Result<TargetSet> {
             ),
         ));
     }
-    for k in &keys {
+    for k in keys {
         if keyshape_core::sequence::degenerate_shape(&k.coords, 2) {
             return Err(Error::file(
                 path,
@@ -381,19 +445,5 @@ pub fn parse_template(path: &Path, text: &str) -> Result<TargetSet> {
             ));
         }
     }
-    // Drawing contours: the template's, without the run of loose points.
-    let mut polylines = meta.polylines.clone();
-    if meta.rest {
-        polylines.pop();
-    }
-    let set = TargetSet {
-        kslab_target: 1,
-        dims: 2,
-        points: meta.points,
-        polylines,
-        keys,
-        neutral: None,
-    };
-    set.check().map_err(|e| Error::file(path, e.to_string()))?;
-    Ok(set)
+    Ok(())
 }
