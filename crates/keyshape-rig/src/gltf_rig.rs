@@ -14,7 +14,50 @@ pub fn read_gltf_mesh(path: &Path) -> Result<(keyshape_io::obj::Mesh, MorphTarge
     let bytes = keyshape_io::read_bytes(path)?;
     let doc = gltf::Gltf::from_slice(&bytes)
         .map_err(|e| Error::file(path, format!("not a glTF file: {e}")))?;
-    // Buffers: the GLB's own binary chunk, or files beside a .gltf.
+    let data = buffers(path, &doc)?;
+    let mesh = doc
+        .meshes()
+        .find(|m| m.primitives().any(|p| p.morph_targets().len() > 0))
+        .ok_or_else(|| Error::file(path, "no mesh with morph targets"))?;
+    let names_json = target_names(path, mesh.extras().as_ref().map(|r| r.get()))?;
+    let mut read = Concatenated::default();
+    for (pi, prim) in mesh.primitives().enumerate() {
+        let pos_acc = checked_accessors(path, pi, &prim)?;
+        read.push(path, pi, &prim, &pos_acc, &data)?;
+    }
+    let Concatenated {
+        positions,
+        faces,
+        deltas,
+        ..
+    } = read;
+    let k = deltas.len();
+    let names = match names_json {
+        Some(n) if n.len() == k => n,
+        Some(n) => {
+            return Err(Error::file(
+                path,
+                format!(
+                    "mesh.extras.targetNames names {} targets, the mesh has {k}",
+                    n.len()
+                ),
+            ))
+        }
+        None => (0..k).map(|i| format!("target{i}")).collect(),
+    };
+    for (i, n) in names.iter().enumerate() {
+        keyshape_io::morph::check_name(n, &names[..i])
+            .map_err(|m| Error::file(path, format!("mesh.extras.targetNames: {m}")))?;
+    }
+    check_coordinates(path, &positions, &deltas, &names)?;
+    Ok((
+        keyshape_io::obj::Mesh { positions, faces },
+        MorphTargets { names, deltas },
+    ))
+}
+
+/// The document's buffers: the GLB's own binary chunk, or files beside a .gltf.
+fn buffers(path: &Path, doc: &gltf::Gltf) -> Result<Vec<Vec<u8>>> {
     let mut data: Vec<Vec<u8>> = Vec::new();
     for b in doc.buffers() {
         data.push(match b.source() {
@@ -34,60 +77,84 @@ pub fn read_gltf_mesh(path: &Path) -> Result<(keyshape_io::obj::Mesh, MorphTarge
             }
         });
     }
-    let mesh = doc
-        .meshes()
-        .find(|m| m.primitives().any(|p| p.morph_targets().len() > 0))
-        .ok_or_else(|| Error::file(path, "no mesh with morph targets"))?;
-    let names_json = target_names(path, mesh.extras().as_ref().map(|r| r.get()))?;
-    let mut positions: Vec<[f64; 3]> = Vec::new();
-    let mut faces: Vec<Vec<usize>> = Vec::new();
-    let mut deltas: Vec<Vec<(usize, [f64; 3])>> = Vec::new();
-    let mut count = None;
-    for (pi, prim) in mesh.primitives().enumerate() {
-        // Positions are VEC3 FLOAT (glTF 2.0 §3.7.2.1); another type would be read as
-        // garbage, not refused, by the reader below.
-        let check = |acc: &gltf::Accessor, what: &str| -> Result<()> {
-            if acc.data_type() != gltf::accessor::DataType::F32
-                || acc.dimensions() != gltf::accessor::Dimensions::Vec3
-            {
+    Ok(data)
+}
+
+/// Primitive `pi`'s POSITION accessor, after checking that it and each morph target's are
+/// VEC3 FLOAT (glTF 2.0 §3.7.2.1; another type would be read as garbage, not refused, by
+/// the reader), dense, and that every target has one offset per vertex.
+fn checked_accessors<'a>(
+    path: &Path,
+    pi: usize,
+    prim: &gltf::Primitive<'a>,
+) -> Result<gltf::Accessor<'a>> {
+    let check = |acc: &gltf::Accessor, what: &str| -> Result<()> {
+        if acc.data_type() != gltf::accessor::DataType::F32
+            || acc.dimensions() != gltf::accessor::Dimensions::Vec3
+        {
+            return Err(Error::file(
+                path,
+                format!(
+                    "primitive {pi}: {what} accessor {} holds {:?} {:?}; glTF positions are VEC3 FLOAT",
+                    acc.index(),
+                    acc.dimensions(),
+                    acc.data_type()
+                ),
+            ));
+        }
+        Ok(())
+    };
+    let pos_acc = prim
+        .get(&gltf::Semantic::Positions)
+        .ok_or_else(|| Error::file(path, format!("primitive {pi} has no POSITION attribute")))?;
+    check(&pos_acc, "POSITION")?;
+    check_sparse(path, pi, &pos_acc)?;
+    for (t, target) in prim.morph_targets().enumerate() {
+        if let Some(acc) = target.positions() {
+            check(&acc, &format!("morph target {t}'s POSITION"))?;
+            check_sparse(path, pi, &acc)?;
+            // A target of another length would move the first vertices only and freeze
+            // the rest of the shape, silently.
+            if acc.count() != pos_acc.count() {
                 return Err(Error::file(
                     path,
                     format!(
-                        "primitive {pi}: {what} accessor {} holds {:?} {:?}; glTF positions are VEC3 FLOAT",
+                        "primitive {pi}: morph target {t}'s POSITION accessor {} has {} entries, the mesh {} vertices (glTF 2.0 §3.7.2.2: a target has one offset per vertex)",
                         acc.index(),
-                        acc.dimensions(),
-                        acc.data_type()
+                        acc.count(),
+                        pos_acc.count()
                     ),
                 ));
             }
-            Ok(())
-        };
-        let pos_acc = prim.get(&gltf::Semantic::Positions).ok_or_else(|| {
-            Error::file(path, format!("primitive {pi} has no POSITION attribute"))
-        })?;
-        check(&pos_acc, "POSITION")?;
-        check_sparse(path, pi, &pos_acc)?;
-        for (t, target) in prim.morph_targets().enumerate() {
-            if let Some(acc) = target.positions() {
-                check(&acc, &format!("morph target {t}'s POSITION"))?;
-                check_sparse(path, pi, &acc)?;
-                // A target of another length would move the first vertices only and freeze
-                // the rest of the shape, silently.
-                if acc.count() != pos_acc.count() {
-                    return Err(Error::file(
-                        path,
-                        format!(
-                            "primitive {pi}: morph target {t}'s POSITION accessor {} has {} entries, the mesh {} vertices (glTF 2.0 §3.7.2.2: a target has one offset per vertex)",
-                            acc.index(),
-                            acc.count(),
-                            pos_acc.count()
-                        ),
-                    ));
-                }
-            }
         }
+    }
+    Ok(pos_acc)
+}
+
+/// The mesh's primitives read so far, concatenated: vertex numbers count across them.
+#[derive(Default)]
+struct Concatenated {
+    positions: Vec<[f64; 3]>,
+    faces: Vec<Vec<usize>>,
+    /// Per morph target, its non-zero offsets (vertex, offset).
+    deltas: Vec<Vec<(usize, [f64; 3])>>,
+    /// The number of morph targets, which every primitive must have.
+    count: Option<usize>,
+}
+
+impl Concatenated {
+    /// Appends primitive `pi` (its POSITION accessor checked): positions, triangles and
+    /// morph offsets.
+    fn push(
+        &mut self,
+        path: &Path,
+        pi: usize,
+        prim: &gltf::Primitive,
+        pos_acc: &gltf::Accessor,
+        data: &[Vec<u8>],
+    ) -> Result<()> {
         let reader = prim.reader(|b| data.get(b.index()).map(Vec::as_slice));
-        let base = positions.len();
+        let base = self.positions.len();
         let pos: Vec<[f32; 3]> = reader
             .read_positions()
             .ok_or_else(|| {
@@ -100,7 +167,7 @@ pub fn read_gltf_mesh(path: &Path) -> Result<(keyshape_io::obj::Mesh, MorphTarge
                 )
             })?
             .collect();
-        positions.extend(pos.iter().map(|p| p.map(f64::from)));
+        self.positions.extend(pos.iter().map(|p| p.map(f64::from)));
         if let Some(idx) = reader.read_indices() {
             let idx: Vec<usize> = idx.into_u32().map(|i| i as usize + base).collect();
             if let Some(&bad) = idx.iter().find(|&&i| i >= base + pos.len()) {
@@ -113,48 +180,40 @@ pub fn read_gltf_mesh(path: &Path) -> Result<(keyshape_io::obj::Mesh, MorphTarge
                     ),
                 ));
             }
-            faces.extend(
+            self.faces.extend(
                 idx.chunks(3)
                     .filter(|c| c.len() == 3)
                     .map(<[usize]>::to_vec),
             );
         }
         let targets: Vec<_> = reader.read_morph_targets().collect();
-        if *count.get_or_insert(targets.len()) != targets.len() {
+        if *self.count.get_or_insert(targets.len()) != targets.len() {
             return Err(Error::file(
                 path,
                 "the mesh's primitives have different numbers of morph targets",
             ));
         }
-        deltas.resize(targets.len(), Vec::new());
+        self.deltas.resize(targets.len(), Vec::new());
         for (k, (p, _, _)) in targets.into_iter().enumerate() {
             let Some(p) = p else { continue };
             for (i, d) in p.enumerate() {
                 if d != [0.0; 3] {
-                    deltas[k].push((base + i, d.map(f64::from)));
+                    self.deltas[k].push((base + i, d.map(f64::from)));
                 }
             }
         }
+        Ok(())
     }
-    let k = deltas.len();
-    let names = match names_json {
-        Some(n) if n.len() == k => n,
-        Some(n) => {
-            return Err(Error::file(
-                path,
-                format!(
-                    "mesh.extras.targetNames names {} targets, the mesh has {k}",
-                    n.len()
-                ),
-            ))
-        }
-        None => (0..k).map(|i| format!("target{i}")).collect(),
-    };
-    for (i, n) in names.iter().enumerate() {
-        keyshape_io::morph::check_name(n, &names[..i])
-            .map_err(|m| Error::file(path, format!("mesh.extras.targetNames: {m}")))?;
-    }
-    // Positions and offsets within the coordinates every reader accepts (±1e30).
+}
+
+/// Refuses positions and offsets outside the coordinates every reader accepts (±1e30),
+/// naming the vertex (and the target).
+fn check_coordinates(
+    path: &Path,
+    positions: &[[f64; 3]],
+    deltas: &[Vec<(usize, [f64; 3])>],
+    names: &[String],
+) -> Result<()> {
     let problem = |p: &[f64; 3]| p.iter().find_map(|&c| coord_problem(c));
     if let Some((i, why)) = positions
         .iter()
@@ -171,10 +230,7 @@ pub fn read_gltf_mesh(path: &Path) -> Result<(keyshape_io::obj::Mesh, MorphTarge
             ));
         }
     }
-    Ok((
-        keyshape_io::obj::Mesh { positions, faces },
-        MorphTargets { names, deltas },
-    ))
+    Ok(())
 }
 
 /// `mesh.extras.targetNames`, when the extras hold it: an array of strings, else an error
