@@ -137,99 +137,113 @@ impl BandedSystem {
         // The old factor's storage, the rest of it dropped before anything is allocated.
         // Every allocation is reused from `recycle`, and its memory with it: a long
         // segment's iterations then take no new frames-long blocks from the allocator.
-        let (mut l, mut inv, mut free, mut fstart, mut off, mut outer, mut fixed_copy, redo, y) =
+        let (l, mut inv, mut free, mut fstart, mut off, mut outer, fixed_copy, redo, y) =
             match recycle {
                 Some(r) => (
                     r.l, r.inv, r.free, r.fstart, r.off, r.outer, r.fixed, r.redo, r.y,
                 ),
                 None => Default::default(),
             };
-        free.clear();
-        fstart.clear();
-        for s in 0..t {
-            fstart.push(free.len());
-            free.extend((0..k).filter(|&i| !fixed[s * k + i]).map(|i| i as u32));
-        }
-        fstart.push(free.len());
-        let n = |s: usize| fstart[s + 1] - fstart[s];
-        off.clear();
-        off.resize(t * (p + 1), 0);
-        let mut total = 0;
-        for s in 0..t {
-            off[s * (p + 1)] = total;
-            total += tri(n(s));
-            for j in 1..=p.min(s) {
-                if j < p {
-                    off[s * (p + 1) + j] = total;
-                    total += n(s) * n(s - j);
-                }
-            }
-        }
+        let total = layout(fixed, (k, t, p), &mut free, &mut fstart, &mut off);
         inv.resize(free.len(), 0.0);
         inv.truncate(free.len());
         outer.clear();
         outer.extend((0..t).map(|s| if p > 0 { lambda * bands[p][s] } else { 0.0 }));
+        let sys = BandedSystem {
+            t,
+            p,
+            free,
+            fstart,
+            off,
+            total,
+            l,
+            win: 0..0,
+            inv,
+            outer,
+            fixed: fixed_copy,
+            copied: 0,
+            redo: None,
+            y,
+        };
         if windowed {
-            l.clear();
-            let mut redo = redo.unwrap_or_else(|| {
-                Box::new(Redo {
-                    g: g.clone(),
-                    lambda,
-                    bands: Vec::new(),
-                    ridge,
-                    ck: Vec::new(),
-                    at: Vec::new(),
-                    spare: Vec::new(),
-                    scratch: Scratch::new(k),
-                })
-            });
-            redo.g.clone_from(g);
-            redo.lambda = lambda;
-            redo.ridge = ridge;
-            redo.bands.truncate(bands.len());
-            for (d, b) in redo.bands.iter_mut().zip(bands) {
-                d.clear();
-                d.extend_from_slice(b);
-            }
-            for b in &bands[redo.bands.len()..] {
-                redo.bands.push(b.clone());
-            }
-            redo.ck.clear();
-            redo.at.clear();
-            redo.scratch = Scratch::new(k);
-            let mut sys = BandedSystem {
-                t,
-                p,
-                free,
-                fstart,
-                off,
-                total,
-                l,
-                win: 0..0,
-                inv,
-                outer,
-                fixed: Vec::new(),
-                copied: 0,
-                redo: Some(redo),
-                y,
-            };
-            for a in (0..t).step_by(WINDOW_BLOCK) {
-                sys.load(a.saturating_sub(p), (a + WINDOW_BLOCK).min(t))
-                    .map_err(|(s, v)| not_definite(s, v))?;
-                if a > 0 {
-                    // The checkpoint: rows a − p..a, which the window now starts with.
-                    let len = sys.off[a * (p + 1)] - sys.off[(a - p) * (p + 1)];
-                    if let Some(redo) = sys.redo.as_mut() {
-                        redo.at.push(redo.ck.len());
-                        redo.ck.extend_from_slice(&sys.l[..len]);
-                    }
+            sys.fill_windowed(g, lambda, bands, ridge, redo)
+        } else {
+            sys.fill_whole(g, lambda, bands, fixed, ridge, prev)
+        }
+    }
+
+    /// Factors a window at a time from the start, keeping a checkpoint of `p` rows at each
+    /// window's start (`redo` lends its storage).
+    fn fill_windowed(
+        mut self,
+        g: &DMatrix<f64>,
+        lambda: f64,
+        bands: &[Vec<f64>],
+        ridge: f64,
+        redo: Option<Box<Redo>>,
+    ) -> Result<BandedSystem> {
+        let k = g.nrows();
+        let (t, p) = (self.t, self.p);
+        self.l.clear();
+        self.fixed = Vec::new();
+        let mut redo = redo.unwrap_or_else(|| {
+            Box::new(Redo {
+                g: g.clone(),
+                lambda,
+                bands: Vec::new(),
+                ridge,
+                ck: Vec::new(),
+                at: Vec::new(),
+                spare: Vec::new(),
+                scratch: Scratch::new(k),
+            })
+        });
+        redo.g.clone_from(g);
+        redo.lambda = lambda;
+        redo.ridge = ridge;
+        redo.bands.truncate(bands.len());
+        for (d, b) in redo.bands.iter_mut().zip(bands) {
+            d.clear();
+            d.extend_from_slice(b);
+        }
+        for b in &bands[redo.bands.len()..] {
+            redo.bands.push(b.clone());
+        }
+        redo.ck.clear();
+        redo.at.clear();
+        redo.scratch = Scratch::new(k);
+        self.redo = Some(redo);
+        for a in (0..t).step_by(WINDOW_BLOCK) {
+            self.load(a.saturating_sub(p), (a + WINDOW_BLOCK).min(t))
+                .map_err(|(s, v)| not_definite(s, v))?;
+            if a > 0 {
+                // The checkpoint: rows a − p..a, which the window now starts with.
+                let len = self.off[a * (p + 1)] - self.off[(a - p) * (p + 1)];
+                if let Some(redo) = self.redo.as_mut() {
+                    redo.at.push(redo.ck.len());
+                    redo.ck.extend_from_slice(&self.l[..len]);
                 }
             }
-            return Ok(sys);
         }
+        Ok(self)
+    }
+
+    /// Factors every row, copying a row of `prev` (the last iteration's factor) where the
+    /// masks of its frame and the `p` before it, and those frames' rows, are the same.
+    fn fill_whole(
+        mut self,
+        g: &DMatrix<f64>,
+        lambda: f64,
+        bands: &[Vec<f64>],
+        fixed: &[bool],
+        ridge: f64,
+        prev: Option<&BandedSystem>,
+    ) -> Result<BandedSystem> {
+        let k = g.nrows();
+        let (t, p, total) = (self.t, self.p, self.total);
         // Every entry is written below: no need to clear what is kept.
-        l.resize(total, 0.0);
-        l.truncate(total);
+        self.l.resize(total, 0.0);
+        self.l.truncate(total);
         let mut sc = Scratch::new(k);
         let prev = prev.filter(|o| o.t == t && o.p == p && o.fixed.len() == fixed.len());
         // same_mask[s]: frame s's mask is the old one; same_row[s]: so is its row of L.
@@ -251,12 +265,20 @@ impl BandedSystem {
             };
             a..b
         };
+        let BandedSystem {
+            free,
+            fstart,
+            off,
+            l,
+            inv,
+            ..
+        } = &mut self;
         for s in 0..t {
             let inputs_same = same_mask[s.saturating_sub(p)..=s].iter().all(|v| *v)
                 && same_row[s.saturating_sub(p)..s].iter().all(|v| *v);
             if let (Some(o), true) = (prev, inputs_same) {
                 let src = row_range(&o.off, s, o.l.len());
-                let dst = row_range(&off, s, total);
+                let dst = row_range(off, s, total);
                 l[dst].copy_from_slice(&o.l[src]);
                 inv[fstart[s]..fstart[s + 1]].copy_from_slice(&o.inv[o.fstart[s]..o.fstart[s + 1]]);
                 same_row[s] = true;
@@ -268,39 +290,24 @@ impl BandedSystem {
                 lambda,
                 bands,
                 ridge,
-                free: &free,
-                fstart: &fstart,
-                off: &off,
+                free,
+                fstart,
+                off,
                 p,
             };
-            compute_row(&x, s, &mut l, 0, &mut inv, &mut sc).map_err(|v| not_definite(s, v))?;
+            compute_row(&x, s, l, 0, inv, &mut sc).map_err(|v| not_definite(s, v))?;
             if let (Some(o), true) = (prev, same_mask[s.saturating_sub(p)..=s].iter().all(|v| *v)) {
                 let old = &o.l[row_range(&o.off, s, o.l.len())];
-                let new = &l[row_range(&off, s, total)];
+                let new = &l[row_range(off, s, total)];
                 same_row[s] = old.len() == new.len()
                     && old.iter().zip(new).all(|(a, b)| a.to_bits() == b.to_bits());
             }
         }
-        Ok(BandedSystem {
-            t,
-            p,
-            free,
-            fstart,
-            off,
-            total,
-            l,
-            win: 0..t,
-            inv,
-            outer,
-            fixed: {
-                fixed_copy.clear();
-                fixed_copy.extend_from_slice(fixed);
-                fixed_copy
-            },
-            copied,
-            redo: None,
-            y,
-        })
+        self.win = 0..t;
+        self.fixed.clear();
+        self.fixed.extend_from_slice(fixed);
+        self.copied = copied;
+        Ok(self)
     }
 
     /// Whether the factor is kept a window at a time (see [`BandedSystem`]).
@@ -575,4 +582,39 @@ impl BandedSystem {
             solve_lt(d, is, &mut y[fs[s]..fs[s] + ns]);
         }
     }
+}
+
+/// Fills the storage layout of a factor of `t` frames (`k` weights each, band `p`) with
+/// `fixed` masking weights out: each frame's free indices (`free`, from `fstart[s]`), and
+/// where each stored block of `L` starts (`off`: per frame, its diagonal block and its
+/// blocks against the `p − 1` frames before it). Returns the length of `L`.
+fn layout(
+    fixed: &[bool],
+    (k, t, p): (usize, usize, usize),
+    free: &mut Vec<u32>,
+    fstart: &mut Vec<usize>,
+    off: &mut Vec<usize>,
+) -> usize {
+    free.clear();
+    fstart.clear();
+    for s in 0..t {
+        fstart.push(free.len());
+        free.extend((0..k).filter(|&i| !fixed[s * k + i]).map(|i| i as u32));
+    }
+    fstart.push(free.len());
+    let n = |s: usize| fstart[s + 1] - fstart[s];
+    off.clear();
+    off.resize(t * (p + 1), 0);
+    let mut total = 0;
+    for s in 0..t {
+        off[s * (p + 1)] = total;
+        total += tri(n(s));
+        for j in 1..=p.min(s) {
+            if j < p {
+                off[s * (p + 1) + j] = total;
+                total += n(s) * n(s - j);
+            }
+        }
+    }
+    total
 }
