@@ -10,6 +10,7 @@ use crate::error::{Error, Result};
 use crate::solve::{solve_batch, SolveOptions, Solver};
 use nalgebra::DMatrix;
 use rayon::prelude::*;
+use std::cell::RefCell;
 use std::ops::Range;
 
 /// Segments must partition the frames in order: the first starts at 0, each next one where
@@ -161,33 +162,125 @@ pub(super) fn segment(
     sm: &Smoothing,
     caps: Caps,
 ) -> Result<SegmentResult> {
-    let k = g.nrows();
-    let t = b.len() / k;
-    let bands = difference_bands(sm.order, t);
-    let gmax = (0..k).map(|i| g[(i, i)]).fold(0.0f64, f64::max);
-    // A ridge far below every scale that matters keeps rank-deficient S factorisable (the
-    // prior leaves S's null directions constant in time undetermined).
-    let ridge = 1e-12 * (gmax + sm.lambda * if sm.order == 1 { 4.0 } else { 16.0 });
-    let upper = if solver == Solver::Bounded {
-        1.0
+    let seg = Segment::new(g, b, solver, sm);
+    let kkt = |w: &[f64]| kkt_residual(g, sm.lambda, sm.order, b, w, solver);
+    if solver == Solver::Ls {
+        let w = seg.solve_with(&vec![false; b.len()], None)?;
+        let res = kkt(&w);
+        return Ok((w, 1, res, true));
+    }
+    // Primal–dual active set from the per-frame solution: a few banded solves when it
+    // works (order 1 nearly always). It can cycle when the Hessian is not an M-matrix (the
+    // second-difference prior at large λ); then projected Newton, which decreases the
+    // objective at every step and so cannot cycle, takes over from the same start.
+    let mut iterations = 0u64;
+    if let Some((w, it)) = seg.pdas(w0, caps.active_set)? {
+        iterations += it;
+        let res = kkt(&w);
+        if res < KKT_TOLERANCE {
+            return Ok((w, iterations, res, true));
+        }
     } else {
-        f64::INFINITY
-    };
-    // The last factorisation, from which the next one copies the rows that do not change.
-    // (and the one before it, whose storage the next one takes).
-    let cache: std::cell::RefCell<Option<SegmentSystem>> = std::cell::RefCell::new(None);
-    let spare: std::cell::RefCell<Option<SegmentSystem>> = std::cell::RefCell::new(None);
-    // `values`: the fixed variables' values (None: all 0, as NNLS fixes them).
-    let solve_with = |fixed: &[bool], values: Option<&[f64]>| -> Result<Vec<f64>> {
+        iterations += caps.active_set as u64;
+    }
+    // Projected Newton factorises into the storage the active-set steps leave (one
+    // system held at a time, not three); their last factor has no rows it could copy.
+    {
+        let cached = seg.cache.borrow_mut().take();
+        let mut spare = seg.spare.borrow_mut();
+        if spare.is_none() {
+            *spare = cached;
+        }
+    }
+    let (w, it) = projected_newton(
+        g,
+        sm,
+        &seg.bands,
+        b,
+        w0,
+        seg.upper,
+        seg.ridge,
+        solver,
+        &seg.spare,
+        caps.newton,
+    )?;
+    iterations += it;
+    let res = kkt(&w);
+    if res < KKT_TOLERANCE {
+        return Ok((w, iterations, res, true));
+    }
+    // Near the optimum the active set from projected Newton is (nearly) the optimal one, and
+    // one or two primal–dual steps from it finish exactly.
+    if let Some((wp, it)) = seg.pdas(&w, caps.active_set)? {
+        iterations += it;
+        let rp = kkt(&wp);
+        if rp < res {
+            return Ok((wp, iterations, rp, rp < KKT_TOLERANCE));
+        }
+    } else {
+        iterations += caps.active_set as u64;
+    }
+    Ok((w, iterations, res, res < KKT_TOLERANCE))
+}
+
+/// One segment's problem (Gram `g`, right-hand side `b` of its `t` frames, the prior's
+/// bands) and the factorisations its solves reuse.
+struct Segment<'a> {
+    g: &'a DMatrix<f64>,
+    b: &'a [f64],
+    sm: &'a Smoothing,
+    t: usize,
+    bands: Vec<Vec<f64>>,
+    /// The Gram's largest diagonal entry: the active-set steps' scale.
+    gmax: f64,
+    ridge: f64,
+    /// The weights' upper bound (1 for the bounded solver, else none).
+    upper: f64,
+    /// The last factorisation, from which the next one copies the rows that do not change.
+    cache: RefCell<Option<SegmentSystem>>,
+    /// The one before it, whose storage the next one takes.
+    spare: RefCell<Option<SegmentSystem>>,
+}
+
+impl<'a> Segment<'a> {
+    fn new(g: &'a DMatrix<f64>, b: &'a [f64], solver: Solver, sm: &'a Smoothing) -> Self {
+        let k = g.nrows();
+        let t = b.len() / k;
+        let gmax = (0..k).map(|i| g[(i, i)]).fold(0.0f64, f64::max);
+        Segment {
+            g,
+            b,
+            sm,
+            t,
+            bands: difference_bands(sm.order, t),
+            gmax,
+            // A ridge far below every scale that matters keeps rank-deficient S
+            // factorisable (the prior leaves S's null directions constant in time
+            // undetermined).
+            ridge: 1e-12 * (gmax + sm.lambda * if sm.order == 1 { 4.0 } else { 16.0 }),
+            upper: if solver == Solver::Bounded {
+                1.0
+            } else {
+                f64::INFINITY
+            },
+            cache: RefCell::new(None),
+            spare: RefCell::new(None),
+        }
+    }
+
+    /// The solve with the `fixed` variables held at `values` (None: all 0, as NNLS fixes
+    /// them) and the rest free.
+    fn solve_with(&self, fixed: &[bool], values: Option<&[f64]>) -> Result<Vec<f64>> {
+        let (g, b, sm) = (self.g, self.b, self.sm);
         let mut sys = SegmentSystem::factor_reusing(
             g,
             sm.lambda,
-            &bands,
+            &self.bands,
             fixed,
-            ridge,
-            t >= SPLIT_FRAMES,
-            cache.borrow().as_ref(),
-            spare.borrow_mut().take(),
+            self.ridge,
+            self.t >= SPLIT_FRAMES,
+            self.cache.borrow().as_ref(),
+            self.spare.borrow_mut().take(),
         )?;
         // rhs = b − H·v (v: fixed values, 0 elsewhere); fixed rows take their values.
         // (With every fixed value 0, H·v = 0 and the product is skipped.)
@@ -195,7 +288,7 @@ pub(super) fn segment(
         let mut rhs: Vec<f64> = match values {
             None => b.to_vec(),
             Some(v) => {
-                let hv = hessian_times(g, sm.lambda, &bands, v);
+                let hv = hessian_times(g, sm.lambda, &self.bands, v);
                 b.iter().zip(&hv).map(|(x, y)| x - y).collect()
             }
         };
@@ -207,9 +300,9 @@ pub(super) fn segment(
         sys.solve(&mut rhs);
         if sys.is_windowed() {
             // Nothing to copy from a windowed factor: keep only its storage.
-            *spare.borrow_mut() = Some(sys);
+            *self.spare.borrow_mut() = Some(sys);
         } else {
-            *spare.borrow_mut() = cache.borrow_mut().replace(sys);
+            *self.spare.borrow_mut() = self.cache.borrow_mut().replace(sys);
         }
         if let Some(v) = values {
             for ((r, f), x) in rhs.iter_mut().zip(fixed).zip(v) {
@@ -219,22 +312,17 @@ pub(super) fn segment(
             }
         }
         Ok(rhs)
-    };
-    if solver == Solver::Ls {
-        let w = solve_with(&vec![false; b.len()], None)?;
-        let res = kkt_residual(g, sm.lambda, sm.order, b, &w, solver);
-        return Ok((w, 1, res, true));
     }
-    // Primal–dual active set from the per-frame solution: a few banded solves when it
-    // works (order 1 nearly always). It can cycle when the Hessian is not an M-matrix (the
-    // second-difference prior at large λ); then projected Newton, which decreases the
-    // objective at every step and so cannot cycle, takes over from the same start.
-    let pdas = |start: &[f64], cap: usize| -> Result<Option<(Vec<f64>, u64)>> {
-        let c = gmax.max(f64::MIN_POSITIVE);
+
+    /// Primal–dual active set from `start`, at most `cap` steps: the weights and the steps
+    /// taken when the active set repeats, None when the cap is reached first.
+    fn pdas(&self, start: &[f64], cap: usize) -> Result<Option<(Vec<f64>, u64)>> {
+        let (g, b, sm, upper) = (self.g, self.b, self.sm, self.upper);
+        let c = self.gmax.max(f64::MIN_POSITIVE);
         let mut w = start.to_vec();
         let mut prev: Option<(Vec<bool>, Vec<bool>)> = None;
         for it in 1..=cap {
-            let mut grad = hessian_times(g, sm.lambda, &bands, &w);
+            let mut grad = hessian_times(g, sm.lambda, &self.bands, &w);
             for (x, y) in grad.iter_mut().zip(b) {
                 *x -= y;
             }
@@ -262,59 +350,11 @@ pub(super) fn segment(
             // Neither the gradient nor the old point is needed by the solve.
             drop(grad);
             drop(std::mem::take(&mut w));
-            w = solve_with(&fixed, values.as_deref())?;
+            w = self.solve_with(&fixed, values.as_deref())?;
             prev = Some((at_lower, at_upper));
         }
         Ok(None)
-    };
-    let mut iterations = 0u64;
-    if let Some((w, it)) = pdas(w0, caps.active_set)? {
-        iterations += it;
-        let res = kkt_residual(g, sm.lambda, sm.order, b, &w, solver);
-        if res < KKT_TOLERANCE {
-            return Ok((w, iterations, res, true));
-        }
-    } else {
-        iterations += caps.active_set as u64;
     }
-    // Projected Newton factorises into the storage the active-set steps leave (one
-    // system held at a time, not three); their last factor has no rows it could copy.
-    {
-        let cached = cache.borrow_mut().take();
-        let mut spare = spare.borrow_mut();
-        if spare.is_none() {
-            *spare = cached;
-        }
-    }
-    let (w, it) = projected_newton(
-        g,
-        sm,
-        &bands,
-        b,
-        w0,
-        upper,
-        ridge,
-        solver,
-        &spare,
-        caps.newton,
-    )?;
-    iterations += it;
-    let res = kkt_residual(g, sm.lambda, sm.order, b, &w, solver);
-    if res < KKT_TOLERANCE {
-        return Ok((w, iterations, res, true));
-    }
-    // Near the optimum the active set from projected Newton is (nearly) the optimal one, and
-    // one or two primal–dual steps from it finish exactly.
-    if let Some((wp, it)) = pdas(&w, caps.active_set)? {
-        iterations += it;
-        let rp = kkt_residual(g, sm.lambda, sm.order, b, &wp, solver);
-        if rp < res {
-            return Ok((wp, iterations, rp, rp < KKT_TOLERANCE));
-        }
-    } else {
-        iterations += caps.active_set as u64;
-    }
-    Ok((w, iterations, res, res < KKT_TOLERANCE))
 }
 
 /// The relative KKT residual ([`kkt_residual`]) at which a constrained offline solve stops.
