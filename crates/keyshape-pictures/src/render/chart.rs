@@ -94,132 +94,23 @@ pub fn render_plot(spec: &PlotSpec, width: u32, height: u32) -> Result<Pixmap> {
     let mut pm = Pixmap::new(width, height)
         .ok_or_else(|| Error::invalid(format!("bad picture size {width}×{height}")))?;
     pm.fill(Color::WHITE);
-    let ((x0, x1), (y0, y1)) = spec
-        .bounds()
-        .ok_or_else(|| Error::invalid("nothing to plot: every series is empty"))?;
-    let (x0, x1) = if x1 > x0 {
-        (x0 - 0.02 * (x1 - x0), x1 + 0.02 * (x1 - x0))
-    } else {
-        (x0 - 1.0, x1 + 1.0)
-    };
-    let log = spec.log_y();
-    let (y0, y1) = if log {
-        // The data's own range, a little wider, in decades.
-        let lo = spec
-            .series
-            .iter()
-            .flat_map(|s| s.points.iter())
-            .map(|p| p.1)
-            .filter(|y| y.is_finite() && *y > 0.0)
-            .fold(f64::INFINITY, f64::min);
-        (lo / 1.25, y1 * 1.25)
-    } else if y1 > y0 {
-        (y0, y1 + 0.05 * (y1 - y0))
-    } else {
-        (y0 - 1.0, y1 + 1.0)
-    };
+    let (xs, ys) = ranges(spec)?;
     let fs = (height as f32 / 40.0).clamp(11.0, 18.0);
-    let (left, right, top, bottom) = (
-        fs * 5.5,
-        width as f32 - fs * 1.2,
-        fs * 3.0,
-        height as f32 - fs * 3.6,
-    );
-    let sx = |x: f64| left + ((x - x0) / (x1 - x0)) as f32 * (right - left);
-    let sy = |y: f64| {
-        let f = if log {
-            (y.max(y0).ln() - y0.ln()) / (y1.ln() - y0.ln())
-        } else {
-            (y - y0) / (y1 - y0)
-        };
-        bottom - f as f32 * (bottom - top)
-    };
-    // Grid, ticks and numbers.
-    let xt = ticks(x0, x1, 10);
-    let xstep = if xt.len() > 1 { xt[1] - xt[0] } else { 1.0 };
-    for &t in &xt {
-        line(&mut pm, &[(sx(t), top), (sx(t), bottom)], GRID, 1.0, false);
-        line(
-            &mut pm,
-            &[(sx(t), bottom), (sx(t), bottom + 5.0)],
-            INK,
-            1.0,
-            false,
-        );
-        text::draw(
-            &mut pm,
-            &label(t, xstep),
-            sx(t),
-            bottom + 7.0 + fs,
-            fs,
-            Anchor::Centre,
-            INK,
-        );
-    }
-    let (yt, ystep) = if log {
-        let t = log_ticks(y0, y1);
-        let step = t.first().copied().unwrap_or(1.0);
-        (t, step)
-    } else {
-        let t = ticks(y0, y1, 8);
-        let step = if t.len() > 1 { t[1] - t[0] } else { 1.0 };
-        (t, step)
-    };
-    for &t in &yt {
-        let ystep = if log { t } else { ystep };
-        line(&mut pm, &[(left, sy(t)), (right, sy(t))], GRID, 1.0, false);
-        line(
-            &mut pm,
-            &[(left - 5.0, sy(t)), (left, sy(t))],
-            INK,
-            1.0,
-            false,
-        );
-        text::draw(
-            &mut pm,
-            &label(t, ystep),
-            left - 8.0,
-            sy(t) + fs * 0.35,
-            fs,
-            Anchor::Right,
-            INK,
-        );
-    }
-    line(
-        &mut pm,
-        &[(left, top), (left, bottom), (right, bottom)],
-        INK,
-        1.5,
-        false,
-    );
-    // Titles.
-    text::draw(
-        &mut pm,
-        &spec.title,
-        (left + right) / 2.0,
-        top - fs * 1.0,
-        fs * 1.15,
-        Anchor::Centre,
-        INK,
-    );
-    text::draw(
-        &mut pm,
-        &spec.x_label,
-        (left + right) / 2.0,
-        height as f32 - fs * 0.6,
+    let axes = Axes {
+        xs,
+        ys,
+        log: spec.log_y(),
+        left: fs * 5.5,
+        right: width as f32 - fs * 1.2,
+        top: fs * 3.0,
+        bottom: height as f32 - fs * 3.6,
         fs,
-        Anchor::Centre,
-        INK,
-    );
-    let y_label = if log {
-        format!("{} (log scale)", spec.y_label)
-    } else {
-        spec.y_label.clone()
     };
-    text::draw_vertical(&mut pm, &y_label, fs * 1.0, (top + bottom) / 2.0, fs, INK);
+    axes.draw_grid(&mut pm);
+    axes.draw_titles(&mut pm, spec, height);
     // Series.
     for s in &spec.series {
-        let pts: Vec<(f32, f32)> = s.points.iter().map(|&(x, y)| (sx(x), sy(y))).collect();
+        let pts: Vec<(f32, f32)> = s.points.iter().map(|&p| axes.at(p)).collect();
         match s.style {
             Style::Band => band(&mut pm, &pts, s.color),
             Style::Thin => line(&mut pm, &pts, s.color, 1.0, false),
@@ -237,10 +128,164 @@ pub fn render_plot(spec: &PlotSpec, width: u32, height: u32) -> Result<Pixmap> {
     let drawn: Vec<Vec<(f32, f32)>> = spec
         .series
         .iter()
-        .map(|s| s.points.iter().map(|&(x, y)| (sx(x), sy(y))).collect())
+        .map(|s| s.points.iter().map(|&p| axes.at(p)).collect())
         .collect();
+    let Axes {
+        left,
+        right,
+        top,
+        bottom,
+        ..
+    } = axes;
     legend(&mut pm, spec, (left, right, top, bottom), fs, &drawn);
     Ok(pm)
+}
+
+/// The x and y ranges a plot shows: the data's, a little wider (y in decades on a log
+/// axis), or ±1 around a single value.
+fn ranges(spec: &PlotSpec) -> Result<((f64, f64), (f64, f64))> {
+    let ((x0, x1), (y0, y1)) = spec
+        .bounds()
+        .ok_or_else(|| Error::invalid("nothing to plot: every series is empty"))?;
+    let xs = if x1 > x0 {
+        (x0 - 0.02 * (x1 - x0), x1 + 0.02 * (x1 - x0))
+    } else {
+        (x0 - 1.0, x1 + 1.0)
+    };
+    let ys = if spec.log_y() {
+        // The data's own range, a little wider, in decades.
+        let lo = spec
+            .series
+            .iter()
+            .flat_map(|s| s.points.iter())
+            .map(|p| p.1)
+            .filter(|y| y.is_finite() && *y > 0.0)
+            .fold(f64::INFINITY, f64::min);
+        (lo / 1.25, y1 * 1.25)
+    } else if y1 > y0 {
+        (y0, y1 + 0.05 * (y1 - y0))
+    } else {
+        (y0 - 1.0, y1 + 1.0)
+    };
+    Ok((xs, ys))
+}
+
+/// A plot's axes: the ranges shown, whether y is on a log scale, the plot area's edges
+/// (pixels) and the font size.
+struct Axes {
+    xs: (f64, f64),
+    ys: (f64, f64),
+    log: bool,
+    left: f32,
+    right: f32,
+    top: f32,
+    bottom: f32,
+    fs: f32,
+}
+
+impl Axes {
+    fn sx(&self, x: f64) -> f32 {
+        let (x0, x1) = self.xs;
+        self.left + ((x - x0) / (x1 - x0)) as f32 * (self.right - self.left)
+    }
+
+    fn sy(&self, y: f64) -> f32 {
+        let (y0, y1) = self.ys;
+        let f = if self.log {
+            (y.max(y0).ln() - y0.ln()) / (y1.ln() - y0.ln())
+        } else {
+            (y - y0) / (y1 - y0)
+        };
+        self.bottom - f as f32 * (self.bottom - self.top)
+    }
+
+    /// A data point's pixel.
+    fn at(&self, (x, y): (f64, f64)) -> (f32, f32) {
+        (self.sx(x), self.sy(y))
+    }
+
+    /// Grid, ticks and their numbers, and the axes' lines.
+    fn draw_grid(&self, pm: &mut Pixmap) {
+        let (left, right, top, bottom, fs) =
+            (self.left, self.right, self.top, self.bottom, self.fs);
+        let xt = ticks(self.xs.0, self.xs.1, 10);
+        let xstep = if xt.len() > 1 { xt[1] - xt[0] } else { 1.0 };
+        for &t in &xt {
+            let x = self.sx(t);
+            line(pm, &[(x, top), (x, bottom)], GRID, 1.0, false);
+            line(pm, &[(x, bottom), (x, bottom + 5.0)], INK, 1.0, false);
+            text::draw(
+                pm,
+                &label(t, xstep),
+                x,
+                bottom + 7.0 + fs,
+                fs,
+                Anchor::Centre,
+                INK,
+            );
+        }
+        let (yt, ystep) = if self.log {
+            let t = log_ticks(self.ys.0, self.ys.1);
+            let step = t.first().copied().unwrap_or(1.0);
+            (t, step)
+        } else {
+            let t = ticks(self.ys.0, self.ys.1, 8);
+            let step = if t.len() > 1 { t[1] - t[0] } else { 1.0 };
+            (t, step)
+        };
+        for &t in &yt {
+            let ystep = if self.log { t } else { ystep };
+            let y = self.sy(t);
+            line(pm, &[(left, y), (right, y)], GRID, 1.0, false);
+            line(pm, &[(left - 5.0, y), (left, y)], INK, 1.0, false);
+            text::draw(
+                pm,
+                &label(t, ystep),
+                left - 8.0,
+                y + fs * 0.35,
+                fs,
+                Anchor::Right,
+                INK,
+            );
+        }
+        line(
+            pm,
+            &[(left, top), (left, bottom), (right, bottom)],
+            INK,
+            1.5,
+            false,
+        );
+    }
+
+    /// The plot's title, and its axes' labels (y's says when it is a log scale).
+    fn draw_titles(&self, pm: &mut Pixmap, spec: &PlotSpec, height: u32) {
+        let (left, right, top, bottom, fs) =
+            (self.left, self.right, self.top, self.bottom, self.fs);
+        text::draw(
+            pm,
+            &spec.title,
+            (left + right) / 2.0,
+            top - fs * 1.0,
+            fs * 1.15,
+            Anchor::Centre,
+            INK,
+        );
+        text::draw(
+            pm,
+            &spec.x_label,
+            (left + right) / 2.0,
+            height as f32 - fs * 0.6,
+            fs,
+            Anchor::Centre,
+            INK,
+        );
+        let y_label = if self.log {
+            format!("{} (log scale)", spec.y_label)
+        } else {
+            spec.y_label.clone()
+        };
+        text::draw_vertical(pm, &y_label, fs * 1.0, (top + bottom) / 2.0, fs, INK);
+    }
 }
 
 /// Tick values for a log axis over [lo, hi]: 1, 2, 5 × 10^e, thinned to 1 × 10^e when

@@ -68,12 +68,18 @@ pub fn weights_picture_marked(
     let plot_w = 1100u32;
     let row_h = (560 / k as u32).clamp(6, 28);
     let plot_h = row_h * k as u32;
+    let at = Layout {
+        left,
+        top,
+        plot_w,
+        row_h,
+        axis_y: (top + plot_h) as f32,
+    };
     let (width, height) = (left + plot_w + right, top + plot_h + 110);
     let mut pm =
         Pixmap::new(width, height).ok_or_else(|| Error::invalid("bad weights picture size"))?;
     pm.fill(Color::WHITE);
     let scale = w.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-    let ink = [30, 30, 30];
     text::draw(
         &mut pm,
         title,
@@ -81,23 +87,54 @@ pub fn weights_picture_marked(
         26.0,
         15.0,
         Anchor::Centre,
-        ink,
+        INK,
     );
-    let cols = column_frames(n, plot_w as usize);
+    draw_rows(&mut pm, &at, w, labels, scale);
+    draw_frame_axis(&mut pm, &at, frames, keys);
+    draw_colour_scale(&mut pm, &at, w, scale);
+    Ok(pm)
+}
+
+/// The weights picture's ink.
+const INK: [u8; 3] = [30, 30, 30];
+
+/// Where the weights picture's plot sits: its left and top edges, width, row height, and
+/// the frame axis's y.
+struct Layout {
+    left: u32,
+    top: u32,
+    plot_w: u32,
+    row_h: u32,
+    axis_y: f32,
+}
+
+impl Layout {
+    /// The x of frame column `t` of `n`, at its middle.
+    fn x_of(&self, t: usize, n: usize) -> f32 {
+        self.left as f32 + (t as f32 + 0.5) * self.plot_w as f32 / n as f32
+    }
+}
+
+/// One row per key: its label, and per pixel column the weight of largest magnitude among
+/// the frames it covers, coloured on the diverging scale.
+fn draw_rows(pm: &mut Pixmap, at: &Layout, w: &DMatrix<f64>, labels: &[String], scale: f64) {
+    let (k, n) = w.shape();
+    let row_h = at.row_h;
+    let cols = column_frames(n, at.plot_w as usize);
     let mut paint = Paint::default();
     for i in 0..k {
-        let y = (top + i as u32 * row_h) as f32;
+        let y = (at.top + i as u32 * row_h) as f32;
         // Label every row while they are tall enough to read, else every few.
         let every = (12 / row_h as usize).max(1);
         if i % every == 0 {
             text::draw(
-                &mut pm,
+                pm,
                 &labels[i],
-                left as f32 - 8.0,
+                at.left as f32 - 8.0,
                 y + row_h as f32 * 0.5 + 4.0,
                 11.0,
                 Anchor::Right,
-                ink,
+                INK,
             );
         }
         for (x, r) in cols.iter().enumerate() {
@@ -108,7 +145,7 @@ pub fn weights_picture_marked(
             let c = diverging(v, scale);
             paint.set_color_rgba8(c[0], c[1], c[2], 255);
             if let Some(rect) = Rect::from_xywh(
-                (left as usize + x) as f32,
+                (at.left as usize + x) as f32,
                 y,
                 1.0,
                 row_h as f32 - if row_h > 8 { 1.0 } else { 0.0 },
@@ -117,30 +154,36 @@ pub fn weights_picture_marked(
             }
         }
     }
-    // Frame axis: first, quarters, last.
-    let axis_y = (top + plot_h) as f32;
+}
+
+/// The frame axis: ticks at the first frame, the quarters and the last, and an orange mark
+/// at each key frame among `frames`.
+fn draw_frame_axis(pm: &mut Pixmap, at: &Layout, frames: &[i64], keys: &[i64]) {
+    let n = frames.len();
+    let axis_y = at.axis_y;
+    let mut paint = Paint::default();
     for q in 0..=4usize {
         let t = (q * (n - 1)) / 4;
-        let x = left as f32 + (t as f32 + 0.5) * plot_w as f32 / n as f32;
+        let x = at.x_of(t, n);
         paint.set_color_rgba8(90, 90, 90, 255);
         if let Some(r) = Rect::from_xywh(x, axis_y, 1.0, 5.0) {
             pm.fill_rect(r, &paint, Transform::identity(), None);
         }
         text::draw(
-            &mut pm,
+            pm,
             &frames[t].to_string(),
             x,
             axis_y + 18.0,
             11.0,
             Anchor::Centre,
-            ink,
+            INK,
         );
     }
     // Key frames: a dark mark on the axis at each (under the plot, above the numbers).
     let mut marked = 0;
     for key in keys {
         if let Some(t) = frames.iter().position(|f| f == key) {
-            let x = left as f32 + (t as f32 + 0.5) * plot_w as f32 / n as f32;
+            let x = at.x_of(t, n);
             paint.set_color_rgba8(230, 120, 0, 255);
             if let Some(r) = Rect::from_xywh(x - 1.5, axis_y + 1.0, 3.0, 7.0) {
                 pm.fill_rect(r, &paint, Transform::identity(), None);
@@ -154,22 +197,28 @@ pub fn weights_picture_marked(
         "frame"
     };
     text::draw(
-        &mut pm,
+        pm,
         axis_title,
-        (left + plot_w / 2) as f32,
+        (at.left + at.plot_w / 2) as f32,
         axis_y + 36.0,
         12.0,
         Anchor::Centre,
-        ink,
+        INK,
     );
+}
+
+/// The colour scale under the axis: −scale … 0 … +scale, or 0 … +scale when no weight is
+/// negative, with the share of negative weights.
+fn draw_colour_scale(pm: &mut Pixmap, at: &Layout, w: &DMatrix<f64>, scale: f64) {
+    let (k, n) = w.shape();
     let tol = keyshape_core::decompose::NEGATIVE_TOLERANCE * scale;
     let any_negative = w.iter().any(|v| *v < -tol);
-    // Colour scale: −scale … 0 … +scale, or 0 … +scale when no weight is negative.
     let (sx, sy, sw) = (
-        left as f32 + plot_w as f32 / 2.0 - 200.0,
-        axis_y + 52.0,
+        at.left as f32 + at.plot_w as f32 / 2.0 - 200.0,
+        at.axis_y + 52.0,
         400.0,
     );
+    let mut paint = Paint::default();
     let lo = if any_negative { -1.0 } else { 0.0 };
     for x in 0..sw as usize {
         let v = (lo + x as f64 / (sw as f64 - 1.0) * (1.0 - lo)) * scale;
@@ -187,18 +236,18 @@ pub fn weights_picture_marked(
     for &(frac, v) in ticks {
         let v = v * scale;
         text::draw(
-            &mut pm,
+            pm,
             &format!("{v:.3}"),
             sx + frac * sw,
             sy + 30.0,
             11.0,
             Anchor::Centre,
-            ink,
+            INK,
         );
     }
     let negative = w.iter().filter(|v| **v < -tol).count() as f64 / (k * n) as f64;
     text::draw(
-        &mut pm,
+        pm,
         &format!(
             "weight (red negative, blue positive) · negative {:.1} %",
             100.0 * negative
@@ -207,7 +256,6 @@ pub fn weights_picture_marked(
         sy + 12.0,
         11.0,
         Anchor::Left,
-        ink,
+        INK,
     );
-    Ok(pm)
 }
