@@ -157,15 +157,8 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
         })
         .transpose()?;
     let set = read_target(a)?;
-    if set.is_some() && a.regions.is_some() {
-        anyhow::bail!(
-            "--regions works with the built-in target only (each region picks its own key frames)"
-        );
-    }
     let chosen = !a.choice.keys.is_empty() || a.choice.method.is_some();
-    if set.is_some() && !chosen && a.choice.k.is_some() {
-        anyhow::bail!("--k applies with --method; without it the key frames are the target's own");
-    }
+    check_with_target(a, set.is_some(), chosen)?;
     // The built-in target is made now, so the raw track can go before the key choice:
     // only the per-frame pictures need it after.
     let builtin = match (&a.target, &set) {
@@ -192,17 +185,7 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
     let plan_keys = key_plan(a, &prep, set.as_ref(), chosen, global, &opts)?;
     let (key_frames, columns, keys_json) = key_names(&plan_keys, s);
     if let (Some(set), Some(path)) = (&set, &a.target) {
-        let mut have: Vec<i64> = set.keys.iter().map(|k| k.frame).collect();
-        let mut want = key_frames.clone();
-        have.sort_unstable();
-        want.sort_unstable();
-        if have != want {
-            anyhow::bail!(
-                "{} holds key shapes for frames {have:?}, but {} chose frames {want:?}: drop --keys/--method to use the target's own frames",
-                path.display(),
-                if a.choice.keys.is_empty() { "--method" } else { "--keys" }
-            );
-        }
+        check_target_keys(a, set, path, &key_frames)?;
     }
     let (target, target_lines) = match builtin {
         Some(t) => t,
@@ -227,6 +210,63 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
     if let Some(p) = &a.out {
         write_atomic(p, |w| write_csv(w, s, &r, &columns, head))?;
     }
+    report(a, s, &r, &plan_keys, keys_json, key_frames.len(), head)?;
+    if let Some(png) = &a.png {
+        write_weights_png(a, s, &r, &columns, png)?;
+    }
+    if let Some(seq) = &seq {
+        progress.step("retarget: pictures");
+        pictures(a, seq, &prep, head, &r, &target_lines, &progress)?;
+    }
+    Ok(())
+}
+
+/// A target file that the request does not fit: `--regions` (each region picks its own
+/// key frames) or `--k` without `--method` (the key frames are the target's own).
+fn check_with_target(a: &RetargetArgs, has_target: bool, chosen: bool) -> Result<()> {
+    if has_target && a.regions.is_some() {
+        anyhow::bail!(
+            "--regions works with the built-in target only (each region picks its own key frames)"
+        );
+    }
+    if has_target && !chosen && a.choice.k.is_some() {
+        anyhow::bail!("--k applies with --method; without it the key frames are the target's own");
+    }
+    Ok(())
+}
+
+/// The target file `path` must hold a key shape for exactly the chosen `key_frames`.
+fn check_target_keys(
+    a: &RetargetArgs,
+    set: &TargetSet,
+    path: &std::path::Path,
+    key_frames: &[i64],
+) -> Result<()> {
+    let mut have: Vec<i64> = set.keys.iter().map(|k| k.frame).collect();
+    let mut want = key_frames.to_vec();
+    have.sort_unstable();
+    want.sort_unstable();
+    if have != want {
+        anyhow::bail!(
+            "{} holds key shapes for frames {have:?}, but {} chose frames {want:?}: drop --keys/--method to use the target's own frames",
+            path.display(),
+            if a.choice.keys.is_empty() { "--method" } else { "--keys" }
+        );
+    }
+    Ok(())
+}
+
+/// The summary: as JSON with `--json`, else two lines (the errors and weights, and what
+/// became of the head motion).
+fn report(
+    a: &RetargetArgs,
+    s: &Sequence,
+    r: &Retargeted,
+    plan_keys: &KeyPlan,
+    keys_json: serde_json::Value,
+    n_keys: usize,
+    head: Option<&[keyshape_core::align::Similarity]>,
+) -> Result<()> {
     let jitter = keyshape_core::solve::jitter::weight_jitter_all(
         &r.weights,
         &keyshape_core::solve::temporal::segments(&s.frames, s.segments.as_deref()),
@@ -235,7 +275,7 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
         "source": s.source,
         "solver": a.solver.name(),
         "keys": keys_json,
-        "regions": match &plan_keys { KeyPlan::Regions(p, _) => Some(p.names.clone()), _ => None },
+        "regions": match plan_keys { KeyPlan::Regions(p, _) => Some(p.names.clone()), _ => None },
         "frames": s.n_frames(),
         "source_rms": r.source_rms(),
         "target_rms": r.target_rms(),
@@ -260,7 +300,7 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
             super::is_stdout(a.out.as_ref()),
             "{} frames, {} keys, {}: source RMS {:.4}, target RMS {t}, jitter {:.3e}, negative weights {:.1}%",
             s.n_frames(),
-            key_frames.len(),
+            n_keys,
             a.solver,
             r.source_rms(),
             jitter,
@@ -271,13 +311,6 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
             "head motion: {}",
             summary["head_motion"].as_str().unwrap_or("")
         );
-    }
-    if let Some(png) = &a.png {
-        write_weights_png(a, s, &r, &columns, png)?;
-    }
-    if let Some(seq) = &seq {
-        progress.step("retarget: pictures");
-        pictures(a, seq, &prep, head, &r, &target_lines, &progress)?;
     }
     Ok(())
 }
