@@ -86,38 +86,17 @@ pub fn write_template(
     let plain: Vec<Vec<usize>> = lines.iter().map(|(_, l)| l.clone()).collect();
     let contours = contours_with_rest(points, &plain);
     let rest = contours.len() > lines.len();
-    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-    for (_, s) in keys {
-        for p in s.chunks(2) {
-            lo = [lo[0].min(p[0]), lo[1].min(p[1])];
-            hi = [hi[0].max(p[0]), hi[1].max(p[1])];
-        }
-    }
-    // A panel as wide and as tall as the shapes plus a margin of a tenth of their larger
-    // extent each side: a face's panel is square, a lips-only one wide and low (square
-    // panels left two thirds of each empty). The columns make the sheet about square.
-    let (dx, dy) = ((hi[0] - lo[0]).max(1e-9), (hi[1] - lo[1]).max(1e-9));
-    let m = dx.max(dy);
-    let cell = 1.2 * m;
-    let (cell_w, cell_h) = (dx + 0.2 * m, dy + 0.2 * m);
-    let cols =
-        ((keys.len() as f64 * cell_h / cell_w).sqrt().ceil() as usize).clamp(1, keys.len().max(1));
-    let rows = keys.len().div_ceil(cols);
-    let (wd, ht) = (cell_w * cols as f64, cell_h * rows as f64);
+    let sheet = Sheet::of(keys);
+    let (wd, ht) = (
+        sheet.cell_w * sheet.cols as f64,
+        sheet.cell_h * sheet.rows as f64,
+    );
     writeln!(w, r#"<?xml version="1.0" encoding="UTF-8"?>"#)?;
     writeln!(
         w,
         r#"<svg xmlns="http://www.w3.org/2000/svg" xmlns:inkscape="http://www.inkscape.org/namespaces/inkscape" width="{wd:.3}" height="{ht:.3}" viewBox="0 0 {wd:.3} {ht:.3}">"#
     )?;
-    let origins = keys
-        .iter()
-        .enumerate()
-        .map(|(i, (frame, _))| {
-            let ox = (i % cols) as f64 * cell_w + 0.1 * m - lo[0];
-            let oy = (i / cols) as f64 * cell_h + 0.1 * m - lo[1];
-            (*frame, [ox, oy])
-        })
-        .collect::<BTreeMap<i64, [f64; 2]>>();
+    let origins = sheet.origins(keys);
     let meta = serde_json::to_string(&Meta {
         points,
         polylines: contours.clone(),
@@ -133,31 +112,127 @@ pub fn write_template(
     .map_err(std::io::Error::other)?;
     writeln!(w, r#"<desc id="kslab-template">{meta}</desc>"#)?;
     writeln!(w, "<!-- keyshape-lab key-shape template: redraw each key shape, keep the ids and the number of points of every contour. Dots are points on no contour: move them or leave them to follow the contours. -->")?;
-    let stroke = cell / 300.0;
-    let font = cell / 28.0;
     let labels = keys
         .first()
         .map(|(_, s)| contour_labels(&lines, s))
         .unwrap_or_default();
+    let loose: &[usize] = if rest {
+        contours.last().map_or(&[], Vec::as_slice)
+    } else {
+        &[]
+    };
     for (n, (frame, s)) in keys.iter().enumerate() {
-        let [ox, oy] = origins[frame];
+        let panel = PanelOut {
+            frame: *frame,
+            n,
+            of: keys.len(),
+            origin: origins[frame],
+            s,
+        };
+        panel.write(w, &sheet, &lines, &labels, rest.then_some(loose))?;
+    }
+    writeln!(w, "</svg>")
+}
+
+/// How a template's panels are laid out: the shapes' bounds, each panel's size and the
+/// grid's columns and rows.
+struct Sheet {
+    lo: [f64; 2],
+    /// The shapes' larger extent.
+    m: f64,
+    cell_w: f64,
+    cell_h: f64,
+    cols: usize,
+    rows: usize,
+}
+
+impl Sheet {
+    /// A panel as wide and as tall as the shapes plus a margin of a tenth of their larger
+    /// extent each side: a face's panel is square, a lips-only one wide and low (square
+    /// panels left two thirds of each empty). The columns make the sheet about square.
+    fn of(keys: &[(i64, Vec<f64>)]) -> Sheet {
+        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        for (_, s) in keys {
+            for p in s.chunks(2) {
+                lo = [lo[0].min(p[0]), lo[1].min(p[1])];
+                hi = [hi[0].max(p[0]), hi[1].max(p[1])];
+            }
+        }
+        let (dx, dy) = ((hi[0] - lo[0]).max(1e-9), (hi[1] - lo[1]).max(1e-9));
+        let m = dx.max(dy);
+        let (cell_w, cell_h) = (dx + 0.2 * m, dy + 0.2 * m);
+        let cols = ((keys.len() as f64 * cell_h / cell_w).sqrt().ceil() as usize)
+            .clamp(1, keys.len().max(1));
+        let rows = keys.len().div_ceil(cols);
+        Sheet {
+            lo,
+            m,
+            cell_w,
+            cell_h,
+            cols,
+            rows,
+        }
+    }
+
+    /// Each key's offset on the sheet (what its panel's `translate` adds).
+    fn origins(&self, keys: &[(i64, Vec<f64>)]) -> BTreeMap<i64, [f64; 2]> {
+        keys.iter()
+            .enumerate()
+            .map(|(i, (frame, _))| {
+                let ox = (i % self.cols) as f64 * self.cell_w + 0.1 * self.m - self.lo[0];
+                let oy = (i / self.cols) as f64 * self.cell_h + 0.1 * self.m - self.lo[1];
+                (*frame, [ox, oy])
+            })
+            .collect()
+    }
+
+    /// The size of a square panel, which strokes and captions scale with.
+    fn cell(&self) -> f64 {
+        1.2 * self.m
+    }
+}
+
+/// Key `n` of `of` (source frame `frame`, flat 2-D shape `s`) as its template panel.
+struct PanelOut<'a> {
+    frame: i64,
+    n: usize,
+    of: usize,
+    origin: [f64; 2],
+    s: &'a [f64],
+}
+
+impl PanelOut<'_> {
+    /// The panel's group: its caption, its contours grouped by layout group in
+    /// first-appearance order, and with `loose` the dots of the points on no contour.
+    fn write(
+        &self,
+        w: &mut dyn Write,
+        sheet: &Sheet,
+        lines: &[(String, Vec<usize>)],
+        labels: &[String],
+        loose: Option<&[usize]>,
+    ) -> std::io::Result<()> {
+        let (frame, n, s) = (self.frame, self.n, self.s);
+        let [ox, oy] = self.origin;
+        let cell = sheet.cell();
+        let stroke = cell / 300.0;
+        let font = cell / 28.0;
         writeln!(
             w,
             r#"<g id="key-{frame}" inkscape:label="key {} · frame {frame}" transform="translate({ox} {oy})"><title>key {} of {}: frame {frame}</title>"#,
             n + 1,
             n + 1,
-            keys.len()
+            self.of
         )?;
         writeln!(
             w,
             r##"  <text id="key-{frame}-caption" x="{}" y="{}" font-family="sans-serif" font-size="{font}" fill="#444">key {} · frame {frame}</text>"##,
-            lo[0] - 0.05 * cell,
-            lo[1] - 0.04 * cell,
+            sheet.lo[0] - 0.05 * cell,
+            sheet.lo[1] - 0.04 * cell,
             n + 1
         )?;
-        // Contours, grouped by layout group in first-appearance order.
         let mut order: Vec<&str> = Vec::new();
-        for (name, _) in &lines {
+        for (name, _) in lines {
             if !order.contains(&name.as_str()) {
                 order.push(name);
             }
@@ -186,12 +261,12 @@ pub fn write_template(
             }
             writeln!(w, "  </g>")?;
         }
-        if rest {
+        if let Some(loose) = loose {
             writeln!(
                 w,
                 r##"  <g id="key-{frame}-loose" inkscape:label="points on no contour (left alone, they follow the contours)" fill="#888">"##
             )?;
-            for &p in contours.last().into_iter().flatten() {
+            for &p in loose {
                 writeln!(
                     w,
                     r#"    <circle id="key-{frame}-p{p}" cx="{}" cy="{}" r="{}"/>"#,
@@ -202,7 +277,6 @@ pub fn write_template(
             }
             writeln!(w, "  </g>")?;
         }
-        writeln!(w, "</g>")?;
+        writeln!(w, "</g>")
     }
-    writeln!(w, "</svg>")
 }
