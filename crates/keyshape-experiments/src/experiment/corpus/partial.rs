@@ -176,53 +176,10 @@ pub fn merge(dirs: &[PathBuf]) -> Result<CorpusOutcome> {
         .map(|d| read_partial(d))
         .collect::<Result<_>>()?;
     let first = &parts[0];
-    let spec_json = |p: &Partial| serde_json::to_string(&p.spec).unwrap_or_default();
     let n = first.shard.count;
     let mut by_index: Vec<Option<usize>> = vec![None; n];
     for (i, (p, d)) in parts.iter().zip(dirs).enumerate() {
-        let differs = |what: &str, a: String, b: String| {
-            Error::invalid(format!(
-                "merge: {} and {} are shards of different {what} ({a} against {b}); merge the shards of one run",
-                first_dir.display(),
-                d.display()
-            ))
-        };
-        if spec_json(p) != spec_json(first) {
-            if p.spec_file == first.spec_file {
-                return Err(Error::invalid(format!(
-                    "merge: {} and {} ran different versions of {} (was it edited between the runs?); merge the shards of one run",
-                    first_dir.display(),
-                    d.display(),
-                    p.spec_file
-                )));
-            }
-            return Err(differs(
-                "experiments",
-                first.spec_file.clone(),
-                p.spec_file.clone(),
-            ));
-        }
-        if p.units != first.units {
-            return Err(differs(
-                "corpora",
-                format!("{} sequences", first.units.len()),
-                format!("{} sequences", p.units.len()),
-            ));
-        }
-        if p.kslab != first.kslab {
-            return Err(differs(
-                "kslab versions",
-                first.kslab.clone(),
-                p.kslab.clone(),
-            ));
-        }
-        if p.shard.count != n {
-            return Err(differs(
-                "splits",
-                format!("{n} shards"),
-                format!("{} shards", p.shard.count),
-            ));
-        }
+        check_same_run(first, first_dir, p, d)?;
         if let Some(j) = by_index[p.shard.index] {
             return Err(Error::invalid(format!(
                 "merge: shard {} is given twice: {} and {}",
@@ -232,33 +189,7 @@ pub fn merge(dirs: &[PathBuf]) -> Result<CorpusOutcome> {
             )));
         }
         by_index[p.shard.index] = Some(i);
-        let want: Vec<&Unit> = (0..p.units.len())
-            .filter(|&u| p.shard.has(u))
-            .map(|u| &p.units[u])
-            .collect();
-        let got: Vec<&Unit> = p.results.iter().map(|r| &r.unit).collect();
-        if want.len() != got.len() {
-            return Err(Error::file(
-                d,
-                format!(
-                    "shard {} holds {} result{} where its part of the corpus has {} sequence{}",
-                    p.shard,
-                    got.len(),
-                    if got.len() == 1 { "" } else { "s" },
-                    want.len(),
-                    if want.len() == 1 { "" } else { "s" }
-                ),
-            ));
-        }
-        if let Some((w, g)) = want.iter().zip(&got).find(|(w, g)| w != g) {
-            return Err(Error::file(
-                d,
-                format!(
-                    "shard {} holds a result for '{}' where its part of the corpus has '{}' (in corpus order)",
-                    p.shard, g.name, w.name
-                ),
-            ));
-        }
+        check_results(p, d)?;
     }
     let missing: Vec<String> = (0..n)
         .filter(|&i| by_index[i].is_none())
@@ -289,4 +220,88 @@ pub fn merge(dirs: &[PathBuf]) -> Result<CorpusOutcome> {
         next[s] += 1;
     }
     aggregate(&first.spec, results)
+}
+
+/// Refuses a partial `p` (from folder `d`) of another run than the `first` (from
+/// `first_dir`): another experiment or version of it, corpus, kslab version or split.
+fn check_same_run(first: &Partial, first_dir: &Path, p: &Partial, d: &Path) -> Result<()> {
+    let spec_json = |p: &Partial| serde_json::to_string(&p.spec).unwrap_or_default();
+    let n = first.shard.count;
+    let differs = |what: &str, a: String, b: String| {
+        Error::invalid(format!(
+            "merge: {} and {} are shards of different {what} ({a} against {b}); merge the shards of one run",
+            first_dir.display(),
+            d.display()
+        ))
+    };
+    if spec_json(p) != spec_json(first) {
+        if p.spec_file == first.spec_file {
+            return Err(Error::invalid(format!(
+                "merge: {} and {} ran different versions of {} (was it edited between the runs?); merge the shards of one run",
+                first_dir.display(),
+                d.display(),
+                p.spec_file
+            )));
+        }
+        return Err(differs(
+            "experiments",
+            first.spec_file.clone(),
+            p.spec_file.clone(),
+        ));
+    }
+    if p.units != first.units {
+        return Err(differs(
+            "corpora",
+            format!("{} sequences", first.units.len()),
+            format!("{} sequences", p.units.len()),
+        ));
+    }
+    if p.kslab != first.kslab {
+        return Err(differs(
+            "kslab versions",
+            first.kslab.clone(),
+            p.kslab.clone(),
+        ));
+    }
+    if p.shard.count != n {
+        return Err(differs(
+            "splits",
+            format!("{n} shards"),
+            format!("{} shards", p.shard.count),
+        ));
+    }
+    Ok(())
+}
+
+/// Refuses a partial `p` (from folder `d`) whose results are not those of its shard's part
+/// of the corpus, in corpus order.
+fn check_results(p: &Partial, d: &Path) -> Result<()> {
+    let want: Vec<&Unit> = (0..p.units.len())
+        .filter(|&u| p.shard.has(u))
+        .map(|u| &p.units[u])
+        .collect();
+    let got: Vec<&Unit> = p.results.iter().map(|r| &r.unit).collect();
+    if want.len() != got.len() {
+        return Err(Error::file(
+            d,
+            format!(
+                "shard {} holds {} result{} where its part of the corpus has {} sequence{}",
+                p.shard,
+                got.len(),
+                if got.len() == 1 { "" } else { "s" },
+                want.len(),
+                if want.len() == 1 { "" } else { "s" }
+            ),
+        ));
+    }
+    if let Some((w, g)) = want.iter().zip(&got).find(|(w, g)| w != g) {
+        return Err(Error::file(
+            d,
+            format!(
+                "shard {} holds a result for '{}' where its part of the corpus has '{}' (in corpus order)",
+                p.shard, g.name, w.name
+            ),
+        ));
+    }
+    Ok(())
 }
