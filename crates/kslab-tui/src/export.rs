@@ -3,6 +3,7 @@
 //! `kslab tui --head-motion` (default `apply`): per-frame pose columns in the CSV and the
 //! picture in image coordinates, as `kslab retarget` writes them; `none` keeps both aligned.
 
+use super::request::{Computed, SolverView};
 use super::state::State;
 use anyhow::{Context, Result};
 use keyshape_core::keyshapes::Method;
@@ -57,7 +58,6 @@ fn export_files(s: &State, seq_path: &str, dir: &Path) -> Result<Vec<String>> {
     let c = s.computed.as_ref().context("nothing computed yet")?;
     let v = c.views.first().context("no solver view")?;
     keyshape_io::create_dir_all(dir)?;
-    let csv = dir.join("weights.csv");
     let mean_keys = matches!(c.settings.method, Method::KMeans { mean: true, .. });
     // Head motion as `kslab retarget --head-motion` handles it: re-applied (pose columns in
     // the CSV, the picture in image coordinates) or not at all.
@@ -66,12 +66,29 @@ fn export_files(s: &State, seq_path: &str, dir: &Path) -> Result<Vec<String>> {
     } else {
         None
     };
-    let image = |m: &nalgebra::DMatrix<f64>| -> Result<nalgebra::DMatrix<f64>> {
-        Ok(match head {
-            Some(h) => keyshape_retarget::with_head_motion(m, h, c.dims)?,
-            None => m.clone(),
-        })
-    };
+    let csv = dir.join("weights.csv");
+    write_weights(&csv, c, v, head, mean_keys)?;
+    let png = dir.join("view.png");
+    write_view(s, c, v, head, &png)?;
+    let toml = dir.join("experiment.toml");
+    let text = experiment_text(c, seq_path, &toml, mean_keys);
+    write_atomic(&toml, |w| w.write_all(text.as_bytes()))?;
+    Ok(vec![
+        csv.display().to_string(),
+        png.display().to_string(),
+        toml.display().to_string(),
+    ])
+}
+
+/// `weights.csv`: a row per frame, its errors, the key-shape weights (`w_<frame>`, or
+/// `w_mean<j>` for cluster means) and with `head` the pose columns.
+fn write_weights(
+    csv: &Path,
+    c: &Computed,
+    v: &SolverView,
+    head: Option<&[keyshape_core::align::Similarity]>,
+    mean_keys: bool,
+) -> Result<()> {
     // kmeansN-mean: the key shapes are cluster means, not frames.
     let keys = c.keys.iter().enumerate().map(|(j, &k)| {
         if mean_keys {
@@ -98,7 +115,24 @@ fn export_files(s: &State, seq_path: &str, dir: &Path) -> Result<Vec<String>> {
         }
         row
     });
-    write_atomic(&csv, |w| write_records(w, header, records))?;
+    write_atomic(csv, |w| write_records(w, header, records))?;
+    Ok(())
+}
+
+/// `view.png`: the current frame as the lab shows it, its errors in the title.
+fn write_view(
+    s: &State,
+    c: &Computed,
+    v: &SolverView,
+    head: Option<&[keyshape_core::align::Similarity]>,
+    png: &Path,
+) -> Result<()> {
+    let image = |m: &nalgebra::DMatrix<f64>| -> Result<nalgebra::DMatrix<f64>> {
+        Ok(match head {
+            Some(h) => keyshape_retarget::with_head_motion(m, h, c.dims)?,
+            None => m.clone(),
+        })
+    };
     let t = s.frame.min(c.frames.len().saturating_sub(1));
     let (tracked, recon, truth, target) = (
         image(&c.tracked)?,
@@ -140,9 +174,14 @@ fn export_files(s: &State, seq_path: &str, dir: &Path) -> Result<Vec<String>> {
         keyshape_core::stats::sig(v.frame_rms[t], 3),
         keyshape_core::stats::sig(v.frame_target_rms[t], 3),
     );
-    let png = dir.join("view.png");
-    save_png(&render_frame(&shapes, &caption, 360)?, &png)?;
-    let toml = dir.join("experiment.toml");
+    save_png(&render_frame(&shapes, &caption, 360)?, png)?;
+    Ok(())
+}
+
+/// `experiment.toml`'s text (written at `toml`): the experiment that reproduces the
+/// current settings, with the retargeting study unless the keys are cluster means and the
+/// smoothing study at the lab's λ.
+fn experiment_text(c: &Computed, seq_path: &str, toml: &Path, mean_keys: bool) -> String {
     let input = if seq_path == "builtin" {
         "builtin".to_string()
     } else {
@@ -176,7 +215,7 @@ fn export_files(s: &State, seq_path: &str, dir: &Path) -> Result<Vec<String>> {
     } else {
         String::new()
     };
-    let text = format!(
+    format!(
         "# Exported from the kslab lab: reproduces the current settings. Run: kslab run {}\ntitle = \"{} {} k={} {}\"\ninput = \"{input}\"\n{points}\nalign = true\nmethods = [{}]\nk = \"2..24\"\nsolvers = [\"{}\"]\n\n{retarget}{smooth}",
         toml.display(),
         st.points,
@@ -185,13 +224,7 @@ fn export_files(s: &State, seq_path: &str, dir: &Path) -> Result<Vec<String>> {
         st.solver,
         methods.join(", "),
         st.solver,
-    );
-    write_atomic(&toml, |w| w.write_all(text.as_bytes()))?;
-    Ok(vec![
-        csv.display().to_string(),
-        png.display().to_string(),
-        toml.display().to_string(),
-    ])
+    )
 }
 
 /// The rig view's export: `rig_weights.csv` (a row per frame, a column per shape, as
