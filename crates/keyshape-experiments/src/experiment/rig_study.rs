@@ -305,6 +305,73 @@ pub fn against_peer(
     clips: Option<&[String]>,
 ) -> Result<(Vec<PeerRow>, Vec<PeerSummary>)> {
     let frames = track.ncols();
+    let sum = Summariser {
+        groups: clip_groups(frames, clips),
+        // The summary's set, from the peer's data alone.
+        set: (0..scores.len())
+            .filter(|&j| seen_by_68_points(&scores[j].0) && std_dev(&scores[j].1) >= PEER_MOVES_SD)
+            .collect(),
+        scores,
+    };
+    let groups = &sum.groups;
+    let mut rows = Vec::new();
+    let mut summary = Vec::new();
+    let mut default_weights = None;
+    for (identity, neutral) in [
+        (Identity::None, Neutral::Auto),
+        (Identity::Offset, Neutral::LeastActive),
+        (Identity::Offset, Neutral::Auto),
+        (Identity::Rbf, Neutral::LeastActive),
+        (Identity::Rbf, Neutral::Auto),
+    ] {
+        let opts = RigOptions {
+            identity,
+            neutral,
+            ..Default::default()
+        };
+        let neutral_name = match (identity, neutral) {
+            (Identity::None, _) => "-",
+            (_, Neutral::LeastActive) => "least-active",
+            _ => "auto",
+        };
+        let r = solve_rig(rig, track, &[], &opts)?;
+        let ours_of = peer_columns(rig, &r.weights, scores);
+        for ((name, peer), ours) in scores.iter().zip(&ours_of) {
+            let Some(ours) = ours else { continue };
+            for (clip, fr) in groups {
+                let a: Vec<f64> = fr.iter().map(|&f| ours[f]).collect();
+                let b: Vec<f64> = fr.iter().map(|&f| peer[f]).collect();
+                let constant = a.iter().all(|&v| v == a[0]) || b.iter().all(|&v| v == b[0]);
+                rows.push(PeerRow {
+                    identity: identity.name().into(),
+                    neutral: neutral_name.into(),
+                    shape: name.clone(),
+                    clip: clip.clone(),
+                    r: (!constant).then(|| correlation(&a, &b)),
+                });
+            }
+        }
+        let rms = (r.rms.iter().map(|e| e * e).sum::<f64>() / frames as f64).sqrt();
+        let ours = |j: usize| ours_of[j].clone().filter(|a| a.iter().any(|&v| v != a[0]));
+        summary.push(sum.summarise(
+            format!("{}/{neutral_name}", identity.name()),
+            &ours,
+            Some(rms),
+        ));
+        if (identity, neutral) == (Identity::Offset, Neutral::Auto) {
+            default_weights = Some(r.weights);
+        }
+    }
+    if groups.len() > 2 {
+        let w = default_weights.unwrap_or_else(|| DMatrix::zeros(rig.k(), frames));
+        summary.extend(sum.ceilings(track, &w)?);
+    }
+    Ok((rows, summary))
+}
+
+/// The frames of the whole track ("all"), then of each clip in order of first appearance
+/// (`clips`: a label per frame).
+fn clip_groups(frames: usize, clips: Option<&[String]>) -> Vec<(String, Vec<usize>)> {
     let mut groups: Vec<(String, Vec<usize>)> = vec![("all".into(), (0..frames).collect())];
     if let Some(labels) = clips {
         for (f, l) in labels.iter().enumerate() {
@@ -314,11 +381,51 @@ pub fn against_peer(
             }
         }
     }
-    // The summary's set, from the peer's data alone.
-    let set: Vec<usize> = (0..scores.len())
-        .filter(|&j| seen_by_68_points(&scores[j].0) && std_dev(&scores[j].1) >= PEER_MOVES_SD)
-        .collect();
-    let summarise = |setting: String, ours: &dyn Fn(usize) -> Option<Vec<f64>>, rms| {
+    groups
+}
+
+/// Per peer column: the mean of the rig's shapes of that name (`weights`: shapes ×
+/// frames); None when the rig has none.
+fn peer_columns(
+    rig: &Rig,
+    weights: &DMatrix<f64>,
+    scores: &[(String, Vec<f64>)],
+) -> Vec<Option<Vec<f64>>> {
+    scores
+        .iter()
+        .map(|(name, _)| {
+            let src: Vec<usize> = (0..rig.k())
+                .filter(|&i| {
+                    let a = lower_first(&arkit_name(&rig.names[i]));
+                    a == *name || a == format!("{name}Left") || a == format!("{name}Right")
+                })
+                .collect();
+            (!src.is_empty()).then(|| {
+                (0..weights.ncols())
+                    .map(|f| src.iter().map(|&s| weights[(s, f)]).sum::<f64>() / src.len() as f64)
+                    .collect()
+            })
+        })
+        .collect()
+}
+
+/// The peer study's summary rows: the peer's columns in the summary's `set`, the clip
+/// groups (the whole track first).
+struct Summariser<'a> {
+    groups: Vec<(String, Vec<usize>)>,
+    set: Vec<usize>,
+    scores: &'a [(String, Vec<f64>)],
+}
+
+impl Summariser<'_> {
+    /// One summary row: `ours(j)` against peer column `j`, pooled and per clip.
+    fn summarise(
+        &self,
+        setting: String,
+        ours: &dyn Fn(usize) -> Option<Vec<f64>>,
+        rms: Option<f64>,
+    ) -> PeerSummary {
+        let (set, groups, scores) = (&self.set, &self.groups, self.scores);
         let pooled: Vec<f64> = set
             .iter()
             .map(|&j| ours(j).map_or(0.0, |a| correlation(&a, &scores[j].1)))
@@ -353,78 +460,17 @@ pub fn against_peer(
             clip_mean_r,
             rms,
         }
-    };
-    let mut rows = Vec::new();
-    let mut summary = Vec::new();
-    let mut default_weights = None;
-    for (identity, neutral) in [
-        (Identity::None, Neutral::Auto),
-        (Identity::Offset, Neutral::LeastActive),
-        (Identity::Offset, Neutral::Auto),
-        (Identity::Rbf, Neutral::LeastActive),
-        (Identity::Rbf, Neutral::Auto),
-    ] {
-        let opts = RigOptions {
-            identity,
-            neutral,
-            ..Default::default()
-        };
-        let neutral_name = match (identity, neutral) {
-            (Identity::None, _) => "-",
-            (_, Neutral::LeastActive) => "least-active",
-            _ => "auto",
-        };
-        let r = solve_rig(rig, track, &[], &opts)?;
-        // Per peer column: the mean of the rig's shapes of that name; None when it has none.
-        let ours_of: Vec<Option<Vec<f64>>> = scores
-            .iter()
-            .map(|(name, _)| {
-                let src: Vec<usize> = (0..rig.k())
-                    .filter(|&i| {
-                        let a = lower_first(&arkit_name(&rig.names[i]));
-                        a == *name || a == format!("{name}Left") || a == format!("{name}Right")
-                    })
-                    .collect();
-                (!src.is_empty()).then(|| {
-                    (0..frames)
-                        .map(|f| {
-                            src.iter().map(|&s| r.weights[(s, f)]).sum::<f64>() / src.len() as f64
-                        })
-                        .collect()
-                })
-            })
-            .collect();
-        for ((name, peer), ours) in scores.iter().zip(&ours_of) {
-            let Some(ours) = ours else { continue };
-            for (clip, fr) in &groups {
-                let a: Vec<f64> = fr.iter().map(|&f| ours[f]).collect();
-                let b: Vec<f64> = fr.iter().map(|&f| peer[f]).collect();
-                let constant = a.iter().all(|&v| v == a[0]) || b.iter().all(|&v| v == b[0]);
-                rows.push(PeerRow {
-                    identity: identity.name().into(),
-                    neutral: neutral_name.into(),
-                    shape: name.clone(),
-                    clip: clip.clone(),
-                    r: (!constant).then(|| correlation(&a, &b)),
-                });
-            }
-        }
-        let rms = (r.rms.iter().map(|e| e * e).sum::<f64>() / frames as f64).sqrt();
-        let ours = |j: usize| ours_of[j].clone().filter(|a| a.iter().any(|&v| v != a[0]));
-        summary.push(summarise(
-            format!("{}/{neutral_name}", identity.name()),
-            &ours,
-            Some(rms),
-        ));
-        if (identity, neutral) == (Identity::Offset, Neutral::Auto) {
-            default_weights = Some(r.weights);
-        }
     }
-    if groups.len() > 2 {
-        let held: Vec<Vec<usize>> = groups[1..].iter().map(|g| g.1.clone()).collect();
-        let y = DMatrix::from_fn(frames, set.len(), |f, k| scores[set[k]].1[f]);
-        let w = default_weights.unwrap_or_else(|| DMatrix::zeros(rig.k(), frames));
+
+    /// The two references fitted to the peer (leave one clip out, ridge
+    /// [`CEILING_RIDGE`]): from the default solve's weights `w`, and from the
+    /// Procrustes-aligned landmarks of `track`.
+    fn ceilings(&self, track: &DMatrix<f64>, w: &DMatrix<f64>) -> Result<Vec<PeerSummary>> {
+        let (set, scores) = (&self.set, self.scores);
+        let held: Vec<Vec<usize>> = self.groups[1..].iter().map(|g| g.1.clone()).collect();
+        let y = DMatrix::from_fn(track.ncols(), set.len(), |f, k| scores[set[k]].1[f]);
         let aligned = keyshape_core::align::procrustes(track, 2)?.coords;
+        let mut out = Vec::new();
         for (setting, x) in [
             (
                 "ridge: the offset/auto weights → peer, leave one clip out",
@@ -441,8 +487,8 @@ pub fn against_peer(
                     .position(|&s| s == j)
                     .map(|k| pred.column(k).iter().copied().collect::<Vec<f64>>())
             };
-            summary.push(summarise(setting.into(), &ours, None));
+            out.push(self.summarise(setting.into(), &ours, None));
         }
+        Ok(out)
     }
-    Ok((rows, summary))
 }
