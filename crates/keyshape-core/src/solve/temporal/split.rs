@@ -87,17 +87,7 @@ impl SegmentSystem {
         }
         let m = (t - p) / 2;
         let nb = t - m - p;
-        // The halves' bands: a is the leading block as it stands; b is the trailing block
-        // with time reversed (DᵀD is symmetric, so entry (i, i − j) of the reversed block is
-        // the original's entry (t − 1 − i + j, t − 1 − i)).
-        let bands_a: Vec<Vec<f64>> = bands.iter().map(|b| b[..m].to_vec()).collect();
-        let bands_b: Vec<Vec<f64>> = (0..=p)
-            .map(|j| {
-                (0..nb)
-                    .map(|i| if i >= j { bands[j][t - 1 - i + j] } else { 0.0 })
-                    .collect()
-            })
-            .collect();
+        let (bands_a, bands_b) = half_bands(bands, m, nb);
         let fixed_a = &fixed[..m * k];
         let fixed_b: Vec<bool> = (0..nb)
             .flat_map(|i| fixed[(t - 1 - i) * k..(t - i) * k].iter().copied())
@@ -119,70 +109,20 @@ impl SegmentSystem {
         );
         let (mut a, mut b) = (ra?, rb?);
         let sep: Vec<usize> = (m * k..(m + p) * k).filter(|&v| !fixed[v]).collect();
-        let ns = sep.len();
-        // H's entry between frames r < c (c − r ≤ p) on one variable: λ·band[c − r][c].
-        let coupling = |r: usize, c: usize| lambda * bands[c - r][c];
-        // X_a = L_a⁻¹ H_{a,sep}: columns live on a's last p frames.
-        let a0 = m - p;
-        let a_len = a.fstart[m] - a.fstart[a0];
-        let mut xa = DMatrix::zeros(a_len, ns);
-        let b0 = nb - p;
-        let b_len = b.fstart[nb] - b.fstart[b0];
-        let mut xb = DMatrix::zeros(b_len, ns);
-        for (j, &v) in sep.iter().enumerate() {
-            let (s, i) = (v / k, v % k);
-            let mut col = vec![0.0; a_len];
-            for r in a0..m {
-                if s - r <= p {
-                    if let Some(x) = a.free[a.fstart[r]..a.fstart[r + 1]]
-                        .iter()
-                        .position(|&f| f as usize == i)
-                    {
-                        col[a.fstart[r] - a.fstart[a0] + x] = coupling(r, s);
-                    }
-                }
-            }
-            a.forward(&mut col, a0);
-            xa.column_mut(j).copy_from_slice(&col);
-            let mut col = vec![0.0; b_len];
-            for ib in b0..nb {
-                let orig = t - 1 - ib;
-                if orig - s <= p {
-                    if let Some(x) = b.free[b.fstart[ib]..b.fstart[ib + 1]]
-                        .iter()
-                        .position(|&f| f as usize == i)
-                    {
-                        col[b.fstart[ib] - b.fstart[b0] + x] = coupling(s, orig);
-                    }
-                }
-            }
-            b.forward(&mut col, b0);
-            xb.column_mut(j).copy_from_slice(&col);
-        }
-        let c = if ns == 0 {
+        let (xa, xb) = separator_columns(&mut a, &mut b, &sep, (k, t, p, m, nb), lambda, bands);
+        let c = if sep.is_empty() {
             None
         } else {
-            let mut h = DMatrix::zeros(ns, ns);
-            for (x, &u) in sep.iter().enumerate() {
-                for (y, &v) in sep.iter().enumerate() {
-                    let (su, iu, sv, iv) = (u / k, u % k, v / k, v % k);
-                    let mut e = if su == sv { g[(iu, iv)] } else { 0.0 };
-                    if iu == iv && su.abs_diff(sv) <= p {
-                        let (lo, hi) = (su.min(sv), su.max(sv));
-                        e += lambda * bands[hi - lo][hi];
-                        if lo == hi {
-                            e += ridge;
-                        }
-                    }
-                    h[(x, y)] = e;
-                }
-            }
-            h -= xa.tr_mul(&xa) + xb.tr_mul(&xb);
-            Some(h.cholesky().ok_or_else(|| {
-                Error::unfit(
-                    "temporal prior: the separator's Schur complement is not positive definite",
-                )
-            })?)
+            Some(schur_factor(
+                g,
+                lambda,
+                bands,
+                ridge,
+                &sep,
+                (k, p),
+                &xa,
+                &xb,
+            )?)
         };
         Ok(SegmentSystem::Split(Box::new(Split {
             k,
@@ -271,4 +211,108 @@ impl Split {
             rhs[v] = *x;
         }
     }
+}
+
+/// The two halves' bands (`bands`: the whole segment's, `t` frames, band `p`): `a` is the
+/// leading `m` frames as they stand; `b` the trailing `nb` frames with time reversed (DᵀD
+/// is symmetric, so entry (i, i − j) of the reversed block is the original's entry
+/// (t − 1 − i + j, t − 1 − i)).
+fn half_bands(bands: &[Vec<f64>], m: usize, nb: usize) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
+    let t = bands[0].len();
+    let p = bands.len() - 1;
+    let bands_a: Vec<Vec<f64>> = bands.iter().map(|b| b[..m].to_vec()).collect();
+    let bands_b: Vec<Vec<f64>> = (0..=p)
+        .map(|j| {
+            (0..nb)
+                .map(|i| if i >= j { bands[j][t - 1 - i + j] } else { 0.0 })
+                .collect()
+        })
+        .collect();
+    (bands_a, bands_b)
+}
+
+/// `X_a = L_a⁻¹ H_{a,sep}` and `X_b = L_b⁻¹ H_{b,sep}`: one column per free separator
+/// variable of `sep`, living on each half's `p` frames next to the separator.
+fn separator_columns(
+    a: &mut BandedSystem,
+    b: &mut BandedSystem,
+    sep: &[usize],
+    (k, t, p, m, nb): (usize, usize, usize, usize, usize),
+    lambda: f64,
+    bands: &[Vec<f64>],
+) -> (DMatrix<f64>, DMatrix<f64>) {
+    // H's entry between frames r < c (c − r ≤ p) on one variable: λ·band[c − r][c].
+    let coupling = |r: usize, c: usize| lambda * bands[c - r][c];
+    let a0 = m - p;
+    let a_len = a.fstart[m] - a.fstart[a0];
+    let mut xa = DMatrix::zeros(a_len, sep.len());
+    let b0 = nb - p;
+    let b_len = b.fstart[nb] - b.fstart[b0];
+    let mut xb = DMatrix::zeros(b_len, sep.len());
+    for (j, &v) in sep.iter().enumerate() {
+        let (s, i) = (v / k, v % k);
+        let mut col = vec![0.0; a_len];
+        for r in a0..m {
+            if s - r <= p {
+                if let Some(x) = a.free[a.fstart[r]..a.fstart[r + 1]]
+                    .iter()
+                    .position(|&f| f as usize == i)
+                {
+                    col[a.fstart[r] - a.fstart[a0] + x] = coupling(r, s);
+                }
+            }
+        }
+        a.forward(&mut col, a0);
+        xa.column_mut(j).copy_from_slice(&col);
+        let mut col = vec![0.0; b_len];
+        for ib in b0..nb {
+            let orig = t - 1 - ib;
+            if orig - s <= p {
+                if let Some(x) = b.free[b.fstart[ib]..b.fstart[ib + 1]]
+                    .iter()
+                    .position(|&f| f as usize == i)
+                {
+                    col[b.fstart[ib] - b.fstart[b0] + x] = coupling(s, orig);
+                }
+            }
+        }
+        b.forward(&mut col, b0);
+        xb.column_mut(j).copy_from_slice(&col);
+    }
+    (xa, xb)
+}
+
+/// The Cholesky factor of the separator's Schur complement `H_sep − X_aᵀX_a − X_bᵀX_b`
+/// (`sep`: its free variables, not empty).
+#[allow(clippy::too_many_arguments)]
+fn schur_factor(
+    g: &DMatrix<f64>,
+    lambda: f64,
+    bands: &[Vec<f64>],
+    ridge: f64,
+    sep: &[usize],
+    (k, p): (usize, usize),
+    xa: &DMatrix<f64>,
+    xb: &DMatrix<f64>,
+) -> Result<nalgebra::Cholesky<f64, nalgebra::Dyn>> {
+    let ns = sep.len();
+    let mut h = DMatrix::zeros(ns, ns);
+    for (x, &u) in sep.iter().enumerate() {
+        for (y, &v) in sep.iter().enumerate() {
+            let (su, iu, sv, iv) = (u / k, u % k, v / k, v % k);
+            let mut e = if su == sv { g[(iu, iv)] } else { 0.0 };
+            if iu == iv && su.abs_diff(sv) <= p {
+                let (lo, hi) = (su.min(sv), su.max(sv));
+                e += lambda * bands[hi - lo][hi];
+                if lo == hi {
+                    e += ridge;
+                }
+            }
+            h[(x, y)] = e;
+        }
+    }
+    h -= xa.tr_mul(xa) + xb.tr_mul(xb);
+    h.cholesky().ok_or_else(|| {
+        Error::unfit("temporal prior: the separator's Schur complement is not positive definite")
+    })
 }
