@@ -98,106 +98,7 @@ pub fn run(a: &ScaleArgs) -> Result<()> {
         }
         let t = track.display().to_string();
         for step in &a.steps {
-            let keys: Vec<String> = (0..16).map(|i| (i * (n - 1) / 15).to_string()).collect();
-            let out = dir.join(format!("{step}_{n}.csv")).display().to_string();
-            let args: Vec<String> = match step.as_str() {
-                // `stream` is `solve` with `--stream`: the same keys, solver and output.
-                "solve" | "stream" => {
-                    let mut v: Vec<String> = vec![
-                        "solve".into(),
-                        t.clone(),
-                        "--keys".into(),
-                        keys.join(","),
-                        "--solver".into(),
-                        "nnls".into(),
-                        "--out".into(),
-                        out,
-                    ];
-                    if step == "stream" {
-                        v.push("--stream".into());
-                    }
-                    v
-                }
-                "kmeans2" => vec![
-                    "keys".into(),
-                    t.clone(),
-                    "--method".into(),
-                    "kmeans2".into(),
-                    "--k".into(),
-                    "16".into(),
-                ],
-                "greedy" => vec![
-                    "keys".into(),
-                    t.clone(),
-                    "--method".into(),
-                    "greedy".into(),
-                    "--k".into(),
-                    "16".into(),
-                ],
-                "curves" => vec![
-                    "curves".into(),
-                    t.clone(),
-                    "--k".into(),
-                    "2..16".into(),
-                    "--out".into(),
-                    out,
-                ],
-                "info" => vec!["info".into(), t.clone()],
-                "template" => vec![
-                    "template".into(),
-                    t.clone(),
-                    "--out".into(),
-                    dir.join(format!("template_{n}.svg")).display().to_string(),
-                ],
-                "retarget" => vec!["retarget".into(), t.clone(), "--out".into(), out],
-                "transfer" => {
-                    let (mesh, features) = if a.points == 468 {
-                        (
-                            "mediapipe_canonical_face/canonical_face_model.obj",
-                            "mediapipe_to_canonical",
-                        )
-                    } else {
-                        ("ict_facekit_face/neutral_face.obj", "ibug68_to_ict")
-                    };
-                    vec![
-                        "transfer".into(),
-                        t.clone(),
-                        "--mesh".into(),
-                        keyshape_io::shared_data(mesh)?.display().to_string(),
-                        "--features".into(),
-                        features.into(),
-                        "--json".into(),
-                    ]
-                }
-                "modes" => {
-                    // The track's own actions (untimed): another track's would be refused.
-                    let acts = dir.join(format!("actions_{n}x{}.json", a.points));
-                    if !acts.exists() {
-                        let st = std::process::Command::new(&exe)
-                            .args(["actions", &t, "--out"])
-                            .arg(&acts)
-                            .stdout(std::process::Stdio::null())
-                            .stderr(std::process::Stdio::null())
-                            .status()?;
-                        if !st.success() {
-                            bail!("kslab actions {t} failed");
-                        }
-                    }
-                    vec![
-                        "modes".into(),
-                        t.clone(),
-                        "--actions".into(),
-                        acts.display().to_string(),
-                    ]
-                }
-                "rig" => vec!["rig".into(), t.clone(), "--out".into(), out],
-                _ => vec![
-                    "smooth".into(),
-                    t.clone(),
-                    "--out".into(),
-                    dir.join(format!("smooth_{n}")).display().to_string(),
-                ],
-            };
+            let args = step_args(a, step, n, &t, &dir, &exe)?;
             let m = measure(&exe, &args, step, n, a.points)?;
             if !a.json {
                 outln!(
@@ -222,6 +123,119 @@ pub fn run(a: &ScaleArgs) -> Result<()> {
         outln!("{}", serde_json::to_string_pretty(&rows)?);
     }
     Ok(())
+}
+
+/// The command line that step `step` runs on track `t` of `n` frames (outputs in `dir`;
+/// `exe` makes the untimed actions `modes` reads).
+fn step_args(
+    a: &ScaleArgs,
+    step: &str,
+    n: usize,
+    t: &str,
+    dir: &Path,
+    exe: &Path,
+) -> Result<Vec<String>> {
+    let t = t.to_string();
+    let keys: Vec<String> = (0..16).map(|i| (i * (n - 1) / 15).to_string()).collect();
+    let out = dir.join(format!("{step}_{n}.csv")).display().to_string();
+    Ok(match step {
+        // `stream` is `solve` with `--stream`: the same keys, solver and output.
+        "solve" | "stream" => {
+            let mut v: Vec<String> = vec![
+                "solve".into(),
+                t.clone(),
+                "--keys".into(),
+                keys.join(","),
+                "--solver".into(),
+                "nnls".into(),
+                "--out".into(),
+                out,
+            ];
+            if step == "stream" {
+                v.push("--stream".into());
+            }
+            v
+        }
+        "kmeans2" => vec![
+            "keys".into(),
+            t.clone(),
+            "--method".into(),
+            "kmeans2".into(),
+            "--k".into(),
+            "16".into(),
+        ],
+        "greedy" => vec![
+            "keys".into(),
+            t.clone(),
+            "--method".into(),
+            "greedy".into(),
+            "--k".into(),
+            "16".into(),
+        ],
+        "curves" => vec![
+            "curves".into(),
+            t.clone(),
+            "--k".into(),
+            "2..16".into(),
+            "--out".into(),
+            out,
+        ],
+        "info" => vec!["info".into(), t.clone()],
+        "template" => vec![
+            "template".into(),
+            t.clone(),
+            "--out".into(),
+            dir.join(format!("template_{n}.svg")).display().to_string(),
+        ],
+        "retarget" => vec!["retarget".into(), t.clone(), "--out".into(), out],
+        "transfer" => {
+            let (mesh, features) = if a.points == 468 {
+                (
+                    "mediapipe_canonical_face/canonical_face_model.obj",
+                    "mediapipe_to_canonical",
+                )
+            } else {
+                ("ict_facekit_face/neutral_face.obj", "ibug68_to_ict")
+            };
+            vec![
+                "transfer".into(),
+                t.clone(),
+                "--mesh".into(),
+                keyshape_io::shared_data(mesh)?.display().to_string(),
+                "--features".into(),
+                features.into(),
+                "--json".into(),
+            ]
+        }
+        "modes" => {
+            // The track's own actions (untimed): another track's would be refused.
+            let acts = dir.join(format!("actions_{n}x{}.json", a.points));
+            if !acts.exists() {
+                let st = std::process::Command::new(&exe)
+                    .args(["actions", &t, "--out"])
+                    .arg(&acts)
+                    .stdout(std::process::Stdio::null())
+                    .stderr(std::process::Stdio::null())
+                    .status()?;
+                if !st.success() {
+                    bail!("kslab actions {t} failed");
+                }
+            }
+            vec![
+                "modes".into(),
+                t.clone(),
+                "--actions".into(),
+                acts.display().to_string(),
+            ]
+        }
+        "rig" => vec!["rig".into(), t.clone(), "--out".into(), out],
+        _ => vec![
+            "smooth".into(),
+            t.clone(),
+            "--out".into(),
+            dir.join(format!("smooth_{n}")).display().to_string(),
+        ],
+    })
 }
 
 fn generate(path: &Path, frames: usize, points: usize, seed: u64) -> Result<()> {
