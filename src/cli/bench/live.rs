@@ -119,26 +119,8 @@ pub fn run(a: &LiveBenchArgs) -> Result<()> {
     } else {
         "stdin".to_string()
     };
-    let exe = std::env::current_exe()?;
-    // One core, as a tracker's machine would spare it.
-    let taskset = std::path::Path::new("/usr/bin/taskset").exists();
-    let mut cmd = if taskset {
-        let mut c = Command::new("/usr/bin/taskset");
-        c.args(["-c", "0"]).arg(&exe);
-        c
-    } else {
-        Command::new(&exe)
-    };
-    cmd.args(["live", "--from", &from, "--to"])
-        .arg(format!(
-            "vmc:127.0.0.1:{vmc_port},livelink:127.0.0.1:{ll_port}"
-        ))
-        .arg("--stats")
-        .arg(&stats)
-        .stdin(Stdio::piped())
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped());
-    let mut child = cmd.spawn().context("starting kslab live")?;
+    let to = format!("vmc:127.0.0.1:{vmc_port},livelink:127.0.0.1:{ll_port}");
+    let (mut child, taskset) = start_live(&from, &to, &stats)?;
     let pid = child.id();
     // Its first line comes once the source is open (a UDP source: then it can receive;
     // standard input is opened by reading its first line, which the pipe holds).
@@ -153,29 +135,10 @@ pub fn run(a: &LiveBenchArgs) -> Result<()> {
         s
     });
     let mut stdin = child.stdin.take().context("stdin")?;
-    let send = UdpSocket::bind("127.0.0.1:0")?;
     progress.step("bench live: sending in real time");
-    let period = Duration::from_secs_f64(1.0 / a.fps);
     let start = Instant::now();
     let cpu0 = cpu_seconds(pid);
-    for (f, v) in frames.iter().enumerate() {
-        let due = start + period.mul_f64(f as f64);
-        let now = Instant::now();
-        if due > now {
-            std::thread::sleep(due - now);
-        }
-        let t = f as f64 / a.fps;
-        if points == 68 {
-            send.send_to(&osf_datagram(t, v), ("127.0.0.1", osf_port))?;
-        } else {
-            let pts: Vec<String> = v
-                .chunks(2)
-                .map(|p| format!("[{},{}]", p[0], p[1]))
-                .collect();
-            writeln!(stdin, "{{\"t\":{t},\"points\":[{}]}}", pts.join(","))?;
-            stdin.flush()?;
-        }
-    }
+    send_frames(&frames, a.fps, points, osf_port, &mut stdin, start)?;
     std::thread::sleep(Duration::from_millis(300));
     let wall = start.elapsed().as_secs_f64();
     let cpu = match (cpu0, cpu_seconds(pid)) {
@@ -220,5 +183,65 @@ pub fn run(a: &LiveBenchArgs) -> Result<()> {
         lat("worst"),
         cpu.map_or("–".into(), |c| format!("{c:.0} %"))
     );
+    Ok(())
+}
+
+/// Starts `kslab live --from FROM --to TO --stats STATS` on one core (as a tracker's
+/// machine would spare it) when `taskset` is there; says whether it is.
+fn start_live(
+    from: &str,
+    to: &str,
+    stats: &std::path::Path,
+) -> Result<(std::process::Child, bool)> {
+    let exe = std::env::current_exe()?;
+    let taskset = std::path::Path::new("/usr/bin/taskset").exists();
+    let mut cmd = if taskset {
+        let mut c = Command::new("/usr/bin/taskset");
+        c.args(["-c", "0"]).arg(&exe);
+        c
+    } else {
+        Command::new(&exe)
+    };
+    cmd.args(["live", "--from", from, "--to"])
+        .arg(to)
+        .arg("--stats")
+        .arg(stats)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped());
+    let child = cmd.spawn().context("starting kslab live")?;
+    Ok((child, taskset))
+}
+
+/// Sends each frame at its time from `start` at `fps`: as an OpenSeeFace datagram to
+/// `osf_port` for 68 points, else as a JSON line on `stdin`.
+fn send_frames(
+    frames: &[Vec<f64>],
+    fps: f64,
+    points: usize,
+    osf_port: u16,
+    stdin: &mut impl Write,
+    start: Instant,
+) -> Result<()> {
+    let send = UdpSocket::bind("127.0.0.1:0")?;
+    let period = Duration::from_secs_f64(1.0 / fps);
+    for (f, v) in frames.iter().enumerate() {
+        let due = start + period.mul_f64(f as f64);
+        let now = Instant::now();
+        if due > now {
+            std::thread::sleep(due - now);
+        }
+        let t = f as f64 / fps;
+        if points == 68 {
+            send.send_to(&osf_datagram(t, v), ("127.0.0.1", osf_port))?;
+        } else {
+            let pts: Vec<String> = v
+                .chunks(2)
+                .map(|p| format!("[{},{}]", p[0], p[1]))
+                .collect();
+            writeln!(stdin, "{{\"t\":{t},\"points\":[{}]}}", pts.join(","))?;
+            stdin.flush()?;
+        }
+    }
     Ok(())
 }
