@@ -134,33 +134,11 @@ fn write_pngs(
         seq.coords.clone()
     };
     let n = seq.n_frames();
-    let (mut fitted, mut front) = (
-        nalgebra::DMatrix::zeros(2 * rig.landmarks(), n),
-        nalgebra::DMatrix::zeros(2 * rig.landmarks(), n),
-    );
-    for f in 0..n {
-        let w: Vec<f64> = r.weights.column(f).iter().copied().collect();
-        // Left: what was fitted (the person's rig under the frame's camera); right: the
-        // rig itself posed by the weights (what the exports drive).
-        let person = r.person_of(f).unwrap_or(rig);
-        for (i, p) in person.posed(&w).iter().enumerate() {
-            let u = r.cameras[f].project(p);
-            fitted[(2 * i, f)] = u[0];
-            fitted[(2 * i + 1, f)] = -u[1];
-        }
-        for (i, p) in rig.posed(&w).iter().enumerate() {
-            front[(2 * i, f)] = p[0];
-            front[(2 * i + 1, f)] = -p[1];
-        }
-    }
+    let (fitted, front) = posed_landmarks(rig, r, n);
     let tb = bounds_of(&[&coords, &fitted], 2);
     // The face: the landmarks' extent over the sequence, widened a quarter each way so the
     // forehead and cheeks around them show (the rest of the head is cut at the panel).
-    let fb = {
-        let ((a0, b0), (a1, b1)) = bounds_of(&[&front], 2);
-        let (px, py) = (0.25 * (a1 - a0), 0.25 * (b1 - b0));
-        ((a0 - px, b0 - py), (a1 + px, b1 + py))
-    };
+    let fb = widened(bounds_of(&[&front], 2), 0.25);
     let mut posed = mesh.positions.clone();
     keyshape_io::create_dir_all(dir)?;
     for f in 0..n {
@@ -231,6 +209,44 @@ fn write_pngs(
         )?;
     }
     Ok(())
+}
+
+/// A picture's bounds, `((x0, y0), (x1, y1))`.
+type Bounds = ((f64, f64), (f64, f64));
+
+/// `b` widened by `share` of its extent on each side.
+fn widened(b: Bounds, share: f64) -> Bounds {
+    let ((a0, b0), (a1, b1)) = b;
+    let (px, py) = (share * (a1 - a0), share * (b1 - b0));
+    ((a0 - px, b0 - py), (a1 + px, b1 + py))
+}
+
+/// Per frame, the rig's landmarks (x, y up) as fitted (the person's rig under the frame's
+/// camera) and posed by the weights in front view (the rig itself, what the exports
+/// drive).
+fn posed_landmarks(
+    rig: &Rig,
+    r: &RigSolve,
+    n: usize,
+) -> (nalgebra::DMatrix<f64>, nalgebra::DMatrix<f64>) {
+    let (mut fitted, mut front) = (
+        nalgebra::DMatrix::zeros(2 * rig.landmarks(), n),
+        nalgebra::DMatrix::zeros(2 * rig.landmarks(), n),
+    );
+    for f in 0..n {
+        let w: Vec<f64> = r.weights.column(f).iter().copied().collect();
+        let person = r.person_of(f).unwrap_or(rig);
+        for (i, p) in person.posed(&w).iter().enumerate() {
+            let u = r.cameras[f].project(p);
+            fitted[(2 * i, f)] = u[0];
+            fitted[(2 * i + 1, f)] = -u[1];
+        }
+        for (i, p) in rig.posed(&w).iter().enumerate() {
+            front[(2 * i, f)] = p[0];
+            front[(2 * i + 1, f)] = -p[1];
+        }
+    }
+    (fitted, front)
 }
 
 /// `--save-landmarks`: the refined map as `landmark,vertex` rows (as `--rig-landmarks`
