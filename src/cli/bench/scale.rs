@@ -135,59 +135,41 @@ fn step_args(
     dir: &Path,
     exe: &Path,
 ) -> Result<Vec<String>> {
-    let t = t.to_string();
     let keys: Vec<String> = (0..16).map(|i| (i * (n - 1) / 15).to_string()).collect();
     let out = dir.join(format!("{step}_{n}.csv")).display().to_string();
+    let args = |xs: &[&str]| -> Vec<String> { xs.iter().map(|x| x.to_string()).collect() };
     Ok(match step {
         // `stream` is `solve` with `--stream`: the same keys, solver and output.
-        "solve" | "stream" => {
-            let mut v: Vec<String> = vec![
-                "solve".into(),
-                t.clone(),
-                "--keys".into(),
-                keys.join(","),
-                "--solver".into(),
-                "nnls".into(),
-                "--out".into(),
-                out,
-            ];
-            if step == "stream" {
-                v.push("--stream".into());
-            }
-            v
+        "solve" => args(&[
+            "solve",
+            t,
+            "--keys",
+            &keys.join(","),
+            "--solver",
+            "nnls",
+            "--out",
+            &out,
+        ]),
+        "stream" => args(&[
+            "solve",
+            t,
+            "--keys",
+            &keys.join(","),
+            "--solver",
+            "nnls",
+            "--out",
+            &out,
+            "--stream",
+        ]),
+        "kmeans2" => args(&["keys", t, "--method", "kmeans2", "--k", "16"]),
+        "greedy" => args(&["keys", t, "--method", "greedy", "--k", "16"]),
+        "curves" => args(&["curves", t, "--k", "2..16", "--out", &out]),
+        "info" => args(&["info", t]),
+        "template" => {
+            let svg = dir.join(format!("template_{n}.svg"));
+            args(&["template", t, "--out", &svg.display().to_string()])
         }
-        "kmeans2" => vec![
-            "keys".into(),
-            t.clone(),
-            "--method".into(),
-            "kmeans2".into(),
-            "--k".into(),
-            "16".into(),
-        ],
-        "greedy" => vec![
-            "keys".into(),
-            t.clone(),
-            "--method".into(),
-            "greedy".into(),
-            "--k".into(),
-            "16".into(),
-        ],
-        "curves" => vec![
-            "curves".into(),
-            t.clone(),
-            "--k".into(),
-            "2..16".into(),
-            "--out".into(),
-            out,
-        ],
-        "info" => vec!["info".into(), t.clone()],
-        "template" => vec![
-            "template".into(),
-            t.clone(),
-            "--out".into(),
-            dir.join(format!("template_{n}.svg")).display().to_string(),
-        ],
-        "retarget" => vec!["retarget".into(), t.clone(), "--out".into(), out],
+        "retarget" => args(&["retarget", t, "--out", &out]),
         "transfer" => {
             let (mesh, features) = if a.points == 468 {
                 (
@@ -197,22 +179,23 @@ fn step_args(
             } else {
                 ("ict_facekit_face/neutral_face.obj", "ibug68_to_ict")
             };
-            vec![
-                "transfer".into(),
-                t.clone(),
-                "--mesh".into(),
-                keyshape_io::shared_data(mesh)?.display().to_string(),
-                "--features".into(),
-                features.into(),
-                "--json".into(),
-            ]
+            let mesh = keyshape_io::shared_data(mesh)?.display().to_string();
+            args(&[
+                "transfer",
+                t,
+                "--mesh",
+                &mesh,
+                "--features",
+                features,
+                "--json",
+            ])
         }
         "modes" => {
             // The track's own actions (untimed): another track's would be refused.
             let acts = dir.join(format!("actions_{n}x{}.json", a.points));
             if !acts.exists() {
-                let st = std::process::Command::new(&exe)
-                    .args(["actions", &t, "--out"])
+                let st = std::process::Command::new(exe)
+                    .args(["actions", t, "--out"])
                     .arg(&acts)
                     .stdout(std::process::Stdio::null())
                     .stderr(std::process::Stdio::null())
@@ -221,20 +204,13 @@ fn step_args(
                     bail!("kslab actions {t} failed");
                 }
             }
-            vec![
-                "modes".into(),
-                t.clone(),
-                "--actions".into(),
-                acts.display().to_string(),
-            ]
+            args(&["modes", t, "--actions", &acts.display().to_string()])
         }
-        "rig" => vec!["rig".into(), t.clone(), "--out".into(), out],
-        _ => vec![
-            "smooth".into(),
-            t.clone(),
-            "--out".into(),
-            dir.join(format!("smooth_{n}")).display().to_string(),
-        ],
+        "rig" => args(&["rig", t, "--out", &out]),
+        _ => {
+            let smooth = dir.join(format!("smooth_{n}"));
+            args(&["smooth", t, "--out", &smooth.display().to_string()])
+        }
     })
 }
 
