@@ -65,71 +65,8 @@ pub(super) fn face_panels(f: &mut Frame, s: &State, c: &Computed, area: Rect) {
     targets.extend(c.views.iter().map(|v| &v.target));
     let tb = bounds(&targets, c.dims);
     let Some(main) = c.views.first() else { return };
-    let rms = main.frame_rms.get(t).copied().unwrap_or(0.0);
-    let trms = main
-        .frame_target_rms
-        .get(t)
-        .map_or("n/a".to_string(), |v| keyshape_core::stats::sig(*v, 3));
     if s.split {
-        let (Some(ls), Some(nn)) = (c.view(Solver::Ls), c.view(Solver::Nnls)) else {
-            f.render_widget(
-                Paragraph::new("computing LS and NNLS for the split view…")
-                    .block(Block::bordered()),
-                area,
-            );
-            return;
-        };
-        let [a, b, d] = Layout::horizontal([Constraint::Ratio(1, 3); 3]).areas(area);
-        // The title as long as the panel allows: at 80 columns "source ·" goes, not a
-        // number ("NNLS 0.3" was all that was left).
-        let (l, n) = (
-            keyshape_core::stats::sig(ls.frame_rms[t], 3),
-            keyshape_core::stats::sig(nn.frame_rms[t], 3),
-        );
-        let full = format!("source · LS {l} NNLS {n}");
-        let title = if full.chars().count() + 2 <= a.width as usize {
-            full
-        } else {
-            format!("LS {l} NNLS {n}")
-        };
-        let src = shape_panel(
-            title,
-            vec![
-                (&c.tracked, Color::White),
-                (&ls.recon, Color::Red),
-                (&nn.recon, Color::Green),
-            ],
-            c,
-            t,
-            sb,
-        );
-        f.render_widget(src, a);
-        let tl = shape_panel(
-            format!(
-                "target LS · rms {}",
-                ls.frame_target_rms
-                    .get(t)
-                    .map_or("n/a".into(), |v| keyshape_core::stats::sig(*v, 3))
-            ),
-            vec![(&c.truth, Color::DarkGray), (&ls.target, Color::Red)],
-            c,
-            t,
-            tb,
-        );
-        f.render_widget(tl, b);
-        let tn = shape_panel(
-            format!(
-                "target NNLS · rms {}",
-                nn.frame_target_rms
-                    .get(t)
-                    .map_or("n/a".into(), |v| keyshape_core::stats::sig(*v, 3))
-            ),
-            vec![(&c.truth, Color::DarkGray), (&nn.target, Color::Green)],
-            c,
-            t,
-            tb,
-        );
-        f.render_widget(tn, d);
+        split_panels(f, c, t, (sb, tb), area);
         return;
     }
     let [a, b] = Layout::horizontal([Constraint::Ratio(1, 2); 2]).areas(area);
@@ -139,21 +76,7 @@ pub(super) fn face_panels(f: &mut Frame, s: &State, c: &Computed, area: Rect) {
         f.render_widget(rig_weights(r, t, b.height.saturating_sub(2) as usize), b);
         return;
     }
-    if let (true, Some(m)) = (s.show_mesh, &s.mesh) {
-        let src = shape_panel(
-            format!(
-                "source: tracked + recon · rms {}",
-                keyshape_core::stats::sig(rms, 3)
-            ),
-            vec![(&c.tracked, Color::White), (&main.recon, Color::Cyan)],
-            c,
-            t,
-            sb,
-        );
-        f.render_widget(src, a);
-        f.render_widget(mesh_panel(m, t), b);
-        return;
-    }
+    let rms = main.frame_rms.get(t).copied().unwrap_or(0.0);
     let src = shape_panel(
         format!(
             "source: tracked + recon · rms {}",
@@ -165,6 +88,14 @@ pub(super) fn face_panels(f: &mut Frame, s: &State, c: &Computed, area: Rect) {
         sb,
     );
     f.render_widget(src, a);
+    if let (true, Some(m)) = (s.show_mesh, &s.mesh) {
+        f.render_widget(mesh_panel(m, t), b);
+        return;
+    }
+    let trms = main
+        .frame_target_rms
+        .get(t)
+        .map_or("n/a".to_string(), |v| keyshape_core::stats::sig(*v, 3));
     let tgt = shape_panel(
         format!("target: G(q) + retargeted · rms {trms}"),
         vec![(&c.truth, Color::DarkGray), (&main.target, Color::Red)],
@@ -173,6 +104,64 @@ pub(super) fn face_panels(f: &mut Frame, s: &State, c: &Computed, area: Rect) {
         tb,
     );
     f.render_widget(tgt, b);
+}
+
+/// The split view (`s`): the source with both reconstructions, and the target under LS and
+/// under NNLS (`sb`, `tb`: the source's and the targets' bounds).
+fn split_panels(
+    f: &mut Frame,
+    c: &Computed,
+    t: usize,
+    (sb, tb): (([f64; 2], [f64; 2]), ([f64; 2], [f64; 2])),
+    area: Rect,
+) {
+    let (Some(ls), Some(nn)) = (c.view(Solver::Ls), c.view(Solver::Nnls)) else {
+        f.render_widget(
+            Paragraph::new("computing LS and NNLS for the split view…").block(Block::bordered()),
+            area,
+        );
+        return;
+    };
+    let [a, b, d] = Layout::horizontal([Constraint::Ratio(1, 3); 3]).areas(area);
+    // The title as long as the panel allows: at 80 columns "source ·" goes, not a
+    // number ("NNLS 0.3" was all that was left).
+    let (l, n) = (
+        keyshape_core::stats::sig(ls.frame_rms[t], 3),
+        keyshape_core::stats::sig(nn.frame_rms[t], 3),
+    );
+    let full = format!("source · LS {l} NNLS {n}");
+    let title = if full.chars().count() + 2 <= a.width as usize {
+        full
+    } else {
+        format!("LS {l} NNLS {n}")
+    };
+    let src = shape_panel(
+        title,
+        vec![
+            (&c.tracked, Color::White),
+            (&ls.recon, Color::Red),
+            (&nn.recon, Color::Green),
+        ],
+        c,
+        t,
+        sb,
+    );
+    f.render_widget(src, a);
+    for (name, v, colour, at) in [("LS", ls, Color::Red, b), ("NNLS", nn, Color::Green, d)] {
+        let panel = shape_panel(
+            format!(
+                "target {name} · rms {}",
+                v.frame_target_rms
+                    .get(t)
+                    .map_or("n/a".into(), |x| keyshape_core::stats::sig(*x, 3))
+            ),
+            vec![(&c.truth, Color::DarkGray), (&v.target, colour)],
+            c,
+            t,
+            tb,
+        );
+        f.render_widget(panel, at);
+    }
 }
 
 /// The tracked landmarks (white) and the posed rig's under the fitted head pose (magenta).
