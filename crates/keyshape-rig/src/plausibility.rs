@@ -183,7 +183,27 @@ pub fn plausibility(
             g.iter().map(|m| m.width).collect(),
         );
     }
-    // Twins: each pair on the frames whose region is more symmetric than the median.
+    let twins = twins(names, weights, &g);
+    let on_rate = names
+        .iter()
+        .enumerate()
+        .map(|(s, n)| {
+            let on = (0..frames).filter(|&f| weights[(s, f)] > ON).count();
+            (n.clone(), on as f64 / frames.max(1) as f64)
+        })
+        .collect();
+    Plausibility {
+        frames,
+        agreements,
+        twins,
+        on_rate,
+    }
+}
+
+/// Each `_L` / `_R` pair of `names`, on the frames whose region (eyes, brows or mouth
+/// corners, by the name) is more symmetric than the median in the geometry `g`: the mean
+/// and largest |L − R| of their `weights`.
+fn twins(names: &[String], weights: &DMatrix<f64>, g: &[Geometry]) -> Vec<Twins> {
     let asym = |name: &str, m: &Geometry| -> f64 {
         if name.starts_with("eye") {
             (m.open[0] - m.open[1]).abs()
@@ -203,7 +223,7 @@ pub fn plausibility(
         };
         let a: Vec<f64> = g.iter().map(|m| asym(base, m)).collect();
         let median = quantile(&a, 0.5);
-        let gaps: Vec<f64> = (0..frames)
+        let gaps: Vec<f64> = (0..g.len())
             .filter(|&f| a[f] <= median)
             .map(|f| (weights[(s, f)] - weights[(o, f)]).abs())
             .collect();
@@ -216,20 +236,7 @@ pub fn plausibility(
             max_gap: gaps.iter().copied().fold(0.0, f64::max),
         });
     }
-    let on_rate = names
-        .iter()
-        .enumerate()
-        .map(|(s, n)| {
-            let on = (0..frames).filter(|&f| weights[(s, f)] > ON).count();
-            (n.clone(), on as f64 / frames.max(1) as f64)
-        })
-        .collect();
-    Plausibility {
-        frames,
-        agreements,
-        twins,
-        on_rate,
-    }
+    twins
 }
 
 #[cfg(test)]
