@@ -54,77 +54,81 @@ pub fn heat_maps(tables: &[(&str, &DMatrix<f64>)], names: &[String], cell: u32) 
                 [30, 30, 30],
             );
         }
-        for i in 0..n as usize {
-            text::draw(
-                &mut pm,
-                &names[i],
-                ox + label_w as f32 - 6.0,
-                gt + (i as f32 + 0.7) * cell as f32,
-                11.0,
-                Anchor::Right,
-                [30, 30, 30],
-            );
-            for j in 0..n as usize {
-                if j <= i {
-                    continue;
-                }
-                let v = m[(i, j)].clamp(0.0, 1.0);
-                let c = shade(v);
-                let mut paint = Paint::default();
-                paint.set_color_rgba8(c[0], c[1], c[2], 255);
-                if let Some(r) = Rect::from_xywh(
-                    ox + (label_w + j as u32 * cell) as f32,
-                    gt + (i as u32 * cell) as f32,
-                    cell as f32 - 1.0,
-                    cell as f32 - 1.0,
-                ) {
-                    pm.fill_rect(r, &paint, Transform::identity(), None);
-                }
-                let ink = if v > 0.5 {
-                    [255, 255, 255]
-                } else {
-                    [30, 30, 30]
-                };
-                text::draw(
-                    &mut pm,
-                    &format!("{v:.2}"),
-                    ox + (label_w + j as u32 * cell) as f32 + cell as f32 / 2.0,
-                    gt + (i as f32 + 0.62) * cell as f32,
-                    10.0,
-                    Anchor::Centre,
-                    ink,
-                );
-            }
-        }
-        // Colour scale: 0 (orthogonal) … 1 (parallel).
-        let (sx, sy, sw) = (
-            ox + label_w as f32,
-            gt + (n * cell) as f32 + 18.0,
+        draw_grid(&mut pm, m, names, (ox + label_w as f32, gt), cell);
+        draw_scale(
+            &mut pm,
+            (ox + label_w as f32, gt + (n * cell) as f32 + 18.0),
             (n * cell) as f32,
         );
-        let mut paint = Paint::default();
-        for x in 0..sw as usize {
-            let c = shade(x as f64 / (sw as f64 - 1.0).max(1.0));
-            paint.set_color_rgba8(c[0], c[1], c[2], 255);
-            if let Some(r) = Rect::from_xywh(sx + x as f32, sy, 1.0, 12.0) {
+    }
+    Ok(pm)
+}
+
+/// One table's grid, its top-left corner at `(x0, y0)`: each row's name on the left and,
+/// above the diagonal, each cell shaded by its value and labelled with it.
+fn draw_grid(pm: &mut Pixmap, m: &DMatrix<f64>, names: &[String], (x0, y0): (f32, f32), cell: u32) {
+    let n = names.len();
+    let c = cell as f32;
+    let mut paint = Paint::default();
+    for i in 0..n {
+        text::draw(
+            pm,
+            &names[i],
+            x0 - 6.0,
+            y0 + (i as f32 + 0.7) * c,
+            11.0,
+            Anchor::Right,
+            [30, 30, 30],
+        );
+        for j in i + 1..n {
+            let v = m[(i, j)].clamp(0.0, 1.0);
+            let rgb = shade(v);
+            paint.set_color_rgba8(rgb[0], rgb[1], rgb[2], 255);
+            let x = x0 + (j as u32 * cell) as f32;
+            if let Some(r) = Rect::from_xywh(x, y0 + (i as u32 * cell) as f32, c - 1.0, c - 1.0) {
                 pm.fill_rect(r, &paint, Transform::identity(), None);
             }
-        }
-        for (frac, label, anchor) in [
-            (0.0, "0 orthogonal", Anchor::Left),
-            (0.5, "0.5", Anchor::Centre),
-            (1.0, "1 parallel", Anchor::Right),
-        ] {
+            let ink = if v > 0.5 {
+                [255, 255, 255]
+            } else {
+                [30, 30, 30]
+            };
             text::draw(
-                &mut pm,
-                label,
-                sx + frac * sw,
-                sy + 28.0,
-                11.0,
-                anchor,
-                [30, 30, 30],
+                pm,
+                &format!("{v:.2}"),
+                x + c / 2.0,
+                y0 + (i as f32 + 0.62) * c,
+                10.0,
+                Anchor::Centre,
+                ink,
             );
         }
     }
-    Ok(pm)
+}
+
+/// The colour scale, `width` wide from `(sx, sy)`: 0 (orthogonal) … 1 (parallel).
+fn draw_scale(pm: &mut Pixmap, (sx, sy): (f32, f32), sw: f32) {
+    let mut paint = Paint::default();
+    for x in 0..sw as usize {
+        let c = shade(x as f64 / (sw as f64 - 1.0).max(1.0));
+        paint.set_color_rgba8(c[0], c[1], c[2], 255);
+        if let Some(r) = Rect::from_xywh(sx + x as f32, sy, 1.0, 12.0) {
+            pm.fill_rect(r, &paint, Transform::identity(), None);
+        }
+    }
+    for (frac, label, anchor) in [
+        (0.0, "0 orthogonal", Anchor::Left),
+        (0.5, "0.5", Anchor::Centre),
+        (1.0, "1 parallel", Anchor::Right),
+    ] {
+        text::draw(
+            pm,
+            label,
+            sx + frac * sw,
+            sy + 28.0,
+            11.0,
+            anchor,
+            [30, 30, 30],
+        );
+    }
 }
