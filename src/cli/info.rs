@@ -41,32 +41,55 @@ pub fn run(a: &InfoArgs) -> Result<()> {
         _ => None,
     };
     let layout = Layout::for_points(seq.points);
-    let axes = ["x", "y", "z"];
     if a.json {
-        let r: serde_json::Map<_, _> = ranges
-            .iter()
-            .zip(axes)
-            .map(|((lo, hi), ax)| (ax.to_string(), json!([lo, hi])))
-            .collect();
-        let v = json!({
-            "source": seq.source,
-            "format": seq.format.name(),
-            "frames": seq.n_frames(),
-            "failed_frames": seq.failed,
-            "points": seq.points,
-            "selected_points": selected,
-            "dims": seq.dims,
-            "normalised": seq.is_normalised(),
-            "image_size": a.input.image_size.map(|(w, h)| json!([w, h])),
-            "layout": layout.as_ref().map(|l| l.name.clone()),
-            "groups": layout.as_ref().map(|l| l.names()),
-            "fps": seq.fps(),
-            "segments": seq.segments.as_ref().map(|s| count_segments(s)),
-            "ranges": r,
-        });
-        outln!("{}", serde_json::to_string_pretty(&v)?);
-        return Ok(());
+        return print_json(a, &seq, selected, layout.as_ref(), &ranges);
     }
+    print_text(a, &seq, selected, layout.as_ref(), &ranges)
+}
+
+/// The report as JSON.
+fn print_json(
+    a: &InfoArgs,
+    seq: &keyshape_core::sequence::Sequence,
+    selected: Option<usize>,
+    layout: Option<&Layout>,
+    ranges: &[(f64, f64)],
+) -> Result<()> {
+    let axes = ["x", "y", "z"];
+    let r: serde_json::Map<_, _> = ranges
+        .iter()
+        .zip(axes)
+        .map(|((lo, hi), ax)| (ax.to_string(), json!([lo, hi])))
+        .collect();
+    let v = json!({
+        "source": seq.source,
+        "format": seq.format.name(),
+        "frames": seq.n_frames(),
+        "failed_frames": seq.failed,
+        "points": seq.points,
+        "selected_points": selected,
+        "dims": seq.dims,
+        "normalised": seq.is_normalised(),
+        "image_size": a.input.image_size.map(|(w, h)| json!([w, h])),
+        "layout": layout.map(|l| l.name.clone()),
+        "groups": layout.map(|l| l.names()),
+        "fps": seq.fps(),
+        "segments": seq.segments.as_ref().map(|s| count_segments(s)),
+        "ranges": r,
+    });
+    outln!("{}", serde_json::to_string_pretty(&v)?);
+    Ok(())
+}
+
+/// The report as text, a line per fact.
+fn print_text(
+    a: &InfoArgs,
+    seq: &keyshape_core::sequence::Sequence,
+    selected: Option<usize>,
+    layout: Option<&Layout>,
+    ranges: &[(f64, f64)],
+) -> Result<()> {
+    let axes = ["x", "y", "z"];
     outln!("source         {}", seq.source);
     outln!("format         {}", seq.format);
     outln!("frames         {} tracked", seq.n_frames());
@@ -99,7 +122,7 @@ pub fn run(a: &InfoArgs) -> Result<()> {
     } else if seq.is_normalised() {
         outln!("coordinates    normalised: every x and y in [0, 1] (MediaPipe's default; --image-size WxH for pixels)");
     }
-    match &layout {
+    match layout {
         Some(l) => outln!(
             "layout         {} (groups: {})",
             l.name,
