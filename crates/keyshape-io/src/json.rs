@@ -83,6 +83,41 @@ pub fn to_file(seq: &Sequence) -> SequenceFile {
 pub(super) fn read(path: &Path, text: &str, dims: usize) -> Result<Sequence> {
     let file: SequenceFile = serde_json::from_str(text)
         .map_err(|e| Error::parse(path, e.line() as u64, e.column() as u64, e.to_string()))?;
+    let want = check_header(path, &file, dims)?;
+    let (mut data, mut frames, mut failed) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut times, mut segments) = (Vec::new(), Vec::new());
+    for (i, f) in file.frames.iter().enumerate() {
+        if !f.valid {
+            failed.push(f.frame);
+            continue;
+        }
+        check_coords(path, &file, i, want)?;
+        for p in f.coords.chunks(file.dims) {
+            data.extend_from_slice(&p[..dims]);
+        }
+        frames.push(f.frame);
+        times.push(f.time);
+        segments.push(f.segment.clone());
+    }
+    let n = frames.len();
+    let all_some = |v: &[Option<f64>]| !v.is_empty() && v.iter().all(Option::is_some);
+    Ok(Sequence {
+        source: path.display().to_string(),
+        format: Format::Json,
+        dims,
+        points: file.points,
+        coords: DMatrix::from_vec(dims * file.points, n, data),
+        frames,
+        times: all_some(&times).then(|| times.iter().flatten().copied().collect()),
+        segments: (!segments.is_empty() && segments.iter().all(Option::is_some))
+            .then(|| segments.into_iter().flatten().collect()),
+        failed,
+    })
+}
+
+/// The file's version, dims (2 or 3, at least the `dims` asked), size and unique frame
+/// numbers; returns the number of values a frame holds.
+fn check_header(path: &Path, file: &SequenceFile, dims: usize) -> Result<usize> {
     if file.kslab_sequence != 1 {
         return Err(Error::file(
             path,
@@ -131,55 +166,34 @@ pub(super) fn read(path: &Path, text: &str, dims: usize) -> Result<Sequence> {
             ));
         }
     }
-    let (mut data, mut frames, mut failed) = (Vec::new(), Vec::new(), Vec::new());
-    let (mut times, mut segments) = (Vec::new(), Vec::new());
-    for (i, f) in file.frames.iter().enumerate() {
-        if !f.valid {
-            failed.push(f.frame);
-            continue;
-        }
-        if f.coords.len() != want {
-            return Err(Error::file(
-                path,
-                format!(
-                    "frames[{i}] (frame {}) has {} coords; dims {} × points {} = {want}",
-                    f.frame,
-                    f.coords.len(),
-                    file.dims,
-                    file.points
-                ),
-            ));
-        }
-        if let Some((j, why)) = f
-            .coords
-            .iter()
-            .enumerate()
-            .find_map(|(j, v)| keyshape_core::sequence::coord_problem(*v).map(|w| (j, w)))
-        {
-            return Err(Error::file(
-                path,
-                format!("frames[{i}] (frame {}) coords[{j}]: {why}", f.frame),
-            ));
-        }
-        for p in f.coords.chunks(file.dims) {
-            data.extend_from_slice(&p[..dims]);
-        }
-        frames.push(f.frame);
-        times.push(f.time);
-        segments.push(f.segment.clone());
+    Ok(want)
+}
+
+/// Frame `i`'s coordinates: `want` of them, each one every reader accepts.
+fn check_coords(path: &Path, file: &SequenceFile, i: usize, want: usize) -> Result<()> {
+    let f = &file.frames[i];
+    if f.coords.len() != want {
+        return Err(Error::file(
+            path,
+            format!(
+                "frames[{i}] (frame {}) has {} coords; dims {} × points {} = {want}",
+                f.frame,
+                f.coords.len(),
+                file.dims,
+                file.points
+            ),
+        ));
     }
-    let n = frames.len();
-    let all_some = |v: &[Option<f64>]| !v.is_empty() && v.iter().all(Option::is_some);
-    Ok(Sequence {
-        source: path.display().to_string(),
-        format: Format::Json,
-        dims,
-        points: file.points,
-        coords: DMatrix::from_vec(dims * file.points, n, data),
-        frames,
-        times: all_some(&times).then(|| times.iter().flatten().copied().collect()),
-        segments: (!segments.is_empty() && segments.iter().all(Option::is_some))
-            .then(|| segments.into_iter().flatten().collect()),
-        failed,
-    })
+    if let Some((j, why)) = f
+        .coords
+        .iter()
+        .enumerate()
+        .find_map(|(j, v)| keyshape_core::sequence::coord_problem(*v).map(|w| (j, w)))
+    {
+        return Err(Error::file(
+            path,
+            format!("frames[{i}] (frame {}) coords[{j}]: {why}", f.frame),
+        ));
+    }
+    Ok(())
 }
