@@ -29,74 +29,9 @@ pub fn parse_obj(path: &Path, text: &str) -> Result<Mesh> {
         let line_no = i as u64 + 1;
         let line = raw.split('#').next().unwrap_or("");
         let mut toks = line.split_whitespace();
-        let col_of = |tok: &str| raw.find(tok).map_or(1, |c| c as u64 + 1);
         match toks.next() {
-            Some("v") => {
-                let mut p = [0.0; 3];
-                for (d, slot) in p.iter_mut().enumerate() {
-                    let tok = toks.next().ok_or_else(|| {
-                        Error::parse(
-                            path,
-                            line_no,
-                            raw.len() as u64 + 1,
-                            format!("vertex needs 3 coordinates, found {d}"),
-                        )
-                    })?;
-                    let v: f64 = tok.parse().map_err(|_| {
-                        Error::parse(path, line_no, col_of(tok), format!("not a number: '{tok}'"))
-                    })?;
-                    if !v.is_finite() {
-                        return Err(Error::parse(
-                            path,
-                            line_no,
-                            col_of(tok),
-                            format!("non-finite coordinate '{tok}'"),
-                        ));
-                    }
-                    // The limit every reader keeps: a 1e308 vertex was read, to fail later
-                    // in a camera fit that could not name the file.
-                    if let Some(why) = keyshape_core::sequence::coord_problem(v) {
-                        return Err(Error::parse(path, line_no, col_of(tok), why));
-                    }
-                    *slot = v;
-                }
-                positions.push(p);
-            }
-            Some("f") => {
-                let mut face = Vec::new();
-                for tok in toks {
-                    let first = tok.split('/').next().unwrap_or("");
-                    let idx: i64 = first.parse().map_err(|_| {
-                        Error::parse(
-                            path,
-                            line_no,
-                            col_of(tok),
-                            format!("bad face index '{tok}'"),
-                        )
-                    })?;
-                    // 1-based; negative counts back from the last vertex read so far.
-                    let n = positions.len() as i64;
-                    let zero = if idx > 0 { idx - 1 } else { n + idx };
-                    if idx == 0 || zero < 0 {
-                        return Err(Error::parse(
-                            path,
-                            line_no,
-                            col_of(tok),
-                            format!("face index {idx} is not a vertex (1..={n})"),
-                        ));
-                    }
-                    face.push(zero as usize);
-                }
-                if face.len() < 3 {
-                    return Err(Error::parse(
-                        path,
-                        line_no,
-                        1,
-                        format!("a face needs 3 or more vertices, found {}", face.len()),
-                    ));
-                }
-                faces.push((line_no, face));
-            }
+            Some("v") => positions.push(vertex(path, raw, line_no, &mut toks)?),
+            Some("f") => faces.push((line_no, face(path, raw, line_no, toks, positions.len())?)),
             _ => {}
         }
     }
@@ -123,6 +58,90 @@ pub fn parse_obj(path: &Path, text: &str) -> Result<Mesh> {
         positions,
         faces: out,
     })
+}
+
+/// A `v` line's three coordinates (`toks`: the tokens after `v`; `raw`, line `line_no`).
+fn vertex<'a>(
+    path: &Path,
+    raw: &str,
+    line_no: u64,
+    toks: &mut impl Iterator<Item = &'a str>,
+) -> Result<[f64; 3]> {
+    let col_of = |tok: &str| raw.find(tok).map_or(1, |c| c as u64 + 1);
+    let mut p = [0.0; 3];
+    for (d, slot) in p.iter_mut().enumerate() {
+        let tok = toks.next().ok_or_else(|| {
+            Error::parse(
+                path,
+                line_no,
+                raw.len() as u64 + 1,
+                format!("vertex needs 3 coordinates, found {d}"),
+            )
+        })?;
+        let v: f64 = tok.parse().map_err(|_| {
+            Error::parse(path, line_no, col_of(tok), format!("not a number: '{tok}'"))
+        })?;
+        if !v.is_finite() {
+            return Err(Error::parse(
+                path,
+                line_no,
+                col_of(tok),
+                format!("non-finite coordinate '{tok}'"),
+            ));
+        }
+        // The limit every reader keeps: a 1e308 vertex was read, to fail later
+        // in a camera fit that could not name the file.
+        if let Some(why) = keyshape_core::sequence::coord_problem(v) {
+            return Err(Error::parse(path, line_no, col_of(tok), why));
+        }
+        *slot = v;
+    }
+    Ok(p)
+}
+
+/// An `f` line's vertex indices, 0-based (`toks`: the tokens after `f`; `raw`, line
+/// `line_no`; `n` vertices read so far, which a negative index counts back from).
+fn face<'a>(
+    path: &Path,
+    raw: &str,
+    line_no: u64,
+    toks: impl Iterator<Item = &'a str>,
+    n: usize,
+) -> Result<Vec<usize>> {
+    let col_of = |tok: &str| raw.find(tok).map_or(1, |c| c as u64 + 1);
+    let mut face = Vec::new();
+    for tok in toks {
+        let first = tok.split('/').next().unwrap_or("");
+        let idx: i64 = first.parse().map_err(|_| {
+            Error::parse(
+                path,
+                line_no,
+                col_of(tok),
+                format!("bad face index '{tok}'"),
+            )
+        })?;
+        // 1-based; negative counts back from the last vertex read so far.
+        let n = n as i64;
+        let zero = if idx > 0 { idx - 1 } else { n + idx };
+        if idx == 0 || zero < 0 {
+            return Err(Error::parse(
+                path,
+                line_no,
+                col_of(tok),
+                format!("face index {idx} is not a vertex (1..={n})"),
+            ));
+        }
+        face.push(zero as usize);
+    }
+    if face.len() < 3 {
+        return Err(Error::parse(
+            path,
+            line_no,
+            1,
+            format!("a face needs 3 or more vertices, found {}", face.len()),
+        ));
+    }
+    Ok(face)
 }
 
 /// Writes positions (`v`) and faces (`f`, 1-based) with a comment line.
