@@ -140,27 +140,16 @@ fn step_args(
     let args = |xs: &[&str]| -> Vec<String> { xs.iter().map(|x| x.to_string()).collect() };
     Ok(match step {
         // `stream` is `solve` with `--stream`: the same keys, solver and output.
-        "solve" => args(&[
-            "solve",
-            t,
-            "--keys",
-            &keys.join(","),
-            "--solver",
-            "nnls",
-            "--out",
-            &out,
-        ]),
-        "stream" => args(&[
-            "solve",
-            t,
-            "--keys",
-            &keys.join(","),
-            "--solver",
-            "nnls",
-            "--out",
-            &out,
-            "--stream",
-        ]),
+        "solve" | "stream" => {
+            let keys = keys.join(",");
+            let mut v = args(&[
+                "solve", t, "--keys", &keys, "--solver", "nnls", "--out", &out,
+            ]);
+            if step == "stream" {
+                v.push("--stream".into());
+            }
+            v
+        }
         "kmeans2" => args(&["keys", t, "--method", "kmeans2", "--k", "16"]),
         "greedy" => args(&["keys", t, "--method", "greedy", "--k", "16"]),
         "curves" => args(&["curves", t, "--k", "2..16", "--out", &out]),
