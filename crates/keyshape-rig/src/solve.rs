@@ -151,7 +151,7 @@ fn check_frames(track: &DMatrix<f64>, n: usize) -> Result<()> {
 /// `frames` in order.
 fn covering(clips: &[Range<usize>], frames: usize) -> Result<Vec<Range<usize>>> {
     if clips.is_empty() {
-        return Ok(vec![0..frames]);
+        return Ok(std::iter::once(0..frames).collect());
     }
     if clips.iter().any(|c| c.end > frames || c.is_empty())
         || clips.windows(2).any(|w| w[0].end != w[1].start)
@@ -178,6 +178,9 @@ fn check_neutral(neutral: Neutral, frames: usize) -> Result<()> {
     }
 }
 
+/// Per clip, its frames and the rig with its person's identity applied.
+type People = Vec<(Range<usize>, Rig)>;
+
 /// Who is in each clip: per clip (or for the whole track) the rig with the person's
 /// identity applied, and the neutral frame it came from. `first` is the pass without an
 /// identity, which the least-active rule reads.
@@ -189,7 +192,7 @@ fn identities(
     lw: &[f64],
     first: Option<&RigSolve>,
     step: &mut dyn FnMut(String),
-) -> Result<(Vec<(Range<usize>, Rig)>, Vec<usize>)> {
+) -> Result<(People, Vec<usize>)> {
     let whole = 0..track.ncols();
     Ok(match (opts.identity, opts.neutral) {
         (Identity::None, _) => (vec![(whole, rig.clone())], Vec::new()),

@@ -106,15 +106,12 @@ pub(super) fn face_panels(f: &mut Frame, s: &State, c: &Computed, area: Rect) {
     f.render_widget(tgt, b);
 }
 
+/// A panel's x and y bounds, as [`bounds`] gives them.
+type Bounds = ([f64; 2], [f64; 2]);
+
 /// The split view (`s`): the source with both reconstructions, and the target under LS and
 /// under NNLS (`sb`, `tb`: the source's and the targets' bounds).
-fn split_panels(
-    f: &mut Frame,
-    c: &Computed,
-    t: usize,
-    (sb, tb): (([f64; 2], [f64; 2]), ([f64; 2], [f64; 2])),
-    area: Rect,
-) {
+fn split_panels(f: &mut Frame, c: &Computed, t: usize, (sb, tb): (Bounds, Bounds), area: Rect) {
     let (Some(ls), Some(nn)) = (c.view(Solver::Ls), c.view(Solver::Nnls)) else {
         f.render_widget(
             Paragraph::new("computing LS and NNLS for the split view…").block(Block::bordered()),
