@@ -2,7 +2,7 @@
 //! window at a time.
 
 use super::window::{
-    compute_row, dot, matches, not_definite, solve_l, solve_lt, tri, Inputs, Redo, Scratch,
+    compute_row, dot, layout, matches, not_definite, solve_l, solve_lt, tri, Inputs, Redo, Scratch,
 };
 use crate::error::Result;
 use nalgebra::DMatrix;
@@ -582,39 +582,4 @@ impl BandedSystem {
             solve_lt(d, is, &mut y[fs[s]..fs[s] + ns]);
         }
     }
-}
-
-/// Fills the storage layout of a factor of `t` frames (`k` weights each, band `p`) with
-/// `fixed` masking weights out: each frame's free indices (`free`, from `fstart[s]`), and
-/// where each stored block of `L` starts (`off`: per frame, its diagonal block and its
-/// blocks against the `p − 1` frames before it). Returns the length of `L`.
-fn layout(
-    fixed: &[bool],
-    (k, t, p): (usize, usize, usize),
-    free: &mut Vec<u32>,
-    fstart: &mut Vec<usize>,
-    off: &mut Vec<usize>,
-) -> usize {
-    free.clear();
-    fstart.clear();
-    for s in 0..t {
-        fstart.push(free.len());
-        free.extend((0..k).filter(|&i| !fixed[s * k + i]).map(|i| i as u32));
-    }
-    fstart.push(free.len());
-    let n = |s: usize| fstart[s + 1] - fstart[s];
-    off.clear();
-    off.resize(t * (p + 1), 0);
-    let mut total = 0;
-    for s in 0..t {
-        off[s * (p + 1)] = total;
-        total += tri(n(s));
-        for j in 1..=p.min(s) {
-            if j < p {
-                off[s * (p + 1) + j] = total;
-                total += n(s) * n(s - j);
-            }
-        }
-    }
-    total
 }

@@ -1,4 +1,5 @@
-//! The banded factorisation's row kernels and a windowed factor's checkpoints.
+//! The banded factorisation's storage layout, row kernels and a windowed factor's
+//! checkpoints.
 
 use crate::error::Error;
 use nalgebra::DMatrix;
@@ -241,4 +242,39 @@ pub(super) fn not_definite(s: usize, v: f64) -> Error {
     Error::unfit(format!(
         "temporal prior: the banded system is not positive definite at frame {s} (pivot {v:e})"
     ))
+}
+
+/// Fills the storage layout of a factor of `t` frames (`k` weights each, band `p`) with
+/// `fixed` masking weights out: each frame's free indices (`free`, from `fstart[s]`), and
+/// where each stored block of `L` starts (`off`: per frame, its diagonal block and its
+/// blocks against the `p − 1` frames before it). Returns the length of `L`.
+pub(super) fn layout(
+    fixed: &[bool],
+    (k, t, p): (usize, usize, usize),
+    free: &mut Vec<u32>,
+    fstart: &mut Vec<usize>,
+    off: &mut Vec<usize>,
+) -> usize {
+    free.clear();
+    fstart.clear();
+    for s in 0..t {
+        fstart.push(free.len());
+        free.extend((0..k).filter(|&i| !fixed[s * k + i]).map(|i| i as u32));
+    }
+    fstart.push(free.len());
+    let n = |s: usize| fstart[s + 1] - fstart[s];
+    off.clear();
+    off.resize(t * (p + 1), 0);
+    let mut total = 0;
+    for s in 0..t {
+        off[s * (p + 1)] = total;
+        total += tri(n(s));
+        for j in 1..=p.min(s) {
+            if j < p {
+                off[s * (p + 1) + j] = total;
+                total += n(s) * n(s - j);
+            }
+        }
+    }
+    total
 }
