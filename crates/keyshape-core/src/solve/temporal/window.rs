@@ -117,6 +117,45 @@ pub(super) fn solve_l(d: &[f64], inv: &[f64], u: &mut [f64]) {
     }
 }
 
+/// `M ← M L⁻ᵀ` row by row, for `M` with `nc` columns and a packed lower triangle `d` with
+/// reciprocal pivots `ic`: row `x` solves `L zᵀ = M[x, :]ᵀ`. A row's leading zeros stay zero
+/// (forward substitution), and for order 1 `M` is λ times a selection, so most of each row
+/// is skipped.
+fn rows_times_lt_inverse(m: &mut [f64], nc: usize, d: &[f64], ic: &[f64]) {
+    if nc == 0 {
+        return;
+    }
+    for row in m.chunks_exact_mut(nc) {
+        let Some(y0) = row.iter().position(|v| *v != 0.0) else {
+            continue;
+        };
+        for y in y0..nc {
+            let v = row[y] - dot(&row[y0..y], &d[tri(y) + y0..tri(y) + y]);
+            row[y] = v * ic[y];
+        }
+    }
+}
+
+/// Cholesky in place of the lower triangle of the dense `n × n` row-major `m`, reciprocal
+/// pivots into `inv`. Stops at a pivot that is not positive, returning it.
+fn cholesky_lower(m: &mut [f64], n: usize, inv: &mut [f64]) -> std::result::Result<(), f64> {
+    for x in 0..n {
+        for y in 0..=x {
+            let v = m[x * n + y] - dot(&m[x * n..x * n + y], &m[y * n..y * n + y]);
+            if x == y {
+                if !(v > 0.0 && v.is_finite()) {
+                    return Err(v);
+                }
+                m[x * n + x] = v.sqrt();
+                inv[x] = 1.0 / m[x * n + x];
+            } else {
+                m[x * n + y] = v * inv[y];
+            }
+        }
+    }
+    Ok(())
+}
+
 /// Computes frame `s`'s row of `L` into `l` — which holds the layout from offset `base` on,
 /// frames `s − p..s` included — and its reciprocal pivots into `inv` (every frame's).
 /// Stops at a pivot that is not positive, returning it.
@@ -161,21 +200,9 @@ pub(super) fn compute_row(
                 }
             }
         }
-        // L_{s,c} = M L_{c,c}^{-T}: row x solves L_{c,c} zᵀ = M[x, :]ᵀ. A row's
-        // leading zeros stay zero (forward substitution), and for order 1 M is
-        // λ times a selection, so most of each row is skipped.
+        // L_{s,c} = M L_{c,c}^{-T}.
         let d = &l[off[c * (p + 1)] - base..][..tri(nc)];
-        let ic = &inv[fstart[c]..fstart[c + 1]];
-        for x in 0..ns {
-            let row = &mut m[x * nc..(x + 1) * nc];
-            let Some(y0) = row.iter().position(|v| *v != 0.0) else {
-                continue;
-            };
-            for y in y0..nc {
-                let v = row[y] - dot(&row[y0..y], &d[tri(y) + y0..tri(y) + y]);
-                row[y] = v * ic[y];
-            }
-        }
+        rows_times_lt_inverse(m, nc, d, &inv[fstart[c]..fstart[c + 1]]);
         if j == p {
             edge[..ns * nc].copy_from_slice(m);
         } else {
@@ -215,21 +242,7 @@ pub(super) fn compute_row(
             }
         }
     }
-    let is = &mut inv[fstart[s]..fstart[s + 1]];
-    for x in 0..ns {
-        for y in 0..=x {
-            let v = m[x * ns + y] - dot(&m[x * ns..x * ns + y], &m[y * ns..y * ns + y]);
-            if x == y {
-                if !(v > 0.0 && v.is_finite()) {
-                    return Err(v);
-                }
-                m[x * ns + x] = v.sqrt();
-                is[x] = 1.0 / m[x * ns + x];
-            } else {
-                m[x * ns + y] = v * is[y];
-            }
-        }
-    }
+    cholesky_lower(m, ns, &mut inv[fstart[s]..fstart[s + 1]])?;
     let o = off[s * (p + 1)] - base;
     for x in 0..ns {
         l[o + tri(x)..o + tri(x) + x + 1].copy_from_slice(&m[x * ns..x * ns + x + 1]);
