@@ -441,34 +441,11 @@ pub(super) fn projected_newton(
                 d[i] = -grad(&hw, i) / hdiag(i);
             }
         }
-        // Armijo along the projection arc (σ = 1e-4, halving).
-        let mut alpha = 1.0;
-        let mut accepted = false;
-        for _ in 0..60 {
-            let delta = |i: usize| project(w[i] + alpha * d[i]) - w[i];
-            // The decrease from the step Δ itself, −gᵀΔ − ½ΔᵀHΔ: no cancellation between
-            // two nearly equal objective values near the optimum.
-            let decrease = -(0..n).map(|i| grad(&hw, i) * delta(i)).sum::<f64>()
-                - 0.5 * hessian_quadratic(g, sm.lambda, bands, delta);
-            let predicted: f64 = (0..n)
-                .map(|i| {
-                    if binding[i] {
-                        -grad(&hw, i) * delta(i)
-                    } else {
-                        -alpha * grad(&hw, i) * d[i]
-                    }
-                })
-                .sum();
-            if decrease >= 1e-4 * predicted {
-                accepted = true;
-                break;
-            }
-            alpha *= 0.5;
-        }
-        if !accepted {
+        let Some(alpha) = armijo_along_arc(g, sm.lambda, bands, b, &w, &hw, &d, &binding, upper)
+        else {
             // No decrease left at working precision.
             return Ok((w, it as u64));
-        }
+        };
         let mut moved = false;
         for i in 0..n {
             let v = project(w[i] + alpha * d[i]);
@@ -480,4 +457,44 @@ pub(super) fn projected_newton(
         }
     }
     Ok((w, cap as u64))
+}
+
+/// The Armijo step along the projection arc `project(w + αd)` (σ = 1e-4, halving from
+/// α = 1), given `hw = H w` and the binding mask; `None` when 60 halvings find no decrease.
+#[allow(clippy::too_many_arguments)]
+fn armijo_along_arc(
+    g: &DMatrix<f64>,
+    lambda: f64,
+    bands: &[Vec<f64>],
+    b: &[f64],
+    w: &[f64],
+    hw: &[f64],
+    d: &[f64],
+    binding: &[bool],
+    upper: f64,
+) -> Option<f64> {
+    let n = b.len();
+    let grad = |i: usize| hw[i] - b[i];
+    let mut alpha = 1.0;
+    for _ in 0..60 {
+        let delta = |i: usize| (w[i] + alpha * d[i]).clamp(0.0, upper) - w[i];
+        // The decrease from the step Δ itself, −gᵀΔ − ½ΔᵀHΔ: no cancellation between
+        // two nearly equal objective values near the optimum.
+        let decrease = -(0..n).map(|i| grad(i) * delta(i)).sum::<f64>()
+            - 0.5 * hessian_quadratic(g, lambda, bands, delta);
+        let predicted: f64 = (0..n)
+            .map(|i| {
+                if binding[i] {
+                    -grad(i) * delta(i)
+                } else {
+                    -alpha * grad(i) * d[i]
+                }
+            })
+            .sum();
+        if decrease >= 1e-4 * predicted {
+            return Some(alpha);
+        }
+        alpha *= 0.5;
+    }
+    None
 }
