@@ -215,15 +215,9 @@ pub fn decompose_coords(
     solve_columns(coords, points, key_columns, neutral, opts, None).map(|(d, _)| d)
 }
 
-fn solve_columns(
-    coords: &DMatrix<f64>,
-    points: usize,
-    key_columns: &[usize],
-    neutral: Option<usize>,
-    opts: &SolveOptions,
-    smoothing: Option<(&Smoothing, &[std::ops::Range<usize>])>,
-) -> Result<(Decomposition, Option<Smoothed>)> {
-    let n = coords.ncols();
+/// Refuses an empty, too long, out-of-range or repeated key-column list, and a neutral
+/// that is also a key shape; `n` is the number of frame columns.
+fn check_key_columns(n: usize, key_columns: &[usize], neutral: Option<usize>) -> Result<()> {
     if key_columns.is_empty() {
         return Err(Error::invalid("no key shapes given"));
     }
@@ -255,6 +249,19 @@ fn solve_columns(
             ));
         }
     }
+    Ok(())
+}
+
+fn solve_columns(
+    coords: &DMatrix<f64>,
+    points: usize,
+    key_columns: &[usize],
+    neutral: Option<usize>,
+    opts: &SolveOptions,
+    smoothing: Option<(&Smoothing, &[std::ops::Range<usize>])>,
+) -> Result<(Decomposition, Option<Smoothed>)> {
+    let n = coords.ncols();
+    check_key_columns(n, key_columns, neutral)?;
     let mut s = coords.select_columns(key_columns);
     let deltas;
     let q = match neutral {
