@@ -224,46 +224,79 @@ pub fn weight_lines(
     rows: usize,
     width: usize,
 ) -> Vec<Line<'static>> {
-    let shades = [' ', '░', '▒', '▓', '█'];
-    let colour = |x: f64| {
-        if x < 0.0 {
-            Style::default().fg(Color::Red)
-        } else {
-            Style::default().fg(Color::Green)
-        }
-    };
-    let bar = |x: f64, width: usize| -> String {
-        let filled = ((x.abs() / wmax) * width as f64).round() as usize;
-        std::iter::repeat_n('█', filled.min(width))
-            .chain(std::iter::repeat_n(' ', width - filled.min(width)))
-            .collect()
-    };
-    let n = labels.len();
-    if n <= rows {
-        let bar_w = 10usize;
-        let strip_w = width.saturating_sub(6 + bar_w + 8);
-        let frames = w.ncols().max(1);
-        return (0..n)
-            .map(|i| {
-                let x = w[(i, t)];
-                let strip: String = (0..strip_w)
-                    .map(|c| {
-                        let tt = c * frames / strip_w.max(1);
-                        let a = (w[(i, tt.min(frames - 1))].abs() / wmax * 4.0).round() as usize;
-                        shades[a.min(4)]
-                    })
-                    .collect();
-                Line::from(vec![
-                    Span::raw(format!("{:>5} ", labels[i])),
-                    Span::styled(bar(x, bar_w), colour(x)),
-                    Span::raw(format!("{x:>7.3} ")),
-                    Span::styled(strip, Style::default().fg(Color::Blue)),
-                ])
-            })
-            .collect();
+    if labels.len() <= rows {
+        weight_rows(w, t, wmax, labels, width)
+    } else {
+        weight_columns(w, t, wmax, labels, rows, width)
     }
-    // Columns: as few as hold every key. Each cell is `label bar value` when the column is
-    // wide enough, `label value` when narrower, and at the least `label shade`.
+}
+
+const SHADES: [char; 5] = [' ', '░', '▒', '▓', '█'];
+
+/// Red for a negative weight, green otherwise.
+fn sign_style(x: f64) -> Style {
+    if x < 0.0 {
+        Style::default().fg(Color::Red)
+    } else {
+        Style::default().fg(Color::Green)
+    }
+}
+
+/// `|x| / wmax` as a bar of `width` characters.
+fn bar(x: f64, wmax: f64, width: usize) -> String {
+    let filled = ((x.abs() / wmax) * width as f64).round() as usize;
+    std::iter::repeat_n('█', filled.min(width))
+        .chain(std::iter::repeat_n(' ', width - filled.min(width)))
+        .collect()
+}
+
+/// `|x| / wmax` as one of five shades.
+fn shade(x: f64, wmax: f64) -> char {
+    let a = (x.abs() / wmax * 4.0).round() as usize;
+    SHADES[a.min(4)]
+}
+
+/// One key per row: label, bar, value and the key's weight over time as a heat strip.
+fn weight_rows(
+    w: &DMatrix<f64>,
+    t: usize,
+    wmax: f64,
+    labels: &[String],
+    width: usize,
+) -> Vec<Line<'static>> {
+    let bar_w = 10usize;
+    let strip_w = width.saturating_sub(6 + bar_w + 8);
+    let frames = w.ncols().max(1);
+    (0..labels.len())
+        .map(|i| {
+            let x = w[(i, t)];
+            let strip: String = (0..strip_w)
+                .map(|c| {
+                    let tt = c * frames / strip_w.max(1);
+                    shade(w[(i, tt.min(frames - 1))], wmax)
+                })
+                .collect();
+            Line::from(vec![
+                Span::raw(format!("{:>5} ", labels[i])),
+                Span::styled(bar(x, wmax, bar_w), sign_style(x)),
+                Span::raw(format!("{x:>7.3} ")),
+                Span::styled(strip, Style::default().fg(Color::Blue)),
+            ])
+        })
+        .collect()
+}
+
+/// Columns: as few as hold every key. Each cell is `label bar value` when the column is
+/// wide enough, `label value` when narrower, and at the least `label shade`.
+fn weight_columns(
+    w: &DMatrix<f64>,
+    t: usize,
+    wmax: f64,
+    labels: &[String],
+    rows: usize,
+    width: usize,
+) -> Vec<Line<'static>> {
+    let n = labels.len();
     let cols = n.div_ceil(rows);
     let per_col = n.div_ceil(cols);
     let col_w = width / cols;
@@ -291,13 +324,15 @@ pub fn weight_lines(
                 spans.push(Span::raw(format!("{:>label_w$} ", labels[i])));
                 let mut used = label_w + 1;
                 if bar_w >= 3 {
-                    spans.push(Span::styled(format!("{} ", bar(x, bar_w)), colour(x)));
+                    spans.push(Span::styled(
+                        format!("{} ", bar(x, wmax, bar_w)),
+                        sign_style(x),
+                    ));
                     used += bar_w + 1;
                 } else if with_value && col_w > label_w + 1 + 1 + value_w {
                     // No room for a bar: a one-character shade keeps the weights visible
                     // at a glance (they vanished at k ≥ 15 on 80 columns).
-                    let a = (x.abs() / wmax * 4.0).round() as usize;
-                    spans.push(Span::styled(shades[a.min(4)].to_string(), colour(x)));
+                    spans.push(Span::styled(shade(x, wmax).to_string(), sign_style(x)));
                     used += 1;
                 }
                 if with_value {
@@ -306,11 +341,10 @@ pub fn weight_lines(
                     } else {
                         tiny_value(x)
                     };
-                    spans.push(Span::styled(format!("{v:>value_w$}"), colour(x)));
+                    spans.push(Span::styled(format!("{v:>value_w$}"), sign_style(x)));
                     used += value_w;
                 } else {
-                    let a = (x.abs() / wmax * 4.0).round() as usize;
-                    spans.push(Span::styled(shades[a.min(4)].to_string(), colour(x)));
+                    spans.push(Span::styled(shade(x, wmax).to_string(), sign_style(x)));
                     used += 1;
                 }
                 spans.push(Span::raw(" ".repeat(col_w.saturating_sub(used).max(1))));
