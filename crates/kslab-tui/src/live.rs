@@ -244,6 +244,70 @@ fn draw_bars(f: &mut Frame, area: Rect, s: &LiveState) {
     f.render_widget(Paragraph::new(lines), inner);
 }
 
+/// Solves every frame waiting in `queue`, in order (the newest is what is drawn), noting
+/// each arrival in `window` and `last_frame`, and the source's end once in the status.
+fn drain(
+    queue: &Queue,
+    session: &mut Session,
+    s: &mut LiveState,
+    window: &mut VecDeque<Instant>,
+    last_frame: &mut Instant,
+    ended: &mut bool,
+) -> anyhow::Result<()> {
+    loop {
+        match queue.pop(Duration::ZERO) {
+            Popped::Frame(fr) => {
+                *last_frame = Instant::now();
+                match session.take(fr)? {
+                    Step::Collecting(have, need) => s.collecting = Some((have, need)),
+                    Step::Calibrated(n) => {
+                        s.collecting = None;
+                        s.status = format!("calibrated on {n} frames");
+                    }
+                    Step::Solved => s.collecting = None,
+                }
+                window.push_back(Instant::now());
+            }
+            Popped::Idle => break,
+            Popped::Closed => {
+                if !*ended {
+                    s.status = "the source has ended".into();
+                    *ended = true;
+                }
+                break;
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The last solved frame's weights, tracked points and posed rig into the screen's state.
+fn show_last(session: &Session, s: &mut LiveState) {
+    if let Some((fr, solved)) = &session.last {
+        s.weights.clone_from(&solved.weights);
+        let rig = session.solver.rig();
+        let sel = session.selection();
+        s.tracked = sel
+            .iter()
+            .filter_map(|&p| Some([*fr.points.get(2 * p)?, *fr.points.get(2 * p + 1)?]))
+            .collect();
+        if let Some(c) = session.solver.calibration() {
+            let person = keyshape_rig::Rig {
+                neutral: c.neutral.clone(),
+                ..rig.clone()
+            };
+            s.posed = person
+                .posed(&solved.weights)
+                .iter()
+                .map(|p| {
+                    let u = solved.camera.project(p);
+                    [u[0], -u[1]]
+                })
+                .collect();
+        }
+    }
+}
+
 /// Runs the live screen until the user quits or the source ends: frames from `queue` go
 /// through `session`; keys from `events`.
 pub fn run_loop<B: Backend>(
@@ -272,31 +336,14 @@ where
     let mut last_draw: Option<Instant> = None;
     let mut ended = false;
     while !s.quit {
-        // Every frame waiting, solved in order (the newest is what is drawn).
-        loop {
-            match queue.pop(Duration::ZERO) {
-                Popped::Frame(fr) => {
-                    last_frame = Instant::now();
-                    match session.take(fr)? {
-                        Step::Collecting(have, need) => s.collecting = Some((have, need)),
-                        Step::Calibrated(n) => {
-                            s.collecting = None;
-                            s.status = format!("calibrated on {n} frames");
-                        }
-                        Step::Solved => s.collecting = None,
-                    }
-                    window.push_back(Instant::now());
-                }
-                Popped::Idle => break,
-                Popped::Closed => {
-                    if !ended {
-                        s.status = "the source has ended".into();
-                        ended = true;
-                    }
-                    break;
-                }
-            }
-        }
+        drain(
+            queue,
+            session,
+            &mut s,
+            &mut window,
+            &mut last_frame,
+            &mut ended,
+        )?;
         while window
             .front()
             .is_some_and(|t| t.elapsed() > Duration::from_secs(1))
@@ -309,29 +356,7 @@ where
         let n = session.latencies.len();
         let recent = &session.latencies[n.saturating_sub(300)..];
         s.latency = (quantile(recent, 0.5), quantile(recent, 0.99));
-        if let Some((fr, solved)) = &session.last {
-            s.weights.clone_from(&solved.weights);
-            let rig = session.solver.rig();
-            let sel = session.selection();
-            s.tracked = sel
-                .iter()
-                .filter_map(|&p| Some([*fr.points.get(2 * p)?, *fr.points.get(2 * p + 1)?]))
-                .collect();
-            if let Some(c) = session.solver.calibration() {
-                let person = keyshape_rig::Rig {
-                    neutral: c.neutral.clone(),
-                    ..rig.clone()
-                };
-                s.posed = person
-                    .posed(&solved.weights)
-                    .iter()
-                    .map(|p| {
-                        let u = solved.camera.project(p);
-                        [u[0], -u[1]]
-                    })
-                    .collect();
-            }
-        }
+        show_last(session, &mut s);
         if last_draw.is_none_or(|t| t.elapsed() >= Duration::from_millis(33)) {
             terminal.draw(|f| draw(f, &s))?;
             last_draw = Some(Instant::now());
