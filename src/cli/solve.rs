@@ -283,9 +283,13 @@ fn report(
     Ok(())
 }
 
-/// `kslab solve --stream`: [`keyshape_io::stream::stream_solve`] into the CSV as it goes.
-fn run_stream(a: &SolveArgs, smoothing: Option<Smoothing>) -> Result<()> {
-    use keyshape_io::stream::{stream_solve, StreamOptions};
+/// `--stream`'s input file and options; refuses the built-in sequence and the offline
+/// prior (it solves the whole sequence at once).
+fn stream_options(
+    a: &SolveArgs,
+    smoothing: Option<Smoothing>,
+) -> Result<(&std::path::Path, keyshape_io::stream::StreamOptions)> {
+    use keyshape_io::stream::StreamOptions;
     let Some(path) = a.input.file.as_deref() else {
         anyhow::bail!("--stream reads a FILE in several passes: give one (the built-in sequence is 216 frames: drop --stream)");
     };
@@ -298,16 +302,25 @@ fn run_stream(a: &SolveArgs, smoothing: Option<Smoothing>) -> Result<()> {
     }
     let mut opts = SolveOptions::new(a.solver);
     opts.rcond = a.rcond;
-    let so = StreamOptions {
-        format: a.input.format,
-        dims: usize::from(a.input.dims),
-        points: a.input.points.clone(),
-        align: !a.input.no_align,
-        keys: a.choice.keys.clone(),
-        neutral: a.neutral,
-        solve: opts,
-        smoothing,
-    };
+    Ok((
+        path,
+        StreamOptions {
+            format: a.input.format,
+            dims: usize::from(a.input.dims),
+            points: a.input.points.clone(),
+            align: !a.input.no_align,
+            keys: a.choice.keys.clone(),
+            neutral: a.neutral,
+            solve: opts,
+            smoothing,
+        },
+    ))
+}
+
+/// `kslab solve --stream`: [`keyshape_io::stream::stream_solve`] into the CSV as it goes.
+fn run_stream(a: &SolveArgs, smoothing: Option<Smoothing>) -> Result<()> {
+    use keyshape_io::stream::stream_solve;
+    let (path, so) = stream_options(a, smoothing)?;
     let header: Vec<String> = ["frame".to_string(), "rms".to_string()]
         .into_iter()
         .chain(a.choice.keys.iter().map(|k| format!("w_{k}")))
