@@ -26,15 +26,7 @@ pub struct TuiBenchArgs {
 }
 
 pub fn run(a: &TuiBenchArgs) -> Result<()> {
-    let default = keyshape_io::shared_data("mediapipe_face_tracks/liveportrait_d6.csv")
-        .unwrap_or_else(|_| PathBuf::from("builtin"));
-    let path = a.file.clone().unwrap_or_else(|| {
-        if default.exists() {
-            default
-        } else {
-            PathBuf::from("builtin")
-        }
-    });
+    let path = bench_file(a);
     let seq = kslab_tui::load(&path.display().to_string())?;
     let (frames, points) = (seq.n_frames(), seq.points);
     let mut engine = Engine::new(seq);
@@ -120,22 +112,42 @@ pub fn run(a: &TuiBenchArgs) -> Result<()> {
         rows.len()
     );
     if let Some(r) = rig {
-        for (step, ms) in &r.open {
-            outln!("| rig view, opening: {step} | {ms:.0} ms |");
-        }
-        outln!(
-            "| **rig view open, total** (in the background: the lab answers meanwhile) | **{:.0} ms** |",
-            r.open.iter().map(|x| x.1).sum::<f64>()
-        );
-        outln!(
-            "| rig view, a new λ (`l`, λ 100: the neutral reused, no search) | {:.0} ms |",
-            r.lambda
-        );
-        outln!(
-            "| rig view, stepping a frame (→) and redrawing, median / max of 30 | {:.1} / {:.1} ms |",
-            r.step[0], r.step[1]
-        );
+        print_rig_rows(&r)?;
     }
+    Ok(())
+}
+
+/// The bench's sequence: the file given, else d6 from the shared data, else the built-in.
+fn bench_file(a: &TuiBenchArgs) -> PathBuf {
+    let default = keyshape_io::shared_data("mediapipe_face_tracks/liveportrait_d6.csv")
+        .unwrap_or_else(|_| PathBuf::from("builtin"));
+    a.file.clone().unwrap_or_else(|| {
+        if default.exists() {
+            default
+        } else {
+            PathBuf::from("builtin")
+        }
+    })
+}
+
+/// The rig view's rows of the table.
+fn print_rig_rows(r: &RigTimes) -> Result<()> {
+    for (step, ms) in &r.open {
+        outln!("| rig view, opening: {step} | {ms:.0} ms |");
+    }
+    outln!(
+        "| **rig view open, total** (in the background: the lab answers meanwhile) | **{:.0} ms** |",
+        r.open.iter().map(|x| x.1).sum::<f64>()
+    );
+    outln!(
+        "| rig view, a new λ (`l`, λ 100: the neutral reused, no search) | {:.0} ms |",
+        r.lambda
+    );
+    outln!(
+        "| rig view, stepping a frame (→) and redrawing, median / max of 30 | {:.1} / {:.1} ms |",
+        r.step[0],
+        r.step[1]
+    );
     Ok(())
 }
 
