@@ -235,6 +235,37 @@ fn key_shapes(
     (s, an.coords)
 }
 
+/// A setting waiting to be measured: approach, setting, weights (keys × frames) and the
+/// smoothed solve's KKT residual.
+type Setting = (String, String, DMatrix<f64>, Option<f64>);
+
+/// A setting's report row from its error sums over `values` coordinates; `w0` are the
+/// unsmoothed weights the lag is measured against.
+fn smooth_row(
+    (approach, setting, w, kkt): Setting,
+    e: &ErrorSums,
+    values: usize,
+    segs: &[Range<usize>],
+    w0: &DMatrix<f64>,
+) -> SmoothRow {
+    let rms = |sq: f64| (sq / values.max(1) as f64).sqrt();
+    SmoothRow {
+        approach,
+        setting,
+        source_rms: rms(e.source),
+        target_rms_tracked: rms(e.tracked),
+        target_rms_clean: rms(e.clean),
+        jitter_target: if e.jitter_count == 0 {
+            0.0
+        } else {
+            (e.jitter / e.jitter_count as f64).sqrt()
+        },
+        jitter_weights: jitter(&w, segs, w.nrows()),
+        lag_frames: lag(&w, w0, segs, 15),
+        kkt,
+    }
+}
+
 fn study_with_keys(
     seq: &keyshape_core::sequence::Sequence,
     prep: &Prepared,
@@ -257,35 +288,18 @@ fn study_with_keys(
     // settings waiting to be measured never add to the solves' peak.
     let solve_set = 6 * s.ncols() * q.ncols();
     let budget = (q.len() / 4).max(solve_set).max(1);
-    let held = |sets: &[(String, String, DMatrix<f64>, Option<f64>)]| {
-        sets.iter().map(|x| x.2.len()).sum::<usize>()
-    };
+    let held = |sets: &[Setting]| sets.iter().map(|x| x.2.len()).sum::<usize>();
     let lowpass = Lowpass::new(st.clean_sigma);
     let frames = q.ncols();
-    let rms = |sq: f64| (sq / (frames * points).max(1) as f64).sqrt();
     let mut rows = Vec::new();
-    let mut sets: Vec<(String, String, DMatrix<f64>, Option<f64>)> = Vec::new();
-    let mut flush = |sets: &mut Vec<(String, String, DMatrix<f64>, Option<f64>)>| {
+    let mut sets: Vec<Setting> = Vec::new();
+    let mut flush = |sets: &mut Vec<Setting>| {
         let errors = frame_errors(q, &lowpass, &s, &b, &g, sets, &segs, points);
-        for ((approach, setting, w, kkt), e) in sets.drain(..).zip(errors) {
-            rows.push(SmoothRow {
-                approach,
-                setting,
-                source_rms: rms(e.source),
-                target_rms_tracked: rms(e.tracked),
-                target_rms_clean: rms(e.clean),
-                jitter_target: if e.jitter_count == 0 {
-                    0.0
-                } else {
-                    (e.jitter / e.jitter_count as f64).sqrt()
-                },
-                jitter_weights: jitter(&w, &segs, w.nrows()),
-                lag_frames: lag(&w, w0, &segs, 15),
-                kkt,
-            });
+        for (set, e) in sets.drain(..).zip(errors) {
+            rows.push(smooth_row(set, &e, frames * points, &segs, w0));
         }
     };
-    let full = |sets: &[(String, String, DMatrix<f64>, Option<f64>)]| held(sets) >= budget;
+    let full = |sets: &[Setting]| held(sets) >= budget;
     // The settings in the report's order: none, the prior offline order 1, order 2,
     // causal, the filters. The order-2 solves, which need the most memory, run first,
     // while no other setting's weights are held; the rows are put back in order at the end
@@ -372,7 +386,7 @@ fn frame_errors(
     s: &DMatrix<f64>,
     b: &DMatrix<f64>,
     g: &keyshape_core::rbf::Rbf,
-    sets: &[(String, String, DMatrix<f64>, Option<f64>)],
+    sets: &[Setting],
     segs: &[Range<usize>],
     points: usize,
 ) -> Vec<ErrorSums> {
