@@ -5,7 +5,7 @@ use super::nnls::short;
 use anyhow::Result;
 use clap::Args;
 use keyshape_core::decompose::{prepare, PrepareOptions};
-use keyshape_core::keyshapes::curves::sweep;
+use keyshape_core::keyshapes::curves::{sweep, CurveRow};
 use keyshape_core::keyshapes::{Analysis, KeyOptions, Method};
 use keyshape_core::solve::{textbook, Solver};
 use keyshape_io::{builtin_sequence, read_sequence, ReadOptions};
@@ -86,31 +86,12 @@ pub fn run(a: &CurvesBenchArgs) -> Result<()> {
     outln!("| frames' Gram matrix QᵀQ | {t_gram:.3} | | |");
     let mut total = 0.0;
     let mut total_plain = 0.0;
-    // The mean-shape k-means variants solve on shapes, not frames: the plain comparison
-    // below works on frames, so they are left out here.
-    for m in Method::ALL
-        .into_iter()
-        .filter(|m| !matches!(m, Method::KMeans { mean: true, .. }))
-    {
+    for m in frame_methods() {
         let t = Instant::now();
         let rows = sweep(&an, &[m], 2..=a.kmax, &[Solver::Nnls], &opts, &|_, _| {})?;
         let secs = t.elapsed().as_secs_f64();
         total += secs;
-        let (plain, note) = if m == Method::Greedy {
-            (plain_greedy_estimate(&an, a.kmax), " (estimated: exact greedy, per-frame textbook NNLS, from measured per-frame times)")
-        } else {
-            // Same selections (k-means included), errors by the textbook solver.
-            let t = Instant::now();
-            for r in &rows {
-                let keys = if m == Method::Hull {
-                    r.keys.clone()
-                } else {
-                    m.heuristic(&opts).select(&an, r.k)?.columns
-                };
-                std::hint::black_box(textbook_error(&an, &keys));
-            }
-            (t.elapsed().as_secs_f64(), "")
-        };
+        let (plain, note) = plain_seconds(&an, m, &rows, &opts, a.kmax)?;
         total_plain += plain;
         outln!(
             "| sweep: {} | {secs:.3} | {plain:.2}{note} | {:.0}× |",
@@ -124,10 +105,7 @@ pub fn run(a: &CurvesBenchArgs) -> Result<()> {
     );
     // What `kslab curves` runs: every method in one sweep, the methods and their k in
     // parallel (the rows above time one method at a time, each alone on the cores).
-    let methods: Vec<Method> = Method::ALL
-        .into_iter()
-        .filter(|m| !matches!(m, Method::KMeans { mean: true, .. }))
-        .collect();
+    let methods = frame_methods();
     let mut together = f64::INFINITY;
     for _ in 0..3 {
         let t = Instant::now();
@@ -147,6 +125,43 @@ pub fn run(a: &CurvesBenchArgs) -> Result<()> {
     let all = t_read + t_align + t_pca + t_gram + together;
     outln!("| **everything from reading on** (with the one-call sweep) | **{all:.3}** | | |");
     Ok(())
+}
+
+/// The methods that choose frames. The mean-shape k-means variants solve on shapes, not
+/// frames: the plain comparison works on frames, so they are left out.
+fn frame_methods() -> Vec<Method> {
+    Method::ALL
+        .into_iter()
+        .filter(|m| !matches!(m, Method::KMeans { mean: true, .. }))
+        .collect()
+}
+
+/// The plain implementation's seconds for method `m`'s sweep `rows`, and a note when the
+/// figure is estimated rather than measured (exact greedy).
+fn plain_seconds(
+    an: &Analysis,
+    m: Method,
+    rows: &[CurveRow],
+    opts: &KeyOptions,
+    kmax: usize,
+) -> Result<(f64, &'static str)> {
+    if m == Method::Greedy {
+        return Ok((
+            plain_greedy_estimate(an, kmax),
+            " (estimated: exact greedy, per-frame textbook NNLS, from measured per-frame times)",
+        ));
+    }
+    // Same selections (k-means included), errors by the textbook solver.
+    let t = Instant::now();
+    for r in rows {
+        let keys = if m == Method::Hull {
+            r.keys.clone()
+        } else {
+            m.heuristic(opts).select(an, r.k)?.columns
+        };
+        std::hint::black_box(textbook_error(an, &keys));
+    }
+    Ok((t.elapsed().as_secs_f64(), ""))
 }
 
 /// Exact greedy from scratch: for each step k, every remaining frame is tried as the k-th
