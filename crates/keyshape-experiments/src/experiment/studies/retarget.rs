@@ -220,6 +220,18 @@ pub(crate) fn retarget_study(
     if r.strip == 0 || last.is_empty() {
         return Ok((rows, None));
     }
+    Ok((rows, Some(worst_frames(r.strip, top_noise, prep, &last))))
+}
+
+/// The strip: `count` frames where the solvers' targets differ most at the highest noise
+/// level `top_noise` (`last`: each solver's result there).
+fn worst_frames(
+    count: usize,
+    top_noise: f64,
+    prep: &keyshape_core::decompose::Prepared,
+    last: &[(keyshape_core::solve::Solver, keyshape_retarget::Retargeted)],
+) -> Strip {
+    use keyshape_retarget::setup;
     // The frames where the solvers' targets differ most (with one solver, where it errs
     // most), spread over the sequence: the worst frames come in runs of near-identical
     // neighbours, and four of one run show one moment four times.
@@ -229,8 +241,8 @@ pub(crate) fn retarget_study(
             .collect(),
         _ => last[0].1.target_rms_per_frame().unwrap_or_default(),
     };
-    let gap = (score.len() / (4 * r.strip)).max(1);
-    let cols = spaced_top(&score, r.strip, gap);
+    let gap = (score.len() / (4 * count)).max(1);
+    let cols = spaced_top(&score, count, gap);
     let polylines = prep
         .layout
         .as_ref()
@@ -241,7 +253,7 @@ pub(crate) fn retarget_study(
         .truth
         .clone()
         .unwrap_or_else(|| prep.seq.coords.clone());
-    let strip = Strip {
+    Strip {
         trace_noise: top_noise,
         frames: cols.iter().map(|&c| prep.seq.frames[c]).collect(),
         polylines,
@@ -260,8 +272,7 @@ pub(crate) fn retarget_study(
                 }
             })
             .collect(),
-    };
-    Ok((rows, Some(strip)))
+    }
 }
 
 /// The `count` columns of largest `score`, each at least `gap` columns from every other
