@@ -324,3 +324,52 @@ fn solve_columns(
         smoothed,
     ))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::error::ErrorKind;
+    use crate::solve::Solver;
+
+    /// Five 2-point shapes (4 coordinates each), frame 4 = frame 1 + frame 2.
+    fn shapes() -> DMatrix<f64> {
+        DMatrix::from_column_slice(
+            4,
+            5,
+            &[
+                0.0, 0.0, 0.0, 0.0, //
+                1.0, 0.0, 0.0, 0.5, //
+                0.0, 1.0, 0.5, 0.0, //
+                2.0, 2.0, 0.0, 1.0, //
+                1.0, 1.0, 0.5, 0.5,
+            ],
+        )
+    }
+
+    /// Each bad key list is refused with its own message, before any solve; a good one
+    /// solves frame 4 as frame 1 + frame 2.
+    #[test]
+    fn key_columns_are_checked_before_the_solve() {
+        let q = shapes();
+        let opts = SolveOptions::new(Solver::Nnls);
+        let refused = |keys: &[usize], neutral: Option<usize>, needle: &str| {
+            let e = decompose_coords(&q, 2, keys, neutral, &opts).unwrap_err();
+            assert_eq!(e.kind(), ErrorKind::Invalid, "{keys:?}: {e}");
+            assert!(e.to_string().contains(needle), "{keys:?}: {e}");
+        };
+        refused(&[], None, "no key shapes given");
+        refused(&[0, 1, 2, 3, 4, 0], None, "6 key shapes asked for");
+        refused(&[1, 5], None, "key column 5 out of range (0..5)");
+        refused(&[1, 2], Some(7), "key column 7 out of range (0..5)");
+        refused(&[1, 2, 1], None, "key frame column 1 is listed twice");
+        refused(
+            &[1, 2],
+            Some(2),
+            "the neutral frame cannot also be a key shape",
+        );
+        let d = decompose_coords(&q, 2, &[1, 2], Some(0), &opts).unwrap();
+        assert!((d.weights[(0, 4)] - 1.0).abs() < 1e-9, "{}", d.weights);
+        assert!((d.weights[(1, 4)] - 1.0).abs() < 1e-9, "{}", d.weights);
+        assert!(d.sq_error[4] < 1e-18);
+    }
+}
