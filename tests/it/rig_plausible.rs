@@ -20,14 +20,16 @@ struct Held {
 }
 
 /// Measured (blink L / R, jaw, smile, largest twin gap, largest on-rate; 2026-12-07, the
-/// smile / frown pairs at a twentieth of the exclusive term):
-/// d6 0.695 / 0.788, 0.613, 0.763, 0.20 (browDown), 0.50 (browInnerUp_R);
-/// d9 0.802 / 0.831, — (the lips part by 0.02 of the eye-corner distance at most), 0.898,
-/// 0.12 (eyeWide), < 0.2;
-/// d18 0.744 / 0.783, 0.989, 0.981, 0.07, 0.29 (mouthShrugUpper); d18's blink and on-rate
+/// neutral search's depth given to the identity, τ = 0.01 × IOD; before it in brackets):
+/// d6 0.704 / 0.795, 0.797, 0.811, 0.16 (browOuterUp), 0.29 (browInnerUp_L) [neutral
+/// frame 621: 0.695 / 0.788, 0.613, 0.763, 0.20, 0.50];
+/// d9 0.855 / 0.872, — (the lips part by 0.02 of the eye-corner distance at most), 0.903,
+/// 0.10 (mouthPress), < 0.2 [0.802 / 0.831, 0.898, 0.12];
+/// d18 0.736 / 0.777, 0.989, 0.983, 0.08, 0.29 (mouthLowerDown_L) [0.744 / 0.783, 0.981,
+/// 0.07]; at τ = 0.1 d18's blinks fell to 0.681 / 0.694, which this test caught; d18's blink and on-rate
 /// floors are what dropping the smile / frown pairs altogether breaks (0.713 / 0.662 and
 /// eyeWide_R on 42 % of frames), and the full term gave 0.35;
-/// the news sample with an identity per clip 0.901 / 0.888, 0.356, 0.780, 0.19 (mouthPress),
+/// the news sample with an identity per clip 0.900 / 0.888, 0.356, 0.784, 0.19 (mouthPress),
 /// < 0.2 (with one identity for its 20 people, jawForward is on 47 % of frames and jawRight
 /// 44 %: the note `kslab rig` prints says to fit one per clip).
 const HELD: [Held; 4] = [

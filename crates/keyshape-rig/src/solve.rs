@@ -4,7 +4,9 @@
 use super::camera::{fit_camera, Camera};
 use super::frame::{frame_depth, frame_points, FrameSolver};
 use super::identifiability::identifiability_weighted;
-use super::neutral::{best_explaining, person_rig, views};
+use super::neutral::{
+    best_explaining, evenly_spaced, fit_from, person_rig, person_rig_with, views,
+};
 use super::prior::{exclusive_pairs, magnitude_prior, prior_iod, tapering};
 use super::{correspondence, temporal, Identity, Neutral, Rig, RigOptions, RigSolve, LANDMARKS};
 use keyshape_core::error::{Error, Result};
@@ -196,14 +198,15 @@ fn identities(
     let whole = 0..track.ncols();
     Ok(match (opts.identity, opts.neutral) {
         (Identity::None, _) => (vec![(whole, rig.clone())], Vec::new()),
-        (id, Neutral::Column(n)) => (
-            vec![(whole, person_rig(rig, track, depth, n..n + 1, id)?)],
-            vec![n],
-        ),
-        (id, Neutral::Span(a, b)) => (
-            vec![(whole, person_rig(rig, track, depth, a..b, id)?)],
-            vec![(a + b) / 2],
-        ),
+        (_, Neutral::Column(n)) => {
+            let person = lifted(rig, (track, depth), n..n + 1, n, whole.clone(), opts, lw)?;
+            (vec![(whole, person)], vec![n])
+        }
+        (_, Neutral::Span(a, b)) => {
+            let mid = (a + b) / 2;
+            let person = lifted(rig, (track, depth), a..b, mid, whole.clone(), opts, lw)?;
+            (vec![(whole, person)], vec![mid])
+        }
         (id, auto) => {
             let mut people = Vec::new();
             let mut neutrals = Vec::new();
@@ -215,16 +218,64 @@ fn identities(
                         c.len().min(super::NEUTRAL_SCORED_FRAMES)
                     ));
                 }
-                let n = match first {
-                    Some(first) if auto == Neutral::LeastActive => least_active(c, first),
-                    _ => best_explaining(rig, (track, depth), c.clone(), opts, lw)?,
+                let (n, person) = match first {
+                    // The earlier rule, kept as it was (no fitted depth): its figures are
+                    // tools/rig_vs_pyfeat.py's, which the experiment's test reproduces.
+                    Some(first) if auto == Neutral::LeastActive => {
+                        let n = least_active(c, first);
+                        (n, person_rig(rig, track, depth, n..n + 1, id)?)
+                    }
+                    _ => {
+                        // The search has fitted its winner's depth already.
+                        let (n, offsets) =
+                            best_explaining(rig, (track, depth), c.clone(), opts, lw)?;
+                        let frames = n..n + 1;
+                        (
+                            n,
+                            person_rig_with(rig, (track, depth), frames, id, offsets.as_deref())?,
+                        )
+                    }
                 };
-                people.push((c.clone(), person_rig(rig, track, depth, n..n + 1, id)?));
+                people.push((c.clone(), person));
                 neutrals.push(n);
             }
             (people, neutrals)
         }
     })
+}
+
+/// The person's rig from the neutral frames `frames` (`mid` the one whose view the depth is
+/// fitted along), with each landmark's depth fitted over `clip`'s scored frames as the
+/// automatic search fits it ([`fit_from`]): one frame, or a lead-in held still, shows no
+/// depth; the performance's head turns do. A track with its own depth keeps it, and a
+/// causal solve has no fitted depth (its frames ahead are not seen yet). Where the
+/// fit fails (a scored frame's solve does) the identity has no fitted depth, as before,
+/// and the solve itself reports that frame.
+fn lifted(
+    rig: &Rig,
+    (track, depth): (&DMatrix<f64>, Option<&DMatrix<f64>>),
+    frames: Range<usize>,
+    mid: usize,
+    clip: Range<usize>,
+    opts: &RigOptions,
+    lw: &[f64],
+) -> Result<Rig> {
+    let person = person_rig(rig, track, depth, frames.clone(), opts.identity)?;
+    // A causal solve sees no frame ahead (the live path's neutral is its lead-in alone).
+    if depth.is_some() || opts.causal {
+        return Ok(person);
+    }
+    let scored = evenly_spaced(clip, super::NEUTRAL_SCORED_FRAMES);
+    let offsets = fit_from(rig, &person, (track, depth), mid, &scored, opts, lw)
+        .ok()
+        .and_then(|fit| fit.offsets);
+    person_rig_with(
+        rig,
+        (track, depth),
+        frames,
+        opts.identity,
+        offsets.as_deref(),
+    )
 }
 
 /// The frame of clip `c` whose weights in the pass without an identity sum least.

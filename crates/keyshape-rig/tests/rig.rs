@@ -219,8 +219,9 @@ fn the_identity_from_a_neutral_frame_beats_the_rig_as_it_is() {
 /// `--neutral auto` takes the frame from which the performance is best explained. The
 /// person (wider mouth, higher eyes) is neutral at frame 23 only; every other frame holds
 /// some expression. Noise-free, only the true neutral explains every frame (up to the 2-D
-/// offset's missing depth as the head turns), so auto finds it and solves exactly as
-/// `--neutral 23` does; the first-pass least-active frame is another, and worse.
+/// offset's missing depth as the head turns, which the depth fitted over the frames takes
+/// up for either), so auto finds it and solves exactly as `--neutral 23` does; the
+/// first-pass least-active frame is another, and worse.
 #[test]
 fn the_auto_neutral_is_the_frame_that_explains_the_performance() {
     let rig = ict();

@@ -116,8 +116,13 @@ fn robust_landmark_weights_recover_most_of_a_wrong_map() {
 
 /// The refined map against the truth, 468 points, the map wrong by up to 3 mm, four seeds
 /// of speech (where a map error hurt most and robust weights alone fell short): the refined
-/// map's solve beats the robust solve's median mean r, worst shape and RMSE (measured over
-/// seeds 1–10 in docs/src/rig_accuracy.md). The landmarks it moves do not end on the
+/// map's solve beats the robust solve's RMSE (median), and its worst seed's mean r and
+/// worst shape (measured over seeds 1–10 in docs/src/rig_accuracy.md: mean r 0.958 →
+/// 0.979). On these four short takes the robust solve's median is already 0.977, so what
+/// the refinement adds shows in the tail and the RMSE (2026-12-07: worst seed's mean r
+/// 0.939 → 0.958, worst shape 0.841 → 0.906, RMSE 0.040 → 0.031), not the median (0.977 →
+/// 0.972: on seed 2 the neutral search now finds the truly neutral frame, the RMSE falls
+/// from 0.039 to 0.028, and mouthPucker's r from 0.975 to 0.906). The landmarks it moves do not end on the
 /// render's vertices: under speech's few shapes, other vertices move as the render's do
 /// (over these seeds 6 moved nearer, 42 farther), and the test says so. With the map right
 /// it changes next to nothing.
@@ -159,16 +164,22 @@ fn a_map_refined_from_the_track_recovers_a_wrong_map() {
         median(v.iter().map(f).collect())
     };
     let (b, a) = (&before[..], &after[..]);
+    let least = |v: &[accuracy::Summary], f: fn(&accuracy::Summary) -> f64| {
+        v.iter().map(f).fold(f64::INFINITY, f64::min)
+    };
     assert!(
-        m(a, |s| s.mean_r) > m(b, |s| s.mean_r) + 0.002,
+        least(a, |s| s.mean_r) > least(b, |s| s.mean_r) + 0.01,
         "{before:?}\n{after:?}"
     );
     assert!(m(a, |s| s.mean_r) > 0.97, "{after:?}");
     assert!(
-        m(a, |s| s.worst_r) > m(b, |s| s.worst_r),
+        least(a, |s| s.worst_r) > least(b, |s| s.worst_r) + 0.03,
         "{before:?}\n{after:?}"
     );
-    assert!(m(a, |s| s.rmse) < m(b, |s| s.rmse), "{before:?}\n{after:?}");
+    assert!(
+        m(a, |s| s.rmse) < m(b, |s| s.rmse) - 0.005,
+        "{before:?}\n{after:?}"
+    );
     assert!(nearer < farther, "{nearer} nearer, {farther} farther");
     // The map right: the refinement keeps the solve (and nearly every landmark) as it was.
     let st = Settings {
