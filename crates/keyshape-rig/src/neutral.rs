@@ -508,17 +508,7 @@ mod tests {
         let lw = crate::solve::check_options(&rig, &opts).unwrap();
         let mut gains = Vec::new();
         for seed in 1..=4 {
-            let st = Settings {
-                kind: Kind::Smooth,
-                frames: 120,
-                lead_in: 0,
-                yaw_deg: 35.0,
-                pitch_deg: 20.0,
-                other_depth: true,
-                seed,
-                ..Settings::default()
-            };
-            let t = render(&rig, &st).unwrap();
+            let t = render(&rig, &Settings::turned_head(Kind::Smooth, seed)).unwrap();
             let clip = 0..t.points.ncols();
             let (n, offsets) = best_explaining(&rig, (&t.points, None), clip, &opts, &lw).unwrap();
             let offsets = offsets.expect("a track without depth gets a fitted depth");

@@ -31,16 +31,7 @@ fn the_chosen_neutral_is_reported_with_its_true_pose() {
     let rig = ict();
     let mut worst: f64 = 0.0;
     for seed in 1..=6 {
-        let st = Settings {
-            kind: Kind::Speech,
-            frames: 120,
-            lead_in: 0,
-            yaw_deg: 35.0,
-            pitch_deg: 20.0,
-            other_depth: true,
-            seed,
-            ..Settings::default()
-        };
+        let st = Settings::turned_head(Kind::Speech, seed);
         let (track, _, _, s) = accuracy::run(&rig, &st, &RigOptions::recommended()).unwrap();
         let n = s.neutral.expect("an identity has a neutral");
         let truth = track.cameras[n.frame].yaw_pitch_roll().map(f64::to_degrees);

@@ -160,6 +160,23 @@ impl Default for Settings {
 }
 
 impl Settings {
+    /// The hardest render for the neutral: another person whose face is deeper or flatter
+    /// than the rig's (`--person deep`), no lead-in, the head turning ±35° yaw and ±20°
+    /// pitch, 120 frames of `kind` (`kslab rig-accuracy --person deep --lead-in 0 --yaw 35
+    /// --pitch 20 --frames 120`), so turned frames are among the neutral's candidates.
+    pub fn turned_head(kind: Kind, seed: u64) -> Settings {
+        Settings {
+            kind,
+            frames: 120,
+            lead_in: 0,
+            yaw_deg: 35.0,
+            pitch_deg: 20.0,
+            other_depth: true,
+            seed,
+            ..Settings::default()
+        }
+    }
+
     /// Refuses settings no track can be made from.
     pub fn check(&self) -> Result<()> {
         let bad =
