@@ -17,6 +17,7 @@
 pub mod accuracy;
 pub mod camera;
 pub mod correspondence;
+mod depth;
 mod frame;
 pub mod gltf_rig;
 mod identifiability;
@@ -32,6 +33,7 @@ pub mod refine;
 mod solve;
 pub mod temporal;
 
+pub use depth::DEPTH_PRIOR;
 use frame::{frame_depth, frame_points, FrameSolver};
 pub use identifiability::{identifiability, identifiability_weighted};
 pub use model::{Rig, LANDMARKS};

@@ -3,8 +3,8 @@
 //! person's rig built from a neutral frame or a recorded lead-in.
 
 use super::camera::fit_camera;
+use super::depth::{fit_from, NeutralFit};
 use super::frame::{frame_depth, frame_points, FrameSolver};
-use super::identifiability::identifiability_weighted;
 use super::prior::{exclusive_pairs, magnitude_prior};
 use super::{Identity, Rig, RigOptions};
 use keyshape_core::error::Result;
@@ -241,127 +241,6 @@ pub(super) fn best_explaining(
     }
 }
 
-/// The prior on a landmark's depth, fitted over the scored frames ([`fit_from`]), as a share
-/// of the rig's inter-ocular distance, for a landmark whose residual is one (squared) unit
-/// per coordinate: the depth's prior variance is τ² = ([`DEPTH_PRIOR`] × IOD)² times the
-/// landmark's mean squared residual, so a depth is believed where the solve explains the
-/// landmark well and the head turns enough to show it. On the shipped real tracks a weaker
-/// prior (0.1) took depth from expression (the built-in track's blinks fell from r 0.744 /
-/// 0.783 to 0.681 / 0.694 against its lid gaps); on the benchmark's renders 0.01 and 0.1
-/// give the same figures (docs/src/rig_accuracy.md).
-pub const DEPTH_PRIOR: f64 = 0.01;
-
-/// The rig's inter-ocular distance (outer eye corners), or a third of the neutral's width
-/// when the rig does not read them.
-fn rig_iod(rig: &Rig) -> f64 {
-    let n = &rig.neutral;
-    let d = |a: &[f64; 3], b: &[f64; 3]| (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f64>();
-    let iod = match rig.eyes() {
-        Some([a, b]) => d(&n[a], &n[b]).sqrt(),
-        None => {
-            let (lo, hi) = n
-                .iter()
-                .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), p| {
-                    (l.min(p[0]), h.max(p[0]))
-                });
-            (hi - lo) / 3.0
-        }
-    };
-    iod.max(f64::MIN_POSITIVE)
-}
-
-/// How well a person's rig lifted from one neutral frame explains the scored frames.
-pub(super) struct NeutralFit {
-    /// The (weighted) squared landmark error summed over the scored frames, less what each
-    /// landmark's constant image offset and (without the track's own depth) its depth along
-    /// the neutral frame's view axis explain.
-    pub(super) residual: f64,
-    /// Per landmark, that depth as an offset in the rig's frame (`None` when the track has
-    /// depth: the identity takes the track's own).
-    pub(super) offsets: Option<Vec<[f64; 3]>>,
-}
-
-/// Solves the `scored` frames (no temporal prior) with `person`, lifted from frame `n`,
-/// and measures what is left once two things the single frame cannot give are fitted per
-/// landmark over the frames: a constant image offset (frame `n`'s own landmark noise, which
-/// the identity took up and every scored frame then leaves alike) and, for a track without
-/// depth, a depth along `n`'s view axis (one frame sees none of it; a face deeper or
-/// flatter than the rig's leaves a residual that grows with the head's turn away from
-/// `n`'s pose), under the prior [`DEPTH_PRIOR`].
-pub(super) fn fit_from(
-    rig: &Rig,
-    person: &Rig,
-    (track, depth): (&DMatrix<f64>, Option<&DMatrix<f64>>),
-    n: usize,
-    scored: &[usize],
-    opts: &RigOptions,
-    lw: &[f64],
-) -> Result<NeutralFit> {
-    use nalgebra::{Matrix3, Vector3};
-    // (Never causal: a causal solve is given its neutral.)
-    let iod = super::prior::prior_iod(rig, track, opts, 0..1);
-    let cam = fit_camera(&person.neutral, &frame_points(track, n))?;
-    let shapes = identifiability_weighted(person, &cam, opts.min_determination, lw);
-    let free: Vec<usize> = (0..rig.k()).filter(|&s| !shapes[s].frozen).collect();
-    let mut fs = FrameSolver::new(person, free, opts.solver, opts.max_steps.max(1), lw);
-    fs.ridge = magnitude_prior(iod, opts, rig, &fs.free);
-    fs.pairs = exclusive_pairs(rig, &fs.free, &fs.ridge);
-    let view = Vector3::new(cam.r[(2, 0)], cam.r[(2, 1)], cam.r[(2, 2)]);
-    // Per landmark, the normal equations of (depth z, offset cx, cy), the image shift
-    // z·a_f + c in frame f with a_f the view axis as frame f's camera draws it, against the
-    // residual e (drawn − tracked); and Σ|e|².
-    let mut eqs = vec![(Matrix3::<f64>::zeros(), Vector3::<f64>::zeros(), 0.0f64); lw.len()];
-    let mut total = 0.0;
-    for &f in scored {
-        let u = frame_points(track, f);
-        fs.depth = frame_depth(depth, f);
-        fs.solve(&u)?;
-        let cam_f = fs.cam.unwrap_or(cam);
-        total += fs.sq_error_with(&cam_f, &u, lw);
-        let a = (cam_f.r * view) * cam_f.s;
-        let rows = [Vector3::new(a[0], 1.0, 0.0), Vector3::new(a[1], 0.0, 1.0)];
-        for (i, (p, q)) in person.posed(&fs.full_weights()).iter().zip(&u).enumerate() {
-            let drawn = cam_f.project(p);
-            for (row, e) in rows.iter().zip([drawn[0] - q[0], drawn[1] - q[1]]) {
-                eqs[i].0 += row * row.transpose();
-                eqs[i].1 += row * e;
-                eqs[i].2 += e * e;
-            }
-        }
-    }
-    let coords = (2 * scored.len()).max(1) as f64;
-    let tau = DEPTH_PRIOR * rig_iod(rig);
-    let mut explained = 0.0;
-    let mut offsets = vec![[0.0; 3]; lw.len()];
-    for (i, (m, b, sq)) in eqs.iter().enumerate() {
-        // min |A x + e|² + z²·σᵢ²/τ² (σᵢ² = Σ|e|² per coordinate): x = −M⁻¹b explains
-        // bᵀM⁻¹b. With the track's depth, z is held at 0 (the identity has its depth).
-        let mut m = *m;
-        if depth.is_some() {
-            m[(0, 0)] = 1.0;
-            m[(0, 1)] = 0.0;
-            m[(1, 0)] = 0.0;
-            m[(0, 2)] = 0.0;
-            m[(2, 0)] = 0.0;
-        } else {
-            m[(0, 0)] += (sq / coords) / (tau * tau) + 1e-12 * m[(0, 0)].max(f64::MIN_POSITIVE);
-        }
-        let b = if depth.is_some() {
-            Vector3::new(0.0, b[1], b[2])
-        } else {
-            *b
-        };
-        let Some(ch) = m.cholesky() else { continue };
-        let x = ch.solve(&b);
-        explained += lw[i] * b.dot(&x).clamp(0.0, *sq);
-        offsets[i] = [-x[0] * view[0], -x[0] * view[1], -x[0] * view[2]];
-    }
-    Ok(NeutralFit {
-        residual: total - explained,
-        offsets: depth.is_none().then_some(offsets),
-    })
-}
-
 /// The person's rig from the neutral frames `frames` (one, or a recorded lead-in).
 pub(super) fn person_rig(
     rig: &Rig,
@@ -457,82 +336,7 @@ pub(super) fn person_rig_with(
 
 #[cfg(test)]
 mod tests {
-    use super::{best_explaining, evenly_spaced, person_rig, person_rig_with};
-    use crate::accuracy::{render, Kind, Settings};
-    use crate::{Rig, RigOptions};
-    use nalgebra::{Matrix3, Vector3};
-
-    /// RMS distance between `a` and `b` after the similarity that best carries `a` onto `b`
-    /// (Umeyama): the identity is lifted in the frame a fitted camera gives it, so only its
-    /// shape is compared.
-    fn shape_rms(a: &[[f64; 3]], b: &[[f64; 3]]) -> f64 {
-        let n = a.len() as f64;
-        let mean = |p: &[[f64; 3]]| {
-            p.iter()
-                .fold(Vector3::zeros(), |m, q| m + Vector3::from(*q))
-                / n
-        };
-        let (ma, mb) = (mean(a), mean(b));
-        let ca: Vec<Vector3<f64>> = a.iter().map(|q| Vector3::from(*q) - ma).collect();
-        let cb: Vec<Vector3<f64>> = b.iter().map(|q| Vector3::from(*q) - mb).collect();
-        let h: Matrix3<f64> = ca.iter().zip(&cb).map(|(x, y)| y * x.transpose()).sum();
-        let svd = h.svd(true, true);
-        let (u, vt) = (svd.u.unwrap(), svd.v_t.unwrap());
-        let d = (u * vt).determinant().signum();
-        let fix = Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, d));
-        let r = u * fix * vt;
-        let var: f64 = ca.iter().map(|x| x.norm_squared()).sum();
-        let scale = (svd
-            .singular_values
-            .component_mul(&Vector3::new(1.0, 1.0, d)))
-        .sum()
-            / var;
-        let sq: f64 = ca
-            .iter()
-            .zip(&cb)
-            .map(|(x, y)| (r * x * scale - y).norm_squared())
-            .sum();
-        (sq / n).sqrt()
-    }
-
-    /// Against ground truth: renders of another person whose face is deeper or flatter than
-    /// the rig's, the head turning ±35° yaw and ±20° pitch, no lead-in. The depth the search
-    /// fits over the scored frames brings the identity lifted from the chosen frame closer to
-    /// the rendered person's true neutral (compared as shapes) on every seed, and the search
-    /// picks a frame whose true expression is no larger than with the depth left out.
-    #[test]
-    fn the_fitted_depth_brings_the_identity_towards_the_true_face() {
-        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
-        let rig = Rig::read_ict(&dir.join("../../../shared/data/ict_facekit_face")).unwrap();
-        let opts = RigOptions::recommended();
-        let lw = crate::solve::check_options(&rig, &opts).unwrap();
-        let mut gains = Vec::new();
-        for seed in 1..=4 {
-            let t = render(&rig, &Settings::turned_head(Kind::Smooth, seed)).unwrap();
-            let clip = 0..t.points.ncols();
-            let (n, offsets) = best_explaining(&rig, (&t.points, None), clip, &opts, &lw).unwrap();
-            let offsets = offsets.expect("a track without depth gets a fitted depth");
-            let flat = person_rig(&rig, &t.points, None, n..n + 1, opts.identity).unwrap();
-            let deep = person_rig_with(
-                &rig,
-                (&t.points, None),
-                n..n + 1,
-                opts.identity,
-                Some(&offsets),
-            )
-            .unwrap();
-            let (before, after) = (
-                shape_rms(&flat.neutral, &t.person.neutral),
-                shape_rms(&deep.neutral, &t.person.neutral),
-            );
-            assert!(after < before, "seed {seed}: {after} against {before}");
-            gains.push(before / after);
-        }
-        gains.sort_by(f64::total_cmp);
-        // Measured 2026-12-07: the identity's shape error falls by 1.04–1.06× on these seeds
-        // (most of another person's difference is in the image plane, which one frame sees).
-        assert!(gains[gains.len() / 2] > 1.02, "{gains:?}");
-    }
+    use super::evenly_spaced;
 
     #[test]
     fn evenly_spaced_candidates_keep_both_ends_and_never_repeat() {

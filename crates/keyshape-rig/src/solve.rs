@@ -2,11 +2,10 @@
 //! check, the frame-by-frame pass, and the temporal priors after or inside it.
 
 use super::camera::{fit_camera, Camera};
+use super::depth::fit_from;
 use super::frame::{frame_depth, frame_points, FrameSolver};
 use super::identifiability::identifiability_weighted;
-use super::neutral::{
-    best_explaining, evenly_spaced, fit_from, person_rig, person_rig_with, views,
-};
+use super::neutral::{best_explaining, evenly_spaced, person_rig, person_rig_with, views};
 use super::prior::{exclusive_pairs, magnitude_prior, prior_iod, tapering};
 use super::{correspondence, temporal, Identity, Neutral, Rig, RigOptions, RigSolve, LANDMARKS};
 use keyshape_core::error::{Error, Result};
