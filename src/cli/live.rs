@@ -79,15 +79,12 @@ pub struct LiveArgs {
     /// the header].
     #[arg(long)]
     format: Option<keyshape_core::sequence::Format>,
-    /// The causal temporal prior λ (each frame pulled towards the last; as `kslab rig
-    /// --live --smooth`). 0 is off.
-    #[arg(
-        long,
-        value_name = "LAMBDA",
-        default_value_t = 0.0,
-        allow_negative_numbers = true
-    )]
-    smooth: f64,
+    /// The causal temporal prior λ, squared pixels (each frame pulled towards the last; as
+    /// `kslab rig --live --smooth`). 0 is off [default: 0.0026 × the calibration's squared
+    /// inter-ocular distance, 30 px² at 107 px: tuned on `kslab rig-accuracy --live`, a lag
+    /// of one frame].
+    #[arg(long, value_name = "LAMBDA", allow_negative_numbers = true)]
+    smooth: Option<f64>,
     /// The magnitude prior (as `kslab rig --live --prior`; tuned on the causal path, above
     /// the offline default 0.0026).
     #[arg(long, default_value_t = keyshape_rig::LIVE_PRIOR, allow_negative_numbers = true)]
@@ -193,10 +190,15 @@ fn setup(a: &LiveArgs) -> Result<Setup> {
 /// The solve, the calibration (loaded from --neutral-file when it exists), the sinks and
 /// the recording; whether the calibration was loaded.
 fn start_session(a: &LiveArgs, s: &Setup) -> Result<(Session, bool)> {
+    let live = RigOptions::live();
     let opts = RigOptions {
-        smooth: a.smooth,
+        smooth: a.smooth.unwrap_or(live.smooth),
+        smooth_unit: match a.smooth {
+            Some(_) => keyshape_rig::SmoothUnit::Pixels,
+            None => live.smooth_unit,
+        },
         prior: a.prior,
-        ..RigOptions::live()
+        ..live
     };
     let mut solver = LiveSolver::new(s.rig.clone(), opts, a.calibrate as usize)?;
     let loaded = match &a.neutral_file {

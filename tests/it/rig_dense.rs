@@ -115,6 +115,37 @@ fn bad_correspondences_and_point_counts_are_refused() {
         r.stderr
     );
     assert!(!out.exists());
+    // Nor has the live path's default temporal prior (relative to the face): refused with
+    // the prior off, and taken in pixels.
+    let m = d.path().join("m.csv");
+    let live = |extra: &[&str]| {
+        let mut args = vec![
+            "rig",
+            track.to_str().unwrap(),
+            "--rig-landmarks",
+            m.to_str().unwrap(),
+            "--live",
+            "--prior",
+            "0",
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        kslab(&args)
+    };
+    let r = live(&[]);
+    assert_eq!(r.code, 1);
+    assert!(
+        r.stderr
+            .contains("a temporal prior relative to the face is scaled by the outer eye corners"),
+        "{}",
+        r.stderr
+    );
+    assert!(!out.exists());
+    let r = live(&["--smooth", "30"]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    assert!(out.exists());
+    std::fs::remove_file(&out).unwrap();
     // A track of 70 points matches no layout.
     let odd = d.path().join("odd.csv");
     let head: Vec<String> = (0..70).map(|i| format!("x{i},y{i}")).collect();

@@ -288,7 +288,7 @@ mod tests {
         let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
         let rig = Rig::read_ict(&dir.join("../../../shared/data/ict_facekit_face")).unwrap();
         let opts = RigOptions::recommended();
-        let lw = crate::solve::check_options(&rig, &opts).unwrap();
+        let lw = crate::checks::check_options(&rig, &opts).unwrap();
         let mut gains = Vec::new();
         for seed in 1..=4 {
             let t = render(&rig, &Settings::turned_head(Kind::Smooth, seed)).unwrap();

@@ -16,6 +16,7 @@
 
 pub mod accuracy;
 pub mod camera;
+mod checks;
 pub mod correspondence;
 mod depth;
 mod frame;
@@ -42,8 +43,8 @@ pub use neutral::{
     NEUTRAL_TURN_WARN_DEG,
 };
 pub use options::{
-    landmark_weights, Identity, Neutral, RigOptions, LANDMARK_GROUPS, LIVE_PRIOR,
-    RECOMMENDED_PRIOR, RECOMMENDED_ZERO_PHASE, ROBUST_C, TAPER_STEPS, TAPER_TOLERANCE,
+    landmark_weights, Identity, Neutral, RigOptions, SmoothUnit, LANDMARK_GROUPS, LIVE_PRIOR,
+    LIVE_SMOOTH, RECOMMENDED_PRIOR, RECOMMENDED_ZERO_PHASE, ROBUST_C, TAPER_STEPS, TAPER_TOLERANCE,
 };
 pub use outcome::{largest_weights, RigSolve, ShapeReport};
 pub use prior::{is_gaze, track_iod, EXCLUSIVE, GAZE_DAMPING};

@@ -10,12 +10,12 @@
 //! as `kslab rig --live --neutral 0-(N-1)` gives for the file.
 
 use super::camera::{fit_camera, Camera};
+use super::checks::check_options;
 use super::frame::{frame_points, FrameSolver};
 use super::identifiability::identifiability_weighted;
 use super::neutral::person_rig;
 use super::prior::{exclusive_pairs, magnitude_prior, prior_iod, tapering};
-use super::solve::check_options;
-use super::{Identity, Neutral, Rig, RigOptions};
+use super::{Identity, Neutral, Rig, RigOptions, SmoothUnit};
 use keyshape_core::error::{Error, Result};
 use nalgebra::DMatrix;
 use serde::{Deserialize, Serialize};
@@ -122,19 +122,26 @@ impl LiveSolver {
         self.pending.clear();
     }
 
-    /// The causal temporal prior's λ from now on (≥ 0; see [`RigOptions::smooth`]).
+    /// The causal temporal prior's λ from now on, in squared track units (≥ 0; see
+    /// [`RigOptions::smooth`]), whatever unit the solver was made with.
     pub fn set_smooth(&mut self, lambda: f64) -> Result<()> {
         keyshape_core::limits::RIG_SMOOTH.check("smooth", lambda)?;
         self.opts.smooth = lambda;
+        self.opts.smooth_unit = SmoothUnit::Pixels;
         if let Some((_, fs)) = &mut self.state {
             fs.lambda = lambda;
         }
         Ok(())
     }
 
-    /// The causal temporal prior's λ.
-    pub fn smooth(&self) -> f64 {
-        self.opts.smooth
+    /// The causal temporal prior's λ in squared track units: `None` while a λ given
+    /// relative to the face ([`SmoothUnit::Iod`]) waits for the calibration to measure it.
+    pub fn smooth(&self) -> Option<f64> {
+        match (&self.state, self.opts.smooth_unit) {
+            (Some((c, _)), _) => Some(self.opts.lambda(c.iod)),
+            (None, SmoothUnit::Pixels) => Some(self.opts.smooth),
+            (None, SmoothUnit::Iod) => None,
+        }
     }
 
     /// Uses a saved calibration instead of collecting one (it must be of this rig).
@@ -252,7 +259,7 @@ impl LiveSolver {
     fn frame_solver(&self, person: Rig, free: Vec<usize>, iod: f64) -> FrameSolver<'static> {
         let opts = &self.opts;
         let mut fs = FrameSolver::new(person, free, opts.solver, opts.max_steps.max(1), &self.lw);
-        fs.lambda = opts.smooth;
+        fs.lambda = opts.lambda(iod);
         fs.ridge = magnitude_prior(iod, opts, &self.rig, &fs.free);
         fs.pairs = exclusive_pairs(&self.rig, &fs.free, &fs.ridge);
         fs.taper = tapering(&self.rig, opts, &fs.free, &fs.ridge);

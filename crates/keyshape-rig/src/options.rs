@@ -126,6 +126,18 @@ pub enum Neutral {
     Span(usize, usize),
 }
 
+/// The unit of [`RigOptions::smooth`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum SmoothUnit {
+    /// Squared track units (pixels) per unit weight²: λ as given.
+    #[default]
+    Pixels,
+    /// A fraction of the squared inter-ocular distance (the magnitude prior's, from the
+    /// same frames): λ × IOD². A face twice the size in the image needs four times the λ
+    /// in pixels for the same pull; in this unit it needs the same.
+    Iod,
+}
+
 /// Options of [`solve_rig`](crate::solve_rig).
 #[derive(Debug, Clone, Copy)]
 pub struct RigOptions {
@@ -147,6 +159,10 @@ pub struct RigOptions {
     /// minimise the sum of the frames' errors plus `λ Σ_t ‖w_t − w_{t−1}‖²` (see
     /// [`temporal`](crate::temporal)). Never across clips.
     pub smooth: f64,
+    /// What `smooth` is measured in: squared track units (pixels), or a fraction of the
+    /// squared inter-ocular distance the magnitude prior is scaled by, so that the same
+    /// setting pulls alike on a small face and a large one ([`RigOptions::lambda`]).
+    pub smooth_unit: SmoothUnit,
     /// Offline (the whole clip, zero phase) or causal (the past only, for live use).
     pub smooth_mode: keyshape_core::solve::temporal::SmoothMode,
     /// Per landmark (iBUG order), the weight of its squared error in the fit (≥ 0; all 1 is
@@ -211,6 +227,13 @@ pub const RECOMMENDED_PRIOR: f64 = 0.0026;
 /// to calm what noise turns on; 0.006 costs smooth 0.006 of mean r at 0.5 px.
 pub const LIVE_PRIOR: f64 = 0.004;
 
+/// The causal temporal prior of the live path (`kslab live`, `kslab rig --live`), in
+/// [`SmoothUnit::Iod`]: λ = 0.0026 × IOD², 30 px² at the accuracy benchmark's 107 px. Tuned
+/// on `kslab rig-accuracy --live` (68 points, seeds 1–20): it brings the causal path's mean r
+/// within 0.01 of the offline default's at 0.5 px on every kind, and its lag is one frame
+/// (docs/src/rig_accuracy.md, "The causal path tuned on its own").
+pub const LIVE_SMOOTH: f64 = 0.0026;
+
 /// The zero-phase σ (frames) `kslab rig` uses for files by default: 1 frame, tuned on the
 /// benchmark (2 frames already flattens speech-rate jaw motion).
 pub const RECOMMENDED_ZERO_PHASE: f64 = 1.0;
@@ -228,14 +251,28 @@ impl RigOptions {
         }
     }
 
-    /// [`RigOptions::recommended`] for live use: causal, so no zero-phase smoothing, and
-    /// the live path's own magnitude prior ([`LIVE_PRIOR`]).
+    /// [`RigOptions::recommended`] for live use: causal, so no zero-phase smoothing, the
+    /// live path's own magnitude prior ([`LIVE_PRIOR`]) and the causal temporal prior
+    /// ([`LIVE_SMOOTH`] × IOD²).
     pub fn live() -> RigOptions {
         RigOptions {
             zero_phase: 0.0,
             causal: true,
             prior: LIVE_PRIOR,
+            smooth: LIVE_SMOOTH,
+            smooth_unit: SmoothUnit::Iod,
+            smooth_mode: keyshape_core::solve::temporal::SmoothMode::Causal,
             ..RigOptions::recommended()
+        }
+    }
+
+    /// The temporal prior's λ in squared track units, for a face whose inter-ocular
+    /// distance is `iod` (the magnitude prior's: the track's median, or a causal solve's
+    /// neutral frames').
+    pub fn lambda(&self, iod: f64) -> f64 {
+        match self.smooth_unit {
+            SmoothUnit::Pixels => self.smooth,
+            SmoothUnit::Iod => self.smooth * iod * iod,
         }
     }
 }
@@ -249,6 +286,7 @@ impl Default for RigOptions {
             min_determination: 0.02,
             max_steps: 50,
             smooth: 0.0,
+            smooth_unit: SmoothUnit::Pixels,
             smooth_mode: keyshape_core::solve::temporal::SmoothMode::Causal,
             landmark_weights: [1.0; LANDMARKS],
             prior: 0.0,

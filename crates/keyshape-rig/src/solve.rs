@@ -2,12 +2,13 @@
 //! check, the frame-by-frame pass, and the temporal priors after or inside it.
 
 use super::camera::{fit_camera, Camera};
+use super::checks::check_options;
 use super::depth::fit_from;
 use super::frame::{frame_depth, frame_points, FrameSolver};
 use super::identifiability::identifiability_weighted;
 use super::neutral::{best_explaining, evenly_spaced, person_rig, person_rig_with, views};
 use super::prior::{exclusive_pairs, magnitude_prior, prior_iod, tapering};
-use super::{correspondence, temporal, Identity, Neutral, Rig, RigOptions, RigSolve, LANDMARKS};
+use super::{temporal, Identity, Neutral, Rig, RigOptions, RigSolve};
 use keyshape_core::error::{Error, Result};
 use nalgebra::DMatrix;
 use std::ops::Range;
@@ -74,7 +75,7 @@ pub fn solve_rig_observed(
         "solving {} frames{}",
         track.ncols(),
         if opts.smooth > 0.0 {
-            format!(", temporal prior λ {}", opts.smooth)
+            format!(", temporal prior λ {:.3}", opts.lambda(iod))
         } else {
             String::new()
         }
@@ -287,114 +288,6 @@ fn least_active(c: &Range<usize>, first: &RigSolve) -> usize {
         .unwrap_or(c.start)
 }
 
-/// Checks `opts` against `rig`; returns the per-landmark weights of the fit.
-pub(super) fn check_options(rig: &Rig, opts: &RigOptions) -> Result<Vec<f64>> {
-    if !(opts.min_determination >= 0.0 && opts.min_determination < 1.0) {
-        return Err(Error::bad_setting(
-            "min_determination",
-            opts.min_determination,
-            format!(
-                "the minimum determination must be in [0, 1), not {}",
-                opts.min_determination
-            ),
-        ));
-    }
-    if !(opts.zero_phase.is_finite() && (0.0..=1000.0).contains(&opts.zero_phase)) {
-        return Err(Error::bad_setting(
-            "zero_phase",
-            opts.zero_phase,
-            format!(
-                "the zero-phase σ must be a number of frames in [0, 1000], not {}",
-                opts.zero_phase
-            ),
-        ));
-    }
-    keyshape_core::limits::RIG_SMOOTH.check("smooth", opts.smooth)?;
-    if !(opts.prior.is_finite() && opts.prior >= 0.0) {
-        return Err(Error::bad_setting(
-            "prior",
-            opts.prior,
-            format!(
-                "the magnitude prior must be a number ≥ 0, not {}",
-                opts.prior
-            ),
-        ));
-    }
-    if !(opts.smooth.is_finite() && opts.smooth >= 0.0) {
-        return Err(Error::bad_setting(
-            "smooth",
-            opts.smooth,
-            format!(
-                "the temporal prior λ must be a number ≥ 0, not {}",
-                opts.smooth
-            ),
-        ));
-    }
-    if let Some((i, w)) = opts
-        .landmark_weights
-        .iter()
-        .enumerate()
-        .find(|(_, w)| !(w.is_finite() && **w >= 0.0))
-    {
-        return Err(Error::bad_setting(
-            "landmark_weights",
-            w,
-            format!("landmark {i}'s weight must be a finite number ≥ 0, not {w}"),
-        ));
-    }
-    let lw = rig_landmark_weights(rig, opts)?;
-    if opts.prior > 0.0 && rig.eyes().is_none() {
-        let [a, b] = correspondence::eye_corners(rig.layout).unwrap_or([36, 45]);
-        return Err(Error::invalid(format!(
-            "the magnitude prior is scaled by the outer eye corners (track points {a} and {b}), which the rig's correspondence leaves out: name them, or set the prior to 0"
-        )));
-    }
-    let weighted = lw.iter().filter(|w| **w > 0.0).count();
-    if weighted < 4 {
-        return Err(Error::bad_setting("landmark_weights", weighted, format!(
-            "the landmark weights leave {weighted} landmarks with weight > 0; the head pose needs at least 4"
-        )));
-    }
-    check_causal(opts)?;
-    Ok(lw)
-}
-
-/// A causal solve's settings: nothing that reads frames still to come.
-fn check_causal(opts: &RigOptions) -> Result<()> {
-    if !opts.causal {
-        return Ok(());
-    }
-    if opts.zero_phase != 0.0 {
-        return Err(Error::bad_setting(
-            "zero_phase",
-            opts.zero_phase,
-            format!(
-                "a causal solve cannot smooth with frames still to come: zero-phase σ {} must be 0",
-                opts.zero_phase
-            ),
-        ));
-    }
-    if opts.smooth > 0.0 && opts.smooth_mode == keyshape_core::solve::temporal::SmoothMode::Offline
-    {
-        return Err(Error::invalid(
-            "a causal solve cannot use the offline temporal prior (it solves a clip at once)",
-        ));
-    }
-    if opts.robust {
-        return Err(Error::invalid(
-            "a causal solve cannot weigh landmarks robustly: that measures each landmark over the whole track",
-        ));
-    }
-    if opts.identity != Identity::None
-        && matches!(opts.neutral, Neutral::Auto | Neutral::LeastActive)
-    {
-        return Err(Error::invalid(
-            "a causal solve needs its neutral given (a frame, or a lead-in of frames): finding it searches the whole track",
-        ));
-    }
-    Ok(())
-}
-
 /// [`RigOptions::robust`]'s weights: per landmark, `lw` times the Huber weight
 /// `min(1, cσ / sᵢ)` of its RMS residual `sᵢ` over the frames of `out` (its mean residual
 /// taken out), σ the median landmark's.
@@ -448,25 +341,6 @@ fn neutral_frames(n: Neutral) -> Range<usize> {
         Neutral::Span(a, b) => a..b,
         Neutral::Auto | Neutral::LeastActive => 0..1,
     }
-}
-
-/// Per landmark, the weight of its squared error: `opts.landmark_weights` (iBUG numbering)
-/// read at the rig's points on a 68-point layout; on other layouts they must all be 1.
-pub(super) fn rig_landmark_weights(rig: &Rig, opts: &RigOptions) -> Result<Vec<f64>> {
-    if rig.layout == LANDMARKS {
-        return Ok(rig
-            .points
-            .iter()
-            .map(|&p| opts.landmark_weights.get(p).copied().unwrap_or(1.0))
-            .collect());
-    }
-    if opts.landmark_weights.iter().any(|&w| w != 1.0) {
-        return Err(Error::invalid(format!(
-            "landmark weights name the 68 iBUG landmarks; this rig reads a {}-point track",
-            rig.layout
-        )));
-    }
-    Ok(vec![1.0; rig.landmarks()])
 }
 
 /// Smooths the columns `clip` of `w` along time by a Gaussian of `sigma` frames (radius
@@ -531,7 +405,7 @@ pub(super) fn run(
     let (mut sweeps, mut sweeps_unconverged) = (0, 0);
     for (clip, person) in people {
         let mut fs = FrameSolver::new(person, free.clone(), opts.solver, opts.max_steps.max(1), lw);
-        fs.lambda = if offline { 0.0 } else { opts.smooth };
+        fs.lambda = if offline { 0.0 } else { opts.lambda(iod) };
         fs.ridge = magnitude_prior(iod, opts, rig, &fs.free);
         fs.pairs = exclusive_pairs(rig, &fs.free, &fs.ridge);
         fs.taper = tapering(rig, opts, &fs.free, &fs.ridge);
@@ -564,7 +438,7 @@ pub(super) fn run(
                 clip.clone(),
                 (&cameras, &tzs),
                 &mut weights,
-                opts.smooth,
+                opts.lambda(iod),
             );
             sweeps = sweeps.max(n_sweeps);
             sweeps_unconverged += usize::from(!ok);

@@ -9,7 +9,7 @@ use keyshape_core::ErrorKind;
 use keyshape_io::{read_sequence, shared_data, ReadOptions};
 use keyshape_rig::correspondence::read_rig;
 use keyshape_rig::live::LiveSolver;
-use keyshape_rig::{solve_rig, Neutral, Rig, RigOptions};
+use keyshape_rig::{solve_rig, Neutral, Rig, RigOptions, SmoothUnit, LIVE_SMOOTH};
 use nalgebra::DMatrix;
 
 /// A shipped MediaPipe track read through `layout` points (68: the iBUG subset; 468:
@@ -48,11 +48,14 @@ fn live_weights(solver: &mut LiveSolver, track: &DMatrix<f64>) -> DMatrix<f64> {
 
 #[test]
 fn the_live_solve_is_the_files_causal_solve_bit_for_bit() {
-    for (layout, calibrate, smooth) in [(68, 30, 0.0), (68, 7, 50.0), (468, 20, 0.0)] {
+    // The live default (λ relative to the face), a λ in pixels, and none.
+    for (layout, calibrate, smooth) in [(68, 30, None), (68, 7, Some(50.0)), (468, 20, Some(0.0))] {
         let (rig, t) = track(layout, 90);
+        let live = RigOptions::live();
         let opts = RigOptions {
-            smooth,
-            ..RigOptions::live()
+            smooth: smooth.unwrap_or(live.smooth),
+            smooth_unit: smooth.map_or(live.smooth_unit, |_| SmoothUnit::Pixels),
+            ..live
         };
         let file = solve_rig(
             &rig,
@@ -68,7 +71,7 @@ fn the_live_solve_is_the_files_causal_solve_bit_for_bit() {
         let w = live_weights(&mut live, &t);
         assert_eq!(
             w, file.weights,
-            "{layout} points, calibrate {calibrate}, λ {smooth}"
+            "{layout} points, calibrate {calibrate}, λ {smooth:?}"
         );
         assert!(w.iter().any(|&v| v > 0.05), "the take moves the face");
     }
@@ -77,14 +80,28 @@ fn the_live_solve_is_the_files_causal_solve_bit_for_bit() {
 #[test]
 fn a_saved_calibration_solves_as_the_one_it_was_saved_from() {
     let (rig, t) = track(68, 60);
-    let mut first = LiveSolver::new(rig.clone(), RigOptions::live(), 30).unwrap();
+    // Without the causal prior: a loaded calibration has no frame before its first (the
+    // first session's had the lead-in's last), which the prior would pull towards.
+    let opts = RigOptions {
+        smooth: 0.0,
+        ..RigOptions::live()
+    };
+    let mut first = LiveSolver::new(rig.clone(), opts, 30).unwrap();
     let w = live_weights(&mut first, &t);
     let saved = first.calibration().unwrap().clone();
+    // The default λ, relative to the face, is measured by the loaded calibration as by
+    // the one collected.
+    let mut default = LiveSolver::new(rig.clone(), RigOptions::live(), 30).unwrap();
+    default.set_calibration(saved.clone()).unwrap();
+    assert_eq!(
+        default.smooth(),
+        Some(keyshape_rig::LIVE_SMOOTH * saved.iod * saved.iod)
+    );
     assert_eq!(saved.frames, 30);
     let text = serde_json::to_string(&saved).unwrap();
     let back: keyshape_rig::live::Calibration = serde_json::from_str(&text).unwrap();
     assert_eq!(back, saved, "JSON keeps every bit");
-    let mut second = LiveSolver::new(rig.clone(), RigOptions::live(), 30).unwrap();
+    let mut second = LiveSolver::new(rig.clone(), opts, 30).unwrap();
     second.set_calibration(back).unwrap();
     // The frames after the lead-in: solved at once (no lead-in to collect), to the
     // solver's tolerance of the first session's (whose warm start came from the lead-in).
@@ -176,7 +193,42 @@ fn settings_a_live_solve_cannot_honour_are_refused() {
     assert!(live.set_smooth(f64::NAN).is_err());
     assert!(live.set_smooth(-1.0).is_err());
     live.set_smooth(20.0).unwrap();
-    assert_eq!(live.smooth(), 20.0);
+    assert_eq!(live.smooth(), Some(20.0));
+}
+
+/// The live path's default causal prior is relative to the face (λ = LIVE_SMOOTH × IOD²,
+/// the IOD the calibration measured), so a face drawn twice as large is solved to the
+/// same weights; a λ in pixels pulls a larger face less, and the weights change.
+#[test]
+fn the_default_causal_prior_does_not_depend_on_the_face_s_size() {
+    let (rig, t) = track(68, 90);
+    let mut live = LiveSolver::new(rig.clone(), RigOptions::live(), 30).unwrap();
+    assert_eq!(live.smooth(), None, "unknown until the face is measured");
+    let w = live_weights(&mut live, &t);
+    let iod = live.calibration().unwrap().iod;
+    assert!(iod > 10.0, "{iod}");
+    assert_eq!(live.smooth(), Some(LIVE_SMOOTH * iod * iod));
+    let large = &t * 2.0;
+    let mut twice = LiveSolver::new(rig.clone(), RigOptions::live(), 30).unwrap();
+    let w2 = live_weights(&mut twice, &large);
+    assert_eq!(twice.smooth(), Some(LIVE_SMOOTH * 4.0 * iod * iod));
+    let moved = (&w - &w2).amax();
+    assert!(moved < 1e-6, "the same weights at twice the size: {moved}");
+    // The same λ in pixels on both: the larger face is pulled a quarter as much.
+    let pixels = RigOptions {
+        smooth: LIVE_SMOOTH * iod * iod,
+        smooth_unit: SmoothUnit::Pixels,
+        ..RigOptions::live()
+    };
+    let mut small = LiveSolver::new(rig.clone(), pixels, 30).unwrap();
+    assert_eq!(
+        live_weights(&mut small, &t),
+        w,
+        "the same λ, given in pixels"
+    );
+    let mut large_px = LiveSolver::new(rig, pixels, 30).unwrap();
+    let moved = (&w - &live_weights(&mut large_px, &large)).amax();
+    assert!(moved > 1e-3, "a λ in pixels depends on the size: {moved}");
 }
 
 /// A library error's kind checked before its words are read: a test acts on the kind, as a

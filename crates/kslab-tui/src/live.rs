@@ -44,8 +44,9 @@ pub struct LiveState {
     pub collecting: Option<(usize, usize)>,
     /// Seconds since the last frame arrived.
     pub idle: f64,
-    /// Index into [`LAMBDAS`].
-    pub lambda: usize,
+    /// The causal prior's λ in effect (squared pixels); `None` while the default, relative
+    /// to the face, waits for the calibration to measure the face.
+    pub smooth: Option<f64>,
     /// The last message.
     pub status: String,
     /// Ask to quit.
@@ -99,14 +100,33 @@ pub fn update(s: &mut LiveState, a: LiveAction) -> Vec<LiveEffect> {
             vec![LiveEffect::Recalibrate]
         }
         LiveAction::Smooth(up) => {
-            s.lambda = if up {
-                (s.lambda + 1).min(LAMBDAS.len() - 1)
+            // The next step of LAMBDAS above or below the λ in effect (which the default,
+            // relative to the face, puts between the steps).
+            let now = s.smooth.unwrap_or(0.0);
+            let next = if up {
+                LAMBDAS.iter().copied().find(|&l| l > now * (1.0 + 1e-9))
             } else {
-                s.lambda.saturating_sub(1)
-            };
-            s.status = format!("causal prior λ {}", LAMBDAS[s.lambda]);
-            vec![LiveEffect::SetSmooth(LAMBDAS[s.lambda])]
+                LAMBDAS
+                    .iter()
+                    .rev()
+                    .copied()
+                    .find(|&l| l < now * (1.0 - 1e-9))
+            }
+            .unwrap_or(if up { LAMBDAS[LAMBDAS.len() - 1] } else { 0.0 });
+            s.smooth = Some(next);
+            s.status = format!("causal prior λ {next}");
+            vec![LiveEffect::SetSmooth(next)]
         }
+    }
+}
+
+/// The header's λ: squared pixels to one decimal where it is not whole (the default,
+/// 0.0026 × IOD², is not), `auto` before the calibration has measured the face.
+fn lambda_label(l: Option<f64>) -> String {
+    match l {
+        None => "auto".into(),
+        Some(l) if l.fract() == 0.0 => format!("{l}"),
+        Some(l) => format!("{l:.1}"),
     }
 }
 
@@ -132,7 +152,7 @@ pub fn draw(f: &mut Frame, s: &LiveState) {
         ms(s.latency.1),
         s.counts.2,
         s.counts.1,
-        LAMBDAS[s.lambda]
+        lambda_label(s.smooth)
     );
     // At 80 columns the short form, which keeps every figure.
     let text = if long.chars().count() <= usize::from(head.width) {
@@ -145,7 +165,7 @@ pub fn draw(f: &mut Frame, s: &LiveState) {
             ms(s.latency.1),
             s.counts.2,
             s.counts.1,
-            LAMBDAS[s.lambda]
+            lambda_label(s.smooth)
         )
     };
     f.render_widget(Paragraph::new(text), head);
@@ -356,6 +376,7 @@ where
         let n = session.latencies.len();
         let recent = &session.latencies[n.saturating_sub(300)..];
         s.latency = (quantile(recent, 0.5), quantile(recent, 0.99));
+        s.smooth = session.solver.smooth();
         show_last(session, &mut s);
         if last_draw.is_none_or(|t| t.elapsed() >= Duration::from_millis(33)) {
             terminal.draw(|f| draw(f, &s))?;
@@ -405,6 +426,27 @@ mod tests {
             [LiveEffect::SetSmooth(0.0)],
             "λ stops at 0"
         );
+        // The default λ, relative to the face, falls between the steps: l and L go to the
+        // steps on either side of it.
+        s.smooth = Some(29.8);
+        assert_eq!(
+            update(&mut s, LiveAction::Smooth(true)),
+            [LiveEffect::SetSmooth(30.0)]
+        );
+        s.smooth = Some(29.8);
+        assert_eq!(
+            update(&mut s, LiveAction::Smooth(false)),
+            [LiveEffect::SetSmooth(10.0)]
+        );
+        s.smooth = Some(3000.0);
+        assert_eq!(
+            update(&mut s, LiveAction::Smooth(true)),
+            [LiveEffect::SetSmooth(3000.0)],
+            "λ stops at the last step"
+        );
+        assert_eq!(lambda_label(None), "auto");
+        assert_eq!(lambda_label(Some(29.766)), "29.8");
+        assert_eq!(lambda_label(Some(30.0)), "30");
         assert!(update(&mut s, key(k('q')).unwrap()).is_empty());
         assert!(s.quit);
     }

@@ -13,7 +13,7 @@ use keyshape_core::sequence::Sequence;
 use keyshape_core::solve::temporal::SmoothMode;
 use keyshape_core::solve::Solver;
 use keyshape_io::{read_sequence, shared_data, ReadOptions};
-use keyshape_rig::{solve_rig, Identity, Neutral, RigOptions};
+use keyshape_rig::{solve_rig, Identity, Neutral, RigOptions, SmoothUnit};
 use std::path::PathBuf;
 
 /// Arguments of `kslab rig`.
@@ -143,8 +143,8 @@ pub struct RigArgs {
     /// before it and the neutral lead-in only — no --zero-phase, the prior scaled on the
     /// lead-in, which must be given (--neutral FIRST-LAST or FRAME; default 0-29, the first
     /// 30 frames, as `kslab live --calibrate 30` calibrates). A take `kslab live --record`
-    /// recorded gives the same weights here as it gave live. Combine with --smooth λ for the
-    /// causal temporal prior, each frame pulled towards the last.
+    /// recorded gives the same weights here as it gave live. The causal temporal prior, each
+    /// frame pulled towards the last, is on as in `kslab live` (--smooth sets its λ).
     #[arg(long)]
     live: bool,
     /// Temporal prior λ (≥ 0, squared image units per unit weight²; not across clips), in
@@ -152,7 +152,8 @@ pub struct RigArgs {
     /// errors plus λ Σ_t ‖w_t − w_{t−1}‖² (the whole clip at once, zero phase, with each
     /// frame's head pose from the per-frame solve); causal, each frame's weights are pulled
     /// towards the previous frame's by λ‖w − w_prev‖²
-    /// [default: off, the same as 0].
+    /// [default: off, the same as 0; with --live the live path's causal prior, 0.0026 × the
+    /// lead-in's squared inter-ocular distance (30 px² at 107 px), as `kslab live`].
     #[arg(long, value_name = "LAMBDA", allow_negative_numbers = true)]
     smooth: Option<f64>,
     /// offline (the whole clip; for files) or causal (the past only; for live use)
@@ -399,7 +400,14 @@ fn options_of(a: &RigArgs, seq: &Sequence) -> Result<RigOptions> {
         (true, _) | (false, Some("causal")) => SmoothMode::Causal,
         (false, _) => SmoothMode::Offline,
     };
-    if a.smooth_mode.is_some() && a.smooth.unwrap_or(0.0) == 0.0 {
+    // The live path's default λ is relative to the face (as `kslab live`'s); a given one
+    // is in pixels.
+    let (smooth, smooth_unit) = match (a.live, a.smooth) {
+        (_, Some(l)) => (l, SmoothUnit::Pixels),
+        (true, None) => (keyshape_rig::LIVE_SMOOTH, SmoothUnit::Iod),
+        (false, None) => (0.0, SmoothUnit::Pixels),
+    };
+    if a.smooth_mode.is_some() && smooth == 0.0 {
         anyhow::bail!("--smooth-mode applies to the temporal prior: give --smooth λ > 0");
     }
     let prior = a.prior.unwrap_or(if a.live {
@@ -415,7 +423,8 @@ fn options_of(a: &RigArgs, seq: &Sequence) -> Result<RigOptions> {
         identity: a.identity,
         neutral,
         min_determination: a.min_determination,
-        smooth: a.smooth.unwrap_or(0.0),
+        smooth,
+        smooth_unit,
         smooth_mode,
         landmark_weights: keyshape_rig::landmark_weights(&a.landmark_weight)?,
         prior,

@@ -99,7 +99,7 @@ pub struct RigAccuracyArgs {
     neutral: Option<String>,
     /// The live solve, as `kslab live` computes it frame by frame (and `kslab rig --live`
     /// for a file): causal, calibrated on the lead-in (the neutral and the prior's scale),
-    /// no zero-phase smoothing; with --smooth, the causal temporal prior. Needs a lead-in.
+    /// no zero-phase smoothing, the live path's causal temporal prior. Needs a lead-in.
     #[arg(long)]
     live: bool,
     /// As `kslab rig --min-determination`.
@@ -141,9 +141,11 @@ pub struct RigAccuracyArgs {
     /// [default: 1; with --live, 0].
     #[arg(long, allow_negative_numbers = true)]
     zero_phase: Option<f64>,
-    /// As `kslab rig --smooth` (the temporal prior λ).
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
-    smooth: f64,
+    /// As `kslab rig --smooth` (the temporal prior λ, px²) [default: 0; with --live, the
+    /// live path's causal prior, 0.0026 × the lead-in's squared inter-ocular distance, as
+    /// `kslab live`].
+    #[arg(long, allow_negative_numbers = true)]
+    smooth: Option<f64>,
     /// As `kslab rig --smooth-mode` [default: offline; with --live, causal].
     #[arg(long, value_parser = ["offline", "causal"])]
     smooth_mode: Option<String>,
@@ -288,12 +290,18 @@ fn plan_of(a: &RigAccuracyArgs) -> Result<Plan> {
     if a.no_prior_taper && prior == 0.0 {
         anyhow::bail!("--no-prior-taper: there is no prior to taper (--prior 0)");
     }
+    let (smooth, smooth_unit) = match (a.live, a.smooth) {
+        (_, Some(l)) => (l, keyshape_rig::SmoothUnit::Pixels),
+        (true, None) => (keyshape_rig::LIVE_SMOOTH, keyshape_rig::SmoothUnit::Iod),
+        (false, None) => (0.0, keyshape_rig::SmoothUnit::Pixels),
+    };
     let opts = RigOptions {
         neutral,
         solver: a.solver,
         identity: a.identity,
         min_determination: a.min_determination,
-        smooth: a.smooth,
+        smooth,
+        smooth_unit,
         smooth_mode: if causal {
             keyshape_core::solve::temporal::SmoothMode::Causal
         } else {
