@@ -196,3 +196,55 @@ fn held_expressions_and_deeper_faces_take_effect() {
         );
     }
 }
+
+/// `kslab rig` says which rule chose the neutral: on a render of the rig's own face holding
+/// an expression throughout (`rig-accuracy --person same --hold 1.2 --tracks`), the least
+/// active frame, "the rig reads as the performer's own face", in the summary and as
+/// `"rule": "own-face"` in the JSON; on another person's face the error score's
+/// `"best-explaining"`; a named frame is `"given"`.
+#[test]
+fn the_summary_names_the_rule_that_chose_the_neutral() {
+    let d = tempfile::tempdir().unwrap();
+    let rule = |person: &str, extra: &[&str]| {
+        let t = d.path().join(person);
+        let r = kslab(&[
+            "rig-accuracy",
+            "--kind",
+            "speech",
+            "--frames",
+            "60",
+            "--person",
+            person,
+            "--hold",
+            "1.2",
+            "--tracks",
+            t.to_str().unwrap(),
+        ]);
+        assert_eq!(r.code, 0, "{}", r.stderr);
+        let track = t.join("speech_track.csv");
+        let out = d.path().join(format!("{person}_w.csv"));
+        let mut args = vec![
+            "rig",
+            track.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        let text = kslab(&args);
+        assert_eq!(text.code, 0, "{}", text.stderr);
+        args.push("--json");
+        let json = kslab(&args);
+        let v: serde_json::Value = serde_json::from_str(&json.stdout).unwrap();
+        (v["neutral_views"][0]["rule"].clone(), text.stdout)
+    };
+    let (own, text) = rule("same", &[]);
+    assert_eq!(own, "own-face");
+    assert!(
+        text.contains("the least active frame: the rig reads as the performer's own face"),
+        "{text}"
+    );
+    let (other, text) = rule("other", &[]);
+    assert_eq!(other, "best-explaining");
+    assert!(!text.contains("own face"), "{text}");
+    assert_eq!(rule("same", &["--neutral", "5"]).0, "given");
+}

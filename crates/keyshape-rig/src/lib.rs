@@ -39,8 +39,8 @@ use frame::{frame_depth, frame_points, FrameSolver};
 pub use identifiability::{identifiability, identifiability_weighted};
 pub use model::{Rig, LANDMARKS};
 pub use neutral::{
-    NeutralView, NEUTRAL_CANDIDATES, NEUTRAL_LIPS_WARN, NEUTRAL_SCORED_FRAMES,
-    NEUTRAL_TURN_WARN_DEG,
+    NeutralRule, NeutralView, NEUTRAL_CANDIDATES, NEUTRAL_LIPS_WARN, NEUTRAL_SCORED_FRAMES,
+    NEUTRAL_TURN_WARN_DEG, OWN_FACE_ACTIVITY,
 };
 pub use options::{
     landmark_weights, Identity, Neutral, RigOptions, SmoothUnit, LANDMARK_GROUPS, LIVE_PRIOR,

@@ -6,7 +6,10 @@ use super::checks::check_options;
 use super::depth::fit_from;
 use super::frame::{frame_depth, frame_points, FrameSolver};
 use super::identifiability::identifiability_weighted;
-use super::neutral::{best_explaining, evenly_spaced, person_rig, person_rig_with, views};
+use super::neutral::{
+    best_explaining, evenly_spaced, least_candidate_activity, person_rig, person_rig_with, views,
+    NeutralRule,
+};
 use super::prior::{exclusive_pairs, magnitude_prior, prior_iod, tapering};
 use super::{temporal, Identity, Neutral, Rig, RigOptions, RigSolve};
 use keyshape_core::error::{Error, Result};
@@ -60,7 +63,7 @@ pub fn solve_rig_observed(
         }
         _ => None,
     };
-    let (people, neutrals) =
+    let (people, neutrals, rules) =
         identities(rig, (track, depth), &clips, opts, &lw, first.as_ref(), step)?;
     // Identifiability at the first clip's neutral view (the rig and the view decide it,
     // not the person); the frozen shapes are the same in every clip.
@@ -99,6 +102,9 @@ pub fn solve_rig_observed(
         }
     }
     out.neutral_views = views(rig, (track, depth), &neutrals, opts, &lw, iod)?;
+    for (v, rule) in out.neutral_views.iter_mut().zip(rules) {
+        v.rule = rule;
+    }
     out.shapes = shapes;
     out.neutrals = neutrals;
     out.people = people;
@@ -184,8 +190,8 @@ fn check_neutral(neutral: Neutral, frames: usize) -> Result<()> {
 type People = Vec<(Range<usize>, Rig)>;
 
 /// Who is in each clip: per clip (or for the whole track) the rig with the person's
-/// identity applied, and the neutral frame it came from. `first` is the pass without an
-/// identity, which the least-active rule reads.
+/// identity applied, the neutral frame it came from and the rule that chose it. `first` is
+/// the pass without an identity, which the least-active rule reads.
 fn identities(
     rig: &Rig,
     (track, depth): (&DMatrix<f64>, Option<&DMatrix<f64>>),
@@ -194,35 +200,66 @@ fn identities(
     lw: &[f64],
     first: Option<&RigSolve>,
     step: &mut dyn FnMut(String),
-) -> Result<(People, Vec<usize>)> {
+) -> Result<(People, Vec<usize>, Vec<NeutralRule>)> {
     let whole = 0..track.ncols();
     Ok(match (opts.identity, opts.neutral) {
-        (Identity::None, _) => (vec![(whole, rig.clone())], Vec::new()),
+        (Identity::None, _) => (vec![(whole, rig.clone())], Vec::new(), Vec::new()),
         (_, Neutral::Column(n)) => {
             let person = lifted(rig, (track, depth), n..n + 1, n, whole.clone(), opts, lw)?;
-            (vec![(whole, person)], vec![n])
+            (vec![(whole, person)], vec![n], vec![NeutralRule::Given])
         }
         (_, Neutral::Span(a, b)) => {
             let mid = (a + b) / 2;
             let person = lifted(rig, (track, depth), a..b, mid, whole.clone(), opts, lw)?;
-            (vec![(whole, person)], vec![mid])
+            (vec![(whole, person)], vec![mid], vec![NeutralRule::Given])
         }
         (id, auto) => {
-            let mut people = Vec::new();
-            let mut neutrals = Vec::new();
+            let iod = prior_iod(rig, track, opts, neutral_frames(opts.neutral));
+            let (mut people, mut neutrals, mut rules) = (Vec::new(), Vec::new(), Vec::new());
             for c in clips {
-                if auto == Neutral::Auto {
-                    step(format!(
-                        "choosing the neutral: {} candidate frames, each scored on {}",
-                        c.len().min(super::NEUTRAL_CANDIDATES),
-                        c.len().min(super::NEUTRAL_SCORED_FRAMES)
-                    ));
-                }
-                let (n, person) = match first {
+                let rule = match (auto, first) {
+                    (Neutral::LeastActive, _) => NeutralRule::LeastActive,
+                    _ => {
+                        step(format!(
+                            "choosing the neutral: {} candidate frames, each scored on {}",
+                            c.len().min(super::NEUTRAL_CANDIDATES),
+                            c.len().min(super::NEUTRAL_SCORED_FRAMES)
+                        ));
+                        let least = least_candidate_activity(
+                            rig,
+                            (track, depth),
+                            c.clone(),
+                            opts,
+                            lw,
+                            iod,
+                        )?;
+                        if least < super::OWN_FACE_ACTIVITY {
+                            step(format!(
+                                "the rig reads as the performer's own face (its least active candidate sums to {least:.2}): the least active frame, from a first pass over {} frames",
+                                c.len()
+                            ));
+                            NeutralRule::OwnFace
+                        } else {
+                            NeutralRule::BestExplaining
+                        }
+                    }
+                };
+                let (n, person) = match (rule, first) {
                     // The earlier rule, kept as it was (no fitted depth): its figures are
                     // tools/rig_vs_pyfeat.py's, which the experiment's test reproduces.
-                    Some(first) if auto == Neutral::LeastActive => {
+                    (NeutralRule::LeastActive, Some(first)) => {
                         let n = least_active(c, first);
+                        (n, person_rig(rig, track, depth, n..n + 1, id)?)
+                    }
+                    // The same rule on the clip's own first pass, and no fitted depth: the
+                    // rig is the performer's face, its depth theirs (fitted, the depth
+                    // took some of a held expression: smooth 0.897 → 0.881 with
+                    // `rig-accuracy --person same --hold 1.2`).
+                    (NeutralRule::OwnFace | NeutralRule::LeastActive, _) => {
+                        let all: Vec<usize> = (0..rig.k()).collect();
+                        let own = [(c.clone(), rig.clone())];
+                        let first = run(rig, (track, depth), &own, all, opts, lw, iod)?;
+                        let n = least_active(c, &first);
                         (n, person_rig(rig, track, depth, n..n + 1, id)?)
                     }
                     _ => {
@@ -238,8 +275,9 @@ fn identities(
                 };
                 people.push((c.clone(), person));
                 neutrals.push(n);
+                rules.push(rule);
             }
-            (people, neutrals)
+            (people, neutrals, rules)
         }
     })
 }

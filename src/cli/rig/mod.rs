@@ -71,7 +71,9 @@ pub struct RigArgs {
     solver: Solver,
     /// The person's neutral face: `auto` (of up to 48 evenly spaced candidate frames, the
     /// one whose identity best explains the performance: the lowest landmark error of a
-    /// solve of up to 64 evenly spaced frames from it), `least-active` (the frame whose
+    /// solve of up to 64 evenly spaced frames from it; on a rig of the performer's own
+    /// face, whose neutral the first pass finds nearly expressionless, the least active
+    /// frame), `least-active` (the frame whose
     /// weights sum lowest in a first pass with the rig as it is), a frame number of the
     /// file, or a recorded neutral lead-in FIRST-LAST (frame numbers, inclusive: each
     /// frame's difference from the rig's neutral averaged, so no one frame's landmark noise

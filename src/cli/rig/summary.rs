@@ -57,12 +57,19 @@ pub(super) fn summary_json(
             "turn": v.turn,
             "lip_gap": (!v.lip_gap.is_nan()).then_some(v.lip_gap),
             "looks_neutral": v.looks_neutral,
+            "activity": v.activity,
+            "rule": v.rule,
         })).collect::<Vec<_>>(),
         "layout": rig.layout,
         "landmarks": rig.landmarks(),
         "irises": rig.sees_pupils(),
         "landmark_weights": opts.landmark_weights.to_vec(),
         "smooth": opts.smooth,
+        // The live path's default λ is a share of the squared inter-ocular distance.
+        "smooth_unit": match opts.smooth_unit {
+            keyshape_rig::SmoothUnit::Pixels => "px²",
+            keyshape_rig::SmoothUnit::Iod => "iod²",
+        },
         "smooth_mode": opts.smooth_mode.name(),
         "sweeps": r.sweeps,
         "sweeps_unconverged": r.sweeps_unconverged,
@@ -111,8 +118,18 @@ pub(super) fn print_summary(a: &RigArgs, d: &Done, taken: bool) -> Result<()> {
         match (neutral_frames.len(), r.neutral_views.first()) {
             (0, _) => String::new(),
             (1, Some(v)) => format!(
-                " from frame {} (yaw {:.0}°, pitch {:.0}°)",
-                neutral_frames[0], v.yaw_pitch_roll[0], v.yaw_pitch_roll[1]
+                " from frame {} (yaw {:.0}°, pitch {:.0}°{})",
+                neutral_frames[0],
+                v.yaw_pitch_roll[0],
+                v.yaw_pitch_roll[1],
+                if v.rule == keyshape_rig::NeutralRule::OwnFace {
+                    format!(
+                        "; the least active frame: the rig reads as the performer's own face, its first pass summing to {:.2}",
+                        v.activity
+                    )
+                } else {
+                    String::new()
+                }
             ),
             (1, None) => format!(" from frame {}", neutral_frames[0]),
             (n, _) => format!(" per clip ({n} neutral frames)"),

@@ -435,10 +435,15 @@ fn print_summaries(a: &RigAccuracyArgs, all: &[Run]) -> Result<()> {
             if let Some(n) = &s.neutral {
                 let [y, p, _] = n.view.yaw_pitch_roll;
                 outln!(
-                    "        neutral frame {} (yaw {y:.0}°, pitch {p:.0}°; first-pass expression {:.2}{}): truly holds {:.2} of expression at a head turn of {:.1}°",
+                    "        neutral frame {} (yaw {y:.0}°, pitch {p:.0}°; first-pass expression {:.2}{}{}): truly holds {:.2} of expression at a head turn of {:.1}°",
                     n.frame,
                     n.view.activity,
                     if n.view.looks_neutral { "" } else { ", does not look neutral" },
+                    if n.view.rule == keyshape_rig::NeutralRule::OwnFace {
+                        "; the rig's own face: the least active frame"
+                    } else {
+                        ""
+                    },
                     n.true_expression,
                     n.true_turn,
                 );
