@@ -190,15 +190,12 @@ fn setup(a: &LiveArgs) -> Result<Setup> {
 /// The solve, the calibration (loaded from --neutral-file when it exists), the sinks and
 /// the recording; whether the calibration was loaded.
 fn start_session(a: &LiveArgs, s: &Setup) -> Result<(Session, bool)> {
-    let live = RigOptions::live();
+    let (smooth, smooth_unit) = super::rig::smooth_of(true, a.smooth);
     let opts = RigOptions {
-        smooth: a.smooth.unwrap_or(live.smooth),
-        smooth_unit: match a.smooth {
-            Some(_) => keyshape_rig::SmoothUnit::Pixels,
-            None => live.smooth_unit,
-        },
+        smooth,
+        smooth_unit,
         prior: a.prior,
-        ..live
+        ..RigOptions::live()
     };
     let mut solver = LiveSolver::new(s.rig.clone(), opts, a.calibrate as usize)?;
     let loaded = match &a.neutral_file {

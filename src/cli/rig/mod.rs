@@ -381,6 +381,17 @@ fn read_rig(a: &RigArgs, seq: Sequence, name: &str) -> Result<RigRead> {
     Ok((dir, mesh, morph, rig, seq))
 }
 
+/// The temporal prior's λ and its unit from `--smooth` (`kslab rig`, `rig-accuracy`,
+/// `live`): a λ given is in pixels; the live path's default is relative to the face
+/// ([`keyshape_rig::LIVE_SMOOTH`] × IOD²), an offline solve's is none.
+pub(crate) fn smooth_of(live: bool, given: Option<f64>) -> (f64, SmoothUnit) {
+    match (live, given) {
+        (_, Some(l)) => (l, SmoothUnit::Pixels),
+        (true, None) => (keyshape_rig::LIVE_SMOOTH, SmoothUnit::Iod),
+        (false, None) => (0.0, SmoothUnit::Pixels),
+    }
+}
+
 /// Step 5: the solve's options from the flags (the neutral, the causal path's refusals,
 /// the priors).
 fn options_of(a: &RigArgs, seq: &Sequence) -> Result<RigOptions> {
@@ -402,13 +413,7 @@ fn options_of(a: &RigArgs, seq: &Sequence) -> Result<RigOptions> {
         (true, _) | (false, Some("causal")) => SmoothMode::Causal,
         (false, _) => SmoothMode::Offline,
     };
-    // The live path's default λ is relative to the face (as `kslab live`'s); a given one
-    // is in pixels.
-    let (smooth, smooth_unit) = match (a.live, a.smooth) {
-        (_, Some(l)) => (l, SmoothUnit::Pixels),
-        (true, None) => (keyshape_rig::LIVE_SMOOTH, SmoothUnit::Iod),
-        (false, None) => (0.0, SmoothUnit::Pixels),
-    };
+    let (smooth, smooth_unit) = smooth_of(a.live, a.smooth);
     if a.smooth_mode.is_some() && smooth == 0.0 {
         anyhow::bail!("--smooth-mode applies to the temporal prior: give --smooth λ > 0");
     }

@@ -290,11 +290,7 @@ fn plan_of(a: &RigAccuracyArgs) -> Result<Plan> {
     if a.no_prior_taper && prior == 0.0 {
         anyhow::bail!("--no-prior-taper: there is no prior to taper (--prior 0)");
     }
-    let (smooth, smooth_unit) = match (a.live, a.smooth) {
-        (_, Some(l)) => (l, keyshape_rig::SmoothUnit::Pixels),
-        (true, None) => (keyshape_rig::LIVE_SMOOTH, keyshape_rig::SmoothUnit::Iod),
-        (false, None) => (0.0, keyshape_rig::SmoothUnit::Pixels),
-    };
+    let (smooth, smooth_unit) = super::rig::smooth_of(a.live, a.smooth);
     let opts = RigOptions {
         neutral,
         solver: a.solver,
