@@ -3,6 +3,8 @@
 
 mod output;
 mod summary;
+mod temporal;
+pub(crate) use temporal::{smooth_of, Temporal};
 
 use summary::{print_summary, summary_json, warn_unneutral, Done, Refined};
 
@@ -10,10 +12,9 @@ use super::check_outputs;
 use anyhow::{Context, Result};
 use clap::Args;
 use keyshape_core::sequence::Sequence;
-use keyshape_core::solve::temporal::SmoothMode;
 use keyshape_core::solve::Solver;
 use keyshape_io::{read_sequence, shared_data, ReadOptions};
-use keyshape_rig::{solve_rig, Identity, Neutral, RigOptions, SmoothUnit};
+use keyshape_rig::{solve_rig, Identity, Neutral, RigOptions};
 use std::path::PathBuf;
 
 /// Arguments of `kslab rig`.
@@ -381,17 +382,6 @@ fn read_rig(a: &RigArgs, seq: Sequence, name: &str) -> Result<RigRead> {
     Ok((dir, mesh, morph, rig, seq))
 }
 
-/// The temporal prior's λ and its unit from `--smooth` (`kslab rig`, `rig-accuracy`,
-/// `live`): a λ given is in pixels; the live path's default is relative to the face
-/// ([`keyshape_rig::LIVE_SMOOTH`] × IOD²), an offline solve's is none.
-pub(crate) fn smooth_of(live: bool, given: Option<f64>) -> (f64, SmoothUnit) {
-    match (live, given) {
-        (_, Some(l)) => (l, SmoothUnit::Pixels),
-        (true, None) => (keyshape_rig::LIVE_SMOOTH, SmoothUnit::Iod),
-        (false, None) => (0.0, SmoothUnit::Pixels),
-    }
-}
-
 /// Step 5: the solve's options from the flags (the neutral, the causal path's refusals,
 /// the priors).
 fn options_of(a: &RigArgs, seq: &Sequence) -> Result<RigOptions> {
@@ -399,43 +389,23 @@ fn options_of(a: &RigArgs, seq: &Sequence) -> Result<RigOptions> {
     if a.live && a.identity_per.as_deref() == Some("clip") {
         anyhow::bail!("--live takes one neutral lead-in for the track: --identity-per clip searches each clip for its own");
     }
-    let zero_phase = match (a.live, a.zero_phase) {
-        (true, Some(z)) if z != 0.0 => anyhow::bail!(
-            "--live is causal: --zero-phase {z} smooths with frames still to come; drop one of them"
-        ),
-        (true, _) => 0.0,
-        (false, z) => z.unwrap_or(keyshape_rig::RECOMMENDED_ZERO_PHASE),
-    };
-    let smooth_mode = match (a.live, a.smooth_mode.as_deref()) {
-        (true, Some("offline")) => anyhow::bail!(
-            "--live is causal: --smooth-mode offline solves each clip with frames still to come; drop one of them"
-        ),
-        (true, _) | (false, Some("causal")) => SmoothMode::Causal,
-        (false, _) => SmoothMode::Offline,
-    };
-    let (smooth, smooth_unit) = smooth_of(a.live, a.smooth);
-    if a.smooth_mode.is_some() && smooth == 0.0 {
-        anyhow::bail!("--smooth-mode applies to the temporal prior: give --smooth λ > 0");
-    }
-    let prior = a.prior.unwrap_or(if a.live {
-        keyshape_rig::LIVE_PRIOR
-    } else {
-        keyshape_rig::RECOMMENDED_PRIOR
-    });
-    if a.no_prior_taper && prior == 0.0 {
-        anyhow::bail!("--no-prior-taper: there is no prior to taper (--prior 0)");
-    }
+    let t = Temporal::of(
+        a.live,
+        (a.zero_phase, a.smooth, a.smooth_mode.as_deref()),
+        a.prior,
+        a.no_prior_taper,
+    )?;
     Ok(RigOptions {
         solver: a.solver,
         identity: a.identity,
         neutral,
         min_determination: a.min_determination,
-        smooth,
-        smooth_unit,
-        smooth_mode,
+        smooth: t.smooth,
+        smooth_unit: t.smooth_unit,
+        smooth_mode: t.smooth_mode,
         landmark_weights: keyshape_rig::landmark_weights(&a.landmark_weight)?,
-        prior,
-        zero_phase,
+        prior: t.prior,
+        zero_phase: t.zero_phase,
         taper: !a.no_prior_taper,
         causal: a.live,
         robust: a.robust_landmarks,

@@ -263,48 +263,27 @@ fn plan_of(a: &RigAccuracyArgs) -> Result<Plan> {
     if neutral_name == "lead-in" && a.lead_in == 0 {
         anyhow::bail!("--neutral lead-in (and --live) needs a lead-in (--lead-in is 0)");
     }
-    let zero_phase = match (a.live, a.zero_phase) {
-        (true, Some(z)) if z != 0.0 => {
-            anyhow::bail!("--live is causal: --zero-phase {z} smooths with frames still to come")
-        }
-        (true, _) => 0.0,
-        (false, z) => z.unwrap_or(keyshape_rig::RECOMMENDED_ZERO_PHASE),
-    };
-    let causal = match (a.live, a.smooth_mode.as_deref()) {
-        (true, Some("offline")) => {
-            anyhow::bail!("--live is causal: --smooth-mode offline solves the clip at once")
-        }
-        (true, _) | (false, Some("causal")) => true,
-        (false, _) => false,
-    };
     let neutral = match neutral_name {
         "least-active" => Neutral::LeastActive,
         "lead-in" => Neutral::Span(0, a.lead_in),
         _ => Neutral::Auto,
     };
-    let prior = a.prior.unwrap_or(if a.live {
-        keyshape_rig::LIVE_PRIOR
-    } else {
-        keyshape_rig::RECOMMENDED_PRIOR
-    });
-    if a.no_prior_taper && prior == 0.0 {
-        anyhow::bail!("--no-prior-taper: there is no prior to taper (--prior 0)");
-    }
-    let (smooth, smooth_unit) = super::rig::smooth_of(a.live, a.smooth);
+    let t = super::rig::Temporal::of(
+        a.live,
+        (a.zero_phase, a.smooth, a.smooth_mode.as_deref()),
+        a.prior,
+        a.no_prior_taper,
+    )?;
     let opts = RigOptions {
         neutral,
         solver: a.solver,
         identity: a.identity,
         min_determination: a.min_determination,
-        smooth,
-        smooth_unit,
-        smooth_mode: if causal {
-            keyshape_core::solve::temporal::SmoothMode::Causal
-        } else {
-            keyshape_core::solve::temporal::SmoothMode::Offline
-        },
-        prior,
-        zero_phase,
+        smooth: t.smooth,
+        smooth_unit: t.smooth_unit,
+        smooth_mode: t.smooth_mode,
+        prior: t.prior,
+        zero_phase: t.zero_phase,
         taper: !a.no_prior_taper,
         causal: a.live,
         robust: a.robust_landmarks,
