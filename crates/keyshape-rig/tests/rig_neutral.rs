@@ -121,3 +121,36 @@ fn on_the_rig_s_own_face_auto_takes_the_least_expressive_frame() {
         "{n:?}"
     );
 }
+
+/// The own-face check reads bounded weights whatever the solve's solver: least-squares
+/// weights are signed and cancel in a sum, so another person's face read as the rig's own
+/// (`kslab bench rig`'s `ls` row found it). And `least-active`, asked for, is that rule
+/// whoever the face is.
+#[test]
+fn the_rule_is_the_one_asked_for_and_the_own_face_check_is_not_fooled_by_signed_weights() {
+    let rig = ict();
+    let st = Settings {
+        kind: Kind::Speech,
+        seed: 3,
+        ..Settings::default()
+    };
+    let ls = RigOptions {
+        solver: keyshape_core::solve::Solver::Ls,
+        ..RigOptions::recommended()
+    };
+    let (_, _, _, s) = accuracy::run(&rig, &st, &ls).unwrap();
+    let n = s.neutral.unwrap();
+    assert_eq!(n.view.rule, NeutralRule::BestExplaining, "{n:?}");
+    let la = RigOptions {
+        neutral: keyshape_rig::Neutral::LeastActive,
+        ..RigOptions::recommended()
+    };
+    for other_person in [true, false] {
+        let st = Settings {
+            other_person,
+            ..st.clone()
+        };
+        let (_, _, _, s) = accuracy::run(&rig, &st, &la).unwrap();
+        assert_eq!(s.neutral.unwrap().view.rule, NeutralRule::LeastActive);
+    }
+}
