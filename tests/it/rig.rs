@@ -900,15 +900,27 @@ fn the_live_path_smooths_by_default_relative_to_the_face() {
         (
             v["smooth"].as_f64().unwrap(),
             v["smooth_unit"].as_str().unwrap().to_string(),
+            v["lambda_px2"].as_f64().unwrap(),
         )
     };
-    assert_eq!(smooth(&[]), (0.0, "px²".into()));
-    assert_eq!(
-        smooth(&["--live"]),
-        (keyshape_rig::LIVE_SMOOTH, "iod²".into())
+    assert_eq!(smooth(&[]), (0.0, "px²".into(), 0.0));
+    // The λ in effect: LIVE_SMOOTH × the lead-in's squared eye-corner distance (the
+    // built-in track's face is about 144 px between the outer eye corners).
+    let (l, unit, px) = smooth(&["--live"]);
+    assert_eq!((l, unit.as_str()), (keyshape_rig::LIVE_SMOOTH, "iod²"));
+    let iod = (px / keyshape_rig::LIVE_SMOOTH).sqrt();
+    assert!(
+        (100.0..200.0).contains(&iod),
+        "{px} px² is an IOD of {iod} px"
     );
-    assert_eq!(smooth(&["--live", "--smooth", "30"]), (30.0, "px²".into()));
-    assert_eq!(smooth(&["--live", "--smooth", "0"]), (0.0, "px²".into()));
+    assert_eq!(
+        smooth(&["--live", "--smooth", "30"]),
+        (30.0, "px²".into(), 30.0)
+    );
+    assert_eq!(
+        smooth(&["--live", "--smooth", "0"]),
+        (0.0, "px²".into(), 0.0)
+    );
     let summary = |args: &[&str]| {
         let mut all = vec!["rig-accuracy", "--live", "--kind", "smooth", "--json"];
         all.extend_from_slice(args);

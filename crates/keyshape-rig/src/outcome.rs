@@ -58,6 +58,10 @@ pub struct RigSolve {
     pub sweeps_unconverged: usize,
     /// Frames whose steps stopped at the cap.
     pub unconverged: usize,
+    /// The temporal prior's λ the solve used, in squared track units
+    /// ([`RigOptions::lambda`](crate::RigOptions::lambda): a λ relative to the face resolved
+    /// with its inter-ocular distance); 0 when it is off.
+    pub lambda: f64,
     /// Per shape, identifiability.
     pub shapes: Vec<ShapeReport>,
     /// The neutral column of each clip's identity (empty with `Identity::None`; one with

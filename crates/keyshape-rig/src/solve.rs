@@ -495,6 +495,7 @@ pub(super) fn run(
         rms,
         steps,
         unconverged,
+        lambda: opts.lambda(iod),
         sweeps,
         sweeps_unconverged,
         shapes: Vec::new(),

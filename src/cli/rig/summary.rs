@@ -5,6 +5,7 @@
 use super::RigArgs;
 use anyhow::Result;
 use keyshape_core::sequence::Sequence;
+use keyshape_core::solve::temporal::SmoothMode;
 use keyshape_rig::{Identity, Neutral, RigOptions};
 use serde_json::json;
 
@@ -66,6 +67,7 @@ pub(super) fn summary_json(
         "landmark_weights": opts.landmark_weights.to_vec(),
         "smooth": opts.smooth,
         // The live path's default λ is a share of the squared inter-ocular distance.
+        "lambda_px2": r.lambda,
         "smooth_unit": match opts.smooth_unit {
             keyshape_rig::SmoothUnit::Pixels => "px²",
             keyshape_rig::SmoothUnit::Iod => "iod²",
@@ -108,12 +110,24 @@ pub(super) fn print_summary(a: &RigArgs, d: &Done, taken: bool) -> Result<()> {
         .collect();
     sayln!(
         taken,
-        "{} frames onto {} shapes ({}, prior {}, zero-phase σ {}), identity {}{}: RMS landmark error {:.3}, {} frozen{}, {} frames unconverged",
+        "{} frames onto {} shapes ({}, prior {}, zero-phase σ {}{}), identity {}{}: RMS landmark error {:.3}, {} frozen{}, {} frames unconverged",
         seq.n_frames(),
         rig.k(),
         a.solver.name(),
         opts.prior,
         opts.zero_phase,
+        if r.lambda > 0.0 {
+            format!(
+                ", {} temporal prior λ {:.1} px²",
+                match opts.smooth_mode {
+                    SmoothMode::Causal => "causal",
+                    SmoothMode::Offline => "offline",
+                },
+                r.lambda
+            )
+        } else {
+            String::new()
+        },
         a.identity.name(),
         match (neutral_frames.len(), r.neutral_views.first()) {
             (0, _) => String::new(),
