@@ -48,7 +48,13 @@ pub(super) struct FrameSolver<'a> {
     pub(super) depth_weight: f64,
     /// Per free shape, does the magnitude prior taper off ([`RigOptions::taper`])?
     pub(super) taper: Vec<bool>,
+    /// The rig last posed, and the weights (every shape) it was posed by: a Gauss–Newton
+    /// step poses the rig at the weights the line search has just posed it at.
+    posed_at: std::cell::RefCell<Option<Pose>>,
 }
+
+/// Every shape's weights, and the rig's landmarks posed by them.
+type Pose = (Vec<f64>, Vec<[f64; 3]>);
 
 impl<'a> FrameSolver<'a> {
     pub(super) fn new(
@@ -78,6 +84,7 @@ impl<'a> FrameSolver<'a> {
             depth: None,
             tz: 0.0,
             depth_weight: 1.0,
+            posed_at: std::cell::RefCell::new(None),
             taper: vec![false; m],
         }
     }
@@ -105,10 +112,25 @@ impl<'a> FrameSolver<'a> {
     /// The depth offset that best fits the current weights under `cam` (the mean residual).
     pub(super) fn fit_tz(&mut self, cam: &Camera) {
         self.tz = 0.0;
-        let x = self.rig.posed(&self.full_weights());
+        let x = self.posed_now();
         if let Some(r) = self.depth_residuals(cam, &x) {
             self.tz = r.iter().sum::<f64>() / r.len().max(1) as f64;
         }
+    }
+
+    /// The rig posed by the current weights ([`Rig::posed`], the last one reused when the
+    /// weights are the same to the bit).
+    pub(super) fn posed_now(&self) -> Vec<[f64; 3]> {
+        let w = self.full_weights();
+        let mut cache = self.posed_at.borrow_mut();
+        if let Some((at, x)) = cache.as_ref() {
+            if at.iter().zip(&w).all(|(a, b)| a.to_bits() == b.to_bits()) {
+                return x.clone();
+            }
+        }
+        let x = self.rig.posed(&w);
+        *cache = Some((w, x.clone()));
+        x
     }
 
     pub(super) fn full_weights(&self) -> Vec<f64> {
@@ -122,7 +144,7 @@ impl<'a> FrameSolver<'a> {
     /// The squared landmark error of the current weights under `cam`, each landmark's
     /// term weighted by `lw` (all 1: the plain error).
     pub(super) fn sq_error_with(&self, cam: &Camera, u: &[[f64; 2]], lw: &[f64]) -> f64 {
-        let posed = self.rig.posed(&self.full_weights());
+        let posed = self.posed_now();
         let image: f64 = posed
             .iter()
             .zip(u)
@@ -140,7 +162,7 @@ impl<'a> FrameSolver<'a> {
 
     /// The plain squared landmark error (what is reported).
     pub(super) fn sq_error(&self, cam: &Camera, u: &[[f64; 2]]) -> f64 {
-        let posed = self.rig.posed(&self.full_weights());
+        let posed = self.posed_now();
         posed
             .iter()
             .zip(u)
@@ -186,7 +208,7 @@ impl<'a> FrameSolver<'a> {
     /// step recovered. Returns the camera the full step reaches.
     pub(super) fn step(&mut self, cam: &Camera, u: &[[f64; 2]]) -> (Camera, f64) {
         let m = self.free.len();
-        let x = self.rig.posed(&self.full_weights());
+        let x = self.posed_now();
         let n = u.len();
         let lw = &self.blocks.lw;
         // With depth, a third row per landmark (`s r₃·p + tz`) and a seventh camera
@@ -374,7 +396,7 @@ impl<'a> FrameSolver<'a> {
     /// [`FrameSolver::solve`]'s Gauss–Newton steps, under the plain magnitude prior:
     /// (camera, steps, converged).
     pub(super) fn gauss_newton(&mut self, u: &[[f64; 2]]) -> Result<(Camera, u32, bool)> {
-        let mut cam = fit_camera(&self.rig.posed(&self.full_weights()), u)?;
+        let mut cam = fit_camera(&self.posed_now(), u)?;
         self.fit_tz(&cam);
         self.weights_for(&cam, u);
         let mut err = self.objective(&cam, u);
@@ -415,6 +437,44 @@ impl<'a> FrameSolver<'a> {
 
 #[cfg(test)]
 mod tests {
+    /// The posed rig the solver reuses is the rig posed by its current weights, whichever
+    /// of them changed (a free shape's weight, one by a bit, or back to an earlier set).
+    #[test]
+    fn the_reused_pose_is_the_pose_of_the_current_weights() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(7);
+        let (n, k) = (6, 4);
+        let rig = crate::Rig {
+            names: (0..k).map(|s| format!("s{s}")).collect(),
+            neutral: (0..n).map(|_| [rng.gen_range(-1.0..1.0); 3]).collect(),
+            deltas: (0..k)
+                .map(|_| (0..n).map(|_| [rng.gen_range(-1.0..1.0); 3]).collect())
+                .collect(),
+            points: (0..n).collect(),
+            layout: n,
+        };
+        // Shapes 0, 2 and 3 free; shape 1 held at 0.
+        let mut fs = super::FrameSolver::new(
+            &rig,
+            vec![0, 2, 3],
+            keyshape_core::solve::Solver::Bounded,
+            5,
+            &vec![1.0; n],
+        );
+        let first = vec![0.3, 0.7, 0.1];
+        for w in [
+            first.clone(),
+            first.clone(),
+            vec![0.3, 0.7, f64::from_bits(0.1f64.to_bits() + 1)],
+            vec![0.0, 0.7, 0.1],
+            first,
+        ] {
+            fs.w.clone_from(&w);
+            let full = [w[0], 0.0, w[1], w[2]];
+            assert_eq!(fs.posed_now(), rig.posed(&full), "{w:?}");
+        }
+    }
+
     /// The tapered prior's weights meet the KKT conditions of the bounded problem with the
     /// ridge its last step used; that ridge is `μ (1 − w)²` of weights in [0, 1] for the
     /// tapering shapes (so never above μ) and μ for the others; and a shape the data clearly
