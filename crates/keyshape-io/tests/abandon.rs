@@ -18,7 +18,28 @@ fn abandon_removes_what_was_staged_and_refuses_later_writes() {
         write_atomic(&d.join(format!("pd/{i}.png")), |w| w.write_all(b"png")).unwrap();
     }
     write_atomic(&d.join("w.csv"), |w| w.write_all(b"new")).unwrap();
+    // Another thread's open set goes too: a signal ends every command of the process.
+    let (staged, abandoned) = (
+        std::sync::Arc::new(std::sync::Barrier::new(2)),
+        std::sync::Arc::new(std::sync::Barrier::new(2)),
+    );
+    let other = {
+        let (d, staged, abandoned) = (d.to_path_buf(), staged.clone(), abandoned.clone());
+        std::thread::spawn(move || {
+            let set = OutputSet::begin();
+            write_atomic(&d.join("other.csv"), |w| w.write_all(b"other")).unwrap();
+            staged.wait();
+            abandoned.wait();
+            set.commit()
+        })
+    };
+    staged.wait();
     keyshape_io::atomic::abandon();
+    abandoned.wait();
+    assert!(
+        other.join().unwrap().is_err(),
+        "the other thread's set commits"
+    );
     let left: Vec<_> = std::fs::read_dir(d)
         .unwrap()
         .flatten()

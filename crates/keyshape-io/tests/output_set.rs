@@ -3,7 +3,9 @@
 //! but /dev/null, no read-only file, no setuid result, no link planted by another user in a
 //! shared sticky folder, one output per stream).
 //!
-//! The set is process-wide, so these tests take a lock and run one at a time.
+//! A set belongs to the thread that opened it, and a deleted input's inode number, given to
+//! a new file, no longer counts as that input: so these tests run in parallel, as the lab's
+//! exports may.
 
 // Test code: a failed unwrap is a failed test with its message.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
@@ -11,13 +13,7 @@
 use keyshape_io::atomic::{check_distinct, check_output, register_input};
 use keyshape_io::{write_atomic, OutputSet};
 use std::path::{Path, PathBuf};
-use std::sync::Mutex;
-
-static ONE_AT_A_TIME: Mutex<()> = Mutex::new(());
-
-fn lock() -> std::sync::MutexGuard<'static, ()> {
-    ONE_AT_A_TIME.lock().unwrap_or_else(|p| p.into_inner())
-}
+use std::sync::{Arc, Barrier};
 
 fn write(p: &Path, text: &str) -> keyshape_core::Result<()> {
     write_atomic(p, |w| w.write_all(text.as_bytes()))
@@ -55,7 +51,6 @@ fn assert_untouched(d: &Path) {
 
 #[test]
 fn a_rename_that_fails_at_any_position_leaves_every_output_as_it_was() {
-    let _g = lock();
     for fail_at in 0..3 {
         let tmp = tempfile::tempdir().unwrap();
         let d = tmp.path();
@@ -98,7 +93,6 @@ fn a_rename_that_fails_at_any_position_leaves_every_output_as_it_was() {
 
 #[test]
 fn a_folder_planted_at_a_target_fails_the_set_before_any_rename() {
-    let _g = lock();
     let tmp = tempfile::tempdir().unwrap();
     let d = tmp.path();
     let targets = three_targets(d);
@@ -119,7 +113,6 @@ fn a_folder_planted_at_a_target_fails_the_set_before_any_rename() {
 
 #[test]
 fn a_file_read_after_it_was_staged_as_an_output_is_not_replaced() {
-    let _g = lock();
     let tmp = tempfile::tempdir().unwrap();
     let d = tmp.path();
     std::fs::create_dir(d.join("rig")).unwrap();
@@ -145,7 +138,6 @@ fn a_file_read_after_it_was_staged_as_an_output_is_not_replaced() {
 
 #[test]
 fn a_dropped_set_removes_its_staging_folders_and_the_folders_it_made() {
-    let _g = lock();
     let tmp = tempfile::tempdir().unwrap();
     let d = tmp.path();
     {
@@ -166,7 +158,6 @@ fn a_dropped_set_removes_its_staging_folders_and_the_folders_it_made() {
 #[test]
 fn special_files_read_only_files_and_setuid_bits() {
     use std::os::unix::fs::PermissionsExt;
-    let _g = lock();
     let tmp = tempfile::tempdir().unwrap();
     let d = tmp.path();
     // A FIFO is refused at once (it would block until a reader came).
@@ -227,7 +218,6 @@ fn two_outputs_on_standard_output_are_refused() {
 #[test]
 fn a_link_planted_by_another_user_in_a_sticky_folder_is_not_followed() {
     use std::os::unix::fs::PermissionsExt;
-    let _g = lock();
     let tmp = tempfile::tempdir().unwrap();
     let d = tmp.path();
     let victim = d.join("victim");
@@ -273,7 +263,6 @@ fn a_link_planted_by_another_user_in_a_sticky_folder_is_not_followed() {
 /// command: nothing of it is visible, the first file staged is gone with the set.
 #[test]
 fn a_write_that_fails_while_filling_leaves_nothing_behind() {
-    let _g = lock();
     let tmp = tempfile::tempdir().unwrap();
     let d = tmp.path();
     std::fs::write(d.join("a.csv"), "old a").unwrap();
@@ -293,4 +282,51 @@ fn a_write_that_fails_while_filling_leaves_nothing_behind() {
     }
     assert_eq!(std::fs::read_to_string(d.join("a.csv")).unwrap(), "old a");
     assert_eq!(names(d), ["a.csv"]);
+}
+
+/// Two threads, each with a set open at once: one commits, the other is dropped. Each
+/// thread's files follow its own set. (With one set for the process, the second thread's
+/// file joined the first's set: its commit returned nothing written, and the first's drop
+/// discarded it.) A write outside any set, from a third thread, is in place when it returns.
+#[test]
+fn each_thread_s_set_commits_or_discards_only_its_own_files() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path().to_path_buf();
+    let both_open = Arc::new(Barrier::new(3));
+    let first_done = Arc::new(Barrier::new(3));
+    let spawn = |name: &'static str, commit: bool| {
+        let (d, both_open, first_done) = (d.clone(), both_open.clone(), first_done.clone());
+        std::thread::spawn(move || {
+            let set = OutputSet::begin();
+            write(&d.join(name), name).unwrap();
+            both_open.wait();
+            if commit {
+                let out = set.commit().unwrap();
+                first_done.wait();
+                out
+            } else {
+                first_done.wait();
+                drop(set);
+                Vec::new()
+            }
+        })
+    };
+    let kept = spawn("kept.csv", true);
+    let dropped = spawn("dropped.csv", false);
+    both_open.wait();
+    // While both are open, a write from a thread with no set of its own is not staged in
+    // either.
+    write(&d.join("alone.csv"), "alone").unwrap();
+    assert_eq!(
+        std::fs::read_to_string(d.join("alone.csv")).unwrap(),
+        "alone"
+    );
+    first_done.wait();
+    assert_eq!(kept.join().unwrap(), [d.join("kept.csv")]);
+    assert!(dropped.join().unwrap().is_empty());
+    assert_eq!(names(&d), ["alone.csv", "kept.csv"]);
+    assert_eq!(
+        std::fs::read_to_string(d.join("kept.csv")).unwrap(),
+        "kept.csv"
+    );
 }

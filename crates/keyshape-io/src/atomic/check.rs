@@ -74,6 +74,9 @@ pub fn register_input(path: &Path) {
         Err(p) => p.into_inner(),
     };
     for (id, p) in files {
+        // An entry of this identity whose path names another file now is one a deleted
+        // input left (its inode number reused): this file replaces it.
+        v.retain(|(i, q)| *i != id || file_id(q).as_ref() == Some(i));
         if !v.iter().any(|(i, _)| *i == id) {
             v.push((id, p));
         }
@@ -82,13 +85,18 @@ pub fn register_input(path: &Path) {
 
 /// Errors when `target` (a resolved output path) is a file registered as input or one of
 /// `inputs` (files or folders); `shown` is the path as the user gave it.
+///
+/// A registered input counts while its path still names it. An input deleted since (or
+/// replaced by a rename) has freed its inode number, which the file system gives to the
+/// next new file: in the lab, which runs for hours, an export could otherwise be refused
+/// as "the input file" it replaced.
 pub(super) fn check_not_input(target: &Path, shown: &Path, inputs: &[&Path]) -> Result<()> {
     let Some(id) = file_id(target) else {
         return Ok(());
     };
     let given = inputs.iter().flat_map(|p| input_files(p));
     for (i, input) in inputs_registered().into_iter().chain(given) {
-        if i == id {
+        if i == id && file_id(&input).as_ref() == Some(&id) {
             return Err(Error::file(
                 shown,
                 format!(
@@ -432,5 +440,32 @@ pub(super) fn two_outputs(first: &Path, second: &Path) -> Error {
                 first.display()
             ),
         )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+
+    /// An input deleted after it was read may hand its inode number to a new file: that new
+    /// file is not the input. (Made deterministic: the registry is given the entry a reused
+    /// inode leaves, another file's identity under the input's old path.)
+    #[test]
+    fn an_input_s_identity_counts_only_while_its_path_still_names_it() {
+        let tmp = tempfile::tempdir().unwrap();
+        let (input, output) = (tmp.path().join("in.csv"), tmp.path().join("out.csv"));
+        std::fs::write(&input, "read").unwrap();
+        std::fs::write(&output, "old export").unwrap();
+        let reused = file_id(&output).unwrap();
+        INPUTS
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .push((reused, input.clone()));
+        check_not_input(&output, &output, &[]).unwrap();
+        // Read now, the file is an input: the stale entry does not hide it.
+        register_input(&output);
+        let e = check_not_input(&output, &output, &[]).unwrap_err();
+        assert!(e.to_string().contains("this is the input file"), "{e}");
     }
 }

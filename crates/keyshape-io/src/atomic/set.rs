@@ -11,6 +11,10 @@
 //!   every output as it was: its staging folders and the folders it made are removed. A
 //!   SIGKILL leaves at most one staging folder per output folder, named so a person knows
 //!   what it is.
+//! - A set belongs to the thread that opened it. Another thread's writes never join it: each
+//!   is a set of its own (or of the set that thread opened), so two threads writing at once
+//!   (two exports of the lab, two tests) can neither commit nor discard each other's files.
+//!   A signal ([`abandon`]) discards the open sets of every thread.
 
 use super::check::{check_not_input, parent_dir, target_of, two_outputs, OutputKey, Target};
 use keyshape_core::error::{Error, Result};
@@ -18,6 +22,7 @@ use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Mutex;
+use std::thread::ThreadId;
 
 /// A file written but not yet in place.
 struct Staged {
@@ -69,19 +74,35 @@ impl Pending {
     }
 }
 
-/// The open output set, if any.
-static SET: Mutex<Option<Pending>> = Mutex::new(None);
+/// The open output sets, one at most per thread.
+static SETS: Mutex<Vec<(ThreadId, Pending)>> = Mutex::new(Vec::new());
 /// Held while a set's files are renamed into place, so that [`abandon`] (a signal) waits
 /// for the renames to finish rather than cutting them in half.
 static COMMIT: Mutex<()> = Mutex::new(());
 /// Set by [`abandon`]: nothing more is written.
 static ABANDONED: AtomicBool = AtomicBool::new(false);
 
-fn with_set<T>(f: impl FnOnce(&mut Option<Pending>) -> T) -> T {
-    match SET.lock() {
-        Ok(mut g) => f(&mut g),
-        Err(poisoned) => f(&mut poisoned.into_inner()),
+fn all_sets() -> std::sync::MutexGuard<'static, Vec<(ThreadId, Pending)>> {
+    match SETS.lock() {
+        Ok(g) => g,
+        Err(poisoned) => poisoned.into_inner(),
     }
+}
+
+/// `f` on this thread's open set (`None` when it has none); what `f` leaves in the slot
+/// is this thread's set afterwards.
+fn with_set<T>(f: impl FnOnce(&mut Option<Pending>) -> T) -> T {
+    let me = std::thread::current().id();
+    let mut sets = all_sets();
+    let mut slot = sets
+        .iter()
+        .position(|(t, _)| *t == me)
+        .map(|i| sets.swap_remove(i).1);
+    let out = f(&mut slot);
+    if let Some(p) = slot {
+        sets.push((me, p));
+    }
+    out
 }
 
 fn commit_lock() -> std::sync::MutexGuard<'static, ()> {
@@ -98,13 +119,14 @@ fn check_not_abandoned(path: &Path) -> Result<()> {
     Ok(())
 }
 
-/// Discards the open set's staged files, staging folders and made folders, and refuses
-/// every later write: for a signal handler, before the process ends. Waits for a commit
-/// in progress to finish.
+/// Discards every thread's open set (staged files, staging folders and made folders), and
+/// refuses every later write: for a signal handler, before the process ends. Waits for a
+/// commit in progress to finish.
 pub fn abandon() {
     let _g = commit_lock();
     ABANDONED.store(true, Ordering::SeqCst);
-    if let Some(p) = with_set(|s| s.take()) {
+    let sets = std::mem::take(&mut *all_sets());
+    for (_, p) in sets {
         p.discard();
     }
 }
@@ -114,11 +136,14 @@ pub fn abandon() {
 /// [`OutputSet::commit`] renames the staged files into place; dropping the set without
 /// committing removes them and the directories, leaving every output as it was.
 ///
-/// One set is open at a time; [`OutputSet::begin`] while one is open returns a set that
-/// leaves the work to the outer one.
+/// One set is open at a time in a thread; [`OutputSet::begin`] while one is open there
+/// returns a set that leaves the work to the outer one. Sets of different threads are
+/// independent, and a set stays on its thread (it is not `Send`).
 #[must_use = "an output set that is dropped discards what was written"]
 pub struct OutputSet {
     owner: bool,
+    /// Not `Send`: the set is found by the thread that opened it.
+    _thread: std::marker::PhantomData<*const ()>,
 }
 
 impl OutputSet {
@@ -132,7 +157,10 @@ impl OutputSet {
                 true
             }
         });
-        OutputSet { owner }
+        OutputSet {
+            owner,
+            _thread: std::marker::PhantomData,
+        }
     }
 
     /// Renames every staged file over its target, all or none, and returns the targets as
