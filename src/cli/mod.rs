@@ -164,6 +164,14 @@ pub fn main() -> ExitCode {
         Some(set) => set.commit().map(drop).map_err(anyhow::Error::from),
         None => Ok(()),
     });
+    if result.is_err() && keyshape_io::atomic::abandoned() {
+        // A signal stopped the command and its thread is ending the process with that
+        // signal: an error of this thread (its writes refused since) must not exit first
+        // with 1, nor print as a failure.
+        loop {
+            std::thread::park();
+        }
+    }
     match result {
         Ok(()) => ExitCode::SUCCESS,
         // A reader closed the pipe after output began (`kslab … | head`): a quiet stop, as

@@ -29,7 +29,7 @@ mod set;
 pub use check::{
     check_distinct, check_output, check_output_dir, file_id, is_stdout, register_input, FileId,
 };
-pub use set::{abandon, create_dir_all, OutputSet};
+pub use set::{abandon, abandoned, create_dir_all, OutputSet};
 
 use check::{check_not_input, target_of, Target};
 use keyshape_core::error::{Error, Result};

@@ -119,6 +119,13 @@ fn check_not_abandoned(path: &Path) -> Result<()> {
     Ok(())
 }
 
+/// Has [`abandon`] been called (a signal is ending the process)? A command whose write
+/// failed for that reason leaves the exit to the signal, so its parent sees the process
+/// killed by it rather than a failure of its own.
+pub fn abandoned() -> bool {
+    ABANDONED.load(Ordering::SeqCst)
+}
+
 /// Discards every thread's open set (staged files, staging folders and made folders), and
 /// refuses every later write: for a signal handler, before the process ends. Waits for a
 /// commit in progress to finish.
