@@ -215,6 +215,20 @@ pub fn read_rig(path: &Path, layout: usize, csv: Option<&Path>) -> Result<RigPar
     Ok((mesh, morph, rig))
 }
 
+/// The sparser rig a quick neutral search reads ([`super::preview_frame`]) for a MediaPipe
+/// track: the rig folder's own 68-landmark map (`landmarks_multipie68.csv`) on the mesh and
+/// morph targets already read (`parts`). `None` for a 68-point track (the rig is that
+/// sparse already) and for a glTF rig (no 68-point map of its own).
+pub fn search_rig(path: &Path, layout: usize, parts: &RigParts) -> Result<Option<super::Rig>> {
+    if layout == 68 || !path.is_dir() {
+        return Ok(None);
+    }
+    let (mesh, morph, _) = parts;
+    let marks =
+        read_landmark_vertices(&path.join("landmarks_multipie68.csv"), mesh.positions.len())?;
+    super::Rig::from_parts(&mesh.positions, morph, &marks).map(Some)
+}
+
 /// A rig as the user names it — a folder in the ICT layout or a glTF/GLB, with an optional
 /// `landmark,vertex` CSV — read for whichever track layout comes (the lab keeps one and
 /// solves every track it opens onto it).

@@ -293,7 +293,14 @@ mod tests {
         for seed in 1..=4 {
             let t = render(&rig, &Settings::turned_head(Kind::Smooth, seed)).unwrap();
             let clip = 0..t.points.ncols();
-            let (n, offsets) = best_explaining(&rig, (&t.points, None), clip, &opts, &lw).unwrap();
+            let (n, offsets) = best_explaining(
+                &rig,
+                (&t.points, None),
+                clip,
+                &opts,
+                (&lw, crate::NEUTRAL_SCORED_FRAMES),
+            )
+            .unwrap();
             let offsets = offsets.expect("a track without depth gets a fitted depth");
             let flat = person_rig(&rig, &t.points, None, n..n + 1, opts.identity).unwrap();
             let deep = person_rig_with(

@@ -29,6 +29,7 @@ mod neutral;
 pub mod options;
 pub mod outcome;
 pub mod plausibility;
+pub mod preview;
 mod prior;
 pub mod refine;
 mod solve;
@@ -47,6 +48,7 @@ pub use options::{
     LIVE_SMOOTH, RECOMMENDED_PRIOR, RECOMMENDED_ZERO_PHASE, ROBUST_C, TAPER_STEPS, TAPER_TOLERANCE,
 };
 pub use outcome::{largest_weights, RigSolve, ShapeReport};
+pub use preview::{preview_frame, FramePreview, PREVIEW_SCORED_FRAMES};
 pub use prior::{is_gaze, track_iod, EXCLUSIVE, GAZE_DAMPING};
 pub use solve::{solve_rig, solve_rig_observed, zero_phase};
 

@@ -255,16 +255,19 @@ pub(super) fn least_candidate_activity(
 /// - keeping the less active half (first-pass weights summed at most the median), or the
 ///   least active of the near-best: each found the lead-in on blinks but lost elsewhere
 ///   and moved the shipped tracks' neutrals to frames that read worse.
+///
+/// `scored`: how many frames each candidate is scored on ([`NEUTRAL_SCORED_FRAMES`]; the
+/// lab's preview takes fewer).
 pub(super) fn best_explaining(
     rig: &Rig,
     (track, depth): (&DMatrix<f64>, Option<&DMatrix<f64>>),
     clip: Range<usize>,
     opts: &RigOptions,
-    lw: &[f64],
+    (lw, scored): (&[f64], usize),
 ) -> Result<(usize, Option<Vec<[f64; 3]>>)> {
     use rayon::prelude::*;
     let candidates = neutral_looking(rig, track, evenly_spaced(clip.clone(), NEUTRAL_CANDIDATES));
-    let scored = evenly_spaced(clip, NEUTRAL_SCORED_FRAMES);
+    let scored = evenly_spaced(clip, scored);
     let fits: Vec<Result<(usize, NeutralFit)>> = candidates
         .par_iter()
         .map(|&n| -> Result<(usize, NeutralFit)> {

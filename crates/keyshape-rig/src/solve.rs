@@ -63,8 +63,15 @@ pub fn solve_rig_observed(
         }
         _ => None,
     };
-    let (people, neutrals, rules) =
-        identities(rig, (track, depth), &clips, opts, &lw, first.as_ref(), step)?;
+    let (people, neutrals, rules) = identities(
+        rig,
+        (track, depth),
+        &clips,
+        opts,
+        (&lw, super::NEUTRAL_SCORED_FRAMES),
+        first.as_ref(),
+        step,
+    )?;
     // Identifiability at the first clip's neutral view (the rig and the view decide it,
     // not the person); the frozen shapes are the same in every clip.
     let cam_n = match (neutrals.first(), &first) {
@@ -113,7 +120,7 @@ pub fn solve_rig_observed(
 
 /// A track's image rows, and with depth (x, y, z per landmark) its depth rows with the
 /// sign turned to point towards the viewer (MediaPipe's z is more negative closer).
-fn image_and_depth(
+pub(super) fn image_and_depth(
     rig: &Rig,
     track: &DMatrix<f64>,
 ) -> Result<(DMatrix<f64>, Option<DMatrix<f64>>)> {
@@ -134,7 +141,7 @@ fn image_and_depth(
 
 /// Refuses a track (image rows, `n` landmarks) with no frames, a value that is not finite,
 /// or a frame whose landmarks all coincide (no camera fits it).
-fn check_frames(track: &DMatrix<f64>, n: usize) -> Result<()> {
+pub(super) fn check_frames(track: &DMatrix<f64>, n: usize) -> Result<()> {
     if track.ncols() == 0 {
         return Err(Error::invalid("the track has no frames"));
     }
@@ -174,7 +181,7 @@ fn covering(clips: &[Range<usize>], frames: usize) -> Result<Vec<Range<usize>>> 
 }
 
 /// Refuses a named neutral column or stretch that is not inside the track's `frames`.
-fn check_neutral(neutral: Neutral, frames: usize) -> Result<()> {
+pub(super) fn check_neutral(neutral: Neutral, frames: usize) -> Result<()> {
     match neutral {
         Neutral::Column(c) if c >= frames => Err(Error::invalid(format!(
             "neutral frame column {c} is past the track's {frames} frames"
@@ -191,13 +198,14 @@ type People = Vec<(Range<usize>, Rig)>;
 
 /// Who is in each clip: per clip (or for the whole track) the rig with the person's
 /// identity applied, the neutral frame it came from and the rule that chose it. `first` is
-/// the pass without an identity, which the least-active rule reads.
-fn identities(
+/// the pass without an identity, which the least-active rule reads; `scored`, how many
+/// frames the automatic search scores each candidate on.
+pub(super) fn identities(
     rig: &Rig,
     (track, depth): (&DMatrix<f64>, Option<&DMatrix<f64>>),
     clips: &[Range<usize>],
     opts: &RigOptions,
-    lw: &[f64],
+    (lw, scored): (&[f64], usize),
     first: Option<&RigSolve>,
     step: &mut dyn FnMut(String),
 ) -> Result<(People, Vec<usize>, Vec<NeutralRule>)> {
@@ -223,7 +231,7 @@ fn identities(
                         step(format!(
                             "choosing the neutral: {} candidate frames, each scored on {}",
                             c.len().min(super::NEUTRAL_CANDIDATES),
-                            c.len().min(super::NEUTRAL_SCORED_FRAMES)
+                            c.len().min(scored)
                         ));
                         let least = least_candidate_activity(
                             rig,
@@ -265,7 +273,7 @@ fn identities(
                     _ => {
                         // The search has fitted its winner's depth already.
                         let (n, offsets) =
-                            best_explaining(rig, (track, depth), c.clone(), opts, lw)?;
+                            best_explaining(rig, (track, depth), c.clone(), opts, (lw, scored))?;
                         let frames = n..n + 1;
                         (
                             n,
@@ -373,7 +381,7 @@ fn robust_weights(
 
 /// The frames a causal solve measures the prior's scale on: the neutral frame or lead-in,
 /// or the first frame when there is none.
-fn neutral_frames(n: Neutral) -> Range<usize> {
+pub(super) fn neutral_frames(n: Neutral) -> Range<usize> {
     match n {
         Neutral::Column(c) => c..c + 1,
         Neutral::Span(a, b) => a..b,

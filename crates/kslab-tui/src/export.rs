@@ -53,6 +53,11 @@ pub fn export(s: &State, seq_path: &str, dir: &Path) -> Result<Vec<String>> {
 fn export_files(s: &State, seq_path: &str, dir: &Path) -> Result<Vec<String>> {
     // The rig view exports what it shows: the rig's weights, not the key-shape solve's.
     if let (true, Some(r)) = (s.show_rig, s.rig.as_deref()) {
+        if r.preview.is_some() {
+            anyhow::bail!(
+                "the rig is still solving the take (the view shows one frame alone): export once it is done"
+            );
+        }
         return export_rig(s, r, dir);
     }
     let c = s.computed.as_ref().context("nothing computed yet")?;

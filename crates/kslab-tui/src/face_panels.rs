@@ -71,7 +71,7 @@ pub(super) fn face_panels(f: &mut Frame, s: &State, c: &Computed, area: Rect) {
     }
     let [a, b] = Layout::horizontal([Constraint::Ratio(1, 2); 2]).areas(area);
     if let (true, Some(r)) = (s.show_rig, &s.rig) {
-        let t = t.min(r.weights.len().saturating_sub(1));
+        let t = r.at(t);
         f.render_widget(rig_panel(r, t), a);
         f.render_widget(rig_weights(r, t, b.height.saturating_sub(2) as usize), b);
         return;

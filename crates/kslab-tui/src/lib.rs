@@ -25,6 +25,7 @@ pub use export::export;
 pub use mesh::{mesh_view, MeshView};
 pub use request::Settings;
 pub use rig::{prepare as prepare_rig, rig_view, rig_view_observed, RigView};
+pub use rig_worker::spawn as spawn_rig_worker;
 pub use view::draw;
 
 use crossterm::event::{

@@ -178,14 +178,20 @@ fn frame_axis(n: usize) -> Axis<'static> {
         .labels(vec![Line::from("0"), Line::from(format!("{last:.0}"))])
 }
 
-/// The track (white) and the posed rig's landmarks (magenta) on frame `t`.
+/// The track (white) and the posed rig's landmarks (magenta) on frame `t` (an index
+/// [`RigView::at`] gives).
 pub fn rig_panel(
     r: &RigView,
     t: usize,
 ) -> Canvas<'_, impl Fn(&mut ratatui::widgets::canvas::Context) + '_> {
+    let what = match r.preview {
+        Some(0) => "first frame alone".to_string(),
+        Some(f) => format!("frame column {f} alone"),
+        None => "track + posed rig".to_string(),
+    };
     Canvas::default()
         .block(Block::bordered().title(format!(
-            "track + posed rig · rms {}",
+            "{what} · rms {}",
             keyshape_core::stats::sig(r.rms.get(t).copied().unwrap_or(f64::NAN), 3)
         )))
         .marker(Marker::Braille)
@@ -234,6 +240,19 @@ pub fn rig_weights(r: &RigView, t: usize, rows: usize) -> Paragraph<'_> {
     let active = w.iter().filter(|v| v.abs() > 1e-9).count();
     Paragraph::new(lines)
         .block(Block::bordered().title(format!("rig weights · {active} of {} active", w.len())))
+}
+
+/// What the rig view's lower panels say while they wait for the take: the frame shown was
+/// solved alone (`step`: the step the take's solve is on).
+pub fn rig_preview_note(step: Option<&str>) -> Paragraph<'static> {
+    let now = step.map_or(String::new(), |s| format!(" (now: {s})"));
+    Paragraph::new(format!(
+        "The take is solving{now}. Above: its first frame solved alone, before the take: \
+         the neutral searched on the 68-point map, no smoothing over time. The take's solve \
+         replaces it, with the weights and the landmark error over time here."
+    ))
+    .wrap(ratatui::widgets::Wrap { trim: true })
+    .block(Block::bordered().title("rig: preview"))
 }
 
 #[cfg(test)]

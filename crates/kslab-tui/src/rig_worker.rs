@@ -2,9 +2,11 @@
 //! background, so the lab opens and the key-shape view answers while the rig solves (the
 //! neutral search and the frames take seconds on a long 468-point track). Each step is
 //! named to the screen as it starts ([`Action::RigStep`]); a new λ reuses the neutral of
-//! the last solve of the same track, so `l` skips the search.
+//! the last solve of the same track, so `l` skips the search. A newly loaded track's first
+//! frame is previewed before the take's solve ([`Action::RigPreview`]): solved alone, its
+//! neutral searched on the 68-point view, in a fraction of the take's time.
 
-use super::rig::{rig_view_observed, RigView};
+use super::rig::{prepare_with_search, rig_preview, rig_view_prepared, RigView};
 use super::Action;
 use keyshape_core::sequence::Sequence;
 use keyshape_rig::correspondence::RigSource;
@@ -101,9 +103,27 @@ fn worker(rig: &RigSource, rx: &Receiver<RigJob>, out: &Sender<Action>) {
         let Some(seq) = track.clone() else { continue };
         let (id, load) = round.reply;
         let step = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-            rig_view_observed(&seq, rig, round.smooth, neutral, &mut |s| {
+            let say = |s: String| {
                 let _ = out.send(Action::RigStep(id, s));
-            })
+            };
+            say("reading the rig".into());
+            let p = prepare_with_search(&seq, rig)?;
+            // A new track: its first frame alone first (a failure here is the take's too,
+            // and the take's solve reports it).
+            if load && neutral.is_none() {
+                say(format!(
+                    "the first frame alone{}",
+                    if p.search.is_some() {
+                        ", its neutral searched on 68 points"
+                    } else {
+                        ""
+                    }
+                ));
+                if let Ok(v) = rig_preview(&p, 0) {
+                    let _ = out.send(Action::RigPreview(id, Arc::new(v)));
+                }
+            }
+            rig_view_prepared(&p, round.smooth, neutral, &mut |s| say(s))
         }));
         let v: Result<Arc<RigView>, String> = match step {
             Ok(Ok(v)) => {

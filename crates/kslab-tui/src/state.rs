@@ -78,6 +78,9 @@ pub enum Action {
     RigSolved(u64, Result<std::sync::Arc<super::rig::RigView>, String>),
     /// The rig solved again for a request's temporal prior λ (`l` / `L`).
     RigSmoothed(u64, Result<std::sync::Arc<super::rig::RigView>, String>),
+    /// A preview of a loaded sequence's rig solve: one frame solved alone, before the take
+    /// ([`super::rig::rig_preview`]); the take's [`Action::RigSolved`] replaces it.
+    RigPreview(u64, std::sync::Arc<super::rig::RigView>),
     /// The rig's worker started a step of a request's solve (named for the screen).
     RigStep(u64, String),
 }
@@ -255,6 +258,7 @@ pub fn update(s: &mut State, action: Action) -> Vec<Effect> {
         | Action::Notice(..)
         | Action::RigStep(..)
         | Action::RigSmoothed(..)
+        | Action::RigPreview(..)
         | Action::RigSolved(..) => answer(s, action),
     }
 }
@@ -456,6 +460,11 @@ fn answer(s: &mut State, action: Action) -> Vec<Effect> {
                     Err(e) => s.status = format!("rig: {e}"),
                 }
             }
+        }
+        // Only for the loaded sequence, and never over its take's solve.
+        Action::RigPreview(id, v) if id == s.loaded && s.rig.is_none() => {
+            s.rig = Some(v);
+            s.show_rig = true;
         }
         Action::RigSolved(id, r) => {
             s.rig_step = None;

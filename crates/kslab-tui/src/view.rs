@@ -1,6 +1,6 @@
 //! Drawing the state. Views take `&State` and never change it.
 
-use super::rig_panels::{rig_error_over_time, rig_weights_over_time};
+use super::rig_panels::{rig_error_over_time, rig_preview_note, rig_weights_over_time};
 use super::state::{Prompt, State};
 use keyshape_core::keyshapes::Method;
 use keyshape_core::stats::sig;
@@ -57,9 +57,13 @@ pub fn draw(f: &mut Frame, s: &State) {
             // its landmark error over time (the key-shape chart and bars belong to the
             // key-shape view).
             if let (true, Some(r)) = (s.show_rig, &s.rig) {
-                let t = s.frame.min(r.weights.len().saturating_sub(1));
-                rig_weights_over_time(f, r, t, chart);
-                rig_error_over_time(f, r, t, weights);
+                if r.preview.is_some() {
+                    f.render_widget(rig_preview_note(s.rig_step.as_deref()), bottom);
+                } else {
+                    let t = r.at(s.frame);
+                    rig_weights_over_time(f, r, t, chart);
+                    rig_error_over_time(f, r, t, weights);
+                }
             } else {
                 error_chart(f, s, chart);
                 weight_bars(f, s, c, weights);
@@ -139,7 +143,7 @@ fn header(f: &mut Frame, s: &State, area: Rect) {
                 sig(r.rms.iter().sum::<f64>() / n, 3)
             ));
             (
-                format!("rig: {} shapes", r.names.len()),
+                format!("rig: {} shapes{}", r.names.len(), preview_tag(r)),
                 // The temporal prior: the offline λ (`l`), or the zero-phase σ of the default.
                 if r.smooth > 0.0 {
                     format!("bounded λ{}", r.smooth)
@@ -182,6 +186,14 @@ fn header(f: &mut Frame, s: &State, area: Rect) {
     spans.push(Span::raw(format!(" {}{busy}", body.join(" · "))));
     let line = Line::from(spans);
     f.render_widget(Paragraph::new(line), area);
+}
+
+/// `, preview` for a rig view of one frame solved before the take.
+fn preview_tag(r: &super::rig::RigView) -> &'static str {
+    match r.preview {
+        Some(_) => ", preview",
+        None => "",
+    }
 }
 
 /// The header's parts fitted to `width` columns (`busy`: the spinner's), and whether the

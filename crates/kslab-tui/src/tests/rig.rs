@@ -401,3 +401,81 @@ fn the_rig_solves_in_the_background_and_names_its_steps() {
     );
     assert!(s.rig_step.is_none() && s.show_rig);
 }
+
+/// A newly loaded track's first frame shows before the take is solved: the worker sends a
+/// one-frame preview (its neutral searched on the 68-point map) and then the take, which
+/// replaces it. The preview opens the rig view, says what it is, refuses `e`, and never
+/// replaces a take already solved. On the built-in sequence its neutral is the take's and
+/// its weights are the take's first frame within 0.1 (the take smooths over time and fits
+/// the identity's depth; measured 0.068).
+#[test]
+fn a_new_track_s_first_frame_shows_before_the_take_and_the_take_replaces_it() {
+    use std::sync::mpsc::channel;
+    let rig = std::sync::Arc::new(keyshape_rig::correspondence::RigSource::new(super::shared(
+        "ict_facekit_face",
+    )));
+    let seq = std::sync::Arc::new(builtin_sequence().unwrap());
+    let (tx, rx) = channel();
+    let _jobs = crate::rig_worker::spawn(rig, seq, tx);
+    let (mut preview, mut solved, mut steps) = (None, None, Vec::new());
+    while solved.is_none() {
+        match rx
+            .recv_timeout(std::time::Duration::from_secs(120))
+            .unwrap()
+        {
+            Action::RigStep(0, step) => steps.push(step),
+            Action::RigPreview(0, v) => {
+                assert!(solved.is_none(), "the preview came after the take");
+                preview = Some(v);
+            }
+            Action::RigSolved(0, r) => solved = Some(r.unwrap()),
+            other => panic!("{other:?}"),
+        }
+    }
+    let (preview, solved) = (preview.expect("no preview"), solved.unwrap());
+    assert!(
+        steps
+            .iter()
+            .any(|s| s.contains("first frame alone, its neutral searched on 68 points")),
+        "{steps:?}"
+    );
+    assert_eq!(preview.preview, Some(0));
+    assert_eq!(solved.preview, None);
+    assert_eq!(preview.weights.len(), 1);
+    assert_eq!(preview.neutral, solved.neutral);
+    let worst = preview.weights[0]
+        .iter()
+        .zip(&solved.weights[0])
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f64::max);
+    assert!(worst < 0.1, "preview against the take: {worst}");
+    assert_eq!(preview.tracked[0], solved.tracked[0]);
+
+    let mut s = computed_state(Settings::default());
+    s.loaded = 0;
+    s.rig_step = Some("solving 216 frames".into());
+    update(&mut s, Action::RigPreview(0, preview.clone()));
+    assert!(s.show_rig);
+    s.frame = 100;
+    let text = screen(&s, 100, 30);
+    for said in [
+        "first frame alone · rms",
+        "shapes, preview",
+        "rig: preview",
+        "solving 216 frames",
+    ] {
+        assert!(text.contains(said), "{said} in\n{text}");
+    }
+    assert_screen(&screen(&s, 80, 24), "tui_rig_preview_80x24.txt");
+    let dir = tempfile::tempdir().unwrap();
+    let e = crate::export::export(&s, "builtin", dir.path()).unwrap_err();
+    assert!(e.to_string().contains("still solving"), "{e}");
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
+    update(&mut s, Action::RigSolved(0, Ok(solved.clone())));
+    assert_eq!(s.rig.as_ref().unwrap().preview, None);
+    // A late preview (an older load's) does not replace the take.
+    update(&mut s, Action::RigPreview(0, preview));
+    assert_eq!(s.rig.as_ref().unwrap().preview, None);
+    let text = screen(&s, 100, 30);
+    assert!(text.contains("track + posed rig"), "{text}");
+}
