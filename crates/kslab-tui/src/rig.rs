@@ -32,7 +32,7 @@ pub struct RigView {
     /// The neutral frame's column the identity was taken from (a solve for another λ
     /// reuses it instead of searching again: the search does not depend on λ).
     pub neutral: Option<usize>,
-    /// `Some(f)`: a preview, frame `f` alone solved before the take ([`rig_preview`]); its
+    /// `Some(f)`: a preview, frame `f` alone solved before the take (`rig_preview`); its
     /// per-frame fields hold that one frame. `None`: the whole take.
     pub preview: Option<usize>,
 }

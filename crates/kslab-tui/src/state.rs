@@ -79,7 +79,7 @@ pub enum Action {
     /// The rig solved again for a request's temporal prior λ (`l` / `L`).
     RigSmoothed(u64, Result<std::sync::Arc<super::rig::RigView>, String>),
     /// A preview of a loaded sequence's rig solve: one frame solved alone, before the take
-    /// ([`super::rig::rig_preview`]); the take's [`Action::RigSolved`] replaces it.
+    /// (`rig_preview`); the take's [`Action::RigSolved`] replaces it.
     RigPreview(u64, std::sync::Arc<super::rig::RigView>),
     /// The rig's worker started a step of a request's solve (named for the screen).
     RigStep(u64, String),
