@@ -26,6 +26,53 @@ pub fn check_name(name: &str, taken: &[String]) -> std::result::Result<(), Strin
     Ok(())
 }
 
+/// The line each (shape, vertex) of a deltas file was given on: a table of every pair
+/// when there are at most [`Given::DENSE_MAX`] (the ICT face's 55 × 9,409; a hash map was
+/// most of the read's time), a hash map beyond.
+struct Given {
+    /// Per shape × vertex, the line (0: not given yet; lines count from 1).
+    dense: Vec<u64>,
+    sparse: std::collections::HashMap<(usize, usize), u64>,
+    vertices: usize,
+    /// Rows recorded.
+    rows: usize,
+}
+
+impl Given {
+    /// The most pairs kept in a table (32 MB of line numbers).
+    const DENSE_MAX: usize = 1 << 22;
+
+    fn new(shapes: usize, vertices: usize) -> Given {
+        let pairs = shapes.saturating_mul(vertices);
+        Given {
+            dense: if pairs <= Self::DENSE_MAX {
+                vec![0; pairs]
+            } else {
+                Vec::new()
+            },
+            sparse: std::collections::HashMap::new(),
+            vertices,
+            rows: 0,
+        }
+    }
+
+    /// Records that (`s`, `v`) (in range) was given on `line`; the earlier line when it
+    /// already was.
+    fn insert(&mut self, s: usize, v: usize, line: u64) -> Option<u64> {
+        let line = line.max(1);
+        let earlier = if self.dense.is_empty() {
+            self.sparse.insert((s, v), line)
+        } else {
+            let slot = &mut self.dense[s * self.vertices + v];
+            let was = *slot;
+            *slot = line;
+            (was != 0).then_some(was)
+        };
+        self.rows += usize::from(earlier.is_none());
+        earlier
+    }
+}
+
 /// A named morph target as dense per-vertex offsets.
 pub type DenseTarget = (String, Vec<[f64; 3]>);
 
@@ -72,34 +119,41 @@ impl MorphTargets {
         }
         // (shape, vertex) → the line that gave it: a second row for one would be summed by
         // nobody and silently win.
-        let mut given: std::collections::HashMap<(usize, usize), u64> =
-            std::collections::HashMap::new();
+        let mut given = Given::new(names.len(), vertices);
         let mut out = vec![Vec::new(); names.len()];
         let text = super::read_text(deltas)?;
         let mut rdr = csv::Reader::from_reader(text.as_bytes());
         let mut lines = crate::csv_error::LineCounter::new(text.as_bytes());
-        for r in rdr.records() {
-            let r = r.map_err(|e| crate::csv_error::csv_error_in(deltas, &e, text.as_bytes()))?;
+        // One record reused, its fields read as bytes (200,000 rows on the ICT face).
+        let mut r = csv::ByteRecord::new();
+        while rdr
+            .read_byte_record(&mut r)
+            .map_err(|e| crate::csv_error::csv_error_in(deltas, &e, text.as_bytes()))?
+        {
             let line = r.position().map_or(0, |p| lines.line_at(p.byte()));
+            let field = |c: usize| std::str::from_utf8(r.get(c).unwrap_or(b"")).ok();
+            let shown = |c: usize| String::from_utf8_lossy(r.get(c).unwrap_or(b"")).into_owned();
             let num = |c: usize| -> Result<f64> {
-                r.get(c).unwrap_or("").parse::<f64>().map_err(|_| {
+                field(c).and_then(|t| t.parse::<f64>().ok()).ok_or_else(|| {
                     Error::parse(
                         deltas,
                         line,
                         c as u64 + 1,
-                        format!("not a number: '{}'", r.get(c).unwrap_or("")),
+                        format!("not a number: '{}'", shown(c)),
                     )
                 })
             };
             let index = |c: usize| -> Result<usize> {
-                r.get(c).unwrap_or("").trim().parse::<usize>().map_err(|_| {
-                    Error::parse(
-                        deltas,
-                        line,
-                        c as u64 + 1,
-                        format!("not an index: '{}'", r.get(c).unwrap_or("")),
-                    )
-                })
+                field(c)
+                    .and_then(|t| t.trim().parse::<usize>().ok())
+                    .ok_or_else(|| {
+                        Error::parse(
+                            deltas,
+                            line,
+                            c as u64 + 1,
+                            format!("not an index: '{}'", shown(c)),
+                        )
+                    })
             };
             let (s, v) = (index(0)?, index(1)?);
             let o = [num(2)?, num(3)?, num(4)?];
@@ -108,7 +162,7 @@ impl MorphTargets {
                     deltas,
                     line,
                     c as u64 + 3,
-                    format!("offset is not finite: '{}'", r.get(c + 2).unwrap_or("")),
+                    format!("offset is not finite: '{}'", shown(c + 2)),
                 ));
             }
             if s >= names.len() || v >= vertices {
@@ -122,7 +176,7 @@ impl MorphTargets {
                     ),
                 ));
             }
-            if let Some(first) = given.insert((s, v), line) {
+            if let Some(first) = given.insert(s, v, line) {
                 return Err(Error::parse(
                     deltas,
                     line,
@@ -132,7 +186,7 @@ impl MorphTargets {
             }
             out[s].push((v, o));
         }
-        if given.is_empty() {
+        if given.rows == 0 {
             return Err(Error::file(
                 deltas,
                 "holds no offsets: every shape would be the neutral face",
@@ -233,6 +287,27 @@ impl MorphTargets {
                     out[v][k] += w * d[k];
                 }
             }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Given;
+
+    /// The table and the hash map (a mesh beyond the table's size) find the same second
+    /// rows, with the line of the first, and count the rows alike.
+    #[test]
+    fn the_table_and_the_map_find_the_same_repeated_pairs() {
+        let table = Given::new(3, 5);
+        assert!(!table.dense.is_empty());
+        let map = Given::new(Given::DENSE_MAX, 2);
+        assert!(map.dense.is_empty());
+        for mut g in [table, map] {
+            let rows = [(0, 4, 2), (2, 0, 3), (0, 4, 9), (1, 1, 10), (2, 0, 11)];
+            let got: Vec<Option<u64>> = rows.iter().map(|&(s, v, l)| g.insert(s, v, l)).collect();
+            assert_eq!(got, [None, None, Some(2), None, Some(3)]);
+            assert_eq!(g.rows, 3);
         }
     }
 }
