@@ -216,3 +216,43 @@ fn a_frame_or_a_search_outside_the_track_is_refused() {
         "{e}"
     );
 }
+
+/// Another person's face, a lead-in, head motion: a named neutral frame gives the same
+/// identity as the one-frame stretch of it, and that identity matters (the rig's own
+/// neutral, no identity, reads the person's face as expression).
+#[test]
+fn a_named_neutral_frame_is_the_one_frame_stretch_of_it() {
+    let rig = rig(468);
+    let st = Settings {
+        frames: 30,
+        lead_in: 10,
+        ..Settings::default()
+    };
+    let track = accuracy::render(&rig, &st).unwrap();
+    let with = |identity, neutral| {
+        let opts = RigOptions {
+            identity,
+            neutral,
+            ..RigOptions::recommended()
+        };
+        preview_frame(&rig, &track.points, 25, &opts, None).unwrap()
+    };
+    let frame = with(Identity::Offset, Neutral::Column(3));
+    let span = with(Identity::Offset, Neutral::Span(3, 4));
+    assert_eq!(frame.weights, span.weights);
+    assert_eq!(frame.neutral.map(|n| n.0), Some(3));
+    let none = with(Identity::None, Neutral::Auto);
+    assert_eq!(none.neutral, None);
+    let error = |w: &[f64]| {
+        w.iter()
+            .zip(track.truth.column(25).iter())
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max)
+    };
+    assert!(
+        error(&frame.weights) + 0.1 < error(&none.weights),
+        "with the identity {}, without {}",
+        error(&frame.weights),
+        error(&none.weights)
+    );
+}
