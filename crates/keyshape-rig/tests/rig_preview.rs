@@ -241,6 +241,13 @@ fn a_named_neutral_frame_is_the_one_frame_stretch_of_it() {
     let span = with(Identity::Offset, Neutral::Span(3, 4));
     assert_eq!(frame.weights, span.weights);
     assert_eq!(frame.neutral.map(|n| n.0), Some(3));
+    assert_eq!(span.neutral.map(|n| n.0), Some(3));
+    let lead_in = with(Identity::Offset, Neutral::Span(2, 9));
+    assert_eq!(
+        lead_in.neutral.map(|n| n.0),
+        Some(5),
+        "the stretch's middle"
+    );
     let none = with(Identity::None, Neutral::Auto);
     assert_eq!(none.neutral, None);
     let error = |w: &[f64]| {
