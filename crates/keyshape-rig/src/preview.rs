@@ -111,10 +111,11 @@ pub fn preview_frame(
     let free: Vec<usize> = (0..rig.k()).filter(|&s| !shapes[s].frozen).collect();
     let one = image.columns(frame, 1).into_owned();
     let one_depth = depth.map(|d| d.columns(frame, 1).into_owned());
+    // One frame: no temporal prior or zero-phase Gaussian applies (both are no-ops on a
+    // one-frame clip; set off so no sweep runs), and `run` has no robust re-solve.
     let alone = RigOptions {
         smooth: 0.0,
         zero_phase: 0.0,
-        robust: false,
         ..*opts
     };
     let people = [(0..1, person)];
