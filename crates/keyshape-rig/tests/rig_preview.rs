@@ -38,6 +38,15 @@ fn rmse(a: &[Vec<f64>], b: &DMatrix<f64>, frames: &[usize]) -> f64 {
     (sum / (frames.len() * b.nrows()) as f64).sqrt()
 }
 
+/// The largest |a − b| of `weights` against column `f` of `of`.
+fn largest_difference(weights: &[f64], of: &DMatrix<f64>, f: usize) -> f64 {
+    weights
+        .iter()
+        .zip(of.column(f).iter())
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f64::max)
+}
+
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     v[v.len() / 2]
@@ -69,12 +78,7 @@ fn a_noise_free_frame_alone_comes_back_exactly() {
         };
         for f in [7, 20, 44] {
             let p = preview_frame(&rig, &track.points, f, &opts, None).unwrap();
-            let worst = p
-                .weights
-                .iter()
-                .zip(track.truth.column(f).iter())
-                .map(|(a, b)| (a - b).abs())
-                .fold(0.0, f64::max);
+            let worst = largest_difference(&p.weights, &track.truth, f);
             assert!(worst < 1e-5, "{neutral:?}, frame {f}: {worst}");
             assert!(p.rms < 1e-6, "{neutral:?}, frame {f}: RMS {}", p.rms);
             assert_eq!(p.frame, f);
@@ -173,12 +177,7 @@ fn on_the_shipped_tracks_the_preview_finds_the_take_s_neutral() {
                 whole.neutrals.first().copied(),
                 "{t}"
             );
-            let worst = p
-                .weights
-                .iter()
-                .zip(whole.weights.column(f).iter())
-                .map(|(a, b)| (a - b).abs())
-                .fold(0.0, f64::max);
+            let worst = largest_difference(&p.weights, &whole.weights, f);
             assert!(worst < 0.35, "{t}, frame {f}: {worst}");
         }
     }
@@ -250,12 +249,7 @@ fn a_named_neutral_frame_is_the_one_frame_stretch_of_it() {
     );
     let none = with(Identity::None, Neutral::Auto);
     assert_eq!(none.neutral, None);
-    let error = |w: &[f64]| {
-        w.iter()
-            .zip(track.truth.column(25).iter())
-            .map(|(a, b)| (a - b).abs())
-            .fold(0.0, f64::max)
-    };
+    let error = |w: &[f64]| largest_difference(w, &track.truth, 25);
     assert!(
         error(&frame.weights) + 0.1 < error(&none.weights),
         "with the identity {}, without {}",
