@@ -26,6 +26,90 @@ pub fn check_name(name: &str, taken: &[String]) -> std::result::Result<(), Strin
     Ok(())
 }
 
+/// Per shape, its (vertex, offset) pairs.
+type Offsets = Vec<Vec<(usize, [f64; 3])>>;
+
+/// The per-shape offsets of `expression_deltas.csv` (shape_id, vertex, dx, dy, dz) for
+/// `shapes` shapes on a mesh of `vertices`: each error names its line and column.
+fn read_deltas(deltas: &Path, shapes: usize, vertices: usize) -> Result<Offsets> {
+    // (shape, vertex) → the line that gave it: a second row for one would be summed by
+    // nobody and silently win.
+    let mut given = Given::new(shapes, vertices);
+    let mut out = vec![Vec::new(); shapes];
+    let text = super::read_text(deltas)?;
+    let mut rdr = csv::Reader::from_reader(text.as_bytes());
+    let mut lines = crate::csv_error::LineCounter::new(text.as_bytes());
+    // One record reused, its fields read as bytes (200,000 rows on the ICT face).
+    let mut r = csv::ByteRecord::new();
+    while rdr
+        .read_byte_record(&mut r)
+        .map_err(|e| crate::csv_error::csv_error_in(deltas, &e, text.as_bytes()))?
+    {
+        let line = r.position().map_or(0, |p| lines.line_at(p.byte()));
+        let field = |c: usize| std::str::from_utf8(r.get(c).unwrap_or(b"")).ok();
+        let shown = |c: usize| String::from_utf8_lossy(r.get(c).unwrap_or(b"")).into_owned();
+        let num = |c: usize| -> Result<f64> {
+            field(c).and_then(|t| t.parse::<f64>().ok()).ok_or_else(|| {
+                Error::parse(
+                    deltas,
+                    line,
+                    c as u64 + 1,
+                    format!("not a number: '{}'", shown(c)),
+                )
+            })
+        };
+        let index = |c: usize| -> Result<usize> {
+            field(c)
+                .and_then(|t| t.trim().parse::<usize>().ok())
+                .ok_or_else(|| {
+                    Error::parse(
+                        deltas,
+                        line,
+                        c as u64 + 1,
+                        format!("not an index: '{}'", shown(c)),
+                    )
+                })
+        };
+        let (s, v) = (index(0)?, index(1)?);
+        let o = [num(2)?, num(3)?, num(4)?];
+        if let Some(c) = o.iter().position(|x| !x.is_finite()) {
+            return Err(Error::parse(
+                deltas,
+                line,
+                c as u64 + 3,
+                format!("offset is not finite: '{}'", shown(c + 2)),
+            ));
+        }
+        if s >= shapes || v >= vertices {
+            return Err(Error::parse(
+                deltas,
+                line,
+                1,
+                format!(
+                    "shape {s} / vertex {v} out of range ({} shapes, {vertices} vertices)",
+                    shapes
+                ),
+            ));
+        }
+        if let Some(first) = given.insert(s, v, line) {
+            return Err(Error::parse(
+                deltas,
+                line,
+                1,
+                format!("shape {s} / vertex {v} is given twice (first on line {first})"),
+            ));
+        }
+        out[s].push((v, o));
+    }
+    if given.rows == 0 {
+        return Err(Error::file(
+            deltas,
+            "holds no offsets: every shape would be the neutral face",
+        ));
+    }
+    Ok(out)
+}
+
 /// The line each (shape, vertex) of a deltas file was given on: a table of every pair
 /// when there are at most [`Given::DENSE_MAX`] (the ICT face's 55 × 9,409; a hash map was
 /// most of the read's time), a hash map beyond.
@@ -117,81 +201,7 @@ impl MorphTargets {
         if names.is_empty() {
             return Err(Error::file(expressions, "names no shapes"));
         }
-        // (shape, vertex) → the line that gave it: a second row for one would be summed by
-        // nobody and silently win.
-        let mut given = Given::new(names.len(), vertices);
-        let mut out = vec![Vec::new(); names.len()];
-        let text = super::read_text(deltas)?;
-        let mut rdr = csv::Reader::from_reader(text.as_bytes());
-        let mut lines = crate::csv_error::LineCounter::new(text.as_bytes());
-        // One record reused, its fields read as bytes (200,000 rows on the ICT face).
-        let mut r = csv::ByteRecord::new();
-        while rdr
-            .read_byte_record(&mut r)
-            .map_err(|e| crate::csv_error::csv_error_in(deltas, &e, text.as_bytes()))?
-        {
-            let line = r.position().map_or(0, |p| lines.line_at(p.byte()));
-            let field = |c: usize| std::str::from_utf8(r.get(c).unwrap_or(b"")).ok();
-            let shown = |c: usize| String::from_utf8_lossy(r.get(c).unwrap_or(b"")).into_owned();
-            let num = |c: usize| -> Result<f64> {
-                field(c).and_then(|t| t.parse::<f64>().ok()).ok_or_else(|| {
-                    Error::parse(
-                        deltas,
-                        line,
-                        c as u64 + 1,
-                        format!("not a number: '{}'", shown(c)),
-                    )
-                })
-            };
-            let index = |c: usize| -> Result<usize> {
-                field(c)
-                    .and_then(|t| t.trim().parse::<usize>().ok())
-                    .ok_or_else(|| {
-                        Error::parse(
-                            deltas,
-                            line,
-                            c as u64 + 1,
-                            format!("not an index: '{}'", shown(c)),
-                        )
-                    })
-            };
-            let (s, v) = (index(0)?, index(1)?);
-            let o = [num(2)?, num(3)?, num(4)?];
-            if let Some(c) = o.iter().position(|x| !x.is_finite()) {
-                return Err(Error::parse(
-                    deltas,
-                    line,
-                    c as u64 + 3,
-                    format!("offset is not finite: '{}'", shown(c + 2)),
-                ));
-            }
-            if s >= names.len() || v >= vertices {
-                return Err(Error::parse(
-                    deltas,
-                    line,
-                    1,
-                    format!(
-                        "shape {s} / vertex {v} out of range ({} shapes, {vertices} vertices)",
-                        names.len()
-                    ),
-                ));
-            }
-            if let Some(first) = given.insert(s, v, line) {
-                return Err(Error::parse(
-                    deltas,
-                    line,
-                    1,
-                    format!("shape {s} / vertex {v} is given twice (first on line {first})"),
-                ));
-            }
-            out[s].push((v, o));
-        }
-        if given.rows == 0 {
-            return Err(Error::file(
-                deltas,
-                "holds no offsets: every shape would be the neutral face",
-            ));
-        }
+        let out = read_deltas(deltas, names.len(), vertices)?;
         Ok(MorphTargets { names, deltas: out })
     }
 
