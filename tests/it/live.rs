@@ -749,3 +749,184 @@ fn an_image_size_for_a_pixel_table_on_stdin_is_refused_naming_the_line() {
     );
     assert!(out.stdout.is_empty());
 }
+
+/// Runs `kslab live --from stdin` on `input` (written from another thread) to `--stats`;
+/// returns (exit code, standard error, the stats JSON), or fails the test after 60 s —
+/// a session that hangs is the fault.
+fn live_on_stdin(input: Vec<u8>, extra: &[&str]) -> (Option<i32>, String, serde_json::Value) {
+    use std::io::Write;
+    let dir = tempfile::tempdir().unwrap();
+    let stats = dir.path().join("stats.json");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_kslab"))
+        .args([
+            "live",
+            "--from",
+            "stdin",
+            "--to",
+            "stdout",
+            "--calibrate",
+            "5",
+        ])
+        .args(extra)
+        .arg("--stats")
+        .arg(&stats)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stdin = child.stdin.take().unwrap();
+    let writer = std::thread::spawn(move || {
+        let _ = stdin.write_all(&input);
+    });
+    let started = Instant::now();
+    let status = loop {
+        if let Some(s) = child.try_wait().unwrap() {
+            break s;
+        }
+        if started.elapsed() > Duration::from_secs(60) {
+            let _ = child.kill();
+            panic!("kslab live did not end within 60 s of its input's end");
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    writer.join().unwrap();
+    let mut err = String::new();
+    child
+        .stderr
+        .take()
+        .unwrap()
+        .read_to_string(&mut err)
+        .unwrap();
+    let v = serde_json::from_str(&std::fs::read_to_string(&stats).unwrap_or_default())
+        .unwrap_or(serde_json::Value::Null);
+    (status.code(), err, v)
+}
+
+/// The shipped d6 track's first `n` frames as JSON lines, as a MediaPipe script prints them.
+fn d6_json_lines(n: usize) -> Vec<String> {
+    let seq = keyshape_io::read_sequence(
+        &shared("mediapipe_face_tracks/liveportrait_d6.csv"),
+        &keyshape_io::ReadOptions {
+            format: None,
+            dims: 2,
+        },
+    )
+    .unwrap();
+    (0..n)
+        .map(|c| {
+            let pts: Vec<String> = seq
+                .coords
+                .column(c)
+                .as_slice()
+                .chunks(2)
+                .map(|p| format!("[{},{}]", p[0], p[1]))
+                .collect();
+            format!(
+                "{{\"t\":{},\"points\":[{}]}}\n",
+                c as f64 / 30.0,
+                pts.join(",")
+            )
+        })
+        .collect()
+}
+
+/// Out-of-range values on any source are malformed frames, counted and skipped: a landmark
+/// at (1e200, 1e200) on a JSON line sent the frame solver into an endless loop that only
+/// SIGKILL stopped; a non-UTF-8 line stopped reading for the rest of the session (0
+/// malformed, exit 0); a line longer than the cap was held whole (1 GiB → 1.6 GB).
+#[test]
+fn every_source_bounds_its_values_and_lines_before_the_solve() {
+    let lines = d6_json_lines(20);
+    let mut input = Vec::new();
+    for (i, l) in lines.iter().enumerate() {
+        match i {
+            8 => input.extend(
+                l.replacen(
+                    &l[l.find("[[").unwrap() + 1..l.find("],").unwrap() + 1],
+                    "[1e200,1e200]",
+                    1,
+                )
+                .as_bytes(),
+            ),
+            10 => input.extend(b"{\"t\": 1, \"points\": [[\xff\xfe, 1]]}\n"),
+            12 => {
+                input.extend(std::iter::repeat_n(b' ', keyshape_io::MAX_LINE_BYTES + 10));
+                input.extend(b"\n");
+            }
+            14 => input.extend(l.replacen("{\"t\":", "{\"t\":1e308,\"x\":", 1).as_bytes()),
+            _ => input.extend(l.as_bytes()),
+        }
+    }
+    let (code, err, stats) = live_on_stdin(input, &[]);
+    assert_eq!(code, Some(0), "{err}");
+    assert_eq!(stats["malformed"], 4, "{err}\n{stats}");
+    // (A live source drops frames when the solve falls behind.)
+    assert_eq!(stats["received"], 16, "{err}\n{stats}");
+    let solved = stats["solved"].as_u64().unwrap() + stats["dropped"].as_u64().unwrap();
+    assert_eq!(solved, 16, "{err}\n{stats}");
+    // (Warnings are rate-limited: the first is said.)
+    assert!(
+        err.contains("landmark 0 x: coordinate 1e200 is beyond"),
+        "{err}"
+    );
+}
+
+/// An OpenSeeFace datagram with a point at (1e38, −1e38) was solved (weights pinned at 1)
+/// and recorded (the take then unreadable); one with a time of 1e308 wrote a Live Link
+/// timecode of `5124095576030431:00:15`. Both are malformed: counted and skipped, and the
+/// take reads back.
+#[test]
+fn an_openseeface_datagram_out_of_range_is_malformed_and_the_take_reads_back() {
+    let d6 = keyshape_io::read_sequence(
+        &shared("mediapipe_face_tracks/liveportrait_d6.csv"),
+        &keyshape_io::ReadOptions {
+            format: None,
+            dims: 2,
+        },
+    )
+    .unwrap();
+    let d6 = d6
+        .select_points(&keyshape_rig::mediapipe_to_ibug68().unwrap())
+        .unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let take = dir.path().join("take");
+    let stats = dir.path().join("stats.json");
+    let port = free_udp_port();
+    let live = Running::start(
+        Command::new(env!("CARGO_BIN_EXE_kslab"))
+            .args(["live", "--from", &format!("openseeface:127.0.0.1:{port}")])
+            .args(["--to", "stdout", "--calibrate", "5", "--record"])
+            .arg(&take)
+            .arg("--stats")
+            .arg(&stats),
+        true,
+    );
+    let send = UdpSocket::bind("127.0.0.1:0").unwrap();
+    for c in 0..20 {
+        let mut pts: Vec<f64> = d6.coords.column(c).iter().copied().collect();
+        let mut t = 1.7e9 + c as f64 / 30.0;
+        match c {
+            7 => {
+                pts[10] = 1e38;
+                pts[11] = -1e38;
+            }
+            9 => t = 1e308,
+            _ => {}
+        }
+        send.send_to(&osf_face(t, 0, &pts), ("127.0.0.1", port))
+            .unwrap();
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    std::thread::sleep(Duration::from_millis(500));
+    let (code, _, err) = live.stop(libc::SIGINT);
+    assert_eq!(code, Some(0), "{err}");
+    let stats: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
+    assert_eq!(stats["malformed"], 2, "{err}\n{stats}");
+    assert_eq!(stats["received"], 18, "{err}\n{stats}");
+    let back = kslab(&["rig", take.join("track.csv").to_str().unwrap(), "--live"]);
+    assert_eq!(back.code, 0, "{}", back.stderr);
+    let ll = std::fs::read_to_string(take.join("livelink.csv")).unwrap();
+    assert!(ll.lines().skip(1).all(|l| l.starts_with("00:00:")), "{ll}");
+}

@@ -51,6 +51,6 @@ pub use csv_out::fmt_num;
 pub use read::{detect_format, open_input, parse_sequence, read_sequence, ReadOptions};
 pub use shared::shared_data;
 pub use text::{
-    read_bytes, read_columns, read_json, read_text, text_from_bytes, MAX_INPUT_BYTES,
-    MAX_LINE_BYTES,
+    read_bytes, read_columns, read_json, read_line_capped, read_text, text_from_bytes, Line,
+    MAX_INPUT_BYTES, MAX_LINE_BYTES,
 };

@@ -125,6 +125,9 @@ struct LineIndex<R> {
     open: Option<u64>,
     /// Lines already passed.
     passed: u64,
+    /// Bytes read since the last `\n`: a line longer than [`super::MAX_LINE_BYTES`] is an
+    /// error here, before the csv reader has stored it (a 300 MB line cost 1 GB).
+    run: usize,
 }
 
 impl<R> LineIndex<R> {
@@ -135,6 +138,7 @@ impl<R> LineIndex<R> {
             lines: Default::default(),
             open: None,
             passed: 0,
+            run: 0,
         }
     }
 
@@ -161,12 +165,26 @@ impl<R: std::io::Read> std::io::Read for LineIndex<R> {
         let n = self.inner.read(buf)?;
         for (i, b) in buf[..n].iter().enumerate() {
             let at = self.pos + i as u64;
+            self.run += 1;
             match b {
-                b'\n' => self.lines.push_back((at, self.open.take())),
+                b'\n' => {
+                    self.lines.push_back((at, self.open.take()));
+                    self.run = 0;
+                }
                 b'\r' => {}
                 _ => {
                     self.open.get_or_insert(at);
                 }
+            }
+            if self.run > super::MAX_LINE_BYTES {
+                let line = self.passed + self.lines.len() as u64 + 1;
+                return Err(std::io::Error::new(
+                    std::io::ErrorKind::InvalidData,
+                    format!(
+                        "line {line} is longer than {} bytes: not a text table",
+                        super::MAX_LINE_BYTES
+                    ),
+                ));
             }
         }
         self.pos += n as u64;

@@ -10,6 +10,66 @@ pub const MAX_INPUT_BYTES: u64 = 4 << 30;
 /// The longest line an input may have (a 468-point 3-D MediaPipe row is about 25 KB).
 pub const MAX_LINE_BYTES: usize = 16 << 20;
 
+/// One line of a stream, read with its length bounded before it is stored.
+#[derive(Debug, PartialEq, Eq)]
+pub enum Line {
+    /// The line's bytes (with its `\n`, when it had one) are in the buffer.
+    Read(usize),
+    /// The stream has ended.
+    End,
+    /// The line was longer than the cap: its first bytes were dropped and the rest read
+    /// past, so the next call reads the next line.
+    TooLong,
+}
+
+/// Reads one line (up to and including `\n`) into `buf` (cleared first), storing at most
+/// `cap` bytes: a longer line is read past and reported, never held whole. Every reader of
+/// lines from a stream (a live source, a streamed table) goes through this, so one line of
+/// a gigabyte costs no gigabyte.
+pub fn read_line_capped(
+    r: &mut dyn std::io::BufRead,
+    buf: &mut Vec<u8>,
+    cap: usize,
+) -> std::io::Result<Line> {
+    buf.clear();
+    let mut too_long = false;
+    let mut any = false;
+    loop {
+        let avail = match r.fill_buf() {
+            Ok(a) => a,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+            Err(e) => return Err(e),
+        };
+        if avail.is_empty() {
+            break;
+        }
+        any = true;
+        let (take, done) = match avail.iter().position(|&b| b == b'\n') {
+            Some(i) => (i + 1, true),
+            None => (avail.len(), false),
+        };
+        if !too_long {
+            if buf.len() + take > cap {
+                too_long = true;
+                buf.clear();
+            } else {
+                buf.extend_from_slice(&avail[..take]);
+            }
+        }
+        r.consume(take);
+        if done {
+            break;
+        }
+    }
+    Ok(if too_long {
+        Line::TooLong
+    } else if any {
+        Line::Read(buf.len())
+    } else {
+        Line::End
+    })
+}
+
 /// Reads a whole input file as UTF-8 text, un-gzipping `*.gz` files (every member of a
 /// multi-member gzip; trailing bytes that are not gzip are an error). Only regular files are
 /// read: a directory, a FIFO or a device (`/dev/zero`) is refused with a message, so nothing

@@ -245,22 +245,42 @@ fn json_points(line: &str) -> std::result::Result<(Option<f64>, Vec<f64>), Strin
     Ok((t, out))
 }
 
-fn open_stdin(mut stdin: Box<dyn BufRead + Send>, options: SourceOptions) -> Result<Opened> {
-    let mut first = String::new();
-    let at = Path::new("stdin");
-    loop {
-        first.clear();
-        let n = stdin.read_line(&mut first).map_err(|e| Error::io(at, e))?;
-        if n == 0 {
-            return Err(Error::file(
-                at,
-                "ended before its first line (a table header or a JSON line)",
-            ));
-        }
-        if !first.trim().is_empty() {
-            break;
-        }
+/// One line of standard input before the session starts (the header, the first row):
+/// bounded in length and UTF-8, or an error naming the line; `None` at the end.
+fn stdin_line(r: &mut dyn BufRead, at: &Path, line: u64) -> Result<Option<String>> {
+    let mut bytes = Vec::new();
+    match keyshape_io::read_line_capped(r, &mut bytes, keyshape_io::MAX_LINE_BYTES)
+        .map_err(|e| Error::io(at, e))?
+    {
+        keyshape_io::Line::End => Ok(None),
+        keyshape_io::Line::TooLong => Err(Error::parse(
+            at,
+            line,
+            0,
+            format!("line is longer than {} bytes", keyshape_io::MAX_LINE_BYTES),
+        )),
+        keyshape_io::Line::Read(_) => String::from_utf8(bytes)
+            .map(Some)
+            .map_err(|_| Error::parse(at, line, 0, "not UTF-8 text")),
     }
+}
+
+fn open_stdin(mut stdin: Box<dyn BufRead + Send>, options: SourceOptions) -> Result<Opened> {
+    let at = Path::new("stdin");
+    let mut line_no = 0u64;
+    let first = loop {
+        line_no += 1;
+        match stdin_line(&mut *stdin, at, line_no)? {
+            None => {
+                return Err(Error::file(
+                    at,
+                    "ended before its first line (a table header or a JSON line)",
+                ))
+            }
+            Some(l) if !l.trim().is_empty() => break l,
+            Some(_) => {}
+        }
+    };
     if first.trim_start().starts_with('{') {
         if options.format.is_some() {
             return Err(Error::invalid(format!(
@@ -298,9 +318,10 @@ fn open_stdin(mut stdin: Box<dyn BufRead + Send>, options: SourceOptions) -> Res
     // normalised one) is said before anything starts.
     let mut row = String::new();
     while row.trim().is_empty() {
-        row.clear();
-        if stdin.read_line(&mut row).map_err(|e| Error::io(at, e))? == 0 {
-            break;
+        line_no += 1;
+        match stdin_line(&mut *stdin, at, line_no)? {
+            Some(l) => row = l,
+            None => break,
         }
     }
     let mut note = None;
@@ -330,6 +351,25 @@ fn open_stdin(mut stdin: Box<dyn BufRead + Send>, options: SourceOptions) -> Res
         note,
         fps: None,
         options,
+    })
+}
+
+/// The largest time, in seconds, a frame may carry: a Unix time stamp (OpenSeeFace's,
+/// about 1.8e9) with room to spare, far below where a timecode's hours overflow.
+pub const MAX_TIME_S: f64 = 1e11;
+
+/// Why a frame cannot be solved, if it cannot: a coordinate out of the readers' range
+/// (non-finite, beyond ±1e30) or a time that is not finite or beyond ±[`MAX_TIME_S`].
+/// Every source's frames are checked by this before they are queued.
+pub fn frame_problem(time: f64, points: &[f64]) -> Option<String> {
+    if !(time.is_finite() && time.abs() <= MAX_TIME_S) {
+        return Some(format!(
+            "time {time:e} s is not a time stamp (finite, within ±{MAX_TIME_S:e} s)"
+        ));
+    }
+    points.iter().enumerate().find_map(|(i, &v)| {
+        keyshape_core::sequence::coord_problem(v)
+            .map(|why| format!("landmark {} {}: {why}", i / 2, ["x", "y"][i % 2]))
     })
 }
 
@@ -391,13 +431,20 @@ impl Run<'_> {
         }
     }
 
-    /// Queues a frame received at `arrived`.
-    fn deliver(&mut self, number: i64, time: f64, mut points: Vec<f64>, arrived: Instant) {
+    /// Queues a frame received at `arrived`, or counts it malformed (and says why) when a
+    /// value is out of range: every source's frames pass this one check, the bound the
+    /// file readers keep ([`keyshape_core::sequence::coord_problem`]) and a time that a
+    /// clock can show ([`check_time`]). Whether the frame was queued.
+    fn deliver(&mut self, number: i64, time: f64, mut points: Vec<f64>, arrived: Instant) -> bool {
         if let Some((w, h)) = self.options.image_size {
             for p in points.chunks_mut(2) {
                 p[0] *= w;
                 p[1] *= h;
             }
+        }
+        if let Some(why) = frame_problem(time, &points) {
+            self.malformed(&format!("frame {number}: {why}"));
+            return false;
         }
         self.counters.received.fetch_add(1, Ordering::Relaxed);
         self.queue.push(
@@ -409,6 +456,7 @@ impl Run<'_> {
             },
             self.counters,
         );
+        true
     }
 
     fn openseeface(&mut self, sock: &UdpSocket) {
@@ -438,8 +486,9 @@ impl Run<'_> {
                 Ok(faces) => {
                     let id = *follow.get_or_insert(faces[0].id);
                     if let Some(f) = faces.into_iter().find(|f| f.id == id) {
-                        self.deliver(n, f.time, f.points, arrived);
-                        n += 1;
+                        if self.deliver(n, f.time, f.points, arrived) {
+                            n += 1;
+                        }
                     }
                 }
             }
@@ -475,7 +524,7 @@ impl Run<'_> {
     }
 
     fn json_lines(&mut self, mut r: Box<dyn BufRead + Send>, first: String) {
-        let mut line = first;
+        let mut line = first.into_bytes();
         let mut n = 0i64;
         let mut line_no = 1u64;
         let mut arrived = Instant::now();
@@ -483,12 +532,15 @@ impl Run<'_> {
             if self.stopped() {
                 return;
             }
-            if !line.trim().is_empty() {
-                match json_points(&line) {
+            match std::str::from_utf8(&line) {
+                Err(_) => self.malformed(&format!("stdin line {line_no}: not UTF-8 text")),
+                Ok(text) if text.trim().is_empty() => {}
+                Ok(text) => match json_points(text) {
                     Ok((t, pts)) if pts.len() == 2 * self.layout => {
                         let t = t.unwrap_or(self.start.elapsed().as_secs_f64());
-                        self.deliver(n, t, pts, arrived);
-                        n += 1;
+                        if self.deliver(n, t, pts, arrived) {
+                            n += 1;
+                        }
                     }
                     Ok((_, pts)) => self.malformed(&format!(
                         "stdin line {line_no}: {} points, the stream has {}",
@@ -496,15 +548,22 @@ impl Run<'_> {
                         self.layout
                     )),
                     Err(e) => self.malformed(&format!("stdin line {line_no}: {e}")),
-                }
+                },
             }
-            line.clear();
             line_no += 1;
-            let read = r.read_line(&mut line);
+            let read =
+                keyshape_io::read_line_capped(&mut *r, &mut line, keyshape_io::MAX_LINE_BYTES);
             arrived = Instant::now();
             match read {
-                Ok(0) => return,
-                Ok(_) => {}
+                Ok(keyshape_io::Line::End) => return,
+                Ok(keyshape_io::Line::Read(_)) => {}
+                Ok(keyshape_io::Line::TooLong) => {
+                    self.malformed(&format!(
+                        "stdin line {line_no}: longer than {} bytes",
+                        keyshape_io::MAX_LINE_BYTES
+                    ));
+                    line.clear();
+                }
                 Err(e) => {
                     (self.warn)(format!("stdin: {e}"));
                     return;
@@ -527,6 +586,10 @@ impl Run<'_> {
             let time = seq.times.as_ref().map_or(c as f64 / rate, |t| t[c]);
             let points: Vec<f64> = seq.coords.column(c).iter().copied().collect();
             // (The image size was applied when the file was read.)
+            if let Some(why) = frame_problem(time, &points) {
+                self.malformed(&format!("frame {}: {why}", seq.frames[c]));
+                continue;
+            }
             self.counters.received.fetch_add(1, Ordering::Relaxed);
             self.queue.push(
                 Frame {

@@ -5,6 +5,33 @@
 use keyshape_core::error::{Error, Result};
 use nalgebra::{Matrix2x3, Matrix3, Vector3};
 
+/// The rotation nearest to `m`, found in a bounded number of steps: nalgebra's
+/// `from_matrix` iterates until it converges, which a matrix of huge or non-finite entries
+/// never does (a landmark at 1e200 hung the frame solver in it, beyond any signal).
+pub fn rotation_of(m: &Matrix3<f64>) -> nalgebra::Rotation3<f64> {
+    // The nearest rotation of `c m` is that of `m` for any c > 0: a matrix of huge or tiny
+    // entries is scaled to entries of at most 1 (an ordinary one, a product of rotations,
+    // is taken as it is, bit for bit as before), so nothing overflows on the way.
+    let big = m.amax();
+    if !(big.is_finite() && big > 0.0) {
+        return nalgebra::Rotation3::identity();
+    }
+    let scaled;
+    let m = if (1e-100..=1e100).contains(&big) {
+        m
+    } else {
+        scaled = m / big;
+        &scaled
+    };
+    let r =
+        nalgebra::Rotation3::from_matrix_eps(m, f64::EPSILON, 100, nalgebra::Rotation3::identity());
+    if r.matrix().iter().all(|v| v.is_finite()) {
+        r
+    } else {
+        nalgebra::Rotation3::identity()
+    }
+}
+
 /// A scaled orthographic projection.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Camera {
@@ -35,7 +62,7 @@ impl Camera {
     /// The camera a fraction `alpha` of the way from this one to `other` (scale and
     /// translation linearly, rotation along the geodesic).
     pub fn toward(&self, other: &Camera, alpha: f64) -> Camera {
-        let rel = nalgebra::Rotation3::from_matrix(&(self.r.transpose() * other.r));
+        let rel = rotation_of(&(self.r.transpose() * other.r));
         let step = rel.scaled_axis() * alpha;
         Camera {
             s: self.s + alpha * (other.s - self.s),
@@ -138,4 +165,37 @@ pub fn fit_camera(x: &[[f64; 3]], u: &[[f64; 2]]) -> Result<Camera> {
     let s = num / den;
     let t = [mu0 - s * r0.dot(&mx), mu1 - s * r1.dot(&mx)];
     Ok(Camera { s, r, t })
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+
+    /// nalgebra's `from_matrix` never returns on these (it iterates until convergence);
+    /// `rotation_of` answers each with a rotation.
+    #[test]
+    fn the_nearest_rotation_of_any_matrix_is_found_in_bounded_steps() {
+        let a = Camera::from_angles(1.0, 0.3, -0.2, 0.1, [0.0, 0.0]);
+        for v in [
+            1e200,
+            -1e300,
+            f64::MAX,
+            f64::MIN_POSITIVE,
+            0.0,
+            f64::NAN,
+            f64::INFINITY,
+        ] {
+            let mut m = a.r;
+            m[(0, 1)] = v;
+            let r = rotation_of(&m);
+            let rtr = r.matrix().transpose() * r.matrix();
+            assert!((rtr - Matrix3::identity()).norm() < 1e-9, "{v:e}: {r:?}");
+            let b = Camera { r: m, ..a };
+            let c = a.toward(&b, 0.5);
+            assert!(c.r.iter().all(|x| x.is_finite()), "{v:e}");
+        }
+        // An ordinary matrix: the rotation itself.
+        assert!((rotation_of(&a.r).matrix() - a.r).norm() < 1e-12);
+    }
 }

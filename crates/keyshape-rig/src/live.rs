@@ -209,8 +209,16 @@ impl LiveSolver {
                 frame.len()
             )));
         }
-        if let Some((i, v)) = frame.iter().enumerate().find(|(_, v)| !v.is_finite()) {
-            return Err(Error::invalid(format!("landmark {}: {v}", i / 2)));
+        if let Some((i, why)) = frame
+            .iter()
+            .enumerate()
+            .find_map(|(i, &v)| keyshape_core::sequence::coord_problem(v).map(|w| (i, w)))
+        {
+            return Err(Error::invalid(format!(
+                "landmark {}: {why} ({})",
+                i / 2,
+                frame[i]
+            )));
         }
         if keyshape_core::sequence::degenerate_shape(frame, 2) {
             return Err(Error::unfit(format!(

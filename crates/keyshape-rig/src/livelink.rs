@@ -132,7 +132,8 @@ pub fn timecode(t: f64, fps: f64) -> String {
     let milli = ((frames - ff) * 1000.0).round().min(999.0) as u64;
     format!(
         "{:02}:{:02}:{:02}:{:02}.{milli:03}",
-        secs / 3600,
+        // A timecode is a time of day: its hours wrap at 24.
+        (secs / 3600) % 24,
         (secs / 60) % 60,
         secs % 60,
         ff as u64

@@ -244,3 +244,43 @@ impl KindIs for keyshape_core::Error {
         self.to_string()
     }
 }
+
+/// No input makes the frame solver loop without end: a landmark at 1e200 (finite, so a
+/// JSON source took it) hung it in the head rotation's nearest-rotation iteration, beyond
+/// any signal. Every extreme frame is answered (refused, or solved to bounded weights)
+/// within seconds, and the frames after it are solved as before.
+#[test]
+fn extreme_frames_are_answered_and_change_nothing() {
+    let (rig, t) = track(68, 20);
+    let mut clean = LiveSolver::new(rig.clone(), RigOptions::live(), 10).unwrap();
+    let want = live_weights(&mut clean, &t);
+    let (tx, rx) = std::sync::mpsc::channel();
+    let worker = std::thread::spawn(move || {
+        let mut live = LiveSolver::new(rig.clone(), RigOptions::live(), 10).unwrap();
+        let mut got = Vec::new();
+        for c in 0..t.ncols() {
+            let col: Vec<f64> = t.column(c).iter().copied().collect();
+            if c >= 10 {
+                for v in [1e200, -1e300, f64::MAX, 1e31, 1e38] {
+                    for at in [0, 5, col.len() - 1] {
+                        let mut bad = col.clone();
+                        bad[at] = v;
+                        let r = live.push(&bad);
+                        assert!(r.is_err(), "{v:e} at value {at}: refused as out of range");
+                    }
+                }
+                // Every point far out: the face offset beyond what 64-bit numbers resolve.
+                let far: Vec<f64> = col.iter().map(|v| v + 1e29).collect();
+                assert!(live.push(&far).is_err(), "a face at 1e29 is refused");
+            }
+            got.extend(live.push(&col).unwrap());
+        }
+        tx.send(got).unwrap();
+    });
+    let got = rx
+        .recv_timeout(std::time::Duration::from_secs(120))
+        .expect("the frame solver answered every extreme frame");
+    worker.join().unwrap();
+    let got = DMatrix::from_fn(want.nrows(), got.len(), |s, f| got[f].weights[s]);
+    assert_eq!(got, want, "the refused frames changed nothing");
+}

@@ -51,7 +51,9 @@ pub(super) fn write_all(
             .cameras
             .iter()
             .map(|c| {
-                let u = nalgebra::UnitQuaternion::from_matrix(&c.r);
+                let u = nalgebra::UnitQuaternion::from_rotation_matrix(
+                    &keyshape_rig::camera::rotation_of(&c.r),
+                );
                 [u.i, u.j, u.k, u.w]
             })
             .collect();

@@ -22,7 +22,7 @@ use keyshape_core::sequence::{Format, Layout};
 use keyshape_core::solve::temporal::{CausalShared, SmoothMode, Smoothing};
 use keyshape_core::solve::{lstsq, SolveOptions, CHUNK};
 use nalgebra::DMatrix;
-use std::io::{BufRead, BufReader, Read};
+use std::io::{BufReader, Read};
 use std::path::Path;
 
 mod chunks;
@@ -107,10 +107,26 @@ fn format_of(path: &Path, given: Option<Format>) -> Result<Format> {
     let format = match given {
         Some(f) => f,
         None => {
-            let mut first = String::new();
-            BufReader::new(open(path)?)
-                .read_line(&mut first)
-                .map_err(|e| Error::file(path, format!("cannot read the first line: {e}")))?;
+            let mut bytes = Vec::new();
+            let read = crate::read_line_capped(
+                &mut BufReader::new(open(path)?),
+                &mut bytes,
+                crate::MAX_LINE_BYTES,
+            )
+            .map_err(|e| Error::file(path, format!("cannot read the first line: {e}")))?;
+            if read == crate::Line::TooLong {
+                return Err(Error::parse(
+                    path,
+                    1,
+                    0,
+                    format!(
+                        "line is longer than {} bytes: not a text table",
+                        crate::MAX_LINE_BYTES
+                    ),
+                ));
+            }
+            let first = String::from_utf8(bytes)
+                .map_err(|_| Error::parse(path, 1, 0, "the first line is not UTF-8 text"))?;
             if first.trim().is_empty() {
                 return Err(Error::file(path, "file is empty"));
             }
