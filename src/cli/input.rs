@@ -35,6 +35,41 @@ pub struct InputArgs {
     pub image_size: Option<(f64, f64)>,
 }
 
+/// A command-line parser for a count within `limit` (the one declaration of its range in
+/// `keyshape_core::limits`, which the experiment files and the library check too).
+pub fn count_within(
+    limit: &'static keyshape_core::limits::Limit,
+) -> impl Fn(&str) -> Result<usize, String> + Clone + Send + Sync + 'static {
+    move |s: &str| {
+        let v: u64 = s
+            .trim()
+            .parse()
+            .map_err(|_| format!("'{s}' is not a count: give {}", limit.describe()))?;
+        if limit.contains(v as f64) {
+            usize::try_from(v).map_err(|_| format!("{v}: a count beyond this machine"))
+        } else {
+            Err(limit.why_count(v))
+        }
+    }
+}
+
+/// A command-line parser for a number within `limit` (see [`count_within`]).
+pub fn number_within(
+    limit: &'static keyshape_core::limits::Limit,
+) -> impl Fn(&str) -> Result<f64, String> + Clone + Send + Sync + 'static {
+    move |s: &str| {
+        let v: f64 = s
+            .trim()
+            .parse()
+            .map_err(|_| format!("'{s}' is not a number: give {}", limit.describe()))?;
+        if limit.contains(v) {
+            Ok(v)
+        } else {
+            Err(limit.why(v))
+        }
+    }
+}
+
 /// `WIDTHxHEIGHT` in pixels.
 pub fn parse_image_size(s: &str) -> Result<(f64, f64), String> {
     let bad = || format!("'{s}' is not an image size: give WIDTHxHEIGHT in pixels, e.g. 1280x720");

@@ -69,7 +69,7 @@ pub struct LiveArgs {
     #[arg(long, value_name = "ID")]
     face: Option<i32>,
     /// A file source's frames per second [default: the file's own rate, else 30].
-    #[arg(long, value_name = "FPS")]
+    #[arg(long, value_name = "FPS", value_parser = super::input::number_within(&keyshape_core::limits::LIVE_RATE))]
     rate: Option<f64>,
     /// The video's size WIDTHxHEIGHT, for normalised coordinates (MediaPipe's default)
     /// [default: the coordinates as they come].

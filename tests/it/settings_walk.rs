@@ -14,7 +14,8 @@ const VALUES: [&str; 5] = ["0", "-1", "NaN", "1e300", "2305843009213693952"];
 /// Options of `kslab SUB --help` that take a value.
 fn options(sub: &str) -> Vec<String> {
     let out = Command::new(env!("CARGO_BIN_EXE_kslab"))
-        .args([sub, "--help"])
+        .args(sub.split(' '))
+        .arg("--help")
         .output()
         .unwrap();
     String::from_utf8_lossy(&out.stdout)
@@ -126,6 +127,22 @@ fn every_setting_of_every_subcommand_refuses_or_takes_zero_minus_one_nan_1e300_a
         ),
         ("intensity", v(&[])),
         ("smooth", v(&["--k", "3", "--out", &o("sm")])),
+        // The benchmarks too (`bench nnls --frames 2⁶¹` overflowed a capacity, `bench
+        // scale --frames` had no bound), on sizes that run in a second.
+        (
+            "bench nnls",
+            v(&["--frames", "200", "--baseline-frames", "20", "--k", "4"]),
+        ),
+        ("bench rig", v(&["--frames", "20", "--repeats", "1"])),
+        ("bench transfer", v(&["--frames", "5"])),
+        ("bench smooth", v(&["--frames", "300", "--k", "4"])),
+        (
+            "bench scale",
+            v(&["--frames", "300", "--steps", "info", "--dir", &o("scale")]),
+        ),
+        ("bench curves", v(&["--kmax", "3"])),
+        ("bench kmeans", v(&["--kmax", "3", "--seeds", "1,2"])),
+        ("bench live", v(&["--seconds", "0.5", "--fps", "30"])),
     ];
     // Two workers (CI has two cores), each a share of the subcommands.
     let walk = |share: usize| {
@@ -136,7 +153,7 @@ fn every_setting_of_every_subcommand_refuses_or_takes_zero_minus_one_nan_1e300_a
             assert!(!opts.is_empty(), "{sub}: no options read from --help");
             for flag in &opts {
                 for value in VALUES {
-                    let mut args = vec![sub.to_string()];
+                    let mut args: Vec<String> = sub.split(' ').map(String::from).collect();
                     args.extend(with(base, flag, value));
                     runs += 1;
                     let (code, err) = run_bounded(&args, dir);

@@ -23,12 +23,7 @@ impl Limit {
     /// `v` when it lies in the range; else an error naming the setting `name` (spelled
     /// as the caller's flag or key), the value and the range.
     pub fn check(&self, name: &str, v: f64) -> Result<f64> {
-        let above_lo = if self.lo_open {
-            v > self.lo
-        } else {
-            v >= self.lo
-        };
-        if v.is_finite() && above_lo && v <= self.hi {
+        if self.contains(v) {
             return Ok(v);
         }
         Err(Error::bad_setting(
@@ -36,6 +31,16 @@ impl Limit {
             v,
             format!("{} {}", setting(name), self.why(v)),
         ))
+    }
+
+    /// Does `v` lie in the range (a finite number)?
+    pub fn contains(&self, v: f64) -> bool {
+        let above_lo = if self.lo_open {
+            v > self.lo
+        } else {
+            v >= self.lo
+        };
+        v.is_finite() && above_lo && v <= self.hi
     }
 
     /// [`Limit::check`] for a count.
@@ -125,6 +130,62 @@ pub const SHARDS: Limit = Limit {
     lo_open: false,
     hi: 1_000_000.0,
     unit: "shards",
+};
+
+/// Degree of the intensity study's smoothing polynomial (`intensity --degree`,
+/// `[intensity] degree`): paper 002 uses 5; beyond 12 the monomial fit on a clip loses its
+/// conditioning and the solve falls back to the raw signal, which `--degree 50` returned
+/// without a word.
+pub const POLY_DEGREE: Limit = Limit {
+    lo: 0.0,
+    lo_open: false,
+    hi: 12.0,
+    unit: "(polynomial degree)",
+};
+
+/// A replayed file's frames per second (`live --rate`): one frame a minute to ten
+/// thousand a second. `--rate 1e-20` passed the old (0, 10000] check and its frame period
+/// (1e20 s) panicked the reader thread.
+pub const LIVE_RATE: Limit = Limit {
+    lo: 1.0 / 60.0,
+    lo_open: false,
+    hi: 10_000.0,
+    unit: "frames per second",
+};
+
+/// Frames of a benchmark's generated or repeated track (`bench nnls|rig|transfer|smooth|
+/// scale --frames`, `bench nnls --baseline-frames`): `2⁶¹` overflowed a capacity, and
+/// `bench scale` had no bound at all (13 GB of staging).
+pub const BENCH_FRAMES: Limit = Limit {
+    lo: 1.0,
+    lo_open: false,
+    hi: 1_000_000.0,
+    unit: "frames",
+};
+
+/// Other counts of a benchmark: key shapes, repeats, points, k-means restarts, the largest
+/// k of a sweep.
+pub const BENCH_COUNT: Limit = Limit {
+    lo: 1.0,
+    lo_open: false,
+    hi: 10_000.0,
+    unit: "(a count)",
+};
+
+/// Seconds a benchmark runs (`bench live --seconds`).
+pub const BENCH_SECONDS: Limit = Limit {
+    lo: 0.0,
+    lo_open: true,
+    hi: 3600.0,
+    unit: "seconds",
+};
+
+/// The frame rate a benchmark sends at (`bench live --fps`).
+pub const BENCH_FPS: Limit = Limit {
+    lo: 0.0,
+    lo_open: true,
+    hi: 10_000.0,
+    unit: "frames per second",
 };
 
 #[cfg(test)]

@@ -139,13 +139,7 @@ pub fn open(
 ) -> Result<Opened> {
     let options = options.clone();
     if let Some(r) = options.rate {
-        if !(r.is_finite() && r > 0.0 && r <= 10_000.0) {
-            return Err(Error::bad_setting(
-                "rate",
-                r,
-                format!("{} {r}: frames per second in (0, 10000]", setting("rate")),
-            ));
-        }
+        keyshape_core::limits::LIVE_RATE.check("rate", r)?;
         if !matches!(spec, SourceSpec::File(_)) {
             return Err(Error::invalid(format!(
                 "{} applies to a file source (file:TRACK); a live source sends at its own rate",

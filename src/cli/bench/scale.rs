@@ -12,10 +12,10 @@ use std::time::Instant;
 #[derive(Debug, Args)]
 pub struct ScaleArgs {
     /// Track lengths to measure, in frames.
-    #[arg(long, value_delimiter = ',', default_value = "10000,100000,300000")]
+    #[arg(long, value_delimiter = ',', default_value = "10000,100000,300000", value_parser = crate::cli::input::count_within(&keyshape_core::limits::BENCH_FRAMES))]
     frames: Vec<usize>,
     /// Points per frame: 68 (iBUG, through the built-in 468 → 68 correspondence) or 468.
-    #[arg(long, default_value_t = 68)]
+    #[arg(long, default_value_t = 68, value_parser = crate::cli::input::count_within(&keyshape_core::limits::BENCH_COUNT))]
     points: usize,
     /// What to run: solve (16 keys, nnls), stream (the same with `--stream`), kmeans2 (`keys --method kmeans2 --k 16`),
     /// greedy (`keys --method greedy --k 16`), curves (`curves --k 2..16`, default methods);

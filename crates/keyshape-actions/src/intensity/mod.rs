@@ -136,6 +136,7 @@ impl Default for StudySettings {
 impl StudySettings {
     /// Checks the settings; an option that cannot apply is an error, not ignored.
     pub fn check(&self) -> Result<()> {
+        keyshape_core::limits::POLY_DEGREE.check_count("degree", self.degree as u64)?;
         if !(self.threshold.is_finite() && self.threshold > 0.0 && self.threshold < 1.0) {
             return Err(Error::bad_setting(
                 "threshold",
