@@ -117,7 +117,7 @@ pub fn run(a: &CurvesArgs) -> Result<()> {
             // One name per solver whatever else is asked: NAME_<solver>.png.
             let path = suffixed(png, s.name());
             keyshape_experiments::report::write_curves_png(&rows, s.name(), &title, &path)?;
-            eprintln!("wrote {}", path.display());
+            errln!("wrote {}", path.display());
         }
     }
     if let Some(line) = keyshape_core::keyshapes::curves::summary(&rows) {

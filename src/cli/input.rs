@@ -35,6 +35,16 @@ pub struct InputArgs {
     pub image_size: Option<(f64, f64)>,
 }
 
+/// [`read_sequence`], with what the reader notes about the file (a cut last row) said on
+/// standard error.
+pub fn read_noting(path: &std::path::Path, opts: &ReadOptions) -> Result<Sequence> {
+    let seq = read_sequence(path, opts)?;
+    for n in &seq.notes {
+        errln!("warning: {n}");
+    }
+    Ok(seq)
+}
+
 /// A command-line parser for a count within `limit` (the one declaration of its range in
 /// `keyshape_core::limits`, which the experiment files and the library check too).
 pub fn count_within(
@@ -89,7 +99,7 @@ pub fn apply_image_size(seq: &mut Sequence, size: Option<(f64, f64)>) -> Result<
         Some((w, h)) => seq
             .scale_to_image(w, h)
             .map_err(|e| anyhow::anyhow!("--image-size {w}x{h}: {e}"))?,
-        None if seq.is_normalised() => eprintln!(
+        None if seq.is_normalised() => errln!(
             "note: {}: every x and y lies in [0, 1]: normalised image coordinates (MediaPipe's default). Errors and distances are fractions of the image, and x and y are on different scales unless the video is square: give --image-size WIDTHxHEIGHT to work in pixels.",
             seq.source
         ),
@@ -116,7 +126,7 @@ impl InputArgs {
             dims: usize::from(self.dims),
         };
         let mut seq = match &self.file {
-            Some(p) => read_sequence(p, &opts)?,
+            Some(p) => read_noting(p, &opts)?,
             None => {
                 if self.dims == 3 {
                     anyhow::bail!("the built-in sequence is 2-D; use --dims 2 or give a file");

@@ -113,6 +113,58 @@ pub(crate) struct Setup {
     pub(crate) name: String,
 }
 
+/// Every file `live` reads or writes, checked together before the first frame, as every
+/// command's outputs are: the source file, the rig and its landmark map, a calibration to
+/// load are inputs; `--record`'s three files, `--stats`, a calibration to save, and the
+/// `stdout` sink (standard output) are outputs. No output may be an input or another
+/// output (`--stats take/weights.csv` turned the take's weights into the stats;
+/// `--neutral-file take/track.csv` replaced the recorded track), and each output's folder
+/// must take files (`--stats /nonexistent/s.json` failed only after the session).
+fn check_files(a: &LiveArgs, spec: &SourceSpec, sinks: &[SinkSpec]) -> Result<()> {
+    // A calibration file that exists is loaded (an input); else it is written.
+    let cal = a.neutral_file.as_ref();
+    let cal_in = cal.filter(|p| keyshape_io::atomic::is_stdout(p) || p.exists());
+    if cal_in.is_some_and(|p| keyshape_io::atomic::is_stdout(p)) {
+        anyhow::bail!(
+            "--neutral-file {}: a calibration is a file (standard output cannot be read back)",
+            cal.map_or(String::new(), |p| p.display().to_string())
+        );
+    }
+    let record: Vec<PathBuf> = a.record.as_ref().map_or(Vec::new(), |d| {
+        Recorder::FILES.iter().map(|f| d.join(f)).collect()
+    });
+    let stdout = PathBuf::from("-");
+    let files: Vec<Option<&PathBuf>> = vec![
+        a.stats.as_ref(),
+        cal.filter(|_| cal_in.is_none()),
+        sinks.contains(&SinkSpec::Stdout).then_some(&stdout),
+    ];
+    let source = match spec {
+        SourceSpec::File(p) => Some(p.as_path()),
+        _ => None,
+    };
+    // The take's files go into a new or empty folder (it holds no input): they are checked
+    // against the other outputs.
+    let all: Vec<&std::path::Path> = files
+        .iter()
+        .flatten()
+        .map(|p| p.as_path())
+        .chain(record.iter().map(PathBuf::as_path))
+        .collect();
+    keyshape_io::atomic::check_distinct(&all)?;
+    super::check_outputs(
+        &files,
+        &[a.record.as_ref()],
+        &[
+            source,
+            a.rig.as_deref(),
+            a.rig_landmarks.as_deref(),
+            cal_in.map(PathBuf::as_path),
+        ],
+    )?;
+    Ok(())
+}
+
 /// Opens the source and the rig: every bad option fails here.
 fn setup(a: &LiveArgs) -> Result<Setup> {
     let spec = SourceSpec::parse(&a.from)?;
@@ -120,25 +172,7 @@ fn setup(a: &LiveArgs) -> Result<Setup> {
         Some(t) => SinkSpec::parse_list(t)?,
         None => Vec::new(),
     };
-    if let SourceSpec::File(p) = &spec {
-        if a.record.is_some() || a.neutral_file.is_some() || a.stats.is_some() {
-            super::check_outputs(
-                &[a.neutral_file.as_ref().filter(|p| !p.exists())],
-                &[a.record.as_ref()],
-                &[
-                    Some(p.as_path()),
-                    a.rig.as_deref(),
-                    a.rig_landmarks.as_deref(),
-                ],
-            )?;
-        }
-    } else {
-        super::check_outputs(
-            &[a.neutral_file.as_ref().filter(|p| !p.exists())],
-            &[a.record.as_ref()],
-            &[a.rig.as_deref(), a.rig_landmarks.as_deref()],
-        )?;
-    }
+    check_files(a, &spec, &sinks)?;
     let opts = SourceOptions {
         face: a.face,
         rate: a.rate,
@@ -245,7 +279,7 @@ fn control(stdin_is_source: bool, stop: &Arc<AtomicBool>, recal: &Arc<AtomicBool
                     match line.trim() {
                         "calibrate" => recal.store(true, Ordering::Relaxed),
                         "" => {}
-                        other => eprintln!(
+                        other => errln!(
                             "kslab live: unknown control line '{other}' (the one there is: calibrate)"
                         ),
                     }
@@ -292,7 +326,7 @@ impl Terminal {
         let (_, malformed, dropped) = counters.get();
         let n = session.latencies.len();
         let recent = &session.latencies[n.saturating_sub(300)..];
-        eprint!(
+        err!(
             "\r\x1b[K{} fps · latency p50 {} p99 {} · solved {} · dropped {dropped} · malformed {malformed}",
             self.window.len(),
             ms(quantile(recent, 0.5)),
@@ -319,7 +353,7 @@ fn serve(
     while !stop.load(Ordering::Relaxed) {
         if recal.swap(false, Ordering::Relaxed) {
             session.recalibrate();
-            eprintln!(
+            errln!(
                 "{}look neutral: recalibrating on the next {} frames",
                 t.line(),
                 a.calibrate
@@ -329,7 +363,7 @@ fn serve(
             Popped::Closed => return Ok(()),
             Popped::Idle => {
                 if t.last_frame.elapsed() > Duration::from_secs(2) && !t.idle_said {
-                    eprintln!(
+                    errln!(
                         "{}waiting: no frames for {:.0} s",
                         t.line(),
                         t.last_frame.elapsed().as_secs_f64()
@@ -346,7 +380,7 @@ fn serve(
                         .as_ref()
                         .filter(|_| session.save_calibration.is_some())
                         .map_or(String::new(), |p| format!(" (saved to {})", p.display()));
-                    eprintln!("{}calibrated on {n} frames{saved}", t.line());
+                    errln!("{}calibrated on {n} frames{saved}", t.line());
                 }
                 t.window.push_back(Instant::now());
             }
@@ -366,7 +400,7 @@ fn report(
 ) -> Result<()> {
     let (received, malformed, dropped) = counters.get();
     let lat = |q| quantile(&session.latencies, q);
-    eprintln!(
+    errln!(
         "{}kslab live: {} frames solved in {seconds:.1} s ({received} received, {dropped} dropped, {malformed} malformed, {} refused, {} not sent); latency p50 {} p99 {}",
         if std::io::stderr().is_terminal() { "\r\x1b[K" } else { "" },
         session.solved,
@@ -408,27 +442,27 @@ pub fn run(a: &LiveArgs) -> Result<()> {
     let recal = Arc::new(AtomicBool::new(false));
     control(a.from.trim() == "stdin", &stop, &recal)?;
     if let Some(n) = &s.opened.note {
-        eprintln!(
+        errln!(
             "{}",
             keyshape_core::error::spell_settings(n, &super::output::spell_flag)
         );
     }
-    eprintln!(
+    errln!(
         "kslab live: {} → {to} ({} landmarks, {} shapes)",
         s.name,
         s.rig.landmarks(),
         s.rig.k()
     );
     match (&a.neutral_file, loaded) {
-        (Some(p), true) => eprintln!("calibrated: loaded from {}", p.display()),
-        _ => eprintln!(
+        (Some(p), true) => errln!("calibrated: loaded from {}", p.display()),
+        _ => errln!(
             "look neutral: calibrating on the first {} frames",
             a.calibrate
         ),
     }
     let counters = Arc::new(Counters::default());
     let queue = Arc::new(Queue::new(a.queue as usize, s.opened.blocking));
-    let warn: source::Warn = Box::new(|m| eprintln!("warning: {m}"));
+    let warn: source::Warn = Box::new(|m| errln!("warning: {m}"));
     let started = Instant::now();
     let thread = s
         .opened

@@ -15,10 +15,29 @@ macro_rules! outln {
 macro_rules! sayln {
     ($taken:expr, $($t:tt)*) => {{
         if $taken {
-            $crate::cli::progress::suspend(|| eprintln!($($t)*));
+            $crate::cli::progress::suspend(|| errln!($($t)*));
         } else {
             outln!($($t)*);
         }
+    }};
+}
+
+/// `eprintln!` that never panics: every message to standard error goes through it. A
+/// closed standard error (`2>&-`, a reader that has gone) loses the message, never the
+/// command or its outputs (`eprintln!` panicked, exit 101, and `modes` lost its output).
+macro_rules! errln {
+    ($($t:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stderr().lock(), $($t)*);
+    }};
+}
+
+/// `eprint!` that never panics (see [`errln`]).
+macro_rules! err {
+    ($($t:tt)*) => {{
+        use std::io::Write as _;
+        let mut e = std::io::stderr().lock();
+        let _ = write!(e, $($t)*).and_then(|()| e.flush());
     }};
 }
 
@@ -178,7 +197,7 @@ pub fn main() -> ExitCode {
         // a signal would have made it, but with the outputs of the set discarded.
         Err(e) if broken_pipe(&e) => ExitCode::from(141),
         Err(e) => {
-            eprintln!("error: {}", render_error(&e, &spell));
+            errln!("error: {}", render_error(&e, &spell));
             ExitCode::FAILURE
         }
     }

@@ -151,7 +151,7 @@ pub fn run(a: &ModesArgs) -> Result<()> {
             44,
         )?;
         keyshape_pictures::render::save_png(&pm, p)?;
-        eprintln!("wrote {}", p.display());
+        errln!("wrote {}", p.display());
     }
     progress.finish();
     if a.json {

@@ -134,7 +134,7 @@ pub fn run(a: &SmoothArgs) -> Result<()> {
             .collect::<Vec<_>>()
             .iter(),
     ) {
-        eprintln!("wrote {}", f.display());
+        errln!("wrote {}", f.display());
     }
     Ok(())
 }

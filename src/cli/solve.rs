@@ -90,7 +90,7 @@ pub fn run(a: &SolveArgs) -> Result<()> {
     let seq = &prep.seq;
     let keys: Vec<i64> = cols.iter().map(|&c| seq.frames[c]).collect();
     if a.choice.keys.is_empty() {
-        eprintln!(
+        errln!(
             "keys by {}: {}",
             a.choice
                 .method
@@ -125,7 +125,7 @@ pub fn run(a: &SolveArgs) -> Result<()> {
                 Some(SmoothMode::Causal) => ("frames", seq.frames.len()),
                 _ => ("segments", r.segments.len()),
             };
-            eprintln!(
+            errln!(
                 "warning: the smoothed solve did not settle on {} of {of} {what} (KKT residual {:.1e})",
                 r.unconverged, r.kkt
             );
@@ -416,15 +416,15 @@ fn warn(d: &Decomposition) {
 /// The warnings of a solve on `k` keys: dependent shapes, iteration caps.
 fn warn_solve(k: usize, rank: usize, condition: f64, unconverged: usize) {
     if rank < k {
-        eprintln!(
+        errln!(
             "warning: the {k} key shapes span only {rank} dimensions (duplicate or dependent shapes); \
              LS returns the minimum-norm weights"
         );
     } else if condition > 1e8 {
-        eprintln!("warning: key shapes are nearly dependent (condition number {condition:.2e})");
+        errln!("warning: key shapes are nearly dependent (condition number {condition:.2e})");
     }
     if unconverged > 0 {
-        eprintln!("warning: {unconverged} frames hit the active-set iteration cap");
+        errln!("warning: {unconverged} frames hit the active-set iteration cap");
     }
 }
 

@@ -112,6 +112,7 @@ pub(super) fn read(path: &Path, text: &str, dims: usize) -> Result<Sequence> {
         segments: (!segments.is_empty() && segments.iter().all(Option::is_some))
             .then(|| segments.into_iter().flatten().collect()),
         failed,
+        notes: Vec::new(),
     })
 }
 

@@ -108,6 +108,7 @@ fn build(source: &Path, points: usize, shapes: Vec<f64>, n: usize) -> Sequence {
         times: None,
         segments: None,
         failed: Vec::new(),
+        notes: Vec::new(),
     }
 }
 

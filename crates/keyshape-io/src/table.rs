@@ -208,6 +208,8 @@ pub struct TableRows<R: std::io::Read> {
     row: i64,
     seen: SeenFrames,
     dims: usize,
+    /// The line of a last row cut short (see [`TableRows::cut_row`]).
+    cut: Option<u64>,
 }
 
 impl<R: std::io::Read> TableRows<R> {
@@ -268,6 +270,7 @@ impl<R: std::io::Read> TableRows<R> {
             row: 0,
             seen: SeenFrames::default(),
             dims,
+            cut: None,
         })
     }
 
@@ -289,6 +292,13 @@ impl<R: std::io::Read> TableRows<R> {
     /// Whether rows carry a clip label.
     pub fn has_segments(&self) -> bool {
         self.seg_col.is_some()
+    }
+
+    /// The line of the file's last row when it was cut short — fewer fields than the
+    /// header and no line end, as a full disk or a kill leaves a row being written — and so
+    /// left out: the rows before it are read. None for a whole file.
+    pub fn cut_row(&self) -> Option<u64> {
+        self.cut
     }
 
     /// The next data row (blank lines skipped), or None at the end.
@@ -323,6 +333,26 @@ impl<R: std::io::Read> TableRows<R> {
                 ));
             }
             let header = &self.header;
+            if record.len() < header.len() && self.rdr.get_ref().run > 0 {
+                // A short row with no line end: the last of the file when nothing follows it,
+                // a row cut short by a full disk or a kill while it was written.
+                let mut rest = csv::StringRecord::new();
+                if matches!(self.rdr.read_record(&mut rest), Ok(false)) {
+                    self.cut = Some(line);
+                    return Ok(None);
+                }
+                let header = &self.header;
+                return Err(Error::parse(
+                    path,
+                    line,
+                    self.record.len().min(header.len()) as u64 + 1,
+                    format!(
+                        "ragged row: {} fields, the header has {}",
+                        self.record.len(),
+                        header.len()
+                    ),
+                ));
+            }
             if record.len() != header.len() {
                 let col = record.len().min(header.len()) as u64 + 1;
                 return Err(Error::parse(
@@ -436,6 +466,16 @@ pub(super) fn read_rows<R: std::io::Read>(
         times: has_time.then_some(times),
         segments: has_segments.then_some(segments),
         failed,
+        notes: rows
+            .cut_row()
+            .map(|line| {
+                format!(
+                    "{}: line {line}, the last, is cut short (no line end, fewer fields than the header: a take cut by a full disk or a kill); read up to the row before it",
+                    path.display()
+                )
+            })
+            .into_iter()
+            .collect(),
     })
 }
 

@@ -197,6 +197,8 @@ pub struct Recorder {
     sources: Vec<Vec<usize>>,
     fps: f64,
     t0: Option<f64>,
+    /// Each file's length after its last whole row.
+    lengths: [u64; 3],
 }
 
 impl Recorder {
@@ -233,29 +235,51 @@ impl Recorder {
             sources: column_sources(rig),
             fps,
             t0: None,
+            lengths: [0; 3],
         };
         let track_header = ["frame".to_string(), "time_s".to_string()]
             .into_iter()
             .chain((0..layout).flat_map(|i| [format!("x{i}"), format!("y{i}")]));
-        let h = csv_line(track_header).map_err(|e| Error::io(&r.dir, e))?;
-        r.write(0, &h)?;
-        let h = csv_line(weights_header(rig)).map_err(|e| Error::io(&r.dir, e))?;
-        r.write(1, &h)?;
-        let h = csv_line(keyshape_rig::livelink::header().map(String::from))
-            .map_err(|e| Error::io(&r.dir, e))?;
-        r.write(2, &h)?;
+        let io = |e| Error::io(dir, e);
+        let headers = [
+            csv_line(track_header).map_err(io)?,
+            csv_line(weights_header(rig)).map_err(io)?,
+            csv_line(keyshape_rig::livelink::header().map(String::from)).map_err(io)?,
+        ];
+        r.write_rows([&headers[0], &headers[1], &headers[2]])?;
         Ok(r)
     }
 
-    fn write(&mut self, which: usize, line: &[u8]) -> Result<()> {
-        let f = match which {
+    fn file(&mut self, which: usize) -> &mut std::fs::File {
+        match which {
             0 => &mut self.track,
             1 => &mut self.weights,
             _ => &mut self.livelink,
-        };
-        f.write_all(line)
-            .and_then(|()| f.flush())
-            .map_err(|e| Error::io(self.dir.join(Self::FILES[which]), e))
+        }
+    }
+
+    /// Writes one row to each file, whole or not at all: a write that fails part way (a
+    /// full disk) is cut back, in every file, to the end of the last whole frame, so a take
+    /// ends at a frame however the session ends.
+    fn write_rows(&mut self, rows: [&[u8]; 3]) -> Result<()> {
+        use std::io::Seek;
+        for (which, row) in rows.iter().enumerate() {
+            let f = self.file(which);
+            if let Err(e) = f.write_all(row).and_then(|()| f.flush()) {
+                for back in 0..=which {
+                    let len = self.lengths[back];
+                    let f = self.file(back);
+                    let _ = f
+                        .set_len(len)
+                        .and_then(|()| f.seek(std::io::SeekFrom::Start(len)));
+                }
+                return Err(Error::io(self.dir.join(Self::FILES[which]), e));
+            }
+        }
+        for (len, row) in self.lengths.iter_mut().zip(rows) {
+            *len += row.len() as u64;
+        }
+        Ok(())
     }
 
     /// Records one solved frame: its input `points`, weights `w` and head angles.
@@ -285,8 +309,51 @@ impl Recorder {
             "61",
         ))
         .map_err(io)?;
-        self.write(0, &track)?;
-        self.write(1, &weights)?;
-        self.write(2, &ll)
+        self.write_rows([&track, &weights, &ll])
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+
+    /// A write that fails part way (a full disk: `/dev/full`) leaves every file of the take
+    /// ending at the last whole frame, and the take reads back. (A disk filling up left
+    /// half a row, and the take was unreadable: "ragged row".)
+    #[cfg(target_os = "linux")]
+    #[test]
+    fn a_full_disk_leaves_the_take_whole_up_to_its_last_frame() {
+        let shared = keyshape_io::shared_data("ict_facekit_face").unwrap();
+        let (_, _, rig) = keyshape_rig::correspondence::read_rig(&shared, 68, None).unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        let take = dir.path().join("take");
+        let mut r = Recorder::create(&take, &rig, 68, 30.0).unwrap();
+        let points: Vec<f64> = (0..136).map(|i| 100.0 + i as f64).collect();
+        let w = vec![0.25; rig.k()];
+        for f in 0..3 {
+            r.record(f, f as f64 / 30.0, &points, &w, [0.0; 3]).unwrap();
+        }
+        let whole: Vec<Vec<u8>> = Recorder::FILES
+            .iter()
+            .map(|f| std::fs::read(take.join(f)).unwrap())
+            .collect();
+        // The track's row is written, then the weights' fails.
+        r.weights = std::fs::OpenOptions::new()
+            .write(true)
+            .open("/dev/full")
+            .unwrap();
+        let e = r.record(3, 0.1, &points, &w, [0.0; 3]).unwrap_err();
+        assert!(e.to_string().contains("weights.csv"), "{e}");
+        for (f, before) in Recorder::FILES.iter().zip(&whole) {
+            assert_eq!(&std::fs::read(take.join(f)).unwrap(), before, "{f}");
+        }
+        let seq = keyshape_io::read_sequence(
+            &take.join("track.csv"),
+            &keyshape_io::ReadOptions::default(),
+        )
+        .unwrap();
+        assert_eq!(seq.n_frames(), 3);
+        assert!(seq.notes.is_empty());
     }
 }

@@ -191,10 +191,13 @@ fn open_file(path: &Path, options: SourceOptions) -> Result<Opened> {
         },
     )?;
     keyshape_io::atomic::register_input(path);
-    let mut note = None;
+    let mut note = (!seq.notes.is_empty()).then(|| format!("warning: {}", seq.notes.join("; ")));
     match options.image_size {
         Some((w, h)) => seq.scale_to_image(w, h)?,
-        None if seq.is_normalised() => note = Some(normalised_note(&path.display().to_string())),
+        None if seq.is_normalised() => {
+            let n = normalised_note(&path.display().to_string());
+            note = Some(note.map_or(n.clone(), |cut| format!("{cut}\n{n}")));
+        }
         None => {}
     }
     let rate = options.rate.or(seq.fps()).unwrap_or(30.0);

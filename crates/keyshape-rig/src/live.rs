@@ -41,6 +41,30 @@ pub struct Calibration {
     pub frames: usize,
 }
 
+/// The inter-ocular distance a calibration may hold (track units: pixels, or a fraction of
+/// the image for normalised coordinates). `1e308` froze the avatar (every weight 0) and
+/// `1e-300` changed every weight.
+pub const IOD: keyshape_core::limits::Limit = keyshape_core::limits::Limit {
+    lo: 1e-4,
+    lo_open: false,
+    hi: 1e7,
+    unit: "track units (pixels, or normalised coordinates)",
+};
+
+/// The largest distance between two of the rig's neutral landmarks along an axis.
+fn rig_extent(points: &[[f64; 3]]) -> f64 {
+    (0..3)
+        .map(|a| {
+            let (lo, hi) = points
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), p| {
+                    (l.min(p[a]), h.max(p[a]))
+                });
+            hi - lo
+        })
+        .fold(0.0, f64::max)
+}
+
 /// One solved frame.
 #[derive(Debug, Clone, PartialEq)]
 pub struct LiveFrame {
@@ -160,18 +184,43 @@ impl LiveSolver {
         if c.names != rig.names {
             return bad("its shape names are not this rig's".into());
         }
-        if c.neutral.len() != rig.landmarks() || c.neutral.iter().flatten().any(|v| !v.is_finite())
-        {
+        if c.neutral.len() != rig.landmarks() {
             return bad(format!(
-                "its neutral must be {} finite landmarks",
+                "its neutral has {} landmarks; this rig has {}",
+                c.neutral.len(),
                 rig.landmarks()
             ));
         }
-        if !(c.iod.is_finite() && c.iod > 0.0) {
+        if let Some((i, why)) = c.neutral.iter().enumerate().find_map(|(i, p)| {
+            p.iter()
+                .find_map(|&v| keyshape_core::sequence::coord_problem(v))
+                .map(|w| (i, w))
+        }) {
+            return bad(format!("neutral landmark {i}: {why}"));
+        }
+        // The neutral as seen from the front (x, y), checked as a frame a neutral is made
+        // from, and against this rig's own: the lifted identity moves a landmark by a
+        // fraction of the face, never by the face's size.
+        let front: Vec<f64> = c.neutral.iter().flat_map(|p| [p[0], p[1]]).collect();
+        if let Some(why) = keyshape_core::sequence::face_problem(&front, 2) {
+            return bad(format!("its neutral is not a face: {why}"));
+        }
+        let size = rig_extent(&rig.neutral);
+        let moved = c
+            .neutral
+            .iter()
+            .zip(&rig.neutral)
+            .map(|(p, q)| {
+                ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt()
+            })
+            .fold(0.0f64, f64::max);
+        if !(moved <= 0.5 * size) {
             return bad(format!(
-                "the inter-ocular distance must be a number > 0, not {}",
-                c.iod
+                "its neutral lies up to {moved:.3} rig units from this rig's (a face {size:.3} across): it was made for another rig"
             ));
+        }
+        if !IOD.contains(c.iod) {
+            return bad(format!("the inter-ocular distance {}", IOD.why(c.iod)));
         }
         if c.free.windows(2).any(|w| w[0] >= w[1]) || c.free.iter().any(|&s| s >= rig.k()) {
             return bad(format!(
@@ -227,6 +276,12 @@ impl LiveSolver {
         }
         if self.state.is_some() {
             return Ok(vec![self.solve(frame)?]);
+        }
+        // A lead-in frame becomes part of the neutral: checked as every such frame is.
+        if let Some(why) = keyshape_core::sequence::face_problem(frame, 2) {
+            return Err(Error::unfit(format!(
+                "a calibration frame must be a face: {why}"
+            )));
         }
         self.pending.push(frame.to_vec());
         if self.pending.len() < self.needed {

@@ -7,7 +7,7 @@ use super::depth::{fit_from, NeutralFit};
 use super::frame::{frame_depth, frame_points, FrameSolver};
 use super::prior::{exclusive_pairs, magnitude_prior};
 use super::{Identity, Rig, RigOptions};
-use keyshape_core::error::Result;
+use keyshape_core::error::{Error, Result};
 use keyshape_core::rbf::Rbf;
 use nalgebra::DMatrix;
 use std::ops::Range;
@@ -325,6 +325,11 @@ pub(super) fn person_rig_with(
     let posed = &rig.neutral;
     let mut neutral = rig.neutral.clone();
     for n in frames {
+        if let Some(why) = keyshape_core::sequence::face_problem(track.column(n).as_slice(), 2) {
+            return Err(Error::unfit(format!(
+                "frame column {n} cannot be a neutral: {why}"
+            )));
+        }
         let u = frame_points(track, n);
         let cam = fit_camera(posed, &u)?;
         // With depth, its residual too (after the best depth offset, the mean).

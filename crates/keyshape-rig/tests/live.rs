@@ -284,3 +284,83 @@ fn extreme_frames_are_answered_and_change_nothing() {
     let got = DMatrix::from_fn(want.nrows(), got.len(), |s, f| got[f].weights[s]);
     assert_eq!(got, want, "the refused frames changed nothing");
 }
+
+/// A lead-in frame that is no face — one landmark at 1e15 (inside the readers' ±1e30), or
+/// every point on a line — is refused on its own, and the calibration is made of the other
+/// frames: the same weights as a lead-in without it. (It was averaged into the neutral, and
+/// every later weight moved.)
+#[test]
+fn a_lead_in_frame_that_is_no_face_is_refused_and_the_calibration_made_without_it() {
+    let (rig, t) = track(68, 30);
+    let mut clean = LiveSolver::new(rig.clone(), RigOptions::live(), 10).unwrap();
+    let want = live_weights(&mut clean, &t);
+    for bad in ["far", "line"] {
+        let mut live = LiveSolver::new(rig.clone(), RigOptions::live(), 10).unwrap();
+        let mut got = Vec::new();
+        for c in 0..t.ncols() {
+            let col: Vec<f64> = t.column(c).iter().copied().collect();
+            if c == 4 {
+                let mut b = col.clone();
+                match bad {
+                    "far" => b[70] = 1e15,
+                    _ => {
+                        for (i, p) in b.chunks_mut(2).enumerate() {
+                            p[0] = i as f64;
+                            p[1] = 3.0 * i as f64;
+                        }
+                    }
+                }
+                let e = live.push(&b).unwrap_err();
+                let said = e.to_string();
+                assert!(
+                    e.kind_is(ErrorKind::Unfit)
+                        .contains("a calibration frame must be a face"),
+                    "{bad}: {said}"
+                );
+            }
+            got.extend(live.push(&col).unwrap());
+        }
+        let got = DMatrix::from_fn(rig.k(), got.len(), |s, f| got[f].weights[s]);
+        assert_eq!(got, want, "{bad}");
+    }
+}
+
+/// A saved calibration is checked as a reader checks a track: an inter-ocular distance of
+/// 1e308 froze the avatar and 1e-300 changed every weight; a neutral landmark at 1e308, or
+/// every landmark at one place, said "calibrated: loaded" and then refused every frame; a
+/// neutral of another rig was taken.
+#[test]
+fn a_saved_calibration_out_of_range_or_of_another_rig_is_refused() {
+    let (rig, t) = track(68, 12);
+    let mut first = LiveSolver::new(rig.clone(), RigOptions::live(), 10).unwrap();
+    live_weights(&mut first, &t);
+    let good = first.calibration().unwrap().clone();
+    let refuse = |c: keyshape_rig::live::Calibration, needle: &str| {
+        let mut live = LiveSolver::new(rig.clone(), RigOptions::live(), 10).unwrap();
+        let e = live.set_calibration(c).unwrap_err().to_string();
+        assert!(e.contains(needle), "{needle}: {e}");
+    };
+    for iod in [1e308, 1e-300, 0.0, -1.0] {
+        refuse(
+            keyshape_rig::live::Calibration {
+                iod,
+                ..good.clone()
+            },
+            "the inter-ocular distance",
+        );
+    }
+    let mut c = good.clone();
+    c.neutral[3][1] = 1e308;
+    refuse(c, "neutral landmark 3: coordinate 1e308 is beyond");
+    let mut c = good.clone();
+    c.neutral.iter_mut().for_each(|p| *p = [1.0, 2.0, 3.0]);
+    refuse(c, "its neutral is not a face");
+    // Another rig's neutral: this one scaled up tenfold (the same names and points).
+    let mut c = good.clone();
+    c.neutral
+        .iter_mut()
+        .for_each(|p| *p = [p[0] * 10.0, p[1] * 10.0, p[2] * 10.0]);
+    refuse(c, "it was made for another rig");
+    let mut live = LiveSolver::new(rig, RigOptions::live(), 10).unwrap();
+    live.set_calibration(good).unwrap();
+}

@@ -40,7 +40,7 @@ fn inputs(a: &NnlsArgs) -> Result<Vec<Sequence>> {
     let mut v = vec![keyshape_io::builtin_sequence()?];
     match keyshape_io::shared_data("pyfeat_samples/news_sample_compact.csv") {
         Ok(news) => v.push(read_sequence(&news, &ReadOptions::default())?),
-        Err(e) => eprintln!("note: {e}; 68-point case skipped"),
+        Err(e) => errln!("note: {e}; 68-point case skipped"),
     }
     Ok(v)
 }
@@ -118,13 +118,13 @@ pub fn run(a: &NnlsArgs) -> Result<()> {
                 t_nnls / t_ne,
                 n / t_ls,
             );
-            eprintln!(
+            errln!(
                 "  {} k={k}: {:.2} active-set iterations per frame",
                 short(&seq.source),
                 sol.iterations as f64 / n
             );
             if sol.unconverged > 0 {
-                eprintln!("warning: {} frames hit the iteration cap", sol.unconverged);
+                errln!("warning: {} frames hit the iteration cap", sol.unconverged);
             }
         }
     }

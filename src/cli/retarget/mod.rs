@@ -202,7 +202,7 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
         retarget_errors(&s.coords, s.dims, &plan_keys, &target, neutral, a.solver)?
     };
     if r.unconverged > 0 {
-        eprintln!(
+        errln!(
             "warning: {} did not converge on {} frames (iteration cap); their weights are the last iterate",
             a.solver, r.unconverged
         );

@@ -13,7 +13,7 @@ use anyhow::{Context, Result};
 use clap::Args;
 use keyshape_core::sequence::Sequence;
 use keyshape_core::solve::Solver;
-use keyshape_io::{read_sequence, shared_data, ReadOptions};
+use keyshape_io::{shared_data, ReadOptions};
 use keyshape_rig::{solve_rig, Identity, Neutral, RigOptions};
 use std::path::PathBuf;
 
@@ -302,7 +302,7 @@ fn read_track(a: &RigArgs) -> Result<(String, Sequence)> {
             p.display().to_string()
         });
     let seq = match &a.file {
-        Some(p) => read_sequence(
+        Some(p) => super::input::read_noting(
             p,
             &ReadOptions {
                 format: a.format,
@@ -442,7 +442,7 @@ fn clips_of(
         }
         None => {
             if let Some(n) = seq.segments.as_deref().map(count_clips).filter(|&n| n > 1) {
-                eprintln!(
+                errln!(
                     "note: {name} labels {n} clips and one identity (one neutral frame) serves them all; if the clips are different people, --identity-per clip fits each its own (on the news sample it lowers the landmark error by about 30 %)"
                 );
             }

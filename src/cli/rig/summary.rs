@@ -245,7 +245,7 @@ pub(super) fn warn_unneutral(r: &keyshape_rig::RigSolve, seq: &Sequence, neutral
         } else {
             "an identity taken from it reads the difference as expression: name a relaxed, frontal frame or stretch with --neutral"
         };
-        eprintln!(
+        errln!(
             "warning: neutral frame {}: {}; {advice}",
             seq.frames[v.frame],
             what.join(", ")

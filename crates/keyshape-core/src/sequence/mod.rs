@@ -107,6 +107,9 @@ pub struct Sequence {
     pub segments: Option<Vec<String>>,
     /// Frame numbers of the frames the tracker failed on (left out of `coords`).
     pub failed: Vec<i64>,
+    /// What the reader has to say about the file that is no error, for the user to read
+    /// (a take whose last row was cut short, read up to the frame before it).
+    pub notes: Vec<String>,
 }
 
 /// The message for a degenerate frame, the same from every path (see [`degenerate_shape`]):
@@ -187,6 +190,79 @@ pub fn degenerate_shape(shape: &[f64], dims: usize) -> bool {
     }
     let (spread, size) = spread_and_size(shape, dims);
     !(spread >= MIN_SPREAD && spread > 1e-12 * size)
+}
+
+/// A landmark further from the face's centroid than this many times the median landmark's
+/// distance is not on the face: on the shipped tracks (MediaPipe's 468, the 68 iBUG points,
+/// OpenFace, py-feat) the ratio stays below 3.
+pub const MAX_FACE_SPREAD_RATIO: f64 = 20.0;
+
+/// Below this ratio of the smaller to the larger principal variance, a face's points lie on
+/// a line (a face's is about 0.3 to 1).
+pub const MIN_FACE_ASPECT: f64 = 1e-4;
+
+/// Why a 2-D frame (`dims` values a point; x and y are read) cannot be a face that a neutral
+/// or a calibration is made from, if it cannot: its points coincide
+/// ([`degenerate_shape`]), lie on a line, or one lies far off the rest (a landmark at 1e15
+/// on one frame became the automatic neutral and moved every other frame's weights by up to
+/// 1). Every path that makes a neutral or a calibration from a frame asks this.
+pub fn face_problem(shape: &[f64], dims: usize) -> Option<String> {
+    let dims = dims.max(1);
+    let n = shape.len() / dims;
+    if degenerate_shape(shape, dims) {
+        return Some(if n == 0 {
+            "it has no points".to_string()
+        } else {
+            let (spread, size) = spread_and_size(shape, dims);
+            // (Points that coincide up to rounding spread over a few ulps of their size.)
+            if spread >= MIN_SPREAD && spread > 1e-14 * size {
+                format!("its {n} points lie beyond what 64-bit numbers resolve from the origin")
+            } else {
+                format!("all its {n} points coincide")
+            }
+        });
+    }
+    if dims < 2 || n < 3 {
+        return None;
+    }
+    let (mut cx, mut cy) = (0.0, 0.0);
+    for p in shape.chunks(dims) {
+        cx += p[0] / n as f64;
+        cy += p[1] / n as f64;
+    }
+    let mut radii: Vec<f64> = shape
+        .chunks(dims)
+        .map(|p| (p[0] - cx).hypot(p[1] - cy))
+        .collect();
+    let (far, far_at) =
+        radii
+            .iter()
+            .enumerate()
+            .fold((0.0f64, 0), |b, (i, &r)| if r > b.0 { (r, i) } else { b });
+    radii.sort_by(f64::total_cmp);
+    let median = radii[n / 2];
+    if !(far <= MAX_FACE_SPREAD_RATIO * median) {
+        return Some(format!(
+            "landmark {far_at} lies {:.3e} from the face's centre, more than {MAX_FACE_SPREAD_RATIO} times the median landmark's {median:.3e}: it is not on the face",
+            far
+        ));
+    }
+    // The principal variances of the points (scaled by the median radius first, so a
+    // huge or tiny face is measured alike).
+    let (mut sxx, mut syy, mut sxy) = (0.0, 0.0, 0.0);
+    for p in shape.chunks(dims) {
+        let (x, y) = ((p[0] - cx) / median, (p[1] - cy) / median);
+        sxx += x * x;
+        syy += y * y;
+        sxy += x * y;
+    }
+    let mean = 0.5 * (sxx + syy);
+    let half = (0.25 * (sxx - syy).powi(2) + sxy * sxy).sqrt();
+    let (big, small) = (mean + half, (mean - half).max(0.0));
+    if !(small >= MIN_FACE_ASPECT * big) {
+        return Some(format!("its {n} points lie on a line"));
+    }
+    None
 }
 
 impl Sequence {
@@ -339,6 +415,7 @@ impl Sequence {
             times: self.times.clone(),
             segments: self.segments.clone(),
             failed: self.failed.clone(),
+            notes: self.notes.clone(),
         }
     }
 
@@ -402,6 +479,7 @@ impl Sequence {
             times: self.times.clone(),
             segments: self.segments.clone(),
             failed: self.failed.clone(),
+            notes: self.notes.clone(),
         })
     }
 

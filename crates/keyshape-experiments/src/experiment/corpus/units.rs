@@ -189,6 +189,7 @@ fn clip_of(seq: &Sequence, clip: &str) -> Sequence {
             .map(|t| cols.iter().map(|&c| t[c]).collect()),
         segments: Some(vec![clip.to_string(); cols.len()]),
         failed: Vec::new(),
+        notes: Vec::new(),
     }
 }
 
