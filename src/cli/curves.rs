@@ -59,6 +59,12 @@ pub fn parse_range(s: &str) -> Result<(usize, usize), String> {
 }
 
 pub fn run(a: &CurvesArgs) -> Result<()> {
+    if let Some(p) = a.png.as_ref().filter(|p| keyshape_io::atomic::is_stdout(p)) {
+        anyhow::bail!(
+            "--png {}: names one file per solver (NAME_<solver>.png), so it takes a file name, not standard output",
+            p.display()
+        );
+    }
     super::check_outputs(
         &[a.out.as_ref(), a.png.as_ref()],
         &[],
@@ -117,7 +123,7 @@ pub fn run(a: &CurvesArgs) -> Result<()> {
             // One name per solver whatever else is asked: NAME_<solver>.png.
             let path = suffixed(png, s.name());
             keyshape_experiments::report::write_curves_png(&rows, s.name(), &title, &path)?;
-            errln!("wrote {}", path.display());
+            crate::cli::output::wrote(path.display().to_string());
         }
     }
     if let Some(line) = keyshape_core::keyshapes::curves::summary(&rows) {

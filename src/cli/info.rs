@@ -14,7 +14,7 @@ pub struct InfoArgs {
     input: InputArgs,
     /// Print JSON instead of text.
     #[arg(long)]
-    json: bool,
+    pub(crate) json: bool,
 }
 
 pub fn run(a: &InfoArgs) -> Result<()> {

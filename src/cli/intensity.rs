@@ -47,7 +47,7 @@ pub struct IntensityArgs {
     threshold: f64,
     /// Print JSON.
     #[arg(long)]
-    json: bool,
+    pub(crate) json: bool,
     /// Also print each test clip's correlations.
     #[arg(long)]
     clips: bool,

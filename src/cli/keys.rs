@@ -102,7 +102,7 @@ pub struct KeysArgs {
     /// Print JSON: key frame numbers, their positions in the sequence (`columns`, from 0),
     /// the error, and k-means centres in PCA coordinates.
     #[arg(long)]
-    json: bool,
+    pub(crate) json: bool,
 }
 
 pub fn run(a: &KeysArgs) -> Result<()> {

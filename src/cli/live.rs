@@ -256,17 +256,20 @@ fn start_session(a: &LiveArgs, s: &Setup) -> Result<(Session, bool)> {
     Ok((session, loaded))
 }
 
-/// Ctrl-C, SIGTERM and SIGHUP set `stop` (the session ends, exit 0, the recording
-/// complete); SIGUSR1 and a line `calibrate` on standard input (when it is not the source)
+/// Ctrl-C, SIGTERM, SIGHUP and every other signal that would end the process set `stop`
+/// (the session ends, exit 0, the recording complete); SIGUSR1 and a line `calibrate` on standard input (when it is not the source)
 /// set `recal`.
 fn control(stdin_is_source: bool, stop: &Arc<AtomicBool>, recal: &Arc<AtomicBool>) -> Result<()> {
     #[cfg(unix)]
     {
-        use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM, SIGUSR1};
-        for sig in [SIGINT, SIGTERM, SIGHUP] {
-            signal_hook::flag::register(sig, stop.clone())?;
+        // Every signal that would end the process ends the session instead (the take
+        // complete), but SIGUSR1, which recalibrates.
+        for sig in super::signals::terminating() {
+            if sig != libc::SIGUSR1 {
+                signal_hook::flag::register(sig, stop.clone())?;
+            }
         }
-        signal_hook::flag::register(SIGUSR1, recal.clone())?;
+        signal_hook::flag::register(libc::SIGUSR1, recal.clone())?;
     }
     if !stdin_is_source {
         let recal = recal.clone();

@@ -291,7 +291,7 @@ fn morph(
     every: usize,
     progress: &super::progress::Progress,
 ) -> Result<()> {
-    keyshape_io::atomic::register_input(dir);
+    keyshape_io::atomic::register_input(dir)?;
     let mesh = read_obj(&dir.join("neutral_face.obj"))?;
     let targets = MorphTargets::read(
         &dir.join("expressions.csv"),

@@ -135,6 +135,24 @@ enum Command {
     Bench(bench::BenchArgs),
 }
 
+impl Command {
+    /// Does the command print its results as JSON on standard output (`--json`)?
+    fn prints_json(&self) -> bool {
+        match self {
+            Command::Info(a) => a.json,
+            Command::Solve(a) => a.json,
+            Command::Keys(a) => a.json,
+            Command::Retarget(a) => a.json,
+            Command::Rig(a) => a.json,
+            Command::RigAccuracy(a) => a.json,
+            Command::Transfer(a) => a.json,
+            Command::Modes(a) => a.json,
+            Command::Intensity(a) => a.json,
+            _ => false,
+        }
+    }
+}
+
 /// Runs the CLI; errors print as `error: …` with exit code 1.
 pub fn main() -> ExitCode {
     let cli = Cli::parse();
@@ -158,6 +176,14 @@ pub fn main() -> ExitCode {
             Some(keyshape_io::OutputSet::begin())
         }
     };
+    // `--json` prints to standard output: it is one of the command's outputs there, so a
+    // file sent to `-` or `/dev/stdout` beside it is refused before any work.
+    if command.prints_json() {
+        if let Err(e) = keyshape_io::atomic::claim_stdout(std::path::Path::new("--json")) {
+            errln!("error: {e}");
+            return ExitCode::FAILURE;
+        }
+    }
     let result = match command {
         Command::Tui(a) => tui::run(&a),
         Command::Info(a) => info::run(&a),
@@ -192,7 +218,10 @@ pub fn main() -> ExitCode {
         }
     }
     match result {
-        Ok(()) => ExitCode::SUCCESS,
+        Ok(()) => {
+            output::said_wrote();
+            ExitCode::SUCCESS
+        }
         // A reader closed the pipe after output began (`kslab … | head`): a quiet stop, as
         // a signal would have made it, but with the outputs of the set discarded.
         Err(e) if broken_pipe(&e) => ExitCode::from(141),

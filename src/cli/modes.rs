@@ -73,7 +73,7 @@ pub struct ModesArgs {
     table: bool,
     /// Print JSON.
     #[arg(long)]
-    json: bool,
+    pub(crate) json: bool,
     /// Write both tables as a heat map PNG.
     /// [default: not drawn].
     #[arg(long)]
@@ -151,7 +151,7 @@ pub fn run(a: &ModesArgs) -> Result<()> {
             44,
         )?;
         keyshape_pictures::render::save_png(&pm, p)?;
-        errln!("wrote {}", p.display());
+        crate::cli::output::wrote(p.display().to_string());
     }
     progress.finish();
     if a.json {

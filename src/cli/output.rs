@@ -30,17 +30,37 @@ pub(crate) fn check_outputs(
     let inputs: Vec<&Path> = inputs.iter().flatten().copied().collect();
     // Registered, a folder with every file in it: the final renames check them again.
     for i in &inputs {
-        keyshape_io::atomic::register_input(i);
+        keyshape_io::atomic::register_input(i)?;
     }
     let outputs: Vec<&Path> = files.iter().flatten().map(|f| f.as_path()).collect();
     for f in &outputs {
         keyshape_io::check_output(f, &inputs)?;
+        if keyshape_io::atomic::is_stdout(f) {
+            // Claimed by `--json` (or another output) already?
+            keyshape_io::atomic::check_stdout_free(f)?;
+        }
     }
     keyshape_io::atomic::check_distinct(&outputs)?;
     for d in dirs.iter().flatten() {
         keyshape_io::check_output_dir(d)?;
     }
     Ok(())
+}
+
+/// What the command says it wrote, held until its output set is committed ([`said_wrote`]):
+/// "wrote X" printed before the commit was said of files that a later failure discarded.
+static WROTE: std::sync::Mutex<Vec<String>> = std::sync::Mutex::new(Vec::new());
+
+/// Notes that the command wrote `what` (said once its outputs are in place).
+pub(crate) fn wrote(what: String) {
+    WROTE.lock().unwrap_or_else(|p| p.into_inner()).push(what);
+}
+
+/// Says what the command wrote: after a successful commit only.
+pub(crate) fn said_wrote() {
+    for w in std::mem::take(&mut *WROTE.lock().unwrap_or_else(|p| p.into_inner())) {
+        errln!("wrote {w}");
+    }
 }
 
 /// Did this error come from writing into a pipe whose reader has gone?

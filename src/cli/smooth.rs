@@ -134,7 +134,7 @@ pub fn run(a: &SmoothArgs) -> Result<()> {
             .collect::<Vec<_>>()
             .iter(),
     ) {
-        errln!("wrote {}", f.display());
+        crate::cli::output::wrote(f.display().to_string());
     }
     Ok(())
 }

@@ -40,7 +40,7 @@ pub struct SolveArgs {
     out: Option<PathBuf>,
     /// Print a JSON summary (mean RMS, share of negative weights, max |w|, …).
     #[arg(long)]
-    json: bool,
+    pub(crate) json: bool,
     /// Draw the weights over time as a PNG here: a row per key frame, a column per frame,
     /// negative weights red and positive blue.
     /// [default: not drawn].

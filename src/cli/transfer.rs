@@ -57,7 +57,7 @@ pub struct TransferArgs {
     every: u64,
     /// Print a JSON summary.
     #[arg(long)]
-    json: bool,
+    pub(crate) json: bool,
 }
 
 /// Frames deformed at a time.

@@ -55,6 +55,7 @@ pub fn read_sequence(path: &Path, opts: &ReadOptions) -> Result<Sequence> {
 /// most [`MAX_INPUT_BYTES`] + 1 bytes (so a caller can tell a file over the limit).
 pub fn open_input(path: &Path) -> Result<Box<dyn Read>> {
     let f = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    atomic::register_input(path)?;
     let r = std::io::BufReader::with_capacity(1 << 16, f);
     Ok(if path.extension().is_some_and(|e| e == "gz") {
         Box::new(std::io::BufReader::new(
@@ -171,7 +172,7 @@ fn read_table_streamed(
         return Ok(None);
     }
     let reader = open_input(path)?;
-    atomic::register_input(path);
+    atomic::register_input(path)?;
     let seq = table::read_rows(
         path,
         reader,

@@ -84,6 +84,7 @@ pub fn read_text(path: &Path) -> Result<String> {
 /// Reads a whole input file's bytes (a GLB, a binary buffer) with the checks of
 /// [`read_text`], recording it as an input that no output may replace.
 pub fn read_bytes(path: &Path) -> Result<Vec<u8>> {
+    crate::atomic::check_input_path(path)?;
     let meta = std::fs::metadata(path).map_err(|e| Error::io(path, e))?;
     if !meta.is_file() {
         let what = if meta.is_dir() {
@@ -103,7 +104,7 @@ pub fn read_bytes(path: &Path) -> Result<Vec<u8>> {
         ));
     }
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-    crate::atomic::register_input(path);
+    crate::atomic::register_input(path)?;
     Ok(bytes)
 }
 

@@ -122,7 +122,7 @@ fn a_file_read_after_it_was_staged_as_an_output_is_not_replaced() {
     write(&d.join("other.csv"), "x").unwrap();
     // The command reads the rig folder only after it staged its output (as `map --morph`
     // did): every file of the folder is an input.
-    register_input(&d.join("rig"));
+    register_input(&d.join("rig")).unwrap();
     let e = set.commit().expect_err("an input");
     assert!(e.to_string().contains("this is the input file"), "{e}");
     assert_eq!(

@@ -190,7 +190,7 @@ fn open_file(path: &Path, options: SourceOptions) -> Result<Opened> {
             dims: 2,
         },
     )?;
-    keyshape_io::atomic::register_input(path);
+    keyshape_io::atomic::register_input(path)?;
     let mut note = (!seq.notes.is_empty()).then(|| format!("warning: {}", seq.notes.join("; ")));
     match options.image_size {
         Some((w, h)) => seq.scale_to_image(w, h)?,

@@ -171,7 +171,7 @@ pub fn read_rig(path: &Path, layout: usize, csv: Option<&Path>) -> Result<RigPar
         ));
     }
     // A rig folder is an input whole: no output may replace any file of it.
-    keyshape_io::atomic::register_input(path);
+    keyshape_io::atomic::register_input(path)?;
     let (mesh, morph, pairs) = if path.is_dir() {
         let (mesh, morph, marks) = super::Rig::read_ict_parts(path)?;
         let n = mesh.positions.len();

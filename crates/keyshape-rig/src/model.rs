@@ -47,7 +47,7 @@ impl Rig {
                 "is not a rig folder (neutral_face.obj, expressions.csv, expression_deltas.csv, landmarks_multipie68.csv)",
             ));
         }
-        keyshape_io::atomic::register_input(dir);
+        keyshape_io::atomic::register_input(dir)?;
         let mesh = keyshape_io::obj::read_obj(&dir.join("neutral_face.obj"))?;
         let n = mesh.positions.len();
         let marks = read_landmark_vertices(&dir.join("landmarks_multipie68.csv"), n)?;

@@ -75,7 +75,7 @@ pub struct RetargetArgs {
     head_motion: Option<String>,
     /// Print source RMS, target-domain RMS and jitter as JSON.
     #[arg(long)]
-    json: bool,
+    pub(crate) json: bool,
 }
 
 /// The target set of `--target` (JSON or an SVG template), if given.

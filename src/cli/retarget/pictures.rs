@@ -170,7 +170,7 @@ pub(super) fn pictures(
                 &dir.join(format!("frame_{:06}.png", s.frames[t])),
             )?;
         }
-        errln!("wrote {} frames to {}", s.n_frames(), dir.display());
+        crate::cli::output::wrote(format!("{} frames to {}", s.n_frames(), dir.display()));
     }
     if let Some(p) = &a.apng {
         let fps = s.fps().unwrap_or(30.0);
@@ -181,7 +181,7 @@ pub(super) fn pictures(
             progress.tick(t, n);
             frame(t)
         })?;
-        errln!("wrote {}", p.display());
+        crate::cli::output::wrote(p.display().to_string());
     }
     Ok(())
 }

@@ -199,7 +199,7 @@ pub struct RigArgs {
     png_dir: Option<PathBuf>,
     /// Print a JSON summary: per-shape identifiability, neutral frame, errors, steps.
     #[arg(long)]
-    json: bool,
+    pub(crate) json: bool,
     /// Also check the weights against the track's own geometry, where no ground truth
     /// exists: each eye's blink against that eye's lid gap over its width, jawOpen against
     /// the inner lips' gap, the smiles against the mouth's width (Pearson r, with the

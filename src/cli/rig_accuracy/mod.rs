@@ -163,7 +163,7 @@ pub struct RigAccuracyArgs {
     tracks: Option<PathBuf>,
     /// Print the summaries as JSON.
     #[arg(long)]
-    json: bool,
+    pub(crate) json: bool,
 }
 
 pub fn run(a: &RigAccuracyArgs) -> Result<()> {

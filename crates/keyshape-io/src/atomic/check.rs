@@ -67,8 +67,20 @@ fn input_files(path: &Path) -> Vec<(FileId, PathBuf)> {
 /// Records `path` as an input: no output of this process may overwrite it. A folder
 /// records every file directly inside it too (a command that reads a rig folder must not
 /// replace any file of the rig, read or not).
-pub fn register_input(path: &Path) {
+///
+/// When standard output is a regular file it is an output too: an input that is that file
+/// (`kslab solve in.csv >> in.csv`, `1<> in.csv`) is refused here, when it is read, before
+/// anything is written to it.
+pub fn register_input(path: &Path) -> Result<()> {
     let files = input_files(path);
+    if let Some(out) = stdout_file() {
+        if let Some((_, p)) = files.iter().find(|(id, _)| *id == out) {
+            return Err(Error::file(
+                p,
+                "is also standard output (a `>` or `>>` names this input): writing would overwrite it or append to it; send standard output to another file",
+            ));
+        }
+    }
     let mut v = match INPUTS.lock() {
         Ok(v) => v,
         Err(p) => p.into_inner(),
@@ -81,6 +93,20 @@ pub fn register_input(path: &Path) {
             v.push((id, p));
         }
     }
+    Ok(())
+}
+
+/// The identity of standard output when it is a regular file (not a terminal, a pipe or
+/// `/dev/null`).
+fn stdout_file() -> Option<FileId> {
+    #[cfg(target_os = "linux")]
+    let p = Path::new("/proc/self/fd/1");
+    #[cfg(not(target_os = "linux"))]
+    let p = Path::new("/dev/stdout");
+    std::fs::metadata(p)
+        .ok()
+        .filter(std::fs::Metadata::is_file)
+        .and_then(|_| file_id(p))
 }
 
 /// Errors when `target` (a resolved output path) is a file registered as input or one of
@@ -150,24 +176,82 @@ fn check_link_owner(_link: &Path, _meta: &std::fs::Metadata) -> Result<()> {
     Ok(())
 }
 
-/// Follows symbolic links to the path they finally name (which may not exist yet).
+/// Refuses an input reached through a link that the protected-symlinks rule would not
+/// follow (see [`resolve_links`]): a file read is as much at stake as one written (a
+/// calibration planted through another user's link).
+pub fn check_input_path(path: &Path) -> Result<()> {
+    resolve_links(path).map(drop)
+}
+
+/// Follows symbolic links to the path they finally name (which may not exist yet): every
+/// link on the way, in any component (`sticky/dirlink/out.csv`, a link that points into
+/// one), is followed under the kernel's protected-symlinks rule ([`check_link_owner`]) —
+/// applied to the last component only, a link planted as a folder in `/tmp` led root's
+/// output into another user's folder.
 pub(super) fn resolve_links(path: &Path) -> Result<PathBuf> {
-    let mut p = path.to_path_buf();
-    for _ in 0..40 {
-        match std::fs::symlink_metadata(&p) {
-            Ok(m) if m.file_type().is_symlink() => {
-                check_link_owner(&p, &m)?;
-                let link = std::fs::read_link(&p).map_err(|e| Error::io(&p, e))?;
-                p = if link.is_absolute() {
-                    link
-                } else {
-                    parent_dir(&p).join(link)
-                };
+    use std::path::Component;
+    // The components still to walk, the next first.
+    let mut todo: Vec<std::ffi::OsString> = Vec::new();
+    let mut done = PathBuf::new();
+    let push_all = |todo: &mut Vec<std::ffi::OsString>, p: &Path, done: &mut PathBuf| {
+        let mut parts: Vec<std::ffi::OsString> = Vec::new();
+        for c in p.components() {
+            match c {
+                Component::RootDir => {
+                    *done = PathBuf::from("/");
+                    parts.clear();
+                }
+                Component::Prefix(pre) => {
+                    *done = PathBuf::from(pre.as_os_str());
+                    parts.clear();
+                }
+                Component::CurDir => {}
+                Component::ParentDir => parts.push("..".into()),
+                Component::Normal(n) => parts.push(n.to_os_string()),
             }
-            _ => return Ok(p),
+        }
+        for part in parts.into_iter().rev() {
+            todo.push(part);
+        }
+    };
+    push_all(&mut todo, path, &mut done);
+    let mut links = 0;
+    while let Some(part) = todo.pop() {
+        if part == ".." {
+            // `done` holds no links (each was replaced by what it names): its parent is
+            // the parent on disk, except above a relative start.
+            if done.as_os_str().is_empty() || done.ends_with("..") {
+                done.push("..");
+            } else if !done.pop() {
+                done.push("..");
+            }
+            continue;
+        }
+        let next = done.join(&part);
+        match std::fs::symlink_metadata(&next) {
+            Ok(m) if m.file_type().is_symlink() => {
+                links += 1;
+                if links > 40 {
+                    return Err(Error::file(path, "too many levels of symbolic links"));
+                }
+                check_link_owner(&next, &m).map_err(|e| {
+                    if next.as_path() == path {
+                        e
+                    } else {
+                        Error::file(path, format!("on the way to it: {e}"))
+                    }
+                })?;
+                let target = std::fs::read_link(&next).map_err(|e| Error::io(&next, e))?;
+                // A relative link is read from its own folder, `done`.
+                push_all(&mut todo, &target, &mut done);
+            }
+            _ => done = next,
         }
     }
-    Err(Error::file(path, "too many levels of symbolic links"))
+    if done.as_os_str().is_empty() {
+        done.push(".");
+    }
+    Ok(done)
 }
 
 /// Is `path` standard output: `-`, or a name of the file standard output is (such as
@@ -341,7 +425,8 @@ pub fn check_output(path: &Path, inputs: &[&Path]) -> Result<()> {
 /// Checks, before any work, that `dir` can hold output files: it is a directory that takes
 /// new files, or it does not exist yet and its nearest existing ancestor does.
 pub fn check_output_dir(dir: &Path) -> Result<()> {
-    let mut d = dir.to_path_buf();
+    // Links on the way are followed under the protected-symlinks rule.
+    let mut d = resolve_links(dir)?;
     loop {
         match std::fs::metadata(&d) {
             Ok(m) if m.is_dir() => return check_dir_writable(&d, dir),
@@ -417,6 +502,16 @@ pub fn check_distinct(paths: &[&Path]) -> Result<()> {
 
 /// The error for two outputs that are one file or one stream.
 pub(super) fn two_outputs(first: &Path, second: &Path) -> Error {
+    if first.to_string_lossy().starts_with("--") {
+        // A flag that prints to standard output (`--json`).
+        return Error::file(
+            second,
+            format!(
+                "named as an output on standard output, where {} prints: their bytes would be mixed in one stream (give a file)",
+                first.display()
+            ),
+        );
+    }
     if first == second && is_stdout(first) {
         Error::file(
             second,
@@ -464,7 +559,7 @@ mod tests {
             .push((reused, input.clone()));
         check_not_input(&output, &output, &[]).unwrap();
         // Read now, the file is an input: the stale entry does not hide it.
-        register_input(&output);
+        register_input(&output).unwrap();
         let e = check_not_input(&output, &output, &[]).unwrap_err();
         assert!(e.to_string().contains("this is the input file"), "{e}");
     }

@@ -27,9 +27,10 @@ mod check;
 mod set;
 
 pub use check::{
-    check_distinct, check_output, check_output_dir, file_id, is_stdout, register_input, FileId,
+    check_distinct, check_input_path, check_output, check_output_dir, file_id, is_stdout,
+    register_input, FileId,
 };
-pub use set::{abandon, abandoned, create_dir_all, OutputSet};
+pub use set::{abandon, abandoned, check_stdout_free, claim_stdout, create_dir_all, OutputSet};
 
 use check::{check_not_input, target_of, Target};
 use keyshape_core::error::{Error, Result};

@@ -333,7 +333,11 @@ pub fn create_dir_all(dir: &Path) -> Result<()> {
 
 /// Claims standard output for the output `shown` in the open set: a second output to the
 /// same stream is refused.
-pub(super) fn claim_stdout(shown: &Path) -> Result<()> {
+/// Claims standard output for `shown` in this thread's open set (a path spelling it, or a
+/// flag such as `--json` that prints there): a second claim, by a file written to `-` or
+/// `/dev/stdout` or by [`check_stdout_free`], is refused — two outputs in one stream. Without
+/// an open set there is nothing to claim.
+pub fn claim_stdout(shown: &Path) -> Result<()> {
     check_not_abandoned(shown)?;
     with_set(|s| match s {
         Some(p) => match &p.stdout {
@@ -343,6 +347,15 @@ pub(super) fn claim_stdout(shown: &Path) -> Result<()> {
                 Ok(())
             }
         },
+        None => Ok(()),
+    })
+}
+
+/// Errors when standard output is claimed already ([`claim_stdout`]): for the checks made
+/// before any work, so `--png - --json` fails before the picture is drawn.
+pub fn check_stdout_free(shown: &Path) -> Result<()> {
+    with_set(|s| match s.as_ref().and_then(|p| p.stdout.as_ref()) {
+        Some(first) => Err(two_outputs(first, shown)),
         None => Ok(()),
     })
 }

@@ -201,7 +201,7 @@ pub(crate) fn map_study(
         None => None,
         Some(dir) => {
             let dir = base.join(dir);
-            keyshape_io::atomic::register_input(&dir);
+            keyshape_io::atomic::register_input(&dir)?;
             let mesh = keyshape_io::obj::read_obj(&dir.join("neutral_face.obj"))?;
             let targets = keyshape_io::morph::MorphTargets::read(
                 &dir.join("expressions.csv"),
