@@ -398,7 +398,11 @@ fn a_closed_pipe_commits_no_output_whichever_way_standard_output_was_chosen() {
 fn a_signal_leaves_every_output_as_it_was_and_a_kill_one_staging_folder_per_folder() {
     let bin = env!("CARGO_BIN_EXE_kslab");
     let t = shared("mediapipe_face_tracks/liveportrait_d6.csv");
-    for sig in ["INT", "TERM", "HUP", "KILL"] {
+    // Every signal whose default ends the process (USR1, USR2 and ALRM left staging folders
+    // and a half-made picture folder when only INT, TERM and HUP were covered).
+    for sig in [
+        "INT", "TERM", "HUP", "USR1", "USR2", "ALRM", "RTMIN", "KILL",
+    ] {
         let d = tempfile::tempdir().unwrap();
         std::fs::write(d.path().join("w.csv"), "old").unwrap();
         // Wait until the command has staged at least 10 frames, then signal it.
@@ -476,5 +480,221 @@ fn a_fifo_a_read_only_file_and_a_linked_shard_folder_are_refused() {
         r.stderr.contains("would overwrite a shard's folder"),
         "{}",
         r.stderr
+    );
+}
+
+/// Standard output that is an input is refused when the input is read, before anything is
+/// written: `solve in.csv >> in.csv` appended the weights to the input, `--out - 1<> in.csv`
+/// overwrote its header, `rig in.csv >> in.csv` likewise, all with exit 0.
+#[cfg(unix)]
+#[test]
+fn standard_output_that_is_an_input_is_refused_and_the_input_kept() {
+    let d = tempfile::tempdir().unwrap();
+    let t = shared("mediapipe_face_tracks/liveportrait_d18.csv");
+    std::fs::copy(&t, d.path().join("in.csv")).unwrap();
+    let before = std::fs::read(d.path().join("in.csv")).unwrap();
+    let bin = env!("CARGO_BIN_EXE_kslab");
+    for redirect in [
+        "solve in.csv --keys 0,10 >> in.csv",
+        "solve in.csv --keys 0,10 --out - 1<> in.csv",
+        "solve in.csv --keys 0,10 --stream >> in.csv",
+        "rig in.csv -q >> in.csv",
+    ] {
+        let out = Command::new("bash")
+            .args(["-c", &format!("{bin} {redirect}")])
+            .current_dir(d.path())
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{redirect}: {err}");
+        assert!(
+            err.contains("in.csv: is also standard output"),
+            "{redirect}: {err}"
+        );
+        assert_eq!(
+            std::fs::read(d.path().join("in.csv")).unwrap(),
+            before,
+            "{redirect}"
+        );
+    }
+    // Standard output to another file is fine.
+    bash_ok(d.path(), &format!("{bin} solve in.csv --keys 0,10 > w.csv"));
+}
+
+/// A closed standard error loses messages, never the command: `live`, `modes --png` and the
+/// error paths of `solve` and `info` panicked (exit 101), and `modes` lost its output.
+#[cfg(unix)]
+#[test]
+fn a_closed_standard_error_never_panics_a_command() {
+    let d = tempfile::tempdir().unwrap();
+    let bin = env!("CARGO_BIN_EXE_kslab");
+    let d6 = shared("mediapipe_face_tracks/liveportrait_d6.csv");
+    let d18 = shared("mediapipe_face_tracks/liveportrait_d18.csv");
+    let actions =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/actions/actions_liveportrait_d6.json");
+    // Standard error into a pipe whose reader has gone (and standard output discarded).
+    let cases: [(String, i32); 4] = [
+        (
+            format!(
+                "modes {} --actions {} --png m.png",
+                d6.display(),
+                actions.display()
+            ),
+            0,
+        ),
+        ("solve nope.csv --keys 1".into(), 1),
+        ("info nope.csv".into(), 1),
+        (
+            format!(
+                "live --from file:{} --rate 5000 --to stdout --calibrate 5",
+                d18.display()
+            ),
+            0,
+        ),
+    ];
+    for (args, want) in cases {
+        let script = format!(
+            "{{ {bin} {args} 2>&1 >/dev/null; echo \"exit $?\" >> codes; }} | (exec <&-; sleep 1)"
+        );
+        let _ = std::fs::remove_file(d.path().join("codes"));
+        Command::new("bash")
+            .args(["-c", &script])
+            .current_dir(d.path())
+            .output()
+            .unwrap();
+        let codes = std::fs::read_to_string(d.path().join("codes")).unwrap();
+        assert_eq!(codes.trim(), format!("exit {want}"), "{args}");
+    }
+    assert!(d.path().join("m.png").exists(), "modes kept its output");
+    // Every message goes through the one writer: no `eprintln!` left in the command line.
+    for f in walk(&Path::new(env!("CARGO_MANIFEST_DIR")).join("src")) {
+        let text = std::fs::read_to_string(&f).unwrap();
+        let uses = text
+            .lines()
+            .filter(|l| {
+                (l.contains("eprintln!(") || l.contains("eprint!("))
+                    && !l.trim_start().starts_with("//")
+            })
+            .count();
+        assert_eq!(
+            uses,
+            0,
+            "{}: eprintln! panics on a closed standard error; use errln!",
+            f.display()
+        );
+    }
+}
+
+fn walk(dir: &Path) -> Vec<std::path::PathBuf> {
+    let mut out = Vec::new();
+    for e in std::fs::read_dir(dir).unwrap().flatten() {
+        let p = e.path();
+        if p.is_dir() {
+            out.extend(walk(&p));
+        } else if p.extension().is_some_and(|x| x == "rs") {
+            out.push(p);
+        }
+    }
+    out
+}
+
+/// The protected-symlink rule on every component: in a sticky world-writable folder, a
+/// link owned by another user (`nobody`) is not followed on the way to an output or an
+/// input, whether it is the folder named or a link points into it (root's `solve --out
+/// sticky/dirlink/important.csv` replaced `victim/important.csv`). Needs root (to give the
+/// link to `nobody`); elsewhere the rule's owner test is the same and this says so.
+#[cfg(unix)]
+#[test]
+fn a_link_of_another_user_in_a_sticky_folder_is_followed_in_no_component() {
+    use std::os::unix::fs::{symlink, PermissionsExt};
+    // SAFETY: geteuid has no preconditions.
+    #[allow(unsafe_code)]
+    let root = unsafe { libc::geteuid() } == 0;
+    if !root {
+        eprintln!("skipped: giving a link to another user needs root");
+        return;
+    }
+    let d = tempfile::tempdir().unwrap();
+    let (sticky, victim) = (d.path().join("sticky"), d.path().join("victim"));
+    std::fs::create_dir(&sticky).unwrap();
+    std::fs::create_dir(&victim).unwrap();
+    std::fs::set_permissions(&sticky, std::fs::Permissions::from_mode(0o1777)).unwrap();
+    std::fs::write(victim.join("important.csv"), "keep").unwrap();
+    std::fs::write(victim.join("cal.json"), "{}").unwrap();
+    let link = sticky.join("dirlink");
+    symlink(&victim, &link).unwrap();
+    std::os::unix::fs::lchown(&link, Some(65534), Some(65534)).unwrap();
+    symlink(&link, d.path().join("rootlink")).unwrap();
+    let t = shared("mediapipe_face_tracks/liveportrait_d18.csv");
+    let via = |p: &str| s(&d.path().join(p));
+    let file = format!("file:{}", t.display());
+    let cases: Vec<Vec<String>> = vec![
+        vec![
+            "solve".into(),
+            "--keys".into(),
+            "3,40".into(),
+            "--out".into(),
+            via("sticky/dirlink/important.csv"),
+        ],
+        vec![
+            "solve".into(),
+            "--keys".into(),
+            "3,40".into(),
+            "--out".into(),
+            via("rootlink/important.csv"),
+        ],
+        vec![
+            "rig".into(),
+            s(&t),
+            "--png-dir".into(),
+            via("sticky/dirlink"),
+            "--out".into(),
+            via("w.csv"),
+        ],
+        vec![
+            "live".into(),
+            "--from".into(),
+            file.clone(),
+            "--to".into(),
+            "stdout".into(),
+            "--stats".into(),
+            via("sticky/dirlink/important.csv"),
+        ],
+        vec![
+            "live".into(),
+            "--from".into(),
+            file.clone(),
+            "--to".into(),
+            "stdout".into(),
+            "--record".into(),
+            via("sticky/dirlink/take"),
+        ],
+        vec![
+            "live".into(),
+            "--from".into(),
+            file,
+            "--to".into(),
+            "stdout".into(),
+            "--neutral-file".into(),
+            via("sticky/dirlink/cal.json"),
+        ],
+    ];
+    for args in cases {
+        let out = Command::new(env!("CARGO_BIN_EXE_kslab"))
+            .args(&args)
+            .stdout(Stdio::null())
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
+        assert!(
+            err.contains("refusing to follow this link"),
+            "{args:?}: {err}"
+        );
+    }
+    assert_eq!(files_in(&victim), ["cal.json", "important.csv"]);
+    assert_eq!(
+        std::fs::read_to_string(victim.join("important.csv")).unwrap(),
+        "keep"
     );
 }
