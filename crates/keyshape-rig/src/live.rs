@@ -214,7 +214,10 @@ impl LiveSolver {
                 ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt()
             })
             .fold(0.0f64, f64::max);
-        if !(moved <= 0.5 * size) {
+        if !matches!(
+            moved.partial_cmp(&(0.5 * size)),
+            Some(std::cmp::Ordering::Less | std::cmp::Ordering::Equal)
+        ) {
             return bad(format!(
                 "its neutral lies up to {moved:.3} rig units from this rig's (a face {size:.3} across): it was made for another rig"
             ));

@@ -241,7 +241,11 @@ pub fn face_problem(shape: &[f64], dims: usize) -> Option<String> {
             .fold((0.0f64, 0), |b, (i, &r)| if r > b.0 { (r, i) } else { b });
     radii.sort_by(f64::total_cmp);
     let median = radii[n / 2];
-    if !(far <= MAX_FACE_SPREAD_RATIO * median) {
+    // (Written so that a NaN is refused too.)
+    if !matches!(
+        far.partial_cmp(&(MAX_FACE_SPREAD_RATIO * median)),
+        Some(std::cmp::Ordering::Less | std::cmp::Ordering::Equal)
+    ) {
         return Some(format!(
             "landmark {far_at} lies {:.3e} from the face's centre, more than {MAX_FACE_SPREAD_RATIO} times the median landmark's {median:.3e}: it is not on the face",
             far
@@ -259,7 +263,10 @@ pub fn face_problem(shape: &[f64], dims: usize) -> Option<String> {
     let mean = 0.5 * (sxx + syy);
     let half = (0.25 * (sxx - syy).powi(2) + sxy * sxy).sqrt();
     let (big, small) = (mean + half, (mean - half).max(0.0));
-    if !(small >= MIN_FACE_ASPECT * big) {
+    if !matches!(
+        small.partial_cmp(&(MIN_FACE_ASPECT * big)),
+        Some(std::cmp::Ordering::Greater | std::cmp::Ordering::Equal)
+    ) {
         return Some(format!("its {n} points lie on a line"));
     }
     None

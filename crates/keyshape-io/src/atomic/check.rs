@@ -220,9 +220,7 @@ pub(super) fn resolve_links(path: &Path) -> Result<PathBuf> {
         if part == ".." {
             // `done` holds no links (each was replaced by what it names): its parent is
             // the parent on disk, except above a relative start.
-            if done.as_os_str().is_empty() || done.ends_with("..") {
-                done.push("..");
-            } else if !done.pop() {
+            if done.as_os_str().is_empty() || done.ends_with("..") || !done.pop() {
                 done.push("..");
             }
             continue;
