@@ -79,7 +79,12 @@ fn bench_scale_refuses_what_it_cannot_run_and_generates_one_track_on_request() {
     assert_eq!(r.code, 1);
     assert!(r.stderr.contains("unknown step 'sort'"), "{}", r.stderr);
     let r = k(&["bench", "scale", "--frames", "0"]);
-    assert_eq!(r.code, 1);
+    assert_eq!(r.code, 2, "a usage error: {}", r.stderr);
+    assert!(
+        r.stderr.contains("0: give 1 to 1000000 frames"),
+        "{}",
+        r.stderr
+    );
     let two = d.path().join("two.csv");
     let r = k(&[
         "bench",
