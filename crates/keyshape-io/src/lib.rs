@@ -38,6 +38,7 @@ pub mod morph;
 pub mod obj;
 mod pts;
 
+mod line_index;
 mod read;
 mod shared;
 pub mod stream;

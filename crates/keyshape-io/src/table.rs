@@ -1,6 +1,7 @@
 //! CSV landmark tables: MediaPipe tracks, OpenFace 2.x, py-feat tables and the plain CSV.
 //! One reader, configured per format by which columns hold what.
 
+use crate::line_index::LineIndex;
 use keyshape_core::error::{setting, Error, Result};
 use keyshape_core::sequence::{Format, Sequence};
 use nalgebra::DMatrix;
@@ -108,88 +109,15 @@ impl SeenFrames {
     }
 }
 
-/// A reader that notes where the lines of what passes through it have content, so a
-/// record's position gives its true line. The csv crate positions a record where parsing
-/// resumed after the previous one — before any blank lines it skips, and on the `\n` of a
-/// CRLF — so its own line count is off after a blank line and with CRLF line ends. Only
-/// the lines read ahead of the last record asked about are kept: memory does not grow with
-/// the file.
-struct LineIndex<R> {
-    inner: R,
-    /// Bytes read so far.
-    pos: u64,
-    /// Lines read but not yet passed: (offset of their `\n`, offset of their first byte
-    /// that is not `\r` or `\n`, if any).
-    lines: std::collections::VecDeque<(u64, Option<u64>)>,
-    /// The first content byte of the line being read.
-    open: Option<u64>,
-    /// Lines already passed.
-    passed: u64,
-    /// Bytes read since the last `\n`: a line longer than [`super::MAX_LINE_BYTES`] is an
-    /// error here, before the csv reader has stored it (a 300 MB line cost 1 GB).
-    run: usize,
-}
-
-impl<R> LineIndex<R> {
-    fn new(inner: R) -> Self {
-        LineIndex {
-            inner,
-            pos: 0,
-            lines: Default::default(),
-            open: None,
-            passed: 0,
-            run: 0,
-        }
+/// Is the short row just read the file's last, with no line end — a row cut short by a full
+/// disk or a kill while it was written (then [`TableRows`] notes it and leaves it out)? A
+/// short row that is not the last stays an error.
+fn cut_short<R: std::io::Read>(rdr: &mut csv::Reader<LineIndex<R>>) -> bool {
+    if rdr.get_ref().run == 0 {
+        return false;
     }
-
-    /// The line (from 1) of the first content at or after byte `at`; calls must not go
-    /// backwards.
-    fn line_at(&mut self, at: u64) -> u64 {
-        while self.lines.front().is_some_and(|&(nl, _)| nl < at) {
-            self.lines.pop_front();
-            self.passed += 1;
-        }
-        let mut line = self.passed + 1;
-        for &(_, first) in &self.lines {
-            if first.is_some_and(|c| c >= at) {
-                return line;
-            }
-            line += 1;
-        }
-        line
-    }
-}
-
-impl<R: std::io::Read> std::io::Read for LineIndex<R> {
-    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
-        let n = self.inner.read(buf)?;
-        for (i, b) in buf[..n].iter().enumerate() {
-            let at = self.pos + i as u64;
-            self.run += 1;
-            match b {
-                b'\n' => {
-                    self.lines.push_back((at, self.open.take()));
-                    self.run = 0;
-                }
-                b'\r' => {}
-                _ => {
-                    self.open.get_or_insert(at);
-                }
-            }
-            if self.run > super::MAX_LINE_BYTES {
-                let line = self.passed + self.lines.len() as u64 + 1;
-                return Err(std::io::Error::new(
-                    std::io::ErrorKind::InvalidData,
-                    format!(
-                        "line {line} is longer than {} bytes: not a text table",
-                        super::MAX_LINE_BYTES
-                    ),
-                ));
-            }
-        }
-        self.pos += n as u64;
-        Ok(n)
-    }
+    let mut rest = csv::StringRecord::new();
+    matches!(rdr.read_record(&mut rest), Ok(false))
 }
 
 /// A landmark table read row by row, from any reader: what [`crate::read_sequence`]
@@ -332,27 +260,11 @@ impl<R: std::io::Read> TableRows<R> {
                     ),
                 ));
             }
-            let header = &self.header;
-            if record.len() < header.len() && self.rdr.get_ref().run > 0 {
-                // A short row with no line end: the last of the file when nothing follows it,
-                // a row cut short by a full disk or a kill while it was written.
-                let mut rest = csv::StringRecord::new();
-                if matches!(self.rdr.read_record(&mut rest), Ok(false)) {
-                    self.cut = Some(line);
-                    return Ok(None);
-                }
-                let header = &self.header;
-                return Err(Error::parse(
-                    path,
-                    line,
-                    self.record.len().min(header.len()) as u64 + 1,
-                    format!(
-                        "ragged row: {} fields, the header has {}",
-                        self.record.len(),
-                        header.len()
-                    ),
-                ));
+            if record.len() < self.header.len() && cut_short(&mut self.rdr) {
+                self.cut = Some(line);
+                return Ok(None);
             }
+            let (record, header) = (&self.record, &self.header);
             if record.len() != header.len() {
                 let col = record.len().min(header.len()) as u64 + 1;
                 return Err(Error::parse(

@@ -17,6 +17,25 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Condvar, Mutex};
 use std::time::{Duration, Instant};
 
+/// The largest time, in seconds, a frame may carry: a Unix time stamp (OpenSeeFace's,
+/// about 1.8e9) with room to spare, far below where a timecode's hours overflow.
+pub const MAX_TIME_S: f64 = 1e11;
+
+/// Why a frame cannot be solved, if it cannot: a coordinate out of the readers' range
+/// (non-finite, beyond ±1e30) or a time that is not finite or beyond ±[`MAX_TIME_S`].
+/// Every source's frames are checked by this before they are queued.
+pub fn frame_problem(time: f64, points: &[f64]) -> Option<String> {
+    if !(time.is_finite() && time.abs() <= MAX_TIME_S) {
+        return Some(format!(
+            "time {time:e} s is not a time stamp (finite, within ±{MAX_TIME_S:e} s)"
+        ));
+    }
+    points.iter().enumerate().find_map(|(i, &v)| {
+        keyshape_core::sequence::coord_problem(v)
+            .map(|why| format!("landmark {} {}: {why}", i / 2, ["x", "y"][i % 2]))
+    })
+}
+
 /// One frame of landmarks as a source delivers it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Frame {

@@ -5,7 +5,7 @@
 //! layout (68, 468 or 478 points) is known when the rig is read. Then it runs on its own
 //! thread ([`Opened::spawn`]), pushing frames into the [`Queue`].
 
-use super::{Counters, Frame, Queue, RateLimited};
+use super::{frame_problem, Counters, Frame, Queue, RateLimited};
 use keyshape_core::error::{setting, Error, Result};
 use keyshape_core::sequence::Format;
 use std::io::{BufRead, Read};
@@ -351,25 +351,6 @@ fn open_stdin(mut stdin: Box<dyn BufRead + Send>, options: SourceOptions) -> Res
     })
 }
 
-/// The largest time, in seconds, a frame may carry: a Unix time stamp (OpenSeeFace's,
-/// about 1.8e9) with room to spare, far below where a timecode's hours overflow.
-pub const MAX_TIME_S: f64 = 1e11;
-
-/// Why a frame cannot be solved, if it cannot: a coordinate out of the readers' range
-/// (non-finite, beyond ±1e30) or a time that is not finite or beyond ±[`MAX_TIME_S`].
-/// Every source's frames are checked by this before they are queued.
-pub fn frame_problem(time: f64, points: &[f64]) -> Option<String> {
-    if !(time.is_finite() && time.abs() <= MAX_TIME_S) {
-        return Some(format!(
-            "time {time:e} s is not a time stamp (finite, within ±{MAX_TIME_S:e} s)"
-        ));
-    }
-    points.iter().enumerate().find_map(|(i, &v)| {
-        keyshape_core::sequence::coord_problem(v)
-            .map(|why| format!("landmark {} {}: {why}", i / 2, ["x", "y"][i % 2]))
-    })
-}
-
 /// Reports from the receiving thread (malformed input, rate-limited by the caller).
 pub type Warn = Box<dyn FnMut(String) + Send>;
 
@@ -431,7 +412,7 @@ impl Run<'_> {
     /// Queues a frame received at `arrived`, or counts it malformed (and says why) when a
     /// value is out of range: every source's frames pass this one check, the bound the
     /// file readers keep ([`keyshape_core::sequence::coord_problem`]) and a time that a
-    /// clock can show ([`check_time`]). Whether the frame was queued.
+    /// clock can show ([`frame_problem`]). Whether the frame was queued.
     fn deliver(&mut self, number: i64, time: f64, mut points: Vec<f64>, arrived: Instant) -> bool {
         if let Some((w, h)) = self.options.image_size {
             for p in points.chunks_mut(2) {

@@ -177,7 +177,7 @@ fn check_link_owner(_link: &Path, _meta: &std::fs::Metadata) -> Result<()> {
 }
 
 /// Refuses an input reached through a link that the protected-symlinks rule would not
-/// follow (see [`resolve_links`]): a file read is as much at stake as one written (a
+/// follow (the rule every output path is resolved under): a file read is as much at stake as one written (a
 /// calibration planted through another user's link).
 pub fn check_input_path(path: &Path) -> Result<()> {
     resolve_links(path).map(drop)
