@@ -204,3 +204,44 @@ pub fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T> {
     serde_json::from_str(&text)
         .map_err(|e| Error::parse(path, e.line() as u64, e.column() as u64, e.to_string()))
 }
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+
+    /// Lines come back whole up to the cap, a longer one is read past (never stored) and
+    /// the next line is read as it is; the last line may lack its `\n`.
+    #[test]
+    fn a_line_is_stored_up_to_its_cap_and_a_longer_one_read_past() {
+        let text = b"ab\n12345\nxyz\n\nlast";
+        // A reader of 2-byte reads, so lines cross the buffer's edges.
+        let mut r = std::io::BufReader::with_capacity(2, &text[..]);
+        let mut buf = Vec::new();
+        let mut got = Vec::new();
+        loop {
+            match read_line_capped(&mut r, &mut buf, 4).unwrap() {
+                Line::End => break,
+                Line::TooLong => got.push("<too long>".to_string()),
+                Line::Read(n) => {
+                    assert_eq!(n, buf.len());
+                    got.push(String::from_utf8(buf.clone()).unwrap());
+                }
+            }
+        }
+        assert_eq!(got, ["ab\n", "<too long>", "xyz\n", "\n", "last"]);
+        assert!(buf.is_empty(), "an ended stream leaves the buffer empty");
+        // A line of exactly the cap is whole.
+        let mut r = &b"abc\n"[..];
+        assert_eq!(
+            read_line_capped(&mut r, &mut buf, 4).unwrap(),
+            Line::Read(4)
+        );
+        let mut r = &b"abcd\n"[..];
+        assert_eq!(
+            read_line_capped(&mut r, &mut buf, 4).unwrap(),
+            Line::TooLong
+        );
+        assert_eq!(read_line_capped(&mut r, &mut buf, 4).unwrap(), Line::End);
+    }
+}

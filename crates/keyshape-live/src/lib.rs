@@ -273,4 +273,28 @@ mod tests {
             Some("bad (and 2 more like it in the last second)")
         );
     }
+
+    /// One check for every source's frames: a coordinate the readers would refuse, or a
+    /// time no clock shows, makes the frame malformed; the bounds themselves pass.
+    #[test]
+    fn a_frame_out_of_range_is_named_and_its_bounds_pass() {
+        let ok = [1.0, -2.0, 1e30, -1e30];
+        assert_eq!(frame_problem(0.0, &ok), None);
+        assert_eq!(frame_problem(MAX_TIME_S, &ok), None);
+        assert_eq!(frame_problem(-MAX_TIME_S, &ok), None);
+        for t in [f64::NAN, f64::INFINITY, 1e308, -1.01e11] {
+            let why = frame_problem(t, &ok).unwrap();
+            assert!(why.starts_with("time "), "{t}: {why}");
+        }
+        for (at, v) in [(0, 1.1e30), (3, -1e200), (2, f64::NAN)] {
+            let mut p = ok;
+            p[at] = v;
+            let why = frame_problem(0.0, &p).unwrap();
+            let xy = ["x", "y"][at % 2];
+            assert!(
+                why.starts_with(&format!("landmark {} {xy}: ", at / 2)),
+                "{why}"
+            );
+        }
+    }
 }

@@ -516,3 +516,63 @@ impl Sequence {
         (t1 > t0 && f1 > f0).then(|| (f1 - f0) as f64 / (t1 - t0))
     }
 }
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+
+    /// An ellipse of 68 points: a face's spread.
+    fn face() -> Vec<f64> {
+        (0..68)
+            .flat_map(|i| {
+                let a = i as f64 * 0.37;
+                [100.0 + 40.0 * a.cos(), 100.0 + 50.0 * a.sin()]
+            })
+            .collect()
+    }
+
+    /// The face check at its thresholds' ends: a landmark just inside the spread ratio
+    /// passes and just beyond is named; a thin ellipse passes and a line is refused;
+    /// coincident points and a face beyond 64-bit resolution are told apart.
+    #[test]
+    fn the_face_check_holds_at_its_thresholds() {
+        let f = face();
+        assert_eq!(face_problem(&f, 2), None);
+        // The 3-D layout reads x and y.
+        let f3: Vec<f64> = f.chunks(2).flat_map(|p| [p[0], p[1], 7.0]).collect();
+        assert_eq!(face_problem(&f3, 3), None);
+        let median = {
+            let (cx, cy) = (100.0, 100.0);
+            let mut r: Vec<f64> = f.chunks(2).map(|p| (p[0] - cx).hypot(p[1] - cy)).collect();
+            r.sort_by(f64::total_cmp);
+            r[34]
+        };
+        let mut near = f.clone();
+        // Far out along x, the centroid moves too: ratio measured, not assumed.
+        near[0] = 100.0 + 15.0 * median;
+        assert_eq!(face_problem(&near, 2), None, "ratio 15");
+        let mut far = f.clone();
+        far[0] = 100.0 + 40.0 * median;
+        assert!(face_problem(&far, 2)
+            .unwrap()
+            .starts_with("landmark 0 lies"));
+        // A thin face (aspect 1e-3 in variance) passes; flatter than 1e-4 is a line.
+        let thin: Vec<f64> = f
+            .chunks(2)
+            .flat_map(|p| [p[0], 100.0 + (p[1] - 100.0) * 0.04])
+            .collect();
+        assert_eq!(face_problem(&thin, 2), None);
+        let flat: Vec<f64> = f
+            .chunks(2)
+            .flat_map(|p| [p[0], 100.0 + (p[1] - 100.0) * 0.005])
+            .collect();
+        assert!(face_problem(&flat, 2).unwrap().contains("on a line"));
+        assert!(face_problem(&[3.0; 136], 2).unwrap().contains("coincide"));
+        let offset: Vec<f64> = f.iter().map(|v| v + 1e15).collect();
+        assert!(face_problem(&offset, 2).unwrap().contains("64-bit"));
+        assert!(face_problem(&[], 2).unwrap().contains("no points"));
+        // Fewer than three points: only coincidence is checked.
+        assert_eq!(face_problem(&[0.0, 0.0, 1.0, 5.0], 2), None);
+    }
+}
