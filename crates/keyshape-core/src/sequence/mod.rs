@@ -251,11 +251,11 @@ pub fn face_problem(shape: &[f64], dims: usize) -> Option<String> {
             far
         ));
     }
-    // The principal variances of the points (scaled by the median radius first, so a
-    // huge or tiny face is measured alike).
+    // The principal variances of the points (their ratio is scale-free; coordinates within
+    // ±1e30 and spread beyond 1e-100 square without overflow or underflow).
     let (mut sxx, mut syy, mut sxy) = (0.0, 0.0, 0.0);
     for p in shape.chunks(dims) {
-        let (x, y) = ((p[0] - cx) / median, (p[1] - cy) / median);
+        let (x, y) = (p[0] - cx, p[1] - cy);
         sxx += x * x;
         syy += y * y;
         sxy += x * y;
@@ -568,7 +568,39 @@ mod tests {
             .flat_map(|p| [p[0], 100.0 + (p[1] - 100.0) * 0.005])
             .collect();
         assert!(face_problem(&flat, 2).unwrap().contains("on a line"));
+        // A line in any direction (the cross term counts), in 2-D and 3-D, of three points.
+        for slope in [0.5, 2.0, -3.0] {
+            let line: Vec<f64> = (0..68)
+                .flat_map(|i| [i as f64, 1.0 + slope * i as f64])
+                .collect();
+            assert!(
+                face_problem(&line, 2).unwrap().contains("on a line"),
+                "{slope}"
+            );
+            // Nearly a line, across the diagonal: a face this thin still passes.
+            let thin: Vec<f64> = line
+                .chunks(2)
+                .enumerate()
+                .flat_map(|(i, p)| {
+                    // 3 units across a line 68 long (variance ratio about 1e-2).
+                    let w = 3.0 * (i as f64 * 0.37).sin() / (1.0 + slope * slope).sqrt();
+                    [p[0] - slope * w, p[1] + w]
+                })
+                .collect();
+            assert_eq!(face_problem(&thin, 2), None, "{slope}");
+        }
+        let line3: Vec<f64> = (0..68)
+            .flat_map(|i| [i as f64, 2.0 * i as f64, 5.0])
+            .collect();
+        assert!(face_problem(&line3, 3).unwrap().contains("on a line"));
+        assert!(face_problem(&[0.0, 0.0, 1.0, 2.0, 2.0, 4.0], 2)
+            .unwrap()
+            .contains("on a line"));
         assert!(face_problem(&[3.0; 136], 2).unwrap().contains("coincide"));
+        // Coincident up to rounding (a few ulps apart, far from the origin) is "coincide";
+        // a real spread lost next to the offset is the offset's.
+        let ulps: Vec<f64> = (0..136).map(|i| 1e6 + f64::from(i % 3) * 1.2e-10).collect();
+        assert!(face_problem(&ulps, 2).unwrap().contains("coincide"));
         let offset: Vec<f64> = f.iter().map(|v| v + 1e15).collect();
         assert!(face_problem(&offset, 2).unwrap().contains("64-bit"));
         assert!(face_problem(&[], 2).unwrap().contains("no points"));
