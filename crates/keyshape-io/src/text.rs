@@ -244,4 +244,39 @@ mod tests {
         );
         assert_eq!(read_line_capped(&mut r, &mut buf, 4).unwrap(), Line::End);
     }
+
+    /// A read interrupted by a signal is retried; any other error is the caller's.
+    #[test]
+    fn an_interrupted_read_is_retried_and_another_error_returned() {
+        struct Flaky<'a> {
+            fails: Vec<std::io::ErrorKind>,
+            data: &'a [u8],
+        }
+        impl std::io::Read for Flaky<'_> {
+            fn read(&mut self, out: &mut [u8]) -> std::io::Result<usize> {
+                if let Some(k) = self.fails.pop() {
+                    return Err(k.into());
+                }
+                let n = out.len().min(self.data.len());
+                out[..n].copy_from_slice(&self.data[..n]);
+                self.data = &self.data[n..];
+                Ok(n)
+            }
+        }
+        let mut buf = Vec::new();
+        let mut r = std::io::BufReader::new(Flaky {
+            fails: vec![std::io::ErrorKind::Interrupted],
+            data: b"ok\n",
+        });
+        assert_eq!(
+            read_line_capped(&mut r, &mut buf, 16).unwrap(),
+            Line::Read(3)
+        );
+        let mut r = std::io::BufReader::new(Flaky {
+            fails: vec![std::io::ErrorKind::InvalidData],
+            data: b"ok\n",
+        });
+        let e = read_line_capped(&mut r, &mut buf, 16).unwrap_err();
+        assert_eq!(e.kind(), std::io::ErrorKind::InvalidData);
+    }
 }
