@@ -187,11 +187,12 @@ fn setup(a: &LiveArgs) -> Result<Setup> {
     keyshape_rig::correspondence::check_layout(layout)
         .with_context(|| format!("{name}: kslab live"))?;
     // A MediaPipe source read through the 68 iBUG points, or densely.
-    let (rig_layout, to68): (usize, Option<Vec<usize>>) = match (layout, a.landmarks.as_deref()) {
-        (68, Some("dense")) => anyhow::bail!(
+    let ibug = keyshape_rig::correspondence::is_ibug(layout);
+    let (rig_layout, to68): (usize, Option<Vec<usize>>) = match (ibug, a.landmarks.as_deref()) {
+        (true, Some("dense")) => anyhow::bail!(
             "--landmarks dense applies to MediaPipe sources; {name} sends the 68 iBUG points"
         ),
-        (68, _) | (_, None | Some("dense")) => (layout, None),
+        (true, _) | (_, None | Some("dense")) => (layout, None),
         _ => (68, Some(keyshape_rig::mediapipe_to_ibug68()?)),
     };
     let dir = match &a.rig {
@@ -402,9 +403,12 @@ fn report(
     seconds: f64,
 ) -> Result<()> {
     let (received, malformed, dropped) = counters.get();
+    let untracked = counters
+        .untracked
+        .load(std::sync::atomic::Ordering::Relaxed);
     let lat = |q| quantile(&session.latencies, q);
     errln!(
-        "{}kslab live: {} frames solved in {seconds:.1} s ({received} received, {dropped} dropped, {malformed} malformed, {} refused, {} not sent); latency p50 {} p99 {}",
+        "{}kslab live: {} frames solved in {seconds:.1} s ({received} received, {dropped} dropped, {malformed} malformed, {untracked} untracked, {} refused, {} not sent); latency p50 {} p99 {}",
         if std::io::stderr().is_terminal() { "\r\x1b[K" } else { "" },
         session.solved,
         session.refused,
@@ -422,6 +426,7 @@ fn report(
             "received": received,
             "dropped": dropped,
             "malformed": malformed,
+            "untracked": untracked,
             "refused": session.refused,
             "not_sent": session.send_errors(),
             "latency_ms": { "p50": lat(0.5), "p99": lat(0.99), "worst": lat(1.0) },

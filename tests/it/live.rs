@@ -13,10 +13,13 @@ use std::net::UdpSocket;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-/// OpenSeeFace's face record (facetracker.py), little-endian: f64 time, i32 id, f32 width,
-/// height, right and left eye open, u8 success, f32 fit error, 4 f32 quaternion, 3 f32
-/// Euler, 3 f32 translation, 68 f32 confidences, 68 × (f32 x, f32 y), 70 × 3 f32, 14 f32.
-fn osf_face(time: f64, id: i32, points: &[f64]) -> Vec<u8> {
+/// OpenSeeFace's datagram for one face, as its `facetracker.py` writes it: f64 time, i32
+/// id, f32 width, height, right and left eye openness, u8 success, f32 fit error, 4 f32
+/// quaternion, 3 f32 Euler, 3 f32 translation, 68 f32 confidences, 68 × (f32 x, f32 y),
+/// 70 × 3 f32, 14 f32. `ibug` is a face in iBUG-68 order; OpenSeeFace's own 68 points are
+/// its 66 (iBUG without the outer mouth corners 48 and 54) and the two pupils, sent here
+/// as a tracker without gaze tracking sends them: (0, 0), confidence 0.
+fn osf_face(time: f64, id: i32, ibug: &[f64]) -> Vec<u8> {
     let mut b = Vec::new();
     b.extend(time.to_le_bytes());
     b.extend(id.to_le_bytes());
@@ -27,18 +30,53 @@ fn osf_face(time: f64, id: i32, points: &[f64]) -> Vec<u8> {
     for _ in 0..(1 + 4 + 3 + 3) {
         b.extend(0f32.to_le_bytes());
     }
-    for _ in 0..68 {
-        b.extend(0.9f32.to_le_bytes());
+    for i in 0..68 {
+        b.extend(if i < 66 { 0.9f32 } else { 0.0 }.to_le_bytes());
     }
-    for p in points.chunks(2) {
-        b.extend((p[0] as f32).to_le_bytes());
-        b.extend((p[1] as f32).to_le_bytes());
+    let ours: Vec<usize> = (0..68).filter(|p| *p != 48 && *p != 54).collect();
+    for p in ours {
+        b.extend((ibug[2 * p] as f32).to_le_bytes());
+        b.extend((ibug[2 * p + 1] as f32).to_le_bytes());
     }
+    b.extend([0u8; 16]);
     for _ in 0..(70 * 3 + 14) {
         b.extend(0f32.to_le_bytes());
     }
     assert_eq!(b.len(), 1785);
     b
+}
+
+/// The frame `kslab live` solves for [`osf_face`]'s datagram of `ibug` (f32 as sent): 70
+/// points, iBUG order, 48 and 54 repeating 60 and 64, the untracked pupils at their eyes'
+/// centres.
+fn osf_solved(ibug: &[f64]) -> Vec<f64> {
+    let mut out: Vec<f64> = ibug.iter().map(|v| f64::from(*v as f32)).collect();
+    for (a, b) in [(48, 60), (54, 64)] {
+        out[2 * a] = out[2 * b];
+        out[2 * a + 1] = out[2 * b + 1];
+    }
+    for eye in [36, 42] {
+        for a in 0..2 {
+            let c = (eye..eye + 6).map(|p| out[2 * p + a]).sum::<f64>() / 6.0;
+            out.push(c);
+        }
+    }
+    out
+}
+
+/// A plain CSV track of 70-point frames (columns of `frames`).
+fn csv70(frames: impl IntoIterator<Item = Vec<f64>>) -> String {
+    let mut csv = String::from("frame");
+    for i in 0..70 {
+        csv += &format!(",x{i},y{i}");
+    }
+    for (f, pts) in frames.into_iter().enumerate() {
+        csv += &format!("\n{f}");
+        for v in pts {
+            csv += &format!(",{v}");
+        }
+    }
+    csv + "\n"
 }
 
 /// Live Link Face's UDP packet, big-endian: u8 version, i32 + device id, i32 + subject,
@@ -63,7 +101,7 @@ fn decode_livelink(p: &[u8]) -> (i32, Vec<f32>) {
     (frame, values)
 }
 
-fn free_udp_port() -> u16 {
+pub(crate) fn free_udp_port() -> u16 {
     UdpSocket::bind("127.0.0.1:0")
         .unwrap()
         .local_addr()
@@ -71,7 +109,7 @@ fn free_udp_port() -> u16 {
         .port()
 }
 
-fn pearson(a: &[f64], b: &[f64]) -> f64 {
+pub(crate) fn pearson(a: &[f64], b: &[f64]) -> f64 {
     let n = a.len() as f64;
     let (ma, mb) = (a.iter().sum::<f64>() / n, b.iter().sum::<f64>() / n);
     let (mut sab, mut saa, mut sbb) = (0.0, 0.0, 0.0);
@@ -84,7 +122,7 @@ fn pearson(a: &[f64], b: &[f64]) -> f64 {
 }
 
 /// Reads a weights CSV (frame + one column per shape) into per-frame rows.
-fn weights_rows(text: &str) -> Vec<Vec<f64>> {
+pub(crate) fn weights_rows(text: &str) -> Vec<Vec<f64>> {
     text.lines()
         .skip(1)
         .map(|l| l.split(',').skip(1).map(|v| v.parse().unwrap()).collect())
@@ -132,7 +170,7 @@ fn a_rendered_performance_sent_at_60_fps_comes_out_as_the_offline_causal_solve()
     let send = UdpSocket::bind("127.0.0.1:0").unwrap();
     let to = ("127.0.0.1", osf);
     // The frames as sent: f32, as the datagrams carry them.
-    let mut sent = nalgebra::DMatrix::<f64>::zeros(136, frames);
+    let mut sent: Vec<Vec<f64>> = Vec::with_capacity(frames);
     let start = Instant::now();
     let mut bundles: Vec<rosc::OscPacket> = Vec::new();
     let mut packets: Vec<(i32, Vec<f32>)> = Vec::new();
@@ -147,9 +185,7 @@ fn a_rendered_performance_sent_at_60_fps_comes_out_as_the_offline_causal_solve()
     };
     for f in 0..frames {
         let pts: Vec<f64> = track.points.column(f).iter().copied().collect();
-        for (i, v) in pts.iter().enumerate() {
-            sent[(i, f)] = f64::from(*v as f32);
-        }
+        sent.push(osf_solved(&pts));
         send.send_to(&osf_face(f as f64 / 60.0, 0, &pts), to)
             .unwrap();
         // Malformed datagrams mixed in: short, a face and a bit, a NaN landmark, empty.
@@ -192,17 +228,7 @@ fn a_rendered_performance_sent_at_60_fps_comes_out_as_the_offline_causal_solve()
 
     // The offline causal solve of the same frames.
     let file = dir.path().join("sent.csv");
-    let mut csv = String::from("frame");
-    for i in 0..68 {
-        csv += &format!(",x{i},y{i}");
-    }
-    for f in 0..frames {
-        csv += &format!("\n{f}");
-        for v in sent.column(f).iter() {
-            csv += &format!(",{v}");
-        }
-    }
-    std::fs::write(&file, csv + "\n").unwrap();
+    std::fs::write(&file, csv70(sent)).unwrap();
     let offline = dir.path().join("offline.csv");
     let r = kslab(&[
         "rig",
@@ -317,7 +343,7 @@ fn a_rendered_performance_sent_at_60_fps_comes_out_as_the_offline_causal_solve()
 
 /// A `kslab live` process: its standard output read as it comes on a thread (a full pipe
 /// would hold the solve up), its standard error kept for the end.
-struct Running {
+pub(crate) struct Running {
     child: std::process::Child,
     stderr: std::process::ChildStderr,
     said: String,
@@ -327,7 +353,7 @@ struct Running {
 impl Running {
     /// Starts `cmd` (its output piped); with `listening`, returns once the first line is on
     /// standard error — a UDP source has bound its socket by then.
-    fn start(cmd: &mut Command, listening: bool) -> Running {
+    pub(crate) fn start(cmd: &mut Command, listening: bool) -> Running {
         let mut child = cmd
             .stdout(Stdio::piped())
             .stderr(Stdio::piped())
@@ -355,7 +381,7 @@ impl Running {
     }
 
     /// Sends `sig`, waits for the end: (exit code, standard output, standard error).
-    fn stop(mut self, sig: i32) -> (Option<i32>, String, String) {
+    pub(crate) fn stop(mut self, sig: i32) -> (Option<i32>, String, String) {
         unsafe_free_kill(self.child.id(), sig);
         let out = self.reader.join().unwrap();
         let mut err = self.said;
@@ -660,18 +686,9 @@ fn face_follows_one_face_of_several() {
             .collect()
     };
     let solve_alone = |id: i32| -> String {
-        let mut csv = String::from("frame");
-        for i in 0..68 {
-            csv += &format!(",x{i},y{i}");
-        }
-        for f in 0..frames {
-            csv += &format!("\n{f}");
-            for v in face(id, f) {
-                csv += &format!(",{}", f64::from(v as f32));
-            }
-        }
+        let csv = csv70((0..frames).map(|f| osf_solved(&face(id, f))));
         let file = dir.path().join(format!("face{id}.csv"));
-        std::fs::write(&file, csv + "\n").unwrap();
+        std::fs::write(&file, csv).unwrap();
         let r = kslab(&["rig", file.to_str().unwrap(), "--live", "--neutral", "0-9"]);
         assert_eq!(r.code, 0, "{}", r.stderr);
         r.stdout

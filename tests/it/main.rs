@@ -14,6 +14,7 @@ mod corpus;
 mod experiments;
 mod keyshapes;
 mod live;
+mod live_captures;
 mod mediapipe478;
 mod modes;
 mod outputs;

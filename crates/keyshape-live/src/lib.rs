@@ -36,6 +36,37 @@ pub fn frame_problem(time: f64, points: &[f64]) -> Option<String> {
     })
 }
 
+/// `HOST:PORT`, `PORT` or nothing (the default port), host `default_host`; ports 1–65535.
+pub fn parse_address(
+    rest: Option<&str>,
+    default_host: &str,
+    default_port: u16,
+    what: &str,
+) -> keyshape_core::error::Result<std::net::SocketAddr> {
+    let rest = rest.map(str::trim).filter(|r| !r.is_empty());
+    let (host, port) = match rest {
+        None => (default_host.to_string(), default_port.to_string()),
+        Some(r) => match r.rsplit_once(':') {
+            Some((h, p)) => (h.trim_matches(['[', ']']).to_string(), p.to_string()),
+            None if r.bytes().all(|b| b.is_ascii_digit()) => {
+                (default_host.to_string(), r.to_string())
+            }
+            None => (r.to_string(), default_port.to_string()),
+        },
+    };
+    let port: u16 = port.parse().ok().filter(|&p| p > 0).ok_or_else(|| {
+        keyshape_core::error::Error::invalid(format!(
+            "{what}: port '{port}' is not a port number (1–65535)"
+        ))
+    })?;
+    std::net::ToSocketAddrs::to_socket_addrs(&(host.as_str(), port))
+        .map_err(|e| keyshape_core::error::Error::invalid(format!("{what}: host '{host}': {e}")))?
+        .next()
+        .ok_or_else(|| {
+            keyshape_core::error::Error::invalid(format!("{what}: host '{host}' has no address"))
+        })
+}
+
 /// One frame of landmarks as a source delivers it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Frame {
@@ -58,6 +89,9 @@ pub struct Counters {
     pub malformed: AtomicU64,
     /// Frames dropped because the solve fell behind.
     pub dropped: AtomicU64,
+    /// Frames the tracker marked as failed (OpenSeeFace's `success` 0, a table row marked
+    /// untracked): skipped, so the avatar holds its last pose.
+    pub untracked: AtomicU64,
 }
 
 impl Counters {

@@ -19,9 +19,27 @@
 //!
 //! The tracker holds each landmark as (row, column) and writes the column first, so each
 //! image point arrives as (x, y) with x the column — as OpenSee.cs reads it.
+//!
+//! The 68 points are OpenSeeFace's own, not iBUG 68: its landmark model's 66 points (iBUG
+//! without the outer mouth corners) and the two pupils of its gaze model. [`Face::ibug70`]
+//! puts them where [`Layout::ibug70`](keyshape_core::sequence::Layout::ibug70) has them,
+//! the layout the rig reads them in (checked against captures of the real tracker in the
+//! crate's tests).
 
-/// Landmarks per face (iBUG 68).
+use keyshape_core::sequence::{OPENSEEFACE_TO_IBUG70, OPENSEEFACE_UNTRACKED};
+
+/// Points per face in a datagram (OpenSeeFace's 66 and its two pupils).
 pub const POINTS: usize = 68;
+
+/// Points per frame once put in iBUG order with the pupils ([`Face::ibug70`]).
+pub const IBUG70_POINTS: usize = 70;
+
+/// A pupil OpenSeeFace itself does not draw (`facetracker.py`'s visualisation): its
+/// confidence below this, or its eye less open than [`PUPIL_MIN_OPEN`]. With
+/// `--gaze-tracking 0` it sends both pupils as (0, 0) with confidence 0.
+pub const PUPIL_MIN_CONFIDENCE: f32 = 0.2;
+/// See [`PUPIL_MIN_CONFIDENCE`].
+pub const PUPIL_MIN_OPEN: f32 = 0.3;
 /// Bytes of one face.
 pub const FACE_BYTES: usize =
     8 + 4 + 4 + 4 + 4 + 4 + 1 + 4 + 16 + 12 + 12 + 68 * 4 + 68 * 8 + 70 * 12 + 14 * 4;
@@ -42,8 +60,45 @@ pub struct Face {
     pub success: bool,
     /// Per landmark, the tracker's confidence.
     pub confidence: Vec<f32>,
-    /// The 68 landmarks, x then y each, image pixels (y down).
+    /// The 68 points in OpenSeeFace's order, x then y each, image pixels (y down).
     pub points: Vec<f64>,
+}
+
+impl Face {
+    /// The face's points in iBUG order with the pupils (70 points, x then y each), and the
+    /// pupils that were not tracked (subject's right, then left). iBUG 48 and 54, which
+    /// OpenSeeFace does not track, repeat its mouth corners (iBUG 60 and 64) so the frame
+    /// draws as a face; a rig leaves them out. A pupil OpenSeeFace would not draw itself
+    /// ([`PUPIL_MIN_CONFIDENCE`]: no gaze tracking, or an eye nearly closed) is put at the
+    /// centre of its eye's six points — looking ahead — rather than at the (0, 0) the
+    /// tracker sends.
+    pub fn ibug70(&self) -> (Vec<f64>, [bool; 2]) {
+        let mut out = vec![0.0; 2 * IBUG70_POINTS];
+        for (i, &to) in OPENSEEFACE_TO_IBUG70.iter().enumerate() {
+            out[2 * to] = self.points[2 * i];
+            out[2 * to + 1] = self.points[2 * i + 1];
+        }
+        for (missing, from) in OPENSEEFACE_UNTRACKED {
+            out[2 * missing] = out[2 * from];
+            out[2 * missing + 1] = out[2 * from + 1];
+        }
+        let mut untracked = [false; 2];
+        // Pupils: 66 (right) and 67 (left); eye openness right, then left; the eyes'
+        // six points iBUG 36–41 (right) and 42–47 (left).
+        for side in 0..2 {
+            let conf = self.confidence.get(66 + side).copied().unwrap_or(0.0);
+            if conf >= PUPIL_MIN_CONFIDENCE && self.eye_open[side] >= PUPIL_MIN_OPEN {
+                continue;
+            }
+            untracked[side] = true;
+            let eye = 36 + 6 * side;
+            for a in 0..2 {
+                out[2 * (68 + side) + a] =
+                    (eye..eye + 6).map(|p| out[2 * p + a]).sum::<f64>() / 6.0;
+            }
+        }
+        (out, untracked)
+    }
 }
 
 /// Why a datagram was skipped.
@@ -92,6 +147,23 @@ impl Le<'_> {
     fn f32(&mut self) -> f32 {
         f32::from_le_bytes(self.take())
     }
+}
+
+/// The records of a capture of what the tracker sent (`.osfcap`, as
+/// `../shared/data/openseeface_captures` holds them): per datagram, the f64 arrival time
+/// (Unix seconds), a u32 length and the datagram, little-endian. `None` when the bytes end
+/// inside a record.
+pub fn capture_records(bytes: &[u8]) -> Option<Vec<(f64, &[u8])>> {
+    let mut out = Vec::new();
+    let mut at = 0usize;
+    while at < bytes.len() {
+        let head = bytes.get(at..at + 12)?;
+        let time = f64::from_le_bytes(head[..8].try_into().ok()?);
+        let len = u32::from_le_bytes(head[8..].try_into().ok()?) as usize;
+        out.push((time, bytes.get(at + 12..at + 12 + len)?));
+        at += 12 + len;
+    }
+    Some(out)
 }
 
 /// Decodes a datagram into its faces.
@@ -145,5 +217,21 @@ mod tests {
     #[test]
     fn a_face_is_1785_bytes_as_openseeface_writes_it() {
         assert_eq!(super::FACE_BYTES, 1785);
+    }
+
+    #[test]
+    fn a_capture_cut_inside_a_record_is_refused() {
+        let mut b = Vec::new();
+        for (t, d) in [(1.5f64, &b"abc"[..]), (2.5, &b""[..])] {
+            b.extend(t.to_le_bytes());
+            b.extend((d.len() as u32).to_le_bytes());
+            b.extend(d);
+        }
+        let r = super::capture_records(&b).unwrap();
+        assert_eq!(r, [(1.5, &b"abc"[..]), (2.5, &b""[..])]);
+        for cut in [1, 12, 14, b.len() - 1] {
+            assert_eq!(super::capture_records(&b[..cut]), None, "cut at {cut}");
+        }
+        assert_eq!(super::capture_records(&[]), Some(Vec::new()));
     }
 }

@@ -9,7 +9,7 @@ use super::{frame_problem, Counters, Frame, Queue, RateLimited};
 use keyshape_core::error::{setting, Error, Result};
 use keyshape_core::sequence::Format;
 use std::io::{BufRead, Read};
-use std::net::{SocketAddr, ToSocketAddrs, UdpSocket};
+use std::net::{SocketAddr, UdpSocket};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -29,35 +29,7 @@ pub enum SourceSpec {
     File(PathBuf),
 }
 
-/// `HOST:PORT`, `PORT` or nothing (the default port), host `default_host`; ports 1–65535.
-pub fn parse_address(
-    rest: Option<&str>,
-    default_host: &str,
-    default_port: u16,
-    what: &str,
-) -> Result<SocketAddr> {
-    let rest = rest.map(str::trim).filter(|r| !r.is_empty());
-    let (host, port) = match rest {
-        None => (default_host.to_string(), default_port.to_string()),
-        Some(r) => match r.rsplit_once(':') {
-            Some((h, p)) => (h.trim_matches(['[', ']']).to_string(), p.to_string()),
-            None if r.bytes().all(|b| b.is_ascii_digit()) => {
-                (default_host.to_string(), r.to_string())
-            }
-            None => (r.to_string(), default_port.to_string()),
-        },
-    };
-    let port: u16 = port.parse().ok().filter(|&p| p > 0).ok_or_else(|| {
-        Error::invalid(format!(
-            "{what}: port '{port}' is not a port number (1–65535)"
-        ))
-    })?;
-    (host.as_str(), port)
-        .to_socket_addrs()
-        .map_err(|e| Error::invalid(format!("{what}: host '{host}': {e}")))?
-        .next()
-        .ok_or_else(|| Error::invalid(format!("{what}: host '{host}' has no address")))
-}
+pub use super::parse_address;
 
 impl SourceSpec {
     /// Parses `openseeface[:[HOST:]PORT]`, `stdin` or `file:TRACK`.
@@ -169,7 +141,7 @@ pub fn open(
                 .map_err(|e| Error::invalid(format!("openseeface: {e}")))?;
             Ok(Opened {
                 reader: Reader::OpenSeeFace(sock),
-                layout: super::openseeface::POINTS,
+                layout: super::openseeface::IBUG70_POINTS,
                 name: format!("openseeface:{addr}"),
                 blocking: false,
                 note: None,
@@ -351,6 +323,16 @@ fn open_stdin(mut stdin: Box<dyn BufRead + Send>, options: SourceOptions) -> Res
     })
 }
 
+impl Opened {
+    /// The address a network source listens on (the port the system chose for port 0).
+    pub fn address(&self) -> Option<SocketAddr> {
+        match &self.reader {
+            Reader::OpenSeeFace(sock) => sock.local_addr().ok(),
+            _ => None,
+        }
+    }
+}
+
 /// Reports from the receiving thread (malformed input, rate-limited by the caller).
 pub type Warn = Box<dyn FnMut(String) + Send>;
 
@@ -409,6 +391,14 @@ impl Run<'_> {
         }
     }
 
+    /// Counts a frame the tracker marked as failed (skipped: the avatar holds its pose).
+    fn untracked(&mut self, msg: &str) {
+        self.counters.untracked.fetch_add(1, Ordering::Relaxed);
+        if let Some(m) = self.limit.say(msg) {
+            (self.warn)(m);
+        }
+    }
+
     /// Queues a frame received at `arrived`, or counts it malformed (and says why) when a
     /// value is out of range: every source's frames pass this one check, the bound the
     /// file readers keep ([`keyshape_core::sequence::coord_problem`]) and a time that a
@@ -441,6 +431,7 @@ impl Run<'_> {
         let mut buf = vec![0u8; 65_536];
         let mut follow = self.options.face;
         let mut n = 0i64;
+        let mut said_pupils = false;
         while !self.stopped() {
             let (len, arrived) = match sock.recv_from(&mut buf) {
                 Ok((len, _)) => (len, Instant::now()),
@@ -464,7 +455,18 @@ impl Run<'_> {
                 Ok(faces) => {
                     let id = *follow.get_or_insert(faces[0].id);
                     if let Some(f) = faces.into_iter().find(|f| f.id == id) {
-                        if self.deliver(n, f.time, f.points, arrived) {
+                        if !f.success {
+                            self.untracked(&format!(
+                                "openseeface: the tracker's own 3-D fit failed on face {id} (success 0): frame skipped, the avatar holds its pose"
+                            ));
+                            continue;
+                        }
+                        let (points, pupils) = f.ibug70();
+                        if pupils.iter().any(|&u| u) && !said_pupils {
+                            said_pupils = true;
+                            (self.warn)("openseeface: a pupil was not tracked (confidence below 0.2 or the eye nearly closed; all frames with --gaze-tracking 0): it is put at its eye's centre, looking ahead".into());
+                        }
+                        if self.deliver(n, f.time, points, arrived) {
                             n += 1;
                         }
                     }
@@ -483,6 +485,10 @@ impl Run<'_> {
                 Ok(Some(r)) => {
                     errors_in_a_row = 0;
                     if !r.tracked {
+                        let frame = r.frame;
+                        self.untracked(&format!(
+                            "stdin: frame {frame} is marked untracked: skipped, the avatar holds its pose"
+                        ));
                         continue;
                     }
                     let (number, time, coords) = (r.frame, r.time, r.coords.to_vec());

@@ -119,9 +119,10 @@ fn check_causal(opts: &RigOptions) -> Result<()> {
 }
 
 /// Per landmark, the weight of its squared error: `opts.landmark_weights` (iBUG numbering)
-/// read at the rig's points on a 68-point layout; on other layouts they must all be 1.
+/// read at the rig's points on a 68-point layout (and on iBUG with pupils, whose pupils
+/// weigh 1); on other layouts they must all be 1.
 pub(crate) fn rig_landmark_weights(rig: &Rig, opts: &RigOptions) -> Result<Vec<f64>> {
-    if rig.layout == LANDMARKS {
+    if rig.layout == LANDMARKS || rig.layout == crate::correspondence::IBUG_PUPILS {
         return Ok(rig
             .points
             .iter()

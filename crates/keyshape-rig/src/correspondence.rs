@@ -16,17 +16,36 @@ use std::path::Path;
 const MEDIAPIPE468_TO_ICT: &str = include_str!("../../../assets/features/mediapipe468_to_ict.csv");
 
 /// The track layouts a rig reads, by point count.
-pub const LAYOUTS: [usize; 3] = [68, 468, 478];
+pub const LAYOUTS: [usize; 4] = [68, 70, 468, 478];
+
+/// iBUG 68 with the pupils (`Layout::ibug70`): what OpenSeeFace's datagrams become.
+pub const IBUG_PUPILS: usize = 70;
 
 /// The MediaPipe Face Landmarker's iris centres (subject's right, then left): the rig
 /// landmarks that make eye gaze visible.
 pub const IRIS_CENTRES: [usize; 2] = [468, 473];
 
+/// Is the layout iBUG-numbered (68 points, or 70 with the pupils), so its first 68 points
+/// are the iBUG ones and no MediaPipe map applies?
+pub fn is_ibug(layout: usize) -> bool {
+    layout == 68 || layout == IBUG_PUPILS
+}
+
+/// A layout's pupils or iris centres (subject's right, then left) — MediaPipe 468 and 473,
+/// iBUG-with-pupils 68 and 69 — or None for a layout without them.
+pub fn pupils(layout: usize) -> Option<[usize; 2]> {
+    match layout {
+        478 => Some(IRIS_CENTRES),
+        IBUG_PUPILS => Some([68, 69]),
+        _ => None,
+    }
+}
+
 /// The outer eye corners of a layout (subject's right, then left) — iBUG 36 and 45,
 /// MediaPipe 33 and 263 — or None for a point count that is not a layout.
 pub fn eye_corners(layout: usize) -> Option<[usize; 2]> {
     match layout {
-        68 => Some([36, 45]),
+        68 | IBUG_PUPILS => Some([36, 45]),
         468 | 478 => Some([33, 263]),
         _ => None,
     }
@@ -38,7 +57,7 @@ pub fn check_layout(points: usize) -> Result<()> {
         Ok(())
     } else {
         Err(Error::invalid(format!(
-            "a rig reads 68-point tracks in iBUG order, MediaPipe Face Mesh tracks (468 points) or Face Landmarker tracks (478: the 468 and two irises); this one has {points} points"
+            "a rig reads 68-point tracks in iBUG order, iBUG with the pupils (70: what OpenSeeFace sends), MediaPipe Face Mesh tracks (468 points) or Face Landmarker tracks (478: the 468 and two irises); this one has {points} points"
         )))
     }
 }
@@ -156,11 +175,12 @@ pub type RigParts = (
 /// targets — for a track of `layout` points (68, 468 or 478). The landmarks:
 /// - `csv`, a `landmark,vertex` correspondence of any length, when given (required for a
 ///   glTF rig);
-/// - else, for 68 points, the folder's `landmarks_multipie68.csv`;
+/// - else, for 68 points, the folder's `landmarks_multipie68.csv`; for 70 (iBUG and pupils,
+///   OpenSeeFace's) the same without the outer mouth corners OpenSeeFace does not track;
 /// - else, for MediaPipe points, the folder's `landmarks_mediapipe468.csv` if it has one,
 ///   or the built-in dense correspondence if the folder is the ICT face it was derived on.
 ///
-/// With 478 points and a folder whose mesh has no eyeballs, the iris centres are added as
+/// With 478 or 70 points and a folder whose mesh has no eyeballs, the iris centres are added as
 /// [`add_virtual_irises`] places them (unless `csv` names them).
 pub fn read_rig(path: &Path, layout: usize, csv: Option<&Path>) -> Result<RigParts> {
     check_layout(layout)?;
@@ -178,6 +198,17 @@ pub fn read_rig(path: &Path, layout: usize, csv: Option<&Path>) -> Result<RigPar
         let pairs = match (csv, layout) {
             (Some(c), _) => read_correspondence(c, n)?,
             (None, 68) => marks.iter().copied().enumerate().collect(),
+            // OpenSeeFace does not track the outer mouth corners: they are left out.
+            (None, IBUG_PUPILS) => marks
+                .iter()
+                .copied()
+                .enumerate()
+                .filter(|(l, _)| {
+                    !keyshape_core::sequence::OPENSEEFACE_UNTRACKED
+                        .iter()
+                        .any(|u| u.0 == *l)
+                })
+                .collect(),
             (None, _) => {
                 let own = path.join("landmarks_mediapipe468.csv");
                 if own.exists() {
@@ -208,7 +239,7 @@ pub fn read_rig(path: &Path, layout: usize, csv: Option<&Path>) -> Result<RigPar
         check_against_track(&pairs, layout, &c.display().to_string())?;
     }
     let mut rig = super::Rig::from_correspondence(&mesh.positions, &morph, layout, &pairs)?;
-    if layout == 478 && path.is_dir() && !rig.sees_pupils() {
+    if pupils(layout).is_some() && path.is_dir() && !rig.sees_pupils() {
         let travel = read_gaze_travel(&path.join("expressions.csv"))?;
         add_virtual_irises(&mut rig, &travel)?;
     }
@@ -220,7 +251,7 @@ pub fn read_rig(path: &Path, layout: usize, csv: Option<&Path>) -> Result<RigPar
 /// morph targets already read (`parts`). `None` for a 68-point track (the rig is that
 /// sparse already) and for a glTF rig (no 68-point map of its own).
 pub fn search_rig(path: &Path, layout: usize, parts: &RigParts) -> Result<Option<super::Rig>> {
-    if layout == 68 || !path.is_dir() {
+    if layout == 68 || layout == IBUG_PUPILS || !path.is_dir() {
         return Ok(None);
     }
     let (mesh, morph, _) = parts;
@@ -328,22 +359,25 @@ pub fn read_gaze_travel(path: &Path) -> Result<Vec<(String, f64)>> {
     Ok(out)
 }
 
-/// Adds the two iris centres of a 478-point track (MediaPipe 468 and 473) to a rig whose
-/// mesh has no eyeballs, as landmarks of their own: each sits at the centroid of its eye's
-/// landmarks (MediaPipe's `right_eye` / `left_eye` groups), and a gaze shape moves it by
+/// Adds the two iris centres of a 478-point track (MediaPipe 468 and 473), or the pupils of
+/// a 70-point one (68 and 69: OpenSeeFace's), to a rig whose mesh has no eyeballs, as
+/// landmarks of their own: each sits at the centroid of its eye's landmarks (the layout's
+/// `right_eye` / `left_eye` groups), and a gaze shape moves it by
 /// `travel` (cm at weight 1, see [`read_gaze_travel`]) in the direction the shape names —
 /// eyeLookOut/In along x (out is away from the nose), Up/Down along y. Other shapes leave it
 /// still. A model: the eyeball turns about its centre, and at the angles a gaze shape
 /// reaches its front moves nearly in the image plane.
 pub fn add_virtual_irises(rig: &mut super::Rig, travel: &[(String, f64)]) -> Result<()> {
-    if rig.layout != 478 {
+    let (Some([right, left]), Some(layout)) = (
+        pupils(rig.layout),
+        keyshape_core::sequence::Layout::for_points(rig.layout),
+    ) else {
         return Err(Error::invalid(format!(
-            "iris points are read from 478-point tracks; this rig reads {} points",
+            "iris points are read from 478-point tracks and pupils from 70-point ones (iBUG and pupils); this rig reads {} points",
             rig.layout
         )));
-    }
-    let layout = keyshape_core::sequence::Layout::mediapipe478();
-    for (centre, group, side) in [(468usize, "right_eye", "_R"), (473, "left_eye", "_L")] {
+    };
+    for (centre, group, side) in [(right, "right_eye", "_R"), (left, "left_eye", "_L")] {
         if rig.points.contains(&centre) {
             continue;
         }
@@ -356,7 +390,7 @@ pub fn add_virtual_irises(rig: &mut super::Rig, travel: &[(String, f64)]) -> Res
             .collect();
         if members.len() < 3 {
             return Err(Error::unfit(format!(
-                "the rig reads {} points of MediaPipe's {group}: too few to place its iris",
+                "the rig reads {} points of the track's {group}: too few to place its iris",
                 members.len()
             )));
         }

@@ -138,11 +138,8 @@ impl Rig {
 
     /// Does the rig read an iris centre (so eye gaze moves its landmarks)?
     pub fn sees_pupils(&self) -> bool {
-        self.layout == 478
-            && self
-                .points
-                .iter()
-                .any(|p| correspondence::IRIS_CENTRES.contains(p))
+        correspondence::pupils(self.layout)
+            .is_some_and(|c| self.points.iter().any(|p| c.contains(p)))
     }
 
     /// Number of shapes.

@@ -18,7 +18,7 @@ use std::ops::Range;
 /// does not read those points (or the eye corners).
 pub(super) fn lips_and_brows(rig: &Rig, track: &DMatrix<f64>, f: usize) -> Option<(f64, f64)> {
     let (lips, brows): ([usize; 2], [[usize; 2]; 2]) = match rig.layout {
-        68 => ([62, 66], [[19, 37], [24, 44]]),
+        68 | 70 => ([62, 66], [[19, 37], [24, 44]]),
         _ => ([13, 14], [[105, 159], [334, 386]]),
     };
     let at = |p: usize| rig.points.iter().position(|&q| q == p);

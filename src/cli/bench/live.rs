@@ -61,8 +61,10 @@ fn frames(points: usize, frames: usize) -> Result<Vec<Vec<f64>>> {
     Ok(out)
 }
 
-/// OpenSeeFace's face record (see `keyshape_live::openseeface`), little-endian.
-fn osf_datagram(time: f64, points: &[f64]) -> Vec<u8> {
+/// OpenSeeFace's face record (see `keyshape_live::openseeface`), little-endian, for a face
+/// in iBUG order: OpenSeeFace's own points are iBUG's without the outer mouth corners,
+/// then the two pupils (sent untracked: (0, 0), confidence 0, as without gaze tracking).
+fn osf_datagram(time: f64, ibug: &[f64]) -> Vec<u8> {
     let mut b = Vec::with_capacity(keyshape_live::openseeface::FACE_BYTES);
     b.extend(time.to_le_bytes());
     b.extend(0i32.to_le_bytes());
@@ -71,12 +73,14 @@ fn osf_datagram(time: f64, points: &[f64]) -> Vec<u8> {
     }
     b.push(1u8);
     b.extend(std::iter::repeat_n(0u8, 4 * (1 + 4 + 3 + 3)));
-    for _ in 0..68 {
-        b.extend(1f32.to_le_bytes());
+    for i in 0..68 {
+        b.extend(if i < 66 { 1f32 } else { 0.0 }.to_le_bytes());
     }
-    for v in points {
-        b.extend((*v as f32).to_le_bytes());
+    for p in (0..68).filter(|&p| p != 48 && p != 54) {
+        b.extend((ibug[2 * p] as f32).to_le_bytes());
+        b.extend((ibug[2 * p + 1] as f32).to_le_bytes());
     }
+    b.extend([0u8; 16]);
     b.extend(std::iter::repeat_n(0u8, 4 * (70 * 3 + 14)));
     b
 }

@@ -20,7 +20,8 @@ use std::path::PathBuf;
 /// Arguments of `kslab rig`.
 #[derive(Debug, Args)]
 pub struct RigArgs {
-    /// A 68-point track in iBUG order (OpenFace, py-feat, .pts, plain CSV), or a MediaPipe
+    /// A 68-point track in iBUG order (OpenFace, py-feat, .pts, plain CSV), iBUG with the
+    /// pupils (70 points: a `kslab live` take from OpenSeeFace), or a MediaPipe
     /// track — Face Mesh's 468 points or Face Landmarker's 478 (with irises) — solved
     /// through every point the rig covers (see --landmarks), 2-D
     /// [default: the built-in 216-frame MediaPipe sequence].
@@ -320,11 +321,12 @@ fn read_track(a: &RigArgs) -> Result<(String, Sequence)> {
         .with_context(|| format!("{name}: kslab rig"))?;
     // (A `match` on a moved value: the 468-point track is freed once its 68 points are
     // taken, instead of living on under a shadowed name.)
-    let seq = match (seq.points, a.landmarks.as_deref()) {
-        (68, Some("dense")) => anyhow::bail!(
+    let ibug = keyshape_rig::correspondence::is_ibug(seq.points);
+    let seq = match (ibug, a.landmarks.as_deref()) {
+        (true, Some("dense")) => anyhow::bail!(
             "--landmarks dense applies to MediaPipe tracks; {name} has the 68 iBUG points only"
         ),
-        (68, _) | (_, None | Some("dense")) => seq,
+        (true, _) | (_, None | Some("dense")) => seq,
         _ => seq.select_points(&keyshape_rig::mediapipe_to_ibug68()?)?,
     };
     seq.check_geometry()?;
@@ -337,6 +339,8 @@ fn plausibility_rows(a: &RigArgs, seq: &Sequence) -> Result<Option<nalgebra::DMa
     Ok(if a.plausibility {
         let s68 = match seq.points {
             68 => None,
+            // iBUG with the pupils: its first 68 points.
+            70 => Some(seq.select_points(&(0..68).collect::<Vec<_>>())?),
             _ => Some(seq.select_points(&keyshape_rig::mediapipe_to_ibug68()?)?),
         };
         let s68 = s68.as_ref().unwrap_or(seq);

@@ -32,6 +32,29 @@ pub fn mediapipe_to_ibug68() -> Result<Vec<usize>> {
     Ok(f.mediapipe)
 }
 
+/// For each of OpenSeeFace's 68 points, the point of [`Layout::ibug70`] it is (checked
+/// against the tracker's own 3-D face model, `face_3d` in its `tracker.py`): its 66-point
+/// landmark model is iBUG 68 without the outer mouth corners 48 and 54 — 0–47 as iBUG,
+/// 48–52 the upper outer lip (iBUG 49–53), 53–57 the lower (55–59), 58–65 the inner lip
+/// from the subject's right corner (60–67) — and 66, 67 are the right and left pupils.
+pub const OPENSEEFACE_TO_IBUG70: [usize; 68] = {
+    let mut m = [0usize; 68];
+    let mut i = 0;
+    while i < 68 {
+        m[i] = match i {
+            0..=47 => i,
+            48..=52 => i + 1,
+            _ => i + 2,
+        };
+        i += 1;
+    }
+    m
+};
+
+/// The iBUG points OpenSeeFace does not track (the outer mouth corners): a track made from
+/// its datagrams repeats the inner corners there, and a rig leaves them out.
+pub const OPENSEEFACE_UNTRACKED: [(usize, usize); 2] = [(48, 60), (54, 64)];
+
 /// One named group of feature points.
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 pub struct Group {
@@ -143,13 +166,36 @@ impl Layout {
         }
     }
 
+    /// iBUG 68 with the two pupils (70 points): the 68 in iBUG order, then the subject's
+    /// right pupil (68, group `right_iris`) and left pupil (69, `left_iris`). What
+    /// OpenSeeFace's datagrams become ([`OPENSEEFACE_TO_IBUG70`]): its own 66-point
+    /// landmark model has no outer mouth corners (iBUG 48 and 54 repeat its corners, 60 and
+    /// 64, so the face draws whole) and its gaze model adds the pupils.
+    pub fn ibug70() -> Layout {
+        let mut l = Layout::ibug68();
+        l.extends = Some((l.name.clone(), l.points));
+        l.name = "ibug68_pupils".into();
+        l.points = 70;
+        for (name, p) in [("right_iris", 68usize), ("left_iris", 69)] {
+            l.groups.insert(
+                name.into(),
+                Group {
+                    points: vec![p],
+                    polylines: Vec::new(),
+                },
+            );
+        }
+        l
+    }
+
     /// The built-in layout for a point count (468 → MediaPipe Face Mesh, 478 → MediaPipe
-    /// Face Landmarker with irises, 68 → iBUG), if any.
+    /// Face Landmarker with irises, 68 → iBUG, 70 → iBUG and pupils), if any.
     pub fn for_points(points: usize) -> Option<Layout> {
         match points {
             468 => Some(Layout::mediapipe468()),
             478 => Some(Layout::mediapipe478()),
             68 => Some(Layout::ibug68()),
+            70 => Some(Layout::ibug70()),
             _ => None,
         }
     }
@@ -269,6 +315,27 @@ mod tests {
             assert!(!grp.polylines.is_empty());
         }
         assert_eq!(l, Layout::mediapipe468());
+    }
+
+    /// OpenSeeFace's points land on distinct iBUG points in order, skipping only the two
+    /// outer mouth corners, with the pupils last; the layout extends iBUG 68.
+    #[test]
+    fn openseeface_points_are_ibug_without_the_outer_corners_and_two_pupils() {
+        let m = OPENSEEFACE_TO_IBUG70;
+        assert!(m.windows(2).all(|w| w[0] < w[1]));
+        let missing: Vec<usize> = (0..70).filter(|p| !m.contains(p)).collect();
+        assert_eq!(missing, [48, 54]);
+        assert_eq!(
+            OPENSEEFACE_UNTRACKED.map(|(p, _)| p).to_vec(),
+            missing,
+            "the untracked points are the ones no OpenSeeFace point lands on"
+        );
+        // Its mouth corners (58, 62) are iBUG's inner corners, its pupils 68 and 69.
+        assert_eq!([m[58], m[62], m[66], m[67]], [60, 64, 68, 69]);
+        let l = Layout::for_points(70).unwrap();
+        assert_eq!((l.family(), l.family_points()), ("ibug68", 68));
+        assert_eq!(l.select("irises").unwrap(), [68, 69]);
+        assert_eq!(l.select("lips").unwrap(), (48..68).collect::<Vec<_>>());
     }
 
     #[test]

@@ -4,7 +4,10 @@ mod face;
 mod layout;
 
 pub use face::{face_problem, MAX_FACE_SPREAD_RATIO, MIN_FACE_ASPECT};
-pub use layout::{mediapipe_to_ibug68, named_polylines_for, polylines_for, Group, Layout};
+pub use layout::{
+    mediapipe_to_ibug68, named_polylines_for, polylines_for, Group, Layout, OPENSEEFACE_TO_IBUG70,
+    OPENSEEFACE_UNTRACKED,
+};
 
 use crate::error::{Error, Result};
 use nalgebra::DMatrix;
