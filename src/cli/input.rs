@@ -169,3 +169,32 @@ impl InputArgs {
         Ok((seq, prepared))
     }
 }
+
+/// `--head-position`: a position, or none.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) enum HeadPosition {
+    At([f32; 3]),
+    None,
+}
+
+pub(crate) fn parse_head_position(s: &str) -> std::result::Result<HeadPosition, String> {
+    if s.trim() == "none" {
+        return Ok(HeadPosition::None);
+    }
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|c| c.trim().parse::<f64>())
+        .collect::<std::result::Result<_, _>>()
+        .map_err(|_| format!("'{s}' is not X,Y,Z (three numbers, metres) or none"))?;
+    match v[..] {
+        [x, y, z] if v.iter().all(|c| c.is_finite() && c.abs() <= 10.0) => {
+            Ok(HeadPosition::At([x as f32, y as f32, z as f32]))
+        }
+        [_, _, _] => Err(format!(
+            "'{s}': each coordinate must be a finite number of metres within ±10"
+        )),
+        _ => Err(format!(
+            "'{s}' is not X,Y,Z (three numbers, metres) or none"
+        )),
+    }
+}

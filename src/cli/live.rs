@@ -100,6 +100,20 @@ pub struct LiveArgs {
     /// a live source, the oldest are dropped (and counted). A file source waits instead.
     #[arg(long, value_name = "N", default_value_t = 4, value_parser = clap::value_parser!(u32).range(1..=10_000))]
     queue: u32,
+    /// Send the avatar as the person's reflection: its head turns to its right when the
+    /// person turns to their left, and one-sided shapes swap sides (the person's left blink
+    /// on the avatar's right eye), head and face together. By default the avatar is the
+    /// person, as ARKit names the shapes. VMC and Live Link only; standard output and the
+    /// recording keep the person's sides.
+    #[arg(long)]
+    mirror: bool,
+    /// The head bone's local position VMC sends with its rotation, `X,Y,Z` in metres
+    /// (Unity's axes: x the avatar's right, y up, z forward), or `none` to send no head bone.
+    /// A receiver that applies bone positions (EVMC4U does by default) puts the head there
+    /// relative to the neck: give your avatar's own (its Head bone's localPosition)
+    /// [default: 0,0.1,0, a typical humanoid's head above its neck].
+    #[arg(long, value_name = "X,Y,Z|none", value_parser = super::input::parse_head_position)]
+    head_position: Option<super::input::HeadPosition>,
 }
 
 /// The rig, the frame's point selection and the source, opened and checked before
@@ -245,7 +259,28 @@ fn start_session(a: &LiveArgs, s: &Setup) -> Result<(Session, bool)> {
     };
     // The take's frame rate (Live Link's timecode): the file's own, else 60.
     let fps = s.opened.fps.unwrap_or(60.0);
-    let sinks = Sinks::open(&s.sinks, &s.rig, Box::new(std::io::stdout()), fps)?;
+    let has = |vmc: bool| {
+        s.sinks.iter().any(|k| match k {
+            SinkSpec::Vmc(_) => vmc,
+            SinkSpec::LiveLink(_) => !vmc,
+            SinkSpec::Stdout => false,
+        })
+    };
+    if a.mirror && !has(true) && !has(false) {
+        anyhow::bail!("--mirror applies to the avatar's sinks (vmc, livelink); standard output and the recording keep the person's own sides");
+    }
+    if a.head_position.is_some() && !has(true) {
+        anyhow::bail!("--head-position applies to a vmc sink (the head bone it sends)");
+    }
+    let options = keyshape_live::sink::SinkOptions {
+        mirror: a.mirror,
+        head_position: match a.head_position {
+            None => Some(keyshape_live::sink::HEAD_POSITION),
+            Some(super::input::HeadPosition::At(p)) => Some(p),
+            Some(super::input::HeadPosition::None) => None,
+        },
+    };
+    let sinks = Sinks::open(&s.sinks, &s.rig, Box::new(std::io::stdout()), fps, options)?;
     let recorder = match &a.record {
         Some(d) => Some(Recorder::create(d, &s.rig, s.opened.layout, fps)?),
         None => None,

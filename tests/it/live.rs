@@ -79,18 +79,32 @@ fn csv70(frames: impl IntoIterator<Item = Vec<f64>>) -> String {
     csv + "\n"
 }
 
-/// Live Link Face's UDP packet, big-endian: u8 version, i32 + device id, i32 + subject,
-/// i32 frame, f32 sub-frame, i32 rate numerator, i32 denominator, u8 count, count × f32.
-fn decode_livelink(p: &[u8]) -> (i32, Vec<f32>) {
-    let be_i32 = |at: usize| i32::from_be_bytes(p[at..at + 4].try_into().unwrap());
-    assert_eq!(p[0], 6, "version");
-    let mut at = 1;
-    for _ in 0..2 {
-        let n = be_i32(at) as usize;
-        at += 4 + n;
-    }
-    let frame = be_i32(at);
-    at += 4 + 4 + 4 + 4;
+/// A Live Link Face packet read as the decoders written against the iOS app read it
+/// (PyLiveLinkFace's `decode` and the tools built on it), at fixed offsets: the version as
+/// a little-endian u32 in bytes 0–3 (the app's u8 version and the top of the id's length),
+/// the device id in bytes 4–40 (the length's low byte, 36 = '$', and the 36-character
+/// UUID), then big-endian: i32 subject length and the subject, u32 frame and sub-frame,
+/// u32 frame rate and denominator, u8 count and count × f32. (frame, frame rate, values).
+pub(crate) fn decode_livelink(p: &[u8]) -> (u32, u32, Vec<f32>) {
+    let be_u32 = |at: usize| u32::from_be_bytes(p[at..at + 4].try_into().unwrap());
+    assert_eq!(
+        u32::from_le_bytes(p[0..4].try_into().unwrap()),
+        6,
+        "version"
+    );
+    let id = std::str::from_utf8(&p[4..41]).unwrap();
+    assert!(id.starts_with('$'), "a 36-character device id: {id}");
+    let uuid = &id[1..];
+    let hyphens: Vec<usize> = uuid.match_indices('-').map(|m| m.0).collect();
+    assert_eq!(hyphens, [8, 13, 18, 23], "a UUID: {uuid}");
+    assert!(uuid.chars().all(|c| c == '-' || c.is_ascii_hexdigit()));
+    let name_len = be_u32(41) as usize;
+    assert_eq!(&p[45..45 + name_len], b"kslab");
+    let mut at = 45 + name_len;
+    let frame = be_u32(at);
+    let fps = be_u32(at + 8);
+    assert_eq!(be_u32(at + 12), 1, "denominator");
+    at += 16;
     let count = p[at] as usize;
     at += 1;
     assert_eq!(count, 61);
@@ -98,7 +112,7 @@ fn decode_livelink(p: &[u8]) -> (i32, Vec<f32>) {
     let values = (0..count)
         .map(|i| f32::from_be_bytes(p[at + 4 * i..at + 4 * i + 4].try_into().unwrap()))
         .collect();
-    (frame, values)
+    (frame, fps, values)
 }
 
 pub(crate) fn free_udp_port() -> u16 {
@@ -173,9 +187,10 @@ fn a_rendered_performance_sent_at_60_fps_comes_out_as_the_offline_causal_solve()
     let mut sent: Vec<Vec<f64>> = Vec::with_capacity(frames);
     let start = Instant::now();
     let mut bundles: Vec<rosc::OscPacket> = Vec::new();
-    let mut packets: Vec<(i32, Vec<f32>)> = Vec::new();
+    let mut packets: Vec<(u32, u32, Vec<f32>)> = Vec::new();
     let mut buf = vec![0u8; 65_536];
-    let mut drain = |bundles: &mut Vec<rosc::OscPacket>, packets: &mut Vec<(i32, Vec<f32>)>| {
+    let mut drain = |bundles: &mut Vec<rosc::OscPacket>,
+                     packets: &mut Vec<(u32, u32, Vec<f32>)>| {
         while let Ok(n) = vmc.recv(&mut buf) {
             bundles.push(rosc::decoder::decode_udp(&buf[..n]).unwrap().1);
         }
@@ -253,6 +268,7 @@ fn a_rendered_performance_sent_at_60_fps_comes_out_as_the_offline_causal_solve()
 
     // VMC: per bundle, Val for the 52 ARKit shapes and the rig's others, Apply, then the head.
     let jaw = rig.names.iter().position(|n| n == "jawOpen").unwrap();
+    let mut facing = Vec::new();
     for (f, b) in bundles.iter().enumerate() {
         let rosc::OscPacket::Bundle(b) = b else {
             panic!("a bundle")
@@ -283,6 +299,25 @@ fn a_rendered_performance_sent_at_60_fps_comes_out_as_the_offline_causal_solve()
         assert_eq!(head.addr, "/VMC/Ext/Bone/Pos");
         assert_eq!(head.args[0], rosc::OscType::String("Head".into()));
         assert_eq!(head.args.len(), 8);
+        // Read as EVMC4U reads it: localPosition (x, y, z), localRotation (x, y, z, w), in
+        // Unity's axes (left-handed: x the avatar's right, y up, z where it faces).
+        let f32s: Vec<f32> = head.args[1..]
+            .iter()
+            .map(|a| match a {
+                rosc::OscType::Float(v) => *v,
+                _ => panic!("a float"),
+            })
+            .collect();
+        assert_eq!(f32s[..3], [0.0, 0.1, 0.0], "the head above the neck");
+        let q = nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(
+            f64::from(f32s[6]),
+            f64::from(f32s[3]),
+            f64::from(f32s[4]),
+            f64::from(f32s[5]),
+        ));
+        // (Unity's rotation of a vector is the quaternion's, whatever the handedness.)
+        let fwd = q * nalgebra::Vector3::z();
+        facing.push((fwd.x, fwd.y));
         let value = |name: &str| {
             vals.iter()
                 .find(|m| m.args[0] == rosc::OscType::String(name.into()))
@@ -293,16 +328,58 @@ fn a_rendered_performance_sent_at_60_fps_comes_out_as_the_offline_causal_solve()
                 .unwrap()
         };
         assert_eq!(value("JawOpen"), rows[f][jaw] as f32, "frame {f}");
-        let (n, ll) = &packets[f];
+        let (n, fps, ll) = &packets[f];
         assert_eq!(*n as usize, f);
+        // The rate the frames came at (sent at 60 a second), not a constant.
+        assert!(
+            (57..=63).contains(fps),
+            "frame {f}: Live Link told {fps} fps"
+        );
         assert_eq!(
             ll[17], rows[f][jaw] as f32,
             "Live Link's JawOpen (column 17), frame {f}"
         );
     }
 
-    // Against the weights it was rendered from: the shapes the performance drives.
+    // The avatar faces where the person does: turning to the person's left (positive
+    // yaw) is the avatar facing its own left, −x in Unity; nodding down (positive pitch)
+    // is facing −y. Relative to the lead-in, where it looks ahead.
     let lead = st.lead_in;
+    let mut sum = nalgebra::Matrix3::zeros();
+    for cam in &track.cameras[..lead] {
+        sum += cam.r;
+    }
+    let neutral = keyshape_rig::camera::Camera {
+        s: 1.0,
+        r: keyshape_rig::camera::rotation_of(&sum).into_inner(),
+        t: [0.0; 2],
+    }
+    .yaw_pitch_roll();
+    let truth: Vec<[f64; 3]> = track
+        .cameras
+        .iter()
+        .map(|c| c.relative_to(neutral))
+        .collect();
+    let side: Vec<f64> = truth.iter().map(|t| -t[0].sin()).collect();
+    let down: Vec<f64> = truth.iter().map(|t| -t[1].sin()).collect();
+    let fx: Vec<f64> = facing.iter().map(|f| f.0).collect();
+    let fy: Vec<f64> = facing.iter().map(|f| f.1).collect();
+    let (r_side, r_down) = (pearson(&side, &fx), pearson(&down, &fy));
+    assert!(
+        r_side > 0.98 && r_down > 0.9,
+        "turn r {r_side}, nod r {r_down}"
+    );
+    let worst_side = side
+        .iter()
+        .zip(&fx)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f64::max);
+    assert!(
+        worst_side < 0.1,
+        "the avatar's turn against the person's: {worst_side}"
+    );
+
+    // Against the weights it was rendered from: the shapes the performance drives.
     let mut rs = Vec::new();
     for (s, name) in rig.names.iter().enumerate() {
         let truth: Vec<f64> = (lead..frames).map(|f| track.truth[(s, f)]).collect();

@@ -106,7 +106,21 @@ fn kslab_rig_writes_weights_pose_and_live_link_and_its_options_take_effect() {
     assert!(bounded(&base));
     let ll_text = std::fs::read_to_string(&ll).unwrap();
     let ll_lines: Vec<&str> = ll_text.lines().collect();
-    assert!(ll_lines[0].starts_with("Timecode,BlendShapeCount,EyeBlinkLeft,"));
+    // Byte for byte the header row of a capture Live Link Face wrote (quoted in a public
+    // test suite of a Live Link CSV writer): `BlendshapeCount`, JawRight before JawLeft,
+    // MouthRight before MouthLeft — unlike the packets' order.
+    assert_eq!(
+        ll_lines[0],
+        "Timecode,BlendshapeCount,EyeBlinkLeft,EyeLookDownLeft,EyeLookInLeft,EyeLookOutLeft,EyeLookUpLeft,\
+EyeSquintLeft,EyeWideLeft,EyeBlinkRight,EyeLookDownRight,EyeLookInRight,EyeLookOutRight,EyeLookUpRight,\
+EyeSquintRight,EyeWideRight,JawForward,JawRight,JawLeft,JawOpen,MouthClose,MouthFunnel,MouthPucker,\
+MouthRight,MouthLeft,MouthSmileLeft,MouthSmileRight,MouthFrownLeft,MouthFrownRight,MouthDimpleLeft,\
+MouthDimpleRight,MouthStretchLeft,MouthStretchRight,MouthRollLower,MouthRollUpper,MouthShrugLower,\
+MouthShrugUpper,MouthPressLeft,MouthPressRight,MouthLowerDownLeft,MouthLowerDownRight,MouthUpperUpLeft,\
+MouthUpperUpRight,BrowDownLeft,BrowDownRight,BrowInnerUp,BrowOuterUpLeft,BrowOuterUpRight,CheekPuff,\
+CheekSquintLeft,CheekSquintRight,NoseSneerLeft,NoseSneerRight,TongueOut,HeadYaw,HeadPitch,HeadRoll,\
+LeftEyeYaw,LeftEyePitch,LeftEyeRoll,RightEyeYaw,RightEyePitch,RightEyeRoll"
+    );
     assert_eq!(ll_lines.len(), 478);
     for l in &ll_lines[1..] {
         let v: Vec<&str> = l.split(',').collect();

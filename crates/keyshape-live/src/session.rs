@@ -148,9 +148,9 @@ impl Session {
         }
         let n = solved.len();
         for (f, s) in frames.into_iter().zip(solved) {
-            let head = s.camera.yaw_pitch_roll();
+            let head = s.head;
             self.sinks
-                .send(f.number, &s.weights, head)
+                .send(f.number, &s.weights, head, f.arrived)
                 .map_err(|e| Error::io("standard output", e))?;
             if let Some(r) = &mut self.recorder {
                 r.record(f.number, f.time, &f.points, &s.weights, head)?;

@@ -1,7 +1,9 @@
 //! Where the weights go: `vmc:[HOST:]PORT`, `livelink:[HOST:]PORT`, `stdout`; and the
 //! recording (`--record DIR`).
 
-use super::protocols::{head_quaternion, livelink_packet, vmc_bundle, vmc_names, vmc_values};
+use super::protocols::{
+    livelink_packet, mirror_shapes, vmc_bundle, vmc_head, vmc_names, vmc_values,
+};
 use super::source::parse_address;
 use keyshape_core::error::{setting, Error, Result};
 use keyshape_rig::livelink::{column_sources, frame_values};
@@ -86,8 +88,37 @@ fn weights_line(number: i64, w: &[f64]) -> std::io::Result<Vec<u8>> {
     csv_line(std::iter::once(number.to_string()).chain(w.iter().map(|v| keyshape_io::fmt_num(*v))))
 }
 
+/// How the network sinks present the person.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SinkOptions {
+    /// The avatar as the person's reflection: head turns and one-sided shapes flipped
+    /// together (VMC and Live Link; standard output and the recording keep the person's
+    /// own sides).
+    pub mirror: bool,
+    /// VMC's head bone: its local position (metres, Unity's axes; what
+    /// `/VMC/Ext/Bone/Pos "Head"` carries and EVMC4U applies by default), or `None` to
+    /// send no bone at all.
+    pub head_position: Option<[f32; 3]>,
+}
+
+/// A typical humanoid's head bone above its neck (metres): what is sent as the head's local
+/// position unless the user gives the avatar's own.
+pub const HEAD_POSITION: [f32; 3] = [0.0, 0.1, 0.0];
+
+impl Default for SinkOptions {
+    fn default() -> Self {
+        SinkOptions {
+            mirror: false,
+            head_position: Some(HEAD_POSITION),
+        }
+    }
+}
+
 /// The open sinks.
 pub struct Sinks {
+    options: SinkOptions,
+    /// Per rig shape, its mirror image ([`mirror_shapes`]).
+    twins: Vec<usize>,
     udp: Option<UdpSocket>,
     vmc: Vec<SocketAddr>,
     livelink: Vec<SocketAddr>,
@@ -96,9 +127,36 @@ pub struct Sinks {
     vmc_names: Vec<String>,
     header: Vec<String>,
     wrote_header: bool,
-    fps: i32,
+    /// The frame rate before frames have come (the file's own, else 60).
+    fps_hint: f64,
+    /// The last frames' arrival instants, for the frame rate Live Link is told.
+    arrivals: std::collections::VecDeque<std::time::Instant>,
+    /// The Live Link device id: a UUID, as the app sends.
+    device: String,
     /// Datagrams the network would not take (no receiver yet, say): counted, never fatal.
     pub send_errors: u64,
+}
+
+/// Arrivals the frame rate is measured over.
+const RATE_WINDOW: usize = 31;
+/// Gaps between arrivals the frame rate needs before it is measured.
+pub const RATE_MIN_GAPS: usize = 8;
+
+/// Frames per second from arrival instants: one over the median gap between consecutive
+/// ones (a pause or a burst moves it little), rounded, within 1–1000; `None` for fewer
+/// than [`RATE_MIN_GAPS`] gaps (one gap is one frame's jitter) or a median gap of 0.
+pub fn arrival_rate(arrivals: &std::collections::VecDeque<std::time::Instant>) -> Option<i32> {
+    let mut gaps: Vec<f64> = arrivals
+        .iter()
+        .zip(arrivals.iter().skip(1))
+        .map(|(a, b)| b.saturating_duration_since(*a).as_secs_f64())
+        .collect();
+    if gaps.len() < RATE_MIN_GAPS {
+        return None;
+    }
+    gaps.sort_by(f64::total_cmp);
+    let mid = gaps[gaps.len() / 2];
+    (mid > 0.0).then(|| (1.0 / mid).round().clamp(1.0, 1000.0) as i32)
 }
 
 impl Sinks {
@@ -108,6 +166,7 @@ impl Sinks {
         rig: &Rig,
         stdout: Box<dyn Write + Send>,
         fps: f64,
+        options: SinkOptions,
     ) -> Result<Sinks> {
         let vmc: Vec<SocketAddr> = specs
             .iter()
@@ -134,6 +193,8 @@ impl Sinks {
         };
         let sources = column_sources(rig);
         Ok(Sinks {
+            options,
+            twins: mirror_shapes(&rig.names),
             udp,
             vmc,
             livelink,
@@ -142,21 +203,61 @@ impl Sinks {
             sources,
             header: weights_header(rig),
             wrote_header: false,
-            fps: fps.round().clamp(1.0, 1000.0) as i32,
+            fps_hint: fps,
+            arrivals: std::collections::VecDeque::with_capacity(RATE_WINDOW),
+            device: super::protocols::device_uuid(
+                std::time::SystemTime::now()
+                    .duration_since(std::time::UNIX_EPOCH)
+                    .map_or(0, |d| d.as_nanos())
+                    ^ (u128::from(std::process::id()) << 96),
+            ),
             send_errors: 0,
         })
     }
 
-    /// Sends one solved frame to every sink. Only standard output can fail (a reader that
-    /// went away); the network's refusals are counted in `send_errors`.
-    pub fn send(&mut self, number: i64, w: &[f64], head: [f64; 3]) -> std::io::Result<()> {
+    /// The frame rate Live Link is told: measured from the frames' arrivals (a tracker
+    /// pacing itself to 22 a second says 22; a file replayed at `--rate 60` says 60), the
+    /// hint until two have come.
+    pub fn fps(&self) -> i32 {
+        arrival_rate(&self.arrivals)
+            .unwrap_or_else(|| self.fps_hint.round().clamp(1.0, 1000.0) as i32)
+    }
+
+    /// The Live Link device id (a 36-character UUID).
+    pub fn device(&self) -> &str {
+        &self.device
+    }
+
+    /// Sends one solved frame, which arrived at `arrived`, to every sink. Only standard
+    /// output can fail (a reader that went away); the network's refusals are counted in
+    /// `send_errors`.
+    pub fn send(
+        &mut self,
+        number: i64,
+        w: &[f64],
+        head: [f64; 3],
+        arrived: std::time::Instant,
+    ) -> std::io::Result<()> {
+        if self.arrivals.len() == RATE_WINDOW {
+            self.arrivals.pop_front();
+        }
+        self.arrivals.push_back(arrived);
         if let Some(udp) = &self.udp {
+            let mirror = self.options.mirror;
+            // The reflection: each shape takes its twin's value, the turn and tilt flip.
+            let mirrored: Vec<f64>;
+            let (net_w, net_head) = if mirror {
+                mirrored = self.twins.iter().map(|&t| w[t]).collect();
+                (&mirrored[..], [-head[0], head[1], -head[2]])
+            } else {
+                (w, head)
+            };
             if !self.vmc.is_empty() {
-                let bundle = vmc_bundle(
-                    &self.vmc_names,
-                    &vmc_values(&self.sources, w),
-                    head_quaternion(head),
-                );
+                let bone = self
+                    .options
+                    .head_position
+                    .map(|p| (p, vmc_head(head, mirror)));
+                let bundle = vmc_bundle(&self.vmc_names, &vmc_values(&self.sources, net_w), bone);
                 for a in &self.vmc {
                     if udp.send_to(&bundle, a).is_err() {
                         self.send_errors += 1;
@@ -164,8 +265,9 @@ impl Sinks {
                 }
             }
             if !self.livelink.is_empty() {
-                let values = frame_values(&self.sources, w, head);
-                let packet = livelink_packet("kslab", "kslab", number as i32, self.fps, &values);
+                let values = frame_values(&self.sources, net_w, net_head);
+                let packet =
+                    livelink_packet(&self.device, "kslab", number as i32, self.fps(), &values);
                 for a in &self.livelink {
                     if udp.send_to(&packet, a).is_err() {
                         self.send_errors += 1;
@@ -317,6 +419,28 @@ impl Recorder {
 mod tests {
     #![allow(clippy::unwrap_used)]
     use super::*;
+
+    /// The rate is the median gap's: a tracker at 22 a second with a pause and a burst
+    /// says 22; nothing to measure says nothing.
+    #[test]
+    fn the_frame_rate_is_measured_from_the_arrivals() {
+        let t0 = std::time::Instant::now();
+        let at = |s: f64| t0 + std::time::Duration::from_secs_f64(s);
+        let mut a: std::collections::VecDeque<_> = (0..20).map(|i| at(i as f64 / 22.0)).collect();
+        assert_eq!(arrival_rate(&a), Some(22));
+        a.push_back(at(3.0)); // a pause
+        for k in 0..3 {
+            a.push_back(at(3.0 + 1e-4 * f64::from(k))); // a burst
+        }
+        assert_eq!(arrival_rate(&a), Some(22));
+        assert_eq!(arrival_rate(&[t0].into_iter().collect()), None);
+        let few: std::collections::VecDeque<_> = (0..RATE_MIN_GAPS).map(|i| at(i as f64)).collect();
+        assert_eq!(arrival_rate(&few), None, "too few gaps");
+        let same: std::collections::VecDeque<_> = (0..20).map(|_| t0).collect();
+        assert_eq!(arrival_rate(&same), None, "no gap");
+        let fast: std::collections::VecDeque<_> = (0..20).map(|i| at(i as f64 * 1e-6)).collect();
+        assert_eq!(arrival_rate(&fast), Some(1000), "clamped");
+    }
 
     /// A write that fails part way (a full disk: `/dev/full`) leaves every file of the take
     /// ending at the last whole frame, and the take reads back. (A disk filling up left

@@ -74,6 +74,20 @@ impl Camera {
         }
     }
 
+    /// The head's yaw, pitch and roll relative to a neutral pose `neutral` (its yaw, pitch
+    /// and roll): the rotation `R₀ᵀ R` that takes the neutral head to this one, in the
+    /// head's own axes, so a person who turns about their own neck turns by a yaw alone
+    /// whatever the camera's tilt.
+    pub fn relative_to(&self, neutral: [f64; 3]) -> [f64; 3] {
+        let r0 = Camera::from_angles(1.0, neutral[0], neutral[1], neutral[2], [0.0; 2]).r;
+        Camera {
+            s: 1.0,
+            r: r0.transpose() * self.r,
+            t: [0.0; 2],
+        }
+        .yaw_pitch_roll()
+    }
+
     /// A camera from head angles in radians (see [`Camera::yaw_pitch_roll`]).
     pub fn from_angles(s: f64, yaw: f64, pitch: f64, roll: f64, t: [f64; 2]) -> Camera {
         let (sa, ca) = yaw.sin_cos();
@@ -171,6 +185,31 @@ pub fn fit_camera(x: &[[f64; 3]], u: &[[f64; 2]]) -> Result<Camera> {
 mod tests {
     #![allow(clippy::unwrap_used)]
     use super::*;
+
+    /// Relative to its own angles a pose is no turn; a head pitched by a camera above it
+    /// that then turns about its own neck turns by a yaw alone.
+    #[test]
+    fn a_pose_relative_to_a_neutral_is_the_turn_in_the_heads_own_axes() {
+        let n = [0.2, 0.3, -0.1];
+        let c = Camera::from_angles(2.0, n[0], n[1], n[2], [1.0, 2.0]);
+        for v in c.relative_to(n) {
+            assert!(v.abs() < 1e-12);
+        }
+        let turn = Camera::from_angles(1.0, 0.4, 0.0, 0.0, [0.0; 2]);
+        let pitched = Camera::from_angles(1.0, 0.0, 0.3, 0.0, [0.0; 2]);
+        let turned = Camera {
+            s: 1.0,
+            r: pitched.r * turn.r,
+            t: [0.0; 2],
+        };
+        let rel = turned.relative_to([0.0, 0.3, 0.0]);
+        assert!(
+            (rel[0] - 0.4).abs() < 1e-12 && rel[1].abs() < 1e-12 && rel[2].abs() < 1e-12,
+            "{rel:?}"
+        );
+        // Its absolute angles mix the two.
+        assert!(turned.yaw_pitch_roll()[2].abs() > 0.05);
+    }
 
     /// nalgebra's `from_matrix` never returns on these (it iterates until convergence);
     /// `rotation_of` answers each with a rotation.

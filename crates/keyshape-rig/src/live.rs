@@ -39,6 +39,12 @@ pub struct Calibration {
     pub free: Vec<usize>,
     /// Frames averaged into the neutral.
     pub frames: usize,
+    /// The neutral head pose (yaw, pitch, roll in radians, as [`Camera::yaw_pitch_roll`]):
+    /// the lead-in's mean rotation, which the head's rotation is sent relative to
+    /// ([`LiveFrame::head`]). A calibration saved before it was kept reads as 0 (the pose
+    /// as fitted).
+    #[serde(default)]
+    pub head: [f64; 3],
 }
 
 /// The inter-ocular distance a calibration may hold (track units: pixels, or a fraction of
@@ -72,6 +78,10 @@ pub struct LiveFrame {
     pub weights: Vec<f64>,
     /// The fitted head pose.
     pub camera: Camera,
+    /// The head's yaw, pitch and roll (radians) relative to the calibration's neutral pose
+    /// ([`Camera::relative_to`]): what an avatar is turned by, so it looks ahead while the
+    /// person looks as they did in the lead-in.
+    pub head: [f64; 3],
     /// RMS landmark error (track units).
     pub rms: f64,
 }
@@ -222,6 +232,15 @@ impl LiveSolver {
                 "its neutral lies up to {moved:.3} rig units from this rig's (a face {size:.3} across): it was made for another rig"
             ));
         }
+        if let Some(a) = c
+            .head
+            .iter()
+            .find(|a| !(a.is_finite() && a.abs() <= std::f64::consts::PI))
+        {
+            return bad(format!(
+                "its neutral head pose holds {a}, not an angle within ±π"
+            ));
+        }
         if !IOD.contains(c.iod) {
             return bad(format!("the inter-ocular distance {}", IOD.why(c.iod)));
         }
@@ -309,6 +328,18 @@ impl LiveSolver {
             identifiability_weighted(&person, &cam_n, self.opts.min_determination, &self.lw);
         let free: Vec<usize> = (0..self.rig.k()).filter(|&s| !shapes[s].frozen).collect();
         let iod = prior_iod(&self.rig, &track, &self.opts, 0..count);
+        // The neutral pose: the lead-in's rotations averaged (the nearest rotation to their
+        // sum), each the person's neutral fitted to a lead-in frame.
+        let mut sum = nalgebra::Matrix3::zeros();
+        for f in 0..count {
+            sum += fit_camera(&person.neutral, &frame_points(&track, f))?.r;
+        }
+        let head = Camera {
+            s: 1.0,
+            r: super::camera::rotation_of(&sum).into_inner(),
+            t: [0.0; 2],
+        }
+        .yaw_pitch_roll();
         let c = Calibration {
             layout: self.rig.layout,
             points: self.rig.points.clone(),
@@ -317,6 +348,7 @@ impl LiveSolver {
             iod,
             free: free.clone(),
             frames: count,
+            head,
         };
         Ok((c, self.frame_solver(person, free, iod)))
     }
@@ -335,9 +367,10 @@ impl LiveSolver {
     /// Solves one frame with the calibrated solver (warm-started from the last).
     fn solve(&mut self, frame: &[f64]) -> Result<LiveFrame> {
         let n = self.rig.landmarks();
-        let Some((_, fs)) = &mut self.state else {
+        let Some((c, fs)) = &mut self.state else {
             return Err(Error::invalid("the live solve is not calibrated yet"));
         };
+        let neutral_head = c.head;
         let u: Vec<[f64; 2]> = frame.chunks_exact(2).map(|p| [p[0], -p[1]]).collect();
         fs.depth = None;
         let (_, _, e) = fs.solve(&u)?;
@@ -348,13 +381,15 @@ impl LiveSolver {
             ));
         }
         fs.prev = Some(fs.w.clone());
+        let camera = fs.cam.unwrap_or(Camera {
+            s: 1.0,
+            r: nalgebra::Matrix3::identity(),
+            t: [0.0, 0.0],
+        });
         Ok(LiveFrame {
             weights,
-            camera: fs.cam.unwrap_or(Camera {
-                s: 1.0,
-                r: nalgebra::Matrix3::identity(),
-                t: [0.0, 0.0],
-            }),
+            head: camera.relative_to(neutral_head),
+            camera,
             rms: (e / n as f64).sqrt(),
         })
     }

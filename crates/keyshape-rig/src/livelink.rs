@@ -1,7 +1,9 @@
-//! Live Link Face CSV (Epic's iOS app's recording format): `Timecode,BlendShapeCount,`
-//! then 61 values per frame in the app's own order — the 52 ARKit shapes (Unreal's
-//! `EARFaceBlendShape` order, EyeBlinkLeft … TongueOut), HeadYaw, HeadPitch, HeadRoll and
-//! the two eyes' yaw, pitch and roll.
+//! Live Link Face CSV (Epic's iOS app's recording format): `Timecode,BlendshapeCount,`
+//! then 61 values per frame in the app's own order — the 52 ARKit shapes, HeadYaw,
+//! HeadPitch, HeadRoll and the two eyes' yaw, pitch and roll. Its packets (and Unreal's
+//! `EARFaceBlendShape`) order the shapes as [`COLUMNS`]; its CSV swaps two pairs
+//! ([`CSV_ORDER`]: JawRight before JawLeft, MouthRight before MouthLeft), as a real
+//! capture's header row shows.
 
 use super::Rig;
 use std::io::Write;
@@ -70,6 +72,24 @@ pub const COLUMNS: [&str; 61] = [
     "RightEyePitch",
     "RightEyeRoll",
 ];
+
+/// The CSV's columns as indices into [`COLUMNS`]: the packet order with JawLeft/JawRight
+/// and MouthLeft/MouthRight swapped, as the app writes its CSV.
+pub const CSV_ORDER: [usize; 61] = {
+    let mut o = [0usize; 61];
+    let mut i = 0;
+    while i < 61 {
+        o[i] = match i {
+            15 => 16,
+            16 => 15,
+            21 => 22,
+            22 => 21,
+            _ => i,
+        };
+        i += 1;
+    }
+    o
+};
 
 /// The ARKit name of a rig shape name: ICT's `mouthSmile_L` → `MouthSmileLeft`, `jawOpen` →
 /// `JawOpen`; ARKit names (`mouthSmileLeft`, `MouthSmileLeft`) map to themselves.
@@ -140,7 +160,8 @@ pub fn timecode(t: f64, fps: f64) -> String {
     )
 }
 
-/// One frame's row of the CSV: its timecode, the value count and the 61 values.
+/// One frame's row of the CSV: its timecode, the value count and the 61 values (in
+/// [`CSV_ORDER`]).
 pub fn record(
     sources: &[Vec<usize>],
     w: &[f64],
@@ -149,20 +170,22 @@ pub fn record(
     fps: f64,
     count: &str,
 ) -> Vec<String> {
+    let v = frame_values(sources, w, head);
     [timecode(t, fps), count.to_string()]
         .into_iter()
-        .chain(frame_values(sources, w, head).map(keyshape_io::fmt_num))
+        .chain(CSV_ORDER.iter().map(|&c| keyshape_io::fmt_num(v[c])))
         .collect()
 }
 
-/// The CSV's header: `Timecode`, `BlendShapeCount` and the 61 [`COLUMNS`].
+/// The CSV's header, as a real capture's: `Timecode`, `BlendshapeCount` and the 61
+/// columns in [`CSV_ORDER`].
 pub fn header() -> impl Iterator<Item = &'static str> {
-    ["Timecode", "BlendShapeCount"]
+    ["Timecode", "BlendshapeCount"]
         .into_iter()
-        .chain(COLUMNS.iter().copied())
+        .chain(CSV_ORDER.iter().map(|&c| COLUMNS[c]))
 }
 
-/// Writes the CSV: per frame, its time (seconds), the rig weights (rig order) and the head's
+/// Writes the CSV (its header [`header`], rows [`record`]): per frame, its time (seconds), the rig weights (rig order) and the head's
 /// yaw, pitch and roll (radians).
 pub fn write(
     out: &mut dyn Write,

@@ -181,8 +181,8 @@ pub struct RigArgs {
     /// [default: not written].
     #[arg(long, value_name = "FILE")]
     pose: Option<PathBuf>,
-    /// Write a Live Link Face CSV here (Timecode, BlendShapeCount = 61, the 52 ARKit shapes
-    /// in Live Link Face's order, HeadYaw/Pitch/Roll in radians, eye angles 0)
+    /// Write a Live Link Face CSV here (Timecode, BlendshapeCount = 61, the 52 ARKit shapes
+    /// in the order the app writes its CSVs, HeadYaw/Pitch/Roll in radians, eye angles 0)
     /// [default: not written].
     #[arg(long, value_name = "FILE")]
     livelink: Option<PathBuf>,
