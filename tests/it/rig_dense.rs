@@ -148,8 +148,8 @@ fn bad_correspondences_and_point_counts_are_refused() {
     std::fs::remove_file(&out).unwrap();
     // A track of 70 points matches no layout.
     let odd = d.path().join("odd.csv");
-    let head: Vec<String> = (0..70).map(|i| format!("x{i},y{i}")).collect();
-    let row: Vec<String> = (0..140)
+    let head: Vec<String> = (0..71).map(|i| format!("x{i},y{i}")).collect();
+    let row: Vec<String> = (0..142)
         .map(|i| format!("{}", 100 + (i * 37) % 200))
         .collect();
     std::fs::write(
@@ -164,7 +164,7 @@ fn bad_correspondences_and_point_counts_are_refused() {
     .unwrap();
     let r = kslab(&["rig", odd.to_str().unwrap(), "--out", out.to_str().unwrap()]);
     assert_eq!(r.code, 1);
-    assert!(r.stderr.contains("this one has 70 points"), "{}", r.stderr);
+    assert!(r.stderr.contains("this one has 71 points"), "{}", r.stderr);
     // --landmarks dense on an iBUG track, and landmark weights on a dense solve.
     let news = shared("pyfeat_samples/news_sample_compact.csv");
     let r = kslab(&[
