@@ -70,6 +70,17 @@ impl Session {
         &self.select
     }
 
+    /// What looked wrong with the lead-in of the calibration in use (the head turned, the
+    /// lips parted), if anything.
+    pub fn calibration_warning(&self) -> Option<&str> {
+        self.solver.calibration_warning()
+    }
+
+    /// Why the last full lead-in could not be calibrated on, while collecting.
+    pub fn lead_in_failure(&self) -> Option<&str> {
+        self.solver.lead_in_failure()
+    }
+
     /// Datagrams the network would not take.
     pub fn send_errors(&self) -> u64 {
         self.sinks.send_errors
@@ -112,19 +123,22 @@ impl Session {
         let solved = match self.solver.push(&chosen) {
             Ok(v) => v,
             Err(_) => {
+                // Refused: the solver's state is as it was.
                 self.refused += 1;
                 if was_calibrated {
                     return Ok(Step::Solved);
                 }
-                // A lead-in the calibration could not use is dropped with it.
                 let (have, need) = self.solver.collected();
-                self.waiting.truncate(have);
                 return Ok(Step::Collecting(have, need));
             }
         };
         if solved.is_empty() {
+            // Collected; a lead-in the calibration could not use slid on by its oldest
+            // frame, which leaves here too.
             self.waiting.push(frame);
             let (have, need) = self.solver.collected();
+            let drop = self.waiting.len().saturating_sub(have);
+            self.waiting.drain(..drop);
             return Ok(Step::Collecting(have, need));
         }
         let calibrated = !was_calibrated;

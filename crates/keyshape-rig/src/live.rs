@@ -96,6 +96,47 @@ pub struct LiveSolver {
     /// per landmark, image axes).
     pending: Vec<Vec<f64>>,
     state: Option<(Calibration, FrameSolver<'static>)>,
+    /// What looked wrong with the lead-in of the calibration in use.
+    warning: Option<String>,
+    /// Why the last full lead-in could not be used.
+    slid: Option<String>,
+}
+
+/// What looks wrong with lead-in `frames` as a neutral, as the file's solve judges a
+/// neutral frame: how many frames had the head turned (and the most), the lips parted
+/// (and the most). `None` when every frame looks neutral.
+fn lead_in_warning(rig: &Rig, frames: &[Vec<f64>]) -> Option<String> {
+    let track = DMatrix::from_fn(2 * rig.landmarks(), frames.len(), |r, c| frames[c][r]);
+    let (mut turned, mut parted) = ((0usize, 0.0f64), (0usize, 0.0f64));
+    for f in 0..frames.len() {
+        if let Ok(cam) = fit_camera(&rig.neutral, &frame_points(&track, f)) {
+            let turn = cam.r[(2, 2)].clamp(-1.0, 1.0).acos().to_degrees();
+            if turn > super::NEUTRAL_TURN_WARN_DEG {
+                turned = (turned.0 + 1, turned.1.max(turn));
+            }
+        }
+        if let Some((gap, _)) = super::neutral::lips_and_brows(rig, &track, f) {
+            if gap > super::NEUTRAL_LIPS_WARN {
+                parted = (parted.0 + 1, parted.1.max(gap));
+            }
+        }
+    }
+    let n = frames.len();
+    let mut what = Vec::new();
+    if turned.0 > 0 {
+        what.push(format!(
+            "the head turned on {} of {n} frames (up to {:.0}°)",
+            turned.0, turned.1
+        ));
+    }
+    if parted.0 > 0 {
+        what.push(format!(
+            "the lips parted on {} of {n} (up to {:.0} % of the eye-corner distance)",
+            parted.0,
+            100.0 * parted.1
+        ));
+    }
+    (!what.is_empty()).then(|| what.join(", "))
 }
 
 impl LiveSolver {
@@ -131,6 +172,8 @@ impl LiveSolver {
             needed: calibrate,
             pending: Vec::new(),
             state: None,
+            warning: None,
+            slid: None,
         })
     }
 
@@ -154,6 +197,8 @@ impl LiveSolver {
     pub fn recalibrate(&mut self) {
         self.state = None;
         self.pending.clear();
+        self.warning = None;
+        self.slid = None;
     }
 
     /// The causal temporal prior's λ from now on, in squared track units (≥ 0; see
@@ -263,14 +308,18 @@ impl LiveSolver {
         let fs = self.frame_solver(person, c.free.clone(), c.iod);
         self.pending.clear();
         self.state = Some((c, fs));
+        self.warning = None;
+        self.slid = None;
         Ok(())
     }
 
     /// Takes one frame (`2 × landmarks` values: x and y of each of the rig's landmarks,
     /// image axes, y down). Returns the frames it solved: none while calibrating, the whole
     /// lead-in when the calibration completes, then one per frame. A frame that cannot be
-    /// solved (non-finite, all points together, the wrong size) is an error and changes
-    /// nothing.
+    /// solved (non-finite, all points together, the wrong size; while calibrating, a frame
+    /// that is no face) is an error and changes nothing. A full lead-in the calibration
+    /// cannot use is no error: the collection slides on by a frame (its oldest frame leaves)
+    /// and [`LiveSolver::lead_in_failure`] says why.
     pub fn push(&mut self, frame: &[f64]) -> Result<Vec<LiveFrame>> {
         let n = self.rig.landmarks();
         if frame.len() != 2 * n {
@@ -309,11 +358,46 @@ impl LiveSolver {
         if self.pending.len() < self.needed {
             return Ok(Vec::new());
         }
+        // The state changes only once every step has succeeded: a lead-in the calibration
+        // cannot use, or whose frames it cannot solve, slides on by a frame (its oldest
+        // leaves, the collection goes on, and why is kept for the caller to say).
         let pending = std::mem::take(&mut self.pending);
-        // A lead-in that cannot be a neutral is dropped: the collection starts again.
-        let (c, fs) = self.calibrate(&pending)?;
-        self.state = Some((c, fs));
-        pending.iter().map(|f| self.solve(f)).collect()
+        let solved = self.calibrate(&pending).and_then(|(c, fs)| {
+            let warning = lead_in_warning(&self.rig, &pending);
+            self.state = Some((c, fs));
+            let out: Result<Vec<LiveFrame>> = pending.iter().map(|f| self.solve(f)).collect();
+            if out.is_err() {
+                self.state = None;
+            }
+            self.warning = warning;
+            out
+        });
+        match solved {
+            Ok(out) => {
+                self.slid = None;
+                Ok(out)
+            }
+            Err(e) => {
+                self.pending = pending;
+                self.pending.remove(0);
+                self.slid = Some(e.to_string());
+                Ok(Vec::new())
+            }
+        }
+    }
+
+    /// What is wrong with the calibration just made, if anything looked wrong: its lead-in
+    /// judged as the file's solve judges a neutral frame (the head turned more than
+    /// [`NEUTRAL_TURN_WARN_DEG`](crate::NEUTRAL_TURN_WARN_DEG), the lips parted more than
+    /// [`NEUTRAL_LIPS_WARN`](crate::NEUTRAL_LIPS_WARN) of the eye-corner distance).
+    pub fn calibration_warning(&self) -> Option<&str> {
+        self.warning.as_deref()
+    }
+
+    /// Why the last full lead-in could not be calibrated on (it slid on by a frame), while
+    /// collecting.
+    pub fn lead_in_failure(&self) -> Option<&str> {
+        self.slid.as_deref()
     }
 
     /// The person, frozen shapes and prior scale from the lead-in `frames`.

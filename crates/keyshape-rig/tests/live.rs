@@ -429,3 +429,35 @@ fn the_head_turns_relative_to_the_calibrated_neutral() {
         "relative = absolute − the neutral's pitch, on average"
     );
 }
+
+/// A lead-in that does not look neutral is calibrated on and said: its frames judged as the
+/// file's solve judges a neutral frame. A talking face's most open frames: "the lips
+/// parted"; a relaxed lead-in: nothing.
+#[test]
+fn a_lead_in_with_parted_lips_is_said() {
+    let (rig, t) = track(68, 300);
+    let at = |c: usize, p: usize| (t[(2 * p, c)], t[(2 * p + 1, c)]);
+    let gap = |c: usize| {
+        let d = |a: (f64, f64), b: (f64, f64)| (a.0 - b.0).hypot(a.1 - b.1);
+        let pos = |p: usize| rig.points.iter().position(|&q| q == p).unwrap();
+        d(at(c, pos(62)), at(c, pos(66))) / d(at(c, pos(36)), at(c, pos(45)))
+    };
+    let mut frames: Vec<usize> = (0..t.ncols()).collect();
+    frames.sort_by(|&a, &b| gap(b).total_cmp(&gap(a)));
+    let open: Vec<usize> = frames[..10].to_vec();
+    let closed: Vec<usize> = frames[frames.len() - 10..].to_vec();
+    for (lead, parted) in [(open, true), (closed, false)] {
+        let mut live = LiveSolver::new(rig.clone(), RigOptions::live(), 10).unwrap();
+        let mut solved = 0;
+        for &c in &lead {
+            let col: Vec<f64> = t.column(c).iter().copied().collect();
+            solved += live.push(&col).unwrap().len();
+        }
+        assert_eq!(solved, 10);
+        let w = live.calibration_warning();
+        assert_eq!(w.is_some(), parted, "{w:?}");
+        if parted {
+            assert!(w.unwrap().contains("the lips parted on 10 of 10"), "{w:?}");
+        }
+    }
+}

@@ -282,7 +282,12 @@ fn drain(
                     Step::Collecting(have, need) => s.collecting = Some((have, need)),
                     Step::Calibrated(n) => {
                         s.collecting = None;
-                        s.status = format!("calibrated on {n} frames");
+                        s.status = match session.calibration_warning() {
+                            Some(w) => {
+                                format!("calibrated on {n} frames, not neutral: {w} (n: again)")
+                            }
+                            None => format!("calibrated on {n} frames"),
+                        };
                     }
                     Step::Solved => s.collecting = None,
                 }

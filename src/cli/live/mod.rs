@@ -15,6 +15,9 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+mod report;
+use report::{ms, report};
+
 /// Arguments of `kslab live`.
 #[derive(Debug, Args)]
 pub struct LiveArgs {
@@ -337,6 +340,8 @@ struct Terminal {
     last_frame: Instant,
     idle_said: bool,
     window: std::collections::VecDeque<Instant>,
+    /// Why the lead-in slides on, said at most once a second.
+    lead_in: keyshape_live::RateLimited,
 }
 
 impl Terminal {
@@ -388,6 +393,7 @@ fn serve(
         last_frame: Instant::now(),
         idle_said: false,
         window: Default::default(),
+        lead_in: keyshape_live::RateLimited::new(),
     };
     while !stop.load(Ordering::Relaxed) {
         if recal.swap(false, Ordering::Relaxed) {
@@ -413,63 +419,33 @@ fn serve(
             Popped::Frame(f) => {
                 t.last_frame = Instant::now();
                 t.idle_said = false;
-                if let Step::Calibrated(n) = session.take(f)? {
-                    let saved = a
-                        .neutral_file
-                        .as_ref()
-                        .filter(|_| session.save_calibration.is_some())
-                        .map_or(String::new(), |p| format!(" (saved to {})", p.display()));
-                    errln!("{}calibrated on {n} frames{saved}", t.line());
+                match session.take(f)? {
+                    Step::Calibrated(n) => {
+                        let saved = a
+                            .neutral_file
+                            .as_ref()
+                            .filter(|_| session.save_calibration.is_some())
+                            .map_or(String::new(), |p| format!(" (saved to {})", p.display()));
+                        errln!("{}calibrated on {n} frames{saved}", t.line());
+                        if let Some(w) = session.calibration_warning() {
+                            errln!("warning: the lead-in does not look neutral: {w}; the avatar reads the difference as expression: recalibrate looking ahead, relaxed, lips together (n in the lab, kill -USR1 {}, or a line `calibrate` on standard input)", std::process::id());
+                        }
+                    }
+                    Step::Collecting(..) => {
+                        if let Some(why) = session.lead_in_failure() {
+                            if let Some(m) = t.lead_in.say(&format!(
+                                "the lead-in cannot be calibrated on ({why}): collecting on"
+                            )) {
+                                errln!("{}warning: {m}", t.line());
+                            }
+                        }
+                    }
+                    Step::Solved => {}
                 }
                 t.window.push_back(Instant::now());
             }
         }
         t.status(session, counters);
-    }
-    Ok(())
-}
-
-/// The closing summary, and --stats.
-fn report(
-    a: &LiveArgs,
-    (name, rig): (&str, &keyshape_rig::Rig),
-    session: &Session,
-    counters: &Counters,
-    seconds: f64,
-) -> Result<()> {
-    let (received, malformed, dropped) = counters.get();
-    let untracked = counters
-        .untracked
-        .load(std::sync::atomic::Ordering::Relaxed);
-    let lat = |q| quantile(&session.latencies, q);
-    errln!(
-        "{}kslab live: {} frames solved in {seconds:.1} s ({received} received, {dropped} dropped, {malformed} malformed, {untracked} untracked, {} refused, {} not sent); latency p50 {} p99 {}",
-        if std::io::stderr().is_terminal() { "\r\x1b[K" } else { "" },
-        session.solved,
-        session.refused,
-        session.send_errors(),
-        ms(lat(0.5)),
-        ms(lat(0.99)),
-    );
-    if let Some(p) = &a.stats {
-        let v = serde_json::json!({
-            "source": name,
-            "landmarks": rig.landmarks(),
-            "shapes": rig.k(),
-            "seconds": seconds,
-            "solved": session.solved,
-            "received": received,
-            "dropped": dropped,
-            "malformed": malformed,
-            "untracked": untracked,
-            "refused": session.refused,
-            "not_sent": session.send_errors(),
-            "latency_ms": { "p50": lat(0.5), "p99": lat(0.99), "worst": lat(1.0) },
-        });
-        keyshape_io::write_atomic(p, |w| {
-            serde_json::to_writer_pretty(&mut *w, &v).map_err(std::io::Error::other)?;
-            w.write_all(b"\n")
-        })?;
     }
     Ok(())
 }
@@ -523,10 +499,6 @@ pub fn run(a: &LiveArgs) -> Result<()> {
         started.elapsed().as_secs_f64(),
     )?;
     result.map_err(anyhow::Error::from)
-}
-
-fn ms(v: Option<f64>) -> String {
-    v.map_or("–".into(), |v| format!("{v:.2} ms"))
 }
 
 /// `kslab tui --live SOURCE`: the live screen, solving as `kslab live` does (no sinks).
