@@ -6,6 +6,7 @@
 //! over OSC, Live Link Face UDP packets, CSV lines on standard output), optionally
 //! recorded as they go ([`sink::Recorder`]).
 
+pub mod latency;
 pub mod openseeface;
 pub mod protocols;
 pub mod session;

@@ -29,8 +29,9 @@ pub struct Session {
     pub save_calibration: Option<PathBuf>,
     /// The lead-in's frames, waiting for the calibration.
     waiting: Vec<Frame>,
-    /// Per frame solved on arrival, milliseconds from its arrival to its sending.
-    pub latencies: Vec<f64>,
+    /// Per frame solved on arrival, milliseconds from its arrival to its sending (the
+    /// whole session's distribution and the last frames', in bounded memory).
+    pub latencies: super::latency::Latencies,
     /// Frames solved and sent.
     pub solved: u64,
     /// Frames the solve refused (a degenerate frame).
@@ -58,7 +59,7 @@ impl Session {
             recorder,
             save_calibration: None,
             waiting: Vec::new(),
-            latencies: Vec::new(),
+            latencies: super::latency::Latencies::new(),
             solved: 0,
             refused: 0,
             last: None,
@@ -171,7 +172,7 @@ impl Session {
             }
             if !calibrated {
                 self.latencies
-                    .push(Instant::now().duration_since(f.arrived).as_secs_f64() * 1e3);
+                    .record(Instant::now().duration_since(f.arrived).as_secs_f64() * 1e3);
             }
             self.solved += 1;
             self.last = Some((f, s));

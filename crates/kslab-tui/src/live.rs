@@ -378,9 +378,8 @@ where
         s.fps = window.len();
         s.idle = last_frame.elapsed().as_secs_f64();
         s.counts = counters.get();
-        let n = session.latencies.len();
-        let recent = &session.latencies[n.saturating_sub(300)..];
-        s.latency = (quantile(recent, 0.5), quantile(recent, 0.99));
+        let recent: Vec<f64> = session.latencies.recent().iter().copied().collect();
+        s.latency = (quantile(&recent, 0.5), quantile(&recent, 0.99));
         s.smooth = session.solver.smooth();
         show_last(session, &mut s);
         if last_draw.is_none_or(|t| t.elapsed() >= Duration::from_millis(33)) {

@@ -368,13 +368,12 @@ impl Terminal {
         }
         self.last_status = Instant::now();
         let (_, malformed, dropped) = counters.get();
-        let n = session.latencies.len();
-        let recent = &session.latencies[n.saturating_sub(300)..];
+        let recent: Vec<f64> = session.latencies.recent().iter().copied().collect();
         err!(
             "\r\x1b[K{} fps · latency p50 {} p99 {} · solved {} · dropped {dropped} · malformed {malformed}",
             self.window.len(),
-            ms(quantile(recent, 0.5)),
-            ms(quantile(recent, 0.99)),
+            ms(quantile(&recent, 0.5)),
+            ms(quantile(&recent, 0.99)),
             session.solved
         );
     }

@@ -2,7 +2,7 @@
 
 use super::LiveArgs;
 use anyhow::Result;
-use keyshape_live::session::{quantile, Session};
+use keyshape_live::session::Session;
 use keyshape_live::Counters;
 use std::io::IsTerminal;
 
@@ -18,7 +18,7 @@ pub(super) fn report(
     let untracked = counters
         .untracked
         .load(std::sync::atomic::Ordering::Relaxed);
-    let lat = |q| quantile(&session.latencies, q);
+    let lat = |q| session.latencies.quantile(q);
     errln!(
         "{}kslab live: {} frames solved in {seconds:.1} s ({received} received, {dropped} dropped, {malformed} malformed, {untracked} untracked, {} refused, {} not sent); latency p50 {} p99 {}",
         if std::io::stderr().is_terminal() { "\r\x1b[K" } else { "" },
