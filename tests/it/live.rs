@@ -269,6 +269,7 @@ fn a_rendered_performance_sent_at_60_fps_comes_out_as_the_offline_causal_solve()
     // VMC: per bundle, Val for the 52 ARKit shapes and the rig's others, Apply, then the head.
     let jaw = rig.names.iter().position(|n| n == "jawOpen").unwrap();
     let mut facing = Vec::new();
+    let mut told = Vec::new();
     for (f, b) in bundles.iter().enumerate() {
         let rosc::OscPacket::Bundle(b) = b else {
             panic!("a bundle")
@@ -330,16 +331,25 @@ fn a_rendered_performance_sent_at_60_fps_comes_out_as_the_offline_causal_solve()
         assert_eq!(value("JawOpen"), rows[f][jaw] as f32, "frame {f}");
         let (n, fps, ll) = &packets[f];
         assert_eq!(*n as usize, f);
-        // The rate the frames came at (sent at 60 a second), not a constant.
+        // The rate the frames came at (sent at 60 a second), not a constant; a busy
+        // machine's pauses move one frame's figure a little.
         assert!(
-            (57..=63).contains(fps),
+            (40..=90).contains(fps),
             "frame {f}: Live Link told {fps} fps"
         );
+        told.push(*fps);
         assert_eq!(
             ll[17], rows[f][jaw] as f32,
             "Live Link's JawOpen (column 17), frame {f}"
         );
     }
+
+    told.sort_unstable();
+    assert!(
+        (57..=63).contains(&told[told.len() / 2]),
+        "Live Link's frame rate, median over the take: {}",
+        told[told.len() / 2]
+    );
 
     // The avatar faces where the person does: turning to the person's left (positive
     // yaw) is the avatar facing its own left, −x in Unity; nodding down (positive pitch)

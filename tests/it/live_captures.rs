@@ -119,3 +119,41 @@ fn real_openseeface_datagrams_solve_the_same_with_gaze_off_but_for_the_eyes() {
     let r = pearson(&smile, &width);
     assert!(r > 0.7, "smiles against the mouth's width: r {r}");
 }
+
+/// A tracker restarted (the same face id from another sender) mid-session: the session
+/// says so and calibrates again on the new face's first frames.
+#[test]
+fn a_restarted_tracker_is_a_new_calibration() {
+    let bytes = std::fs::read(shared("openseeface_captures/liveportrait_d11.osfcap")).unwrap();
+    let records = capture_records(&bytes).unwrap();
+    let port = free_udp_port();
+    let live = Running::start(
+        Command::new(env!("CARGO_BIN_EXE_kslab"))
+            .args(["live", "--from", &format!("openseeface:127.0.0.1:{port}")])
+            .args(["--to", "stdout", "--queue", "1024", "--calibrate", "10"])
+            .stdin(Stdio::null()),
+        true,
+    );
+    let (a, b) = (
+        UdpSocket::bind("127.0.0.1:0").unwrap(),
+        UdpSocket::bind("127.0.0.1:0").unwrap(),
+    );
+    for (k, (_, d)) in records.iter().take(60).enumerate() {
+        let from = if k < 30 { &a } else { &b };
+        from.send_to(d, ("127.0.0.1", port)).unwrap();
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    std::thread::sleep(Duration::from_millis(500));
+    let (code, out, err) = live.stop(libc::SIGINT);
+    assert_eq!(code, Some(0), "{err}");
+    assert!(
+        err.contains("another tracker: recalibrating on the next 10 frames"),
+        "{err}"
+    );
+    assert_eq!(err.matches("calibrated on 10 frames").count(), 2, "{err}");
+    assert_eq!(
+        out.lines().count(),
+        61,
+        "every frame solved and sent: {err}"
+    );
+}

@@ -79,6 +79,9 @@ pub struct Frame {
     pub points: Vec<f64>,
     /// When it was received (for the latency).
     pub arrived: Instant,
+    /// The source saw another face begin with this frame — a tracker restarted (a new
+    /// sender), another image size — and says so: the session recalibrates.
+    pub new_face: Option<String>,
 }
 
 /// What the receiving side counts (shared with the solving side).
@@ -90,6 +93,9 @@ pub struct Counters {
     pub malformed: AtomicU64,
     /// Frames dropped because the solve fell behind.
     pub dropped: AtomicU64,
+    /// Faces a source sent beside the one it follows (OpenSeeFace's other face ids):
+    /// counted, not solved.
+    pub other_faces: AtomicU64,
     /// Frames the tracker marked as failed (OpenSeeFace's `success` 0, a table row marked
     /// untracked): skipped, so the avatar holds its last pose.
     pub untracked: AtomicU64,
@@ -252,6 +258,7 @@ mod tests {
             time: n as f64,
             points: Vec::new(),
             arrived: Instant::now(),
+            new_face: None,
         }
     }
 

@@ -40,7 +40,15 @@ pub struct Session {
     pub last: Option<(Frame, LiveFrame)>,
     /// Per rig landmark, the source point it reads.
     select: Vec<usize>,
+    /// The last frame's eye-corner distance (source units), to see another face begin.
+    last_iod: Option<f64>,
+    /// What the session did that the terminal should say (a recalibration on a new face).
+    notices: Vec<String>,
 }
+
+/// A face whose eye-corner distance changes by more than this factor from one frame to the
+/// next is another face (a tracker restarted on another person, or at another distance).
+pub const FACE_JUMP: f64 = 1.6;
 
 impl Session {
     /// A session solving with `solver` into `sinks`, recording into `recorder`; `select`
@@ -63,6 +71,8 @@ impl Session {
             solved: 0,
             refused: 0,
             last: None,
+            last_iod: None,
+            notices: Vec::new(),
         }
     }
 
@@ -100,10 +110,26 @@ impl Session {
         Ok(())
     }
 
+    /// What happened that the terminal should say (drained).
+    pub fn notices(&mut self) -> Vec<String> {
+        std::mem::take(&mut self.notices)
+    }
+
+    /// Why `chosen` (the rig's landmarks of a frame) begins another face, if it does: its
+    /// eye-corner distance [`FACE_JUMP`] times the last frame's, or less by as much.
+    fn face_jump(&mut self, chosen: &[f64]) -> Option<String> {
+        let [a, b] = self.solver.rig().eyes()?;
+        let iod = (chosen[2 * a] - chosen[2 * b]).hypot(chosen[2 * a + 1] - chosen[2 * b + 1]);
+        let last = self.last_iod.replace(iod)?;
+        let ratio = iod / last;
+        (!(1.0 / FACE_JUMP..=FACE_JUMP).contains(&ratio)).then(|| {
+            format!("the face's eye corners jumped from {last:.1} to {iod:.1} apart: another face")
+        })
+    }
+
     /// Takes one frame. A frame the solve refuses is counted in `refused` and changes
     /// nothing; an error is a sink or the recording that failed (the session ends).
     pub fn take(&mut self, frame: Frame) -> Result<Step> {
-        let was_calibrated = self.solver.calibration().is_some();
         // A frame too short for the rig's points (the source guarantees its layout, so
         // only a library caller's mistake) is refused like a degenerate one.
         if self.select.iter().any(|&p| 2 * p + 1 >= frame.points.len()) {
@@ -121,6 +147,19 @@ impl Session {
             .iter()
             .flat_map(|&p| [frame.points[2 * p], frame.points[2 * p + 1]])
             .collect();
+        // Another face: the calibration was the last one's.
+        let jump = self.face_jump(&chosen);
+        if let Some(why) = frame.new_face.clone().or(jump) {
+            let had = self.solver.calibration().is_some() || !self.waiting.is_empty();
+            if had {
+                self.recalibrate();
+                let (_, need) = self.solver.collected();
+                self.notices.push(format!(
+                    "{why}: recalibrating on the next {need} frames (look neutral)"
+                ));
+            }
+        }
+        let was_calibrated = self.solver.calibration().is_some();
         let solved = match self.solver.push(&chosen) {
             Ok(v) => v,
             Err(_) => {

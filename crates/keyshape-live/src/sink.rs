@@ -138,9 +138,9 @@ pub struct Sinks {
 }
 
 /// Arrivals the frame rate is measured over.
-const RATE_WINDOW: usize = 31;
+const RATE_WINDOW: usize = 61;
 /// Gaps between arrivals the frame rate needs before it is measured.
-pub const RATE_MIN_GAPS: usize = 8;
+pub const RATE_MIN_GAPS: usize = 15;
 
 /// Frames per second from arrival instants: one over the median gap between consecutive
 /// ones (a pause or a burst moves it little), rounded, within 1–1000; `None` for fewer

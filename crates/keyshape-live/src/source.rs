@@ -356,6 +356,7 @@ impl Opened {
                 start: Instant::now(),
                 options: self.options,
                 layout: self.layout,
+                new_face: None,
             };
             match self.reader {
                 Reader::OpenSeeFace(sock) => run.openseeface(&sock),
@@ -377,6 +378,8 @@ struct Run<'a> {
     start: Instant,
     options: SourceOptions,
     layout: usize,
+    /// A new face begins with the next frame delivered (why).
+    new_face: Option<String>,
 }
 
 impl Run<'_> {
@@ -404,6 +407,7 @@ impl Run<'_> {
     /// file readers keep ([`keyshape_core::sequence::coord_problem`]) and a time that a
     /// clock can show ([`frame_problem`]). Whether the frame was queued.
     fn deliver(&mut self, number: i64, time: f64, mut points: Vec<f64>, arrived: Instant) -> bool {
+        let new_face = self.new_face.take();
         if let Some((w, h)) = self.options.image_size {
             for p in points.chunks_mut(2) {
                 p[0] *= w;
@@ -421,6 +425,7 @@ impl Run<'_> {
                 time,
                 points,
                 arrived,
+                new_face,
             },
             self.counters,
         );
@@ -432,9 +437,10 @@ impl Run<'_> {
         let mut follow = self.options.face;
         let mut n = 0i64;
         let mut said_pupils = false;
+        let mut seen: Option<(SocketAddr, [f32; 2])> = None;
         while !self.stopped() {
-            let (len, arrived) = match sock.recv_from(&mut buf) {
-                Ok((len, _)) => (len, Instant::now()),
+            let (len, from, arrived) = match sock.recv_from(&mut buf) {
+                Ok((len, from)) => (len, from, Instant::now()),
                 Err(e)
                     if matches!(
                         e.kind(),
@@ -454,7 +460,27 @@ impl Run<'_> {
                 Err(e) => self.malformed(&format!("openseeface: skipped a datagram: {e}")),
                 Ok(faces) => {
                     let id = *follow.get_or_insert(faces[0].id);
+                    let others = faces.iter().filter(|f| f.id != id).count() as u64;
+                    self.counters
+                        .other_faces
+                        .fetch_add(others, Ordering::Relaxed);
                     if let Some(f) = faces.into_iter().find(|f| f.id == id) {
+                        // The same face id from another sender, or another image size:
+                        // another tracker (restarted, perhaps on another person).
+                        let why = match seen {
+                            Some((was, _)) if was != from => Some(format!(
+                                "face {id} now comes from {from} (it came from {was}): another tracker"
+                            )),
+                            Some((_, size)) if size != f.size => Some(format!(
+                                "the image size changed from {}x{} to {}x{}",
+                                size[0], size[1], f.size[0], f.size[1]
+                            )),
+                            _ => None,
+                        };
+                        seen = Some((from, f.size));
+                        if why.is_some() {
+                            self.new_face = why;
+                        }
                         if !f.success {
                             self.untracked(&format!(
                                 "openseeface: the tracker's own 3-D fit failed on face {id} (success 0): frame skipped, the avatar holds its pose"
@@ -581,6 +607,7 @@ impl Run<'_> {
                     time,
                     points,
                     arrived: Instant::now(),
+                    new_face: None,
                 },
                 self.counters,
             );

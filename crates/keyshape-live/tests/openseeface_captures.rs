@@ -199,3 +199,77 @@ fn the_source_delivers_captured_datagrams_as_ibug_frames_and_skips_failed_fits()
         .load(std::sync::atomic::Ordering::Relaxed);
     assert_eq!((received, malformed, dropped, untracked), (59, 1, 0, 1));
 }
+
+/// Another tracker for the same face id (a new sender), or another image size, marks the
+/// next frame as a new face; faces of other ids are counted, not queued.
+#[test]
+fn a_new_sender_or_image_size_begins_a_new_face_and_other_faces_are_counted() {
+    let bytes = capture("liveportrait_d11.osfcap");
+    let records = capture_records(&bytes).unwrap();
+    let port = UdpSocket::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    let spec = SourceSpec::parse(&format!("openseeface:127.0.0.1:{port}")).unwrap();
+    let opened = open(&spec, &SourceOptions::default(), Box::new(std::io::empty())).unwrap();
+    let to = opened.address().unwrap();
+    let queue = Arc::new(Queue::new(1024, false));
+    let counters = Arc::new(Counters::default());
+    let stop = Arc::new(AtomicBool::new(false));
+    let thread = opened.spawn(
+        queue.clone(),
+        counters.clone(),
+        stop.clone(),
+        Box::new(|_| {}),
+    );
+    let (a, b) = (
+        UdpSocket::bind("127.0.0.1:0").unwrap(),
+        UdpSocket::bind("127.0.0.1:0").unwrap(),
+    );
+    for k in 0..12 {
+        let mut d = records[k].1.to_vec();
+        if k >= 8 {
+            d[12..16].copy_from_slice(&640f32.to_le_bytes()); // another image width
+        }
+        if k == 2 {
+            // A second face, id 7, after the followed one.
+            let mut other = d.clone();
+            other[8..12].copy_from_slice(&7i32.to_le_bytes());
+            d.extend(other);
+        }
+        let from = if k < 4 { &a } else { &b };
+        from.send_to(&d, to).unwrap();
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    let mut got = Vec::new();
+    while got.len() < 12 {
+        match queue.pop(Duration::from_secs(5)) {
+            Popped::Frame(f) => got.push(f),
+            _ => break,
+        }
+    }
+    stop.store(true, std::sync::atomic::Ordering::Relaxed);
+    thread.join().unwrap();
+    let marked: Vec<(usize, String)> = got
+        .iter()
+        .enumerate()
+        .filter_map(|(k, f)| f.new_face.clone().map(|w| (k, w)))
+        .collect();
+    assert_eq!(marked.len(), 2, "{marked:?}");
+    assert_eq!(marked[0].0, 4);
+    assert!(marked[0].1.contains("face 0 now comes from"), "{marked:?}");
+    assert_eq!(marked[1].0, 8);
+    assert!(
+        marked[1]
+            .1
+            .contains("the image size changed from 512x512 to 640x512"),
+        "{marked:?}"
+    );
+    assert_eq!(
+        counters
+            .other_faces
+            .load(std::sync::atomic::Ordering::Relaxed),
+        1
+    );
+}

@@ -291,6 +291,9 @@ fn drain(
                     }
                     Step::Solved => s.collecting = None,
                 }
+                if let Some(n) = session.notices().pop() {
+                    s.status = n;
+                }
                 window.push_back(Instant::now());
             }
             Popped::Idle => break,

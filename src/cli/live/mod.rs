@@ -441,6 +441,9 @@ fn serve(
                     }
                     Step::Solved => {}
                 }
+                for n in session.notices() {
+                    errln!("{}{n}", t.line());
+                }
                 t.window.push_back(Instant::now());
             }
         }

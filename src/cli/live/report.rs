@@ -18,9 +18,12 @@ pub(super) fn report(
     let untracked = counters
         .untracked
         .load(std::sync::atomic::Ordering::Relaxed);
+    let others = counters
+        .other_faces
+        .load(std::sync::atomic::Ordering::Relaxed);
     let lat = |q| session.latencies.quantile(q);
     errln!(
-        "{}kslab live: {} frames solved in {seconds:.1} s ({received} received, {dropped} dropped, {malformed} malformed, {untracked} untracked, {} refused, {} not sent); latency p50 {} p99 {}",
+        "{}kslab live: {} frames solved in {seconds:.1} s ({received} received, {dropped} dropped, {malformed} malformed, {untracked} untracked, {others} of other faces, {} refused, {} not sent); latency p50 {} p99 {}",
         if std::io::stderr().is_terminal() { "\r\x1b[K" } else { "" },
         session.solved,
         session.refused,
@@ -39,6 +42,7 @@ pub(super) fn report(
             "dropped": dropped,
             "malformed": malformed,
             "untracked": untracked,
+            "other_faces": others,
             "refused": session.refused,
             "not_sent": session.send_errors(),
             "latency_ms": { "p50": lat(0.5), "p99": lat(0.99), "worst": lat(1.0) },
