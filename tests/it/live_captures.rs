@@ -157,3 +157,30 @@ fn a_restarted_tracker_is_a_new_calibration() {
         "every frame solved and sent: {err}"
     );
 }
+
+/// A session stopped before its first frame leaves no take behind (the folder it made is
+/// removed), and exits 0; a second Ctrl-C would end one that does not stop (exit 130).
+#[test]
+fn a_session_stopped_before_its_first_frame_leaves_no_take() {
+    let dir = tempfile::tempdir().unwrap();
+    let take = dir.path().join("take");
+    let port = free_udp_port();
+    let live = Running::start(
+        Command::new(env!("CARGO_BIN_EXE_kslab"))
+            .args(["live", "--from", &format!("openseeface:127.0.0.1:{port}")])
+            .args(["--to", "stdout", "--record"])
+            .arg(&take)
+            .stdin(Stdio::null()),
+        true,
+    );
+    std::thread::sleep(Duration::from_millis(300));
+    assert!(
+        take.join("track.csv").exists(),
+        "the take is made at the start"
+    );
+    let (code, out, err) = live.stop(libc::SIGINT);
+    assert_eq!(code, Some(0), "{err}");
+    assert!(err.contains("0 frames solved"), "{err}");
+    assert_eq!(out, "");
+    assert!(!take.exists(), "a take of headers alone is removed: {err}");
+}

@@ -110,6 +110,14 @@ impl Session {
         Ok(())
     }
 
+    /// Ends the session: a recording that holds no frame is removed (nothing was taken).
+    pub fn finish(&mut self) -> Result<()> {
+        match self.recorder.take() {
+            Some(r) if self.solved == 0 => r.remove(),
+            _ => Ok(()),
+        }
+    }
+
     /// What happened that the terminal should say (drained).
     pub fn notices(&mut self) -> Vec<String> {
         std::mem::take(&mut self.notices)

@@ -301,6 +301,8 @@ pub struct Recorder {
     t0: Option<f64>,
     /// Each file's length after its last whole row.
     lengths: [u64; 3],
+    /// Whether the folder was made for this take (not an empty one given).
+    made_dir: bool,
 }
 
 impl Recorder {
@@ -310,6 +312,7 @@ impl Recorder {
     /// Makes `dir` (it must not exist, or be an empty folder: a recording never replaces a
     /// file) and writes each file's header; `layout` points per frame.
     pub fn create(dir: &Path, rig: &Rig, layout: usize, fps: f64) -> Result<Recorder> {
+        let mut made_dir = false;
         match std::fs::read_dir(dir) {
             Ok(mut entries) => {
                 if entries.next().is_some() {
@@ -318,6 +321,7 @@ impl Recorder {
             }
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
                 std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+                made_dir = true;
             }
             Err(e) => return Err(Error::io(dir, e)),
         }
@@ -338,6 +342,7 @@ impl Recorder {
             fps,
             t0: None,
             lengths: [0; 3],
+            made_dir,
         };
         let track_header = ["frame".to_string(), "time_s".to_string()]
             .into_iter()
@@ -350,6 +355,19 @@ impl Recorder {
         ];
         r.write_rows([&headers[0], &headers[1], &headers[2]])?;
         Ok(r)
+    }
+
+    /// Removes the take's files (and its folder, when it was made for the take): a session
+    /// that ended before its first frame leaves things as they were.
+    pub fn remove(self) -> Result<()> {
+        for name in Self::FILES {
+            let p = self.dir.join(name);
+            std::fs::remove_file(&p).map_err(|e| Error::io(&p, e))?;
+        }
+        if self.made_dir {
+            std::fs::remove_dir(&self.dir).map_err(|e| Error::io(&self.dir, e))?;
+        }
+        Ok(())
     }
 
     fn file(&mut self, which: usize) -> &mut std::fs::File {

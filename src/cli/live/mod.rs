@@ -93,7 +93,8 @@ pub struct LiveArgs {
     #[arg(long, default_value_t = keyshape_rig::LIVE_PRIOR, allow_negative_numbers = true)]
     prior: f64,
     /// When the session ends, write its figures here as JSON: frames solved, received,
-    /// dropped, malformed, refused, datagrams not sent, seconds, and the latency from a
+    /// dropped, malformed, untracked (the tracker's own fit failed), of other faces,
+    /// refused, datagrams not sent, seconds, and the latency from a
     /// frame's arrival to its sending (p50, p99, worst, milliseconds) — what `kslab bench
     /// live` measures.
     /// [default: not written]
@@ -303,8 +304,11 @@ fn control(stdin_is_source: bool, stop: &Arc<AtomicBool>, recal: &Arc<AtomicBool
     {
         // Every signal that would end the process ends the session instead (the take
         // complete), but SIGUSR1, which recalibrates.
+        // A second one ends a session that does not end (exit 130): the take is whole up
+        // to its last frame, each written and flushed whole.
         for sig in super::signals::terminating() {
             if sig != libc::SIGUSR1 {
+                signal_hook::flag::register_conditional_shutdown(sig, 130, stop.clone())?;
                 signal_hook::flag::register(sig, stop.clone())?;
             }
         }
@@ -457,11 +461,18 @@ pub fn run(a: &LiveArgs) -> Result<()> {
     let Some(to) = &a.to else {
         anyhow::bail!("--to: name where the weights go (vmc:[HOST:]PORT, livelink:[HOST:]PORT, stdout; several with commas), or watch them in `kslab tui --live SOURCE`");
     };
-    let s = setup(a)?;
-    let (mut session, loaded) = start_session(a, &s)?;
+    // The signals first: a Ctrl-C while the rig is read or the take is made ends the
+    // session before its first frame (the take, with no frame, is removed), never the
+    // process by signal.
     let stop = Arc::new(AtomicBool::new(false));
     let recal = Arc::new(AtomicBool::new(false));
     control(a.from.trim() == "stdin", &stop, &recal)?;
+    let s = setup(a)?;
+    if stop.load(Ordering::Relaxed) {
+        errln!("kslab live: stopped before the session began");
+        return Ok(());
+    }
+    let (mut session, loaded) = start_session(a, &s)?;
     if let Some(n) = &s.opened.note {
         errln!(
             "{}",
@@ -490,9 +501,13 @@ pub fn run(a: &LiveArgs) -> Result<()> {
         .spawn(queue.clone(), counters.clone(), stop.clone(), warn);
     let result = serve(a, &mut session, (&queue, &counters), (&stop, &recal));
     stop.store(true, Ordering::Relaxed);
+    // A file source waiting for room in the queue is woken (and then sees the stop); a
+    // source blocked in a read is left to the process's end.
+    queue.close();
     if result.is_ok() && thread.is_finished() {
         let _ = thread.join();
     }
+    session.finish()?;
     report(
         a,
         (&s.name, &s.rig),
@@ -539,6 +554,7 @@ pub(crate) fn tui(
     );
     let r = kslab_tui::run_live(&mut session, &queue, &counters, &s.name);
     stop.store(true, Ordering::Relaxed);
+    queue.close();
     if thread.is_finished() {
         let _ = thread.join();
     }
