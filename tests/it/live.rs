@@ -673,7 +673,16 @@ fn the_live_lab_runs_in_tmux_on_a_replay() {
         }
         finish(&capture(), &format!("'{needle}' never appeared"))
     };
-    wait_for("look neutral:");
+    // While the person is told to look neutral, the face is drawn as it is tracked (its
+    // contours in braille), not "no frame yet".
+    let collecting = wait_for("look neutral: 1");
+    let braille = collecting
+        .chars()
+        .filter(|c| ('\u{2801}'..='\u{28FF}').contains(c))
+        .count();
+    if collecting.contains("no frame yet") || braille < 40 {
+        finish(&collecting, "no face drawn while calibrating");
+    }
     let screen = wait_for("calibrated");
     // Weight bars with the rig's names, the rate, the landmarks panel.
     if !(screen.contains("weights") && screen.contains("tracked") && screen.contains(" fps")) {

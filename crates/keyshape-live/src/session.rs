@@ -44,6 +44,10 @@ pub struct Session {
     last_iod: Option<f64>,
     /// What the session did that the terminal should say (a recalibration on a new face).
     notices: Vec<String>,
+    /// The last frame taken (solved or collected), the rig's landmarks of it (x then y).
+    last_taken: Vec<f64>,
+    /// Frames taken so far.
+    taken: u64,
 }
 
 /// A face whose eye-corner distance changes by more than this factor from one frame to the
@@ -73,6 +77,8 @@ impl Session {
             last: None,
             last_iod: None,
             notices: Vec::new(),
+            last_taken: Vec::new(),
+            taken: 0,
         }
     }
 
@@ -118,6 +124,13 @@ impl Session {
         }
     }
 
+    /// The last frame taken — solved, or collected towards the calibration — as the rig's
+    /// landmarks (x then y, image axes), and how many frames have been taken: what a screen
+    /// draws while the person is told to look neutral.
+    pub fn last_taken(&self) -> (&[f64], u64) {
+        (&self.last_taken, self.taken)
+    }
+
     /// What happened that the terminal should say (drained).
     pub fn notices(&mut self) -> Vec<String> {
         std::mem::take(&mut self.notices)
@@ -155,6 +168,8 @@ impl Session {
             .iter()
             .flat_map(|&p| [frame.points[2 * p], frame.points[2 * p + 1]])
             .collect();
+        self.last_taken.clone_from(&chosen);
+        self.taken += 1;
         // Another face: the calibration was the last one's.
         let jump = self.face_jump(&chosen);
         if let Some(why) = frame.new_face.clone().or(jump) {

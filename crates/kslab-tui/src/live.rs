@@ -12,7 +12,7 @@ use ratatui::backend::Backend;
 use ratatui::layout::{Constraint, Layout, Rect};
 use ratatui::style::{Color, Style};
 use ratatui::text::Line;
-use ratatui::widgets::canvas::{Canvas, Points};
+use ratatui::widgets::canvas::{Canvas, Line as CanvasLine, Points};
 use ratatui::widgets::{Block, Paragraph};
 use ratatui::{Frame, Terminal};
 use std::collections::VecDeque;
@@ -34,6 +34,11 @@ pub struct LiveState {
     pub tracked: Vec<[f64; 2]>,
     /// The posed rig's landmarks under the fitted head pose (image x, y).
     pub posed: Vec<[f64; 2]>,
+    /// The face's contours through the tracked landmarks (indices into `tracked`): the
+    /// layout's polylines, as the rig reads them.
+    pub contours: Vec<Vec<usize>>,
+    /// Frames taken when the screen's frame was last made (to make it only anew).
+    pub shown: u64,
     /// Frames solved in the last second.
     pub fps: usize,
     /// Latency p50 and p99 over the recent frames (ms).
@@ -231,8 +236,33 @@ fn draw_face(f: &mut Frame, area: Rect, s: &LiveState) {
                 coords: &posed,
                 color: Color::Yellow,
             });
+            // The tracked face as its contours (a cloud of dots is unreadable at 80 × 24);
+            // points no contour passes through as dots.
+            let mut lone = vec![true; tracked.len()];
+            for line in &s.contours {
+                for w in line.windows(2) {
+                    let (Some(a), Some(b)) = (tracked.get(w[0]), tracked.get(w[1])) else {
+                        continue;
+                    };
+                    lone[w[0]] = false;
+                    lone[w[1]] = false;
+                    ctx.draw(&CanvasLine {
+                        x1: a.0,
+                        y1: a.1,
+                        x2: b.0,
+                        y2: b.1,
+                        color: Color::Cyan,
+                    });
+                }
+            }
+            let dots: Vec<(f64, f64)> = tracked
+                .iter()
+                .zip(&lone)
+                .filter(|(_, l)| **l)
+                .map(|(p, _)| *p)
+                .collect();
             ctx.draw(&Points {
-                coords: &tracked,
+                coords: &dots,
                 color: Color::Cyan,
             });
         });
@@ -309,8 +339,20 @@ fn drain(
     Ok(())
 }
 
-/// The last solved frame's weights, tracked points and posed rig into the screen's state.
+/// The last frame into the screen's state, when a new one was taken: the tracked landmarks
+/// (while calibrating too, so the person sees they are tracked), and once solved its
+/// weights and the posed rig.
 fn show_last(session: &Session, s: &mut LiveState) {
+    let (taken, count) = session.last_taken();
+    if count == s.shown {
+        return;
+    }
+    s.shown = count;
+    if session.solver.calibration().is_none() {
+        s.tracked = taken.chunks_exact(2).map(|p| [p[0], p[1]]).collect();
+        s.posed.clear();
+        return;
+    }
     if let Some((fr, solved)) = &session.last {
         s.weights.clone_from(&solved.weights);
         let rig = session.solver.rig();
@@ -357,6 +399,7 @@ where
             None => Some(session.solver.collected()),
         },
         status: "look neutral".into(),
+        contours: session.solver.rig().polylines(),
         ..LiveState::default()
     };
     let mut window: VecDeque<Instant> = VecDeque::new();
