@@ -85,6 +85,32 @@ fn osf_datagram(time: f64, ibug: &[f64]) -> Vec<u8> {
     b
 }
 
+/// A Live Link receiver keeping each packet's frame number and arrival: the latency from
+/// the sender's side (a packet carries its frame's number; a VMC bundle does not).
+fn livelink_receiver(got: Arc<std::sync::Mutex<Vec<(u32, Instant)>>>) -> Result<u16> {
+    let s = UdpSocket::bind("127.0.0.1:0")?;
+    let port = s.local_addr()?.port();
+    std::thread::spawn(move || {
+        let mut buf = vec![0u8; 65_536];
+        while let Ok(n) = s.recv(&mut buf) {
+            let at = Instant::now();
+            // u8 version, then two length-prefixed strings, then the i32 frame number.
+            let be = |i: usize| {
+                buf.get(i..i + 4)
+                    .map(|b| u32::from_be_bytes([b[0], b[1], b[2], b[3]]))
+            };
+            let frame = be(1).and_then(|a| {
+                let at2 = 5 + a as usize;
+                be(at2).and_then(|b| be(at2 + 4 + b as usize))
+            });
+            if let (Some(f), Ok(mut g)) = (frame.filter(|_| n > 0), got.lock()) {
+                g.push((f, at));
+            }
+        }
+    });
+    Ok(port)
+}
+
 fn receiver(counter: Arc<AtomicU64>) -> Result<u16> {
     let s = UdpSocket::bind("127.0.0.1:0")?;
     let port = s.local_addr()?.port();
@@ -114,8 +140,9 @@ pub fn run(a: &LiveBenchArgs) -> Result<()> {
     let n = (a.seconds * a.fps).round() as usize;
     let progress = crate::cli::progress::Progress::new("bench live: rendering");
     let frames = frames(points, n)?;
-    let (vmc, ll) = (Arc::new(AtomicU64::new(0)), Arc::new(AtomicU64::new(0)));
-    let (vmc_port, ll_port) = (receiver(vmc.clone())?, receiver(ll.clone())?);
+    let vmc = Arc::new(AtomicU64::new(0));
+    let ll = Arc::new(std::sync::Mutex::new(Vec::new()));
+    let (vmc_port, ll_port) = (receiver(vmc.clone())?, livelink_receiver(ll.clone())?);
     let osf_port = UdpSocket::bind("127.0.0.1:0")?.local_addr()?.port();
     let stats = std::env::temp_dir().join(format!("kslab-bench-live-{}.json", std::process::id()));
     let from = if points == 68 {
@@ -142,7 +169,7 @@ pub fn run(a: &LiveBenchArgs) -> Result<()> {
     progress.step("bench live: sending in real time");
     let start = Instant::now();
     let cpu0 = cpu_seconds(pid);
-    send_frames(&frames, a.fps, points, osf_port, &mut stdin, start)?;
+    let sent = send_frames(&frames, a.fps, points, osf_port, &mut stdin, (start, pid))?;
     std::thread::sleep(Duration::from_millis(300));
     let wall = start.elapsed().as_secs_f64();
     let cpu = match (cpu0, cpu_seconds(pid)) {
@@ -172,19 +199,36 @@ pub fn run(a: &LiveBenchArgs) -> Result<()> {
         a.fps,
         wall
     );
-    outln!("| points | fps | frames sent | solved | dropped | VMC bundles | Live Link packets | latency p50 | p99 | worst | CPU |");
-    outln!("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |");
+    // From the sender's side: each frame's sending to its Live Link packet's arrival, the
+    // whole session — the calibration (its lead-in solved at once) and a recalibration
+    // halfway included.
+    let got = ll.lock().map(|g| g.clone()).unwrap_or_default();
+    let mut whole: Vec<f64> = got
+        .iter()
+        .filter_map(|(f, at)| {
+            let s = sent.get(*f as usize)?;
+            Some(at.saturating_duration_since(*s).as_secs_f64() * 1e3)
+        })
+        .collect();
+    whole.sort_by(f64::total_cmp);
+    let q = |p: f64| keyshape_live::session::quantile(&whole, p).unwrap_or(f64::NAN);
+    outln!("| points | fps | frames sent | solved | dropped | VMC bundles | Live Link packets | latency p50 | p99 | worst | from the sender, whole session: p50 | p99 | worst | frames over 8 ms | CPU |");
+    outln!("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |");
     outln!(
-        "| {points} | {} | {} | {} | {} | {} | {} | {:.2} ms | {:.2} ms | {:.2} ms | {} |",
+        "| {points} | {} | {} | {} | {} | {} | {} | {:.2} ms | {:.2} ms | {:.2} ms | {:.2} ms | {:.2} ms | {:.2} ms | {} | {} |",
         a.fps,
         frames.len(),
         num("solved"),
         num("dropped"),
         vmc.load(Ordering::Relaxed),
-        ll.load(Ordering::Relaxed),
+        got.len(),
         lat("p50"),
         lat("p99"),
         lat("worst"),
+        q(0.5),
+        q(0.99),
+        q(1.0),
+        whole.iter().filter(|&&v| v > 8.0).count(),
         cpu.map_or("–".into(), |c| format!("{c:.0} %"))
     );
     Ok(())
@@ -218,23 +262,31 @@ fn start_live(
 }
 
 /// Sends each frame at its time from `start` at `fps`: as an OpenSeeFace datagram to
-/// `osf_port` for 68 points, else as a JSON line on `stdin`.
+/// `osf_port` for 68 points, else as a JSON line on `stdin`; halfway, asks the session
+/// (process `pid`) to recalibrate. Each frame's sending instant.
 fn send_frames(
     frames: &[Vec<f64>],
     fps: f64,
     points: usize,
     osf_port: u16,
     stdin: &mut impl Write,
-    start: Instant,
-) -> Result<()> {
+    (start, pid): (Instant, u32),
+) -> Result<Vec<Instant>> {
     let send = UdpSocket::bind("127.0.0.1:0")?;
     let period = Duration::from_secs_f64(1.0 / fps);
+    let mut sent = Vec::with_capacity(frames.len());
     for (f, v) in frames.iter().enumerate() {
         let due = start + period.mul_f64(f as f64);
         let now = Instant::now();
         if due > now {
             std::thread::sleep(due - now);
         }
+        if f == frames.len() / 2 {
+            let _ = Command::new("kill")
+                .args(["-USR1", &pid.to_string()])
+                .status();
+        }
+        sent.push(Instant::now());
         let t = f as f64 / fps;
         if points == 68 {
             send.send_to(&osf_datagram(t, v), ("127.0.0.1", osf_port))?;
@@ -247,5 +299,5 @@ fn send_frames(
             stdin.flush()?;
         }
     }
-    Ok(())
+    Ok(sent)
 }
