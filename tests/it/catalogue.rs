@@ -164,6 +164,9 @@ const CASES: &[Case] = &[
     Case { name: "rig-accuracy --live --smooth-mode offline", files: &[], args: &["rig-accuracy", "--live", "--smooth-mode", "offline", "--frames", "20", "--out", "{d}/a.csv"], code: 1, needle: "--smooth-mode offline solves each clip with frames still to come", absent: &["a.csv"] },
     Case { name: "rig --live --smooth-mode offline", files: &[], args: &["rig", "--live", "--smooth", "10", "--smooth-mode", "offline", "--out", "{d}/w.csv"], code: 1, needle: "--live is causal: --smooth-mode offline", absent: &["w.csv"] },
     Case { name: "rig: the Live Link file on a device is refused before the weights", files: &[], args: &["rig", "--out", "{d}/r.csv", "--livelink", "/dev/full"], code: 1, needle: "/dev/full: is a device", absent: &["r.csv"] },
+    Case { name: "live --mirror with no avatar sink", files: &[], args: &["live", "--from", "file:{shared}/mediapipe_face_tracks/liveportrait_d6.csv", "--to", "stdout", "--mirror", "--record", "{d}/take"], code: 1, needle: "--mirror applies to the avatar's sinks", absent: &["take"] },
+    Case { name: "live --head-position with no vmc sink", files: &[], args: &["live", "--from", "file:{shared}/mediapipe_face_tracks/liveportrait_d6.csv", "--to", "livelink", "--head-position", "0,0.1,0", "--record", "{d}/take"], code: 1, needle: "--head-position applies to a vmc sink", absent: &["take"] },
+    Case { name: "live --head-position of two numbers", files: &[], args: &["live", "--from", "file:{shared}/mediapipe_face_tracks/liveportrait_d6.csv", "--to", "vmc", "--head-position", "1,2"], code: 2, needle: "is not X,Y,Z", absent: &[] },
     Case { name: "a spec that would be its own report", files: &[("report.json", "title = \"x\"\ninput = \"builtin\"\nmethods = [\"spread\"]\nk = \"2..4\"\n")], args: &["run", "{d}/report.json", "--out", "{d}"], code: 1, needle: "refusing to write: this is the input file", absent: &["curves.csv"] },
 ];
 
