@@ -203,14 +203,7 @@ pub fn run(a: &LiveBenchArgs) -> Result<()> {
     // whole session — the calibration (its lead-in solved at once) and a recalibration
     // halfway included.
     let got = ll.lock().map(|g| g.clone()).unwrap_or_default();
-    let mut whole: Vec<f64> = got
-        .iter()
-        .filter_map(|(f, at)| {
-            let s = sent.get(*f as usize)?;
-            Some(at.saturating_duration_since(*s).as_secs_f64() * 1e3)
-        })
-        .collect();
-    whole.sort_by(f64::total_cmp);
+    let whole = from_sender(&got, &sent);
     let q = |p: f64| keyshape_live::session::quantile(&whole, p).unwrap_or(f64::NAN);
     outln!("| points | fps | frames sent | solved | dropped | VMC bundles | Live Link packets | latency p50 | p99 | worst | from the sender, whole session: p50 | p99 | worst | frames over 8 ms | CPU |");
     outln!("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |");
@@ -232,6 +225,20 @@ pub fn run(a: &LiveBenchArgs) -> Result<()> {
         cpu.map_or("–".into(), |c| format!("{c:.0} %"))
     );
     Ok(())
+}
+
+/// Per Live Link packet received (its frame's number, its arrival), milliseconds from its
+/// frame's sending (`sent`), sorted.
+fn from_sender(got: &[(u32, Instant)], sent: &[Instant]) -> Vec<f64> {
+    let mut whole: Vec<f64> = got
+        .iter()
+        .filter_map(|(f, at)| {
+            let s = sent.get(*f as usize)?;
+            Some(at.saturating_duration_since(*s).as_secs_f64() * 1e3)
+        })
+        .collect();
+    whole.sort_by(f64::total_cmp);
+    whole
 }
 
 /// Starts `kslab live --from FROM --to TO --stats STATS` on one core (as a tracker's
