@@ -355,16 +355,7 @@ fn a_rendered_performance_sent_at_60_fps_comes_out_as_the_offline_causal_solve()
     // yaw) is the avatar facing its own left, −x in Unity; nodding down (positive pitch)
     // is facing −y. Relative to the lead-in, where it looks ahead.
     let lead = st.lead_in;
-    let mut sum = nalgebra::Matrix3::zeros();
-    for cam in &track.cameras[..lead] {
-        sum += cam.r;
-    }
-    let neutral = keyshape_rig::camera::Camera {
-        s: 1.0,
-        r: keyshape_rig::camera::rotation_of(&sum).into_inner(),
-        t: [0.0; 2],
-    }
-    .yaw_pitch_roll();
+    let neutral = keyshape_rig::camera::Camera::mean_pose(&track.cameras[..lead]);
     let truth: Vec<[f64; 3]> = track
         .cameras
         .iter()

@@ -134,13 +134,16 @@ fn pupils_are_in_their_eyes_and_an_untracked_pupil_looks_ahead() {
     );
 }
 
-/// The source over loopback: the captured datagrams arrive as 70-point frames in iBUG
-/// order, the tracker's time kept; a face whose 3-D fit failed is counted as untracked and
-/// not queued; a cut datagram is malformed.
-#[test]
-fn the_source_delivers_captured_datagrams_as_ibug_frames_and_skips_failed_fits() {
-    let bytes = capture("liveportrait_d14.osfcap");
-    let records = capture_records(&bytes).unwrap();
+/// An OpenSeeFace source listening on a free loopback port, its thread running.
+struct Running {
+    to: std::net::SocketAddr,
+    queue: Arc<Queue>,
+    counters: Arc<Counters>,
+    stop: Arc<AtomicBool>,
+    thread: std::thread::JoinHandle<()>,
+}
+
+fn running_source() -> Running {
     let port = UdpSocket::bind("127.0.0.1:0")
         .unwrap()
         .local_addr()
@@ -159,6 +162,29 @@ fn the_source_delivers_captured_datagrams_as_ibug_frames_and_skips_failed_fits()
         stop.clone(),
         Box::new(|_| {}),
     );
+    Running {
+        to,
+        queue,
+        counters,
+        stop,
+        thread,
+    }
+}
+
+/// The source over loopback: the captured datagrams arrive as 70-point frames in iBUG
+/// order, the tracker's time kept; a face whose 3-D fit failed is counted as untracked and
+/// not queued; a cut datagram is malformed.
+#[test]
+fn the_source_delivers_captured_datagrams_as_ibug_frames_and_skips_failed_fits() {
+    let bytes = capture("liveportrait_d14.osfcap");
+    let records = capture_records(&bytes).unwrap();
+    let Running {
+        to,
+        queue,
+        counters,
+        stop,
+        thread,
+    } = running_source();
     let send = UdpSocket::bind("127.0.0.1:0").unwrap();
     let sent = 60;
     for (k, (_, d)) in records.iter().take(sent).enumerate() {
@@ -206,23 +232,13 @@ fn the_source_delivers_captured_datagrams_as_ibug_frames_and_skips_failed_fits()
 fn a_new_sender_or_image_size_begins_a_new_face_and_other_faces_are_counted() {
     let bytes = capture("liveportrait_d11.osfcap");
     let records = capture_records(&bytes).unwrap();
-    let port = UdpSocket::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port();
-    let spec = SourceSpec::parse(&format!("openseeface:127.0.0.1:{port}")).unwrap();
-    let opened = open(&spec, &SourceOptions::default(), Box::new(std::io::empty())).unwrap();
-    let to = opened.address().unwrap();
-    let queue = Arc::new(Queue::new(1024, false));
-    let counters = Arc::new(Counters::default());
-    let stop = Arc::new(AtomicBool::new(false));
-    let thread = opened.spawn(
-        queue.clone(),
-        counters.clone(),
-        stop.clone(),
-        Box::new(|_| {}),
-    );
+    let Running {
+        to,
+        queue,
+        counters,
+        stop,
+        thread,
+    } = running_source();
     let (a, b) = (
         UdpSocket::bind("127.0.0.1:0").unwrap(),
         UdpSocket::bind("127.0.0.1:0").unwrap(),

@@ -88,6 +88,20 @@ impl Camera {
         .yaw_pitch_roll()
     }
 
+    /// The mean head pose of `cameras` (yaw, pitch, roll as [`Camera::yaw_pitch_roll`]):
+    /// the rotation nearest their rotations' sum — a calibration's neutral pose.
+    pub fn mean_pose<'a>(cameras: impl IntoIterator<Item = &'a Camera>) -> [f64; 3] {
+        let sum = cameras
+            .into_iter()
+            .fold(Matrix3::zeros(), |acc, c| acc + c.r);
+        Camera {
+            s: 1.0,
+            r: rotation_of(&sum).into_inner(),
+            t: [0.0; 2],
+        }
+        .yaw_pitch_roll()
+    }
+
     /// A camera from head angles in radians (see [`Camera::yaw_pitch_roll`]).
     pub fn from_angles(s: f64, yaw: f64, pitch: f64, roll: f64, t: [f64; 2]) -> Camera {
         let (sa, ca) = yaw.sin_cos();

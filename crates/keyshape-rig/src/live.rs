@@ -414,16 +414,10 @@ impl LiveSolver {
         let iod = prior_iod(&self.rig, &track, &self.opts, 0..count);
         // The neutral pose: the lead-in's rotations averaged (the nearest rotation to their
         // sum), each the person's neutral fitted to a lead-in frame.
-        let mut sum = nalgebra::Matrix3::zeros();
-        for f in 0..count {
-            sum += fit_camera(&person.neutral, &frame_points(&track, f))?.r;
-        }
-        let head = Camera {
-            s: 1.0,
-            r: super::camera::rotation_of(&sum).into_inner(),
-            t: [0.0; 2],
-        }
-        .yaw_pitch_roll();
+        let cams = (0..count)
+            .map(|f| fit_camera(&person.neutral, &frame_points(&track, f)))
+            .collect::<Result<Vec<Camera>>>()?;
+        let head = Camera::mean_pose(&cams);
         let c = Calibration {
             layout: self.rig.layout,
             points: self.rig.points.clone(),

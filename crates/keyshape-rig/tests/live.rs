@@ -392,16 +392,7 @@ fn the_head_turns_relative_to_the_calibrated_neutral() {
         got.extend(live.push(&col).unwrap());
     }
     // The truth's neutral: the lead-in's true rotations averaged.
-    let mut sum = nalgebra::Matrix3::zeros();
-    for cam in &r.cameras[..st.lead_in] {
-        sum += cam.r;
-    }
-    let mean = keyshape_rig::camera::Camera {
-        s: 1.0,
-        r: keyshape_rig::camera::rotation_of(&sum).into_inner(),
-        t: [0.0; 2],
-    }
-    .yaw_pitch_roll();
+    let mean = keyshape_rig::camera::Camera::mean_pose(&r.cameras[..st.lead_in]);
     let neutral = live.calibration().unwrap().head;
     assert!(
         neutral[1].to_degrees().abs() > 3.0,
