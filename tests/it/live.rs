@@ -66,18 +66,28 @@ fn osf_solved(ibug: &[f64]) -> Vec<f64> {
 
 /// A plain CSV track of 70-point frames (columns of `frames`).
 fn csv70(frames: impl IntoIterator<Item = Vec<f64>>) -> String {
-    let mut csv = String::from("frame");
+    let mut csv = String::from("frame,time_s");
     for i in 0..70 {
         csv += &format!(",x{i},y{i}");
     }
+    for i in 0..70 {
+        csv += &format!(",c{i}");
+    }
     for (f, pts) in frames.into_iter().enumerate() {
-        csv += &format!("\n{f}");
+        csv += &format!("\n{f},{}", f as f64 / OSF_FPS);
         for v in pts {
             csv += &format!(",{v}");
+        }
+        // The confidences `kslab live` reads from `osf_face` (0.9 as f32; the pupils 0).
+        for i in 0..70 {
+            csv += &format!(",{}", if i < 68 { f64::from(0.9f32) } else { 0.0 });
         }
     }
     csv + "\n"
 }
+
+/// The frame rate the tests' OpenSeeFace senders stamp their datagrams with.
+const OSF_FPS: f64 = 60.0;
 
 /// A Live Link Face packet read as the decoders written against the iOS app read it
 /// (PyLiveLinkFace's `decode` and the tools built on it), at fixed offsets: the version as
@@ -201,7 +211,7 @@ fn a_rendered_performance_sent_at_60_fps_comes_out_as_the_offline_causal_solve()
     for f in 0..frames {
         let pts: Vec<f64> = track.points.column(f).iter().copied().collect();
         sent.push(osf_solved(&pts));
-        send.send_to(&osf_face(f as f64 / 60.0, 0, &pts), to)
+        send.send_to(&osf_face(f as f64 / OSF_FPS, 0, &pts), to)
             .unwrap();
         // Malformed datagrams mixed in: short, a face and a bit, a NaN landmark, empty.
         if f % 40 == 7 {
@@ -238,8 +248,27 @@ fn a_rendered_performance_sent_at_60_fps_comes_out_as_the_offline_causal_solve()
     assert!(err.contains("20 malformed"), "5 × 4 bad datagrams: {err}");
     assert!(err.contains(" 0 dropped"), "{err}");
     assert!(err.contains("waiting: no frames for 2 s"), "{err}");
-    assert_eq!(bundles.len(), frames, "one VMC bundle per frame");
-    assert_eq!(packets.len(), frames, "one Live Link packet per frame");
+    // The lead-in's frames (and any that came while its calibration was made) waited for
+    // the calibration: recorded, and of them only the newest sent; every frame after it
+    // is sent as it comes.
+    let skip = frames - bundles.len();
+    let waited: usize = err
+        .split("frames waited for it")
+        .next()
+        .and_then(|s| s.rsplit("; ").next())
+        .and_then(|n| n.trim().parse().ok())
+        .unwrap_or_else(|| panic!("how many frames waited: {err}"));
+    assert!(waited >= 20, "the 20-frame lead-in waited: {err}");
+    assert_eq!(
+        skip,
+        waited - 1,
+        "one VMC bundle per frame but the waiting ones' older"
+    );
+    assert_eq!(
+        packets.len(),
+        bundles.len(),
+        "one Live Link packet per VMC bundle"
+    );
 
     // The offline causal solve of the same frames.
     let file = dir.path().join("sent.csv");
@@ -270,7 +299,8 @@ fn a_rendered_performance_sent_at_60_fps_comes_out_as_the_offline_causal_solve()
     let jaw = rig.names.iter().position(|n| n == "jawOpen").unwrap();
     let mut facing = Vec::new();
     let mut told = Vec::new();
-    for (f, b) in bundles.iter().enumerate() {
+    for (j, b) in bundles.iter().enumerate() {
+        let f = skip + j;
         let rosc::OscPacket::Bundle(b) = b else {
             panic!("a bundle")
         };
@@ -329,7 +359,7 @@ fn a_rendered_performance_sent_at_60_fps_comes_out_as_the_offline_causal_solve()
                 .unwrap()
         };
         assert_eq!(value("JawOpen"), rows[f][jaw] as f32, "frame {f}");
-        let (n, fps, ll) = &packets[f];
+        let (n, fps, ll) = &packets[j];
         assert_eq!(*n as usize, f);
         // The rate the frames came at (sent at 60 a second), not a constant; a busy
         // machine's pauses move one frame's figure a little.
@@ -359,6 +389,7 @@ fn a_rendered_performance_sent_at_60_fps_comes_out_as_the_offline_causal_solve()
     let truth: Vec<[f64; 3]> = track
         .cameras
         .iter()
+        .skip(skip)
         .map(|c| c.relative_to(neutral))
         .collect();
     let side: Vec<f64> = truth.iter().map(|t| -t[0].sin()).collect();
@@ -802,8 +833,8 @@ fn face_follows_one_face_of_several() {
         for f in 0..frames {
             // Face 5 first in the datagram, face 9 second.
             let d = [
-                osf_face(f as f64, 5, &face(5, f)),
-                osf_face(f as f64, 9, &face(9, f)),
+                osf_face(f as f64 / OSF_FPS, 5, &face(5, f)),
+                osf_face(f as f64 / OSF_FPS, 9, &face(9, f)),
             ]
             .concat();
             send.send_to(&d, ("127.0.0.1", port)).unwrap();

@@ -111,6 +111,7 @@ pub(super) fn read(path: &Path, text: &str, dims: usize) -> Result<Sequence> {
         times: all_some(&times).then(|| times.iter().flatten().copied().collect()),
         segments: (!segments.is_empty() && segments.iter().all(Option::is_some))
             .then(|| segments.into_iter().flatten().collect()),
+        confidence: None,
         failed,
         notes: Vec::new(),
     })

@@ -107,6 +107,7 @@ fn build(source: &Path, points: usize, shapes: Vec<f64>, n: usize) -> Sequence {
         frames: (0..n as i64).collect(),
         times: None,
         segments: None,
+        confidence: None,
         failed: Vec::new(),
         notes: Vec::new(),
     }

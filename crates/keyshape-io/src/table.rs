@@ -17,6 +17,8 @@ struct Columns {
     frame: Option<&'static str>,
     time: Option<&'static str>,
     segment: Option<&'static str>,
+    /// The per-point confidence column prefix (`c`: `c0, c1, …`), where the format has one.
+    confidence: Option<&'static str>,
 }
 
 fn columns(format: Format, dims: usize) -> Columns {
@@ -27,6 +29,7 @@ fn columns(format: Format, dims: usize) -> Columns {
             frame: Some("frame"),
             time: Some("time_s"),
             segment: None,
+            confidence: None,
         },
         // OpenFace: 2-D pixels in x_/y_, 3-D millimetres (camera frame) in X_/Y_/Z_.
         Format::Openface => Columns {
@@ -39,6 +42,7 @@ fn columns(format: Format, dims: usize) -> Columns {
             frame: Some("frame"),
             time: Some("timestamp"),
             segment: None,
+            confidence: None,
         },
         // py-feat frames count within a clip, so frames are numbered by row instead.
         Format::Pyfeat => Columns {
@@ -47,6 +51,7 @@ fn columns(format: Format, dims: usize) -> Columns {
             frame: None,
             time: None,
             segment: Some("clip"),
+            confidence: None,
         },
         _ => Columns {
             axes: ["x", "y", "z"],
@@ -54,6 +59,7 @@ fn columns(format: Format, dims: usize) -> Columns {
             frame: Some("frame"),
             time: Some("time_s"),
             segment: None,
+            confidence: Some("c"),
         },
     }
 }
@@ -72,6 +78,9 @@ pub struct Row<'a> {
     pub time: Option<f64>,
     /// The clip label, for formats with one.
     pub segment: Option<&'a str>,
+    /// Per point, the tracker's confidence (empty for a file without confidences or a
+    /// failed frame).
+    pub confidence: &'a [f64],
 }
 
 /// Frame numbers seen so far, kept as runs of consecutive frames on consecutive lines: a
@@ -131,8 +140,10 @@ pub struct TableRows<R: std::io::Read> {
     frame_col: Option<usize>,
     time_col: Option<usize>,
     seg_col: Option<usize>,
+    conf_cols: Option<Vec<usize>>,
     record: csv::StringRecord,
     coords: Vec<f64>,
+    conf: Vec<f64>,
     row: i64,
     seen: SeenFrames,
     dims: usize,
@@ -181,6 +192,10 @@ impl<R: std::io::Read> TableRows<R> {
             }
         }
         let coord_cols = coordinate_columns(path, &index, &cols, dims, format)?;
+        let conf_cols = match cols.confidence {
+            Some(prefix) => confidence_columns(path, &index, prefix, coord_cols.len() / dims)?,
+            None => None,
+        };
         let find = |name: Option<&str>| name.and_then(|n| index.get(n).copied());
         let (valid_col, frame_col) = (find(cols.valid), find(cols.frame));
         let (time_col, seg_col) = (find(cols.time), find(cols.segment));
@@ -192,9 +207,11 @@ impl<R: std::io::Read> TableRows<R> {
             frame_col,
             time_col,
             seg_col,
+            conf_cols,
             header,
             record: csv::StringRecord::new(),
             coords: Vec::new(),
+            conf: Vec::new(),
             row: 0,
             seen: SeenFrames::default(),
             dims,
@@ -215,6 +232,11 @@ impl<R: std::io::Read> TableRows<R> {
     /// Whether rows carry a time stamp.
     pub fn has_time(&self) -> bool {
         self.time_col.is_some()
+    }
+
+    /// Whether rows carry per-point confidences.
+    pub fn has_confidence(&self) -> bool {
+        self.conf_cols.is_some()
     }
 
     /// Whether rows carry a clip label.
@@ -297,11 +319,24 @@ impl<R: std::io::Read> TableRows<R> {
                 None => true,
             };
             self.coords.clear();
+            self.conf.clear();
             let mut time = None;
             if tracked {
                 for &c in &self.coord_cols {
                     self.coords
                         .push(parse_num(path, line, c, &header[c], &record[c])?);
+                }
+                for &c in self.conf_cols.iter().flatten() {
+                    let v = parse_num(path, line, c, &header[c], &record[c])?;
+                    if !(v.is_finite() && v >= 0.0) {
+                        return Err(Error::parse(
+                            path,
+                            line,
+                            c as u64 + 1,
+                            format!("'{}' is {v}: a confidence is finite and ≥ 0", header[c]),
+                        ));
+                    }
+                    self.conf.push(v);
                 }
                 if let Some(c) = self.time_col {
                     time = Some(parse_num(path, line, c, &header[c], &record[c])?);
@@ -314,6 +349,7 @@ impl<R: std::io::Read> TableRows<R> {
                 coords: &self.coords,
                 time,
                 segment: self.seg_col.map(|c| &self.record[c]),
+                confidence: &self.conf,
             }));
         }
     }
@@ -350,8 +386,9 @@ pub(super) fn read_rows<R: std::io::Read>(
     let room = usize::try_from(bytes / 2 + 1).unwrap_or(usize::MAX);
     let mut data = Vec::with_capacity(lines.saturating_mul(width).min(room));
     let (mut frames, mut failed) = (Vec::with_capacity(lines), Vec::new());
-    let (mut times, mut segments) = (Vec::new(), Vec::new());
+    let (mut times, mut segments, mut conf) = (Vec::new(), Vec::new(), Vec::new());
     let (has_time, has_segments) = (rows.has_time(), rows.has_segments());
+    let has_confidence = rows.has_confidence();
     while let Some(r) = rows.next_row()? {
         if !r.tracked {
             failed.push(r.frame);
@@ -365,6 +402,7 @@ pub(super) fn read_rows<R: std::io::Read>(
         if let Some(s) = r.segment {
             segments.push(s.to_string());
         }
+        conf.extend_from_slice(r.confidence);
     }
     let points = rows.points();
     let n = frames.len();
@@ -377,6 +415,7 @@ pub(super) fn read_rows<R: std::io::Read>(
         frames,
         times: has_time.then_some(times),
         segments: has_segments.then_some(segments),
+        confidence: has_confidence.then(|| DMatrix::from_vec(points, n, conf)),
         failed,
         notes: rows
             .cut_row()
@@ -473,6 +512,54 @@ fn coordinate_columns(
         ));
     }
     Ok(out)
+}
+
+/// The confidence columns `<prefix>0 … <prefix>(points − 1)` in point order, or None when
+/// the header has none; a partial set (a gap, a column past the last point) is refused.
+fn confidence_columns(
+    path: &Path,
+    index: &HashMap<&str, usize>,
+    prefix: &str,
+    points: usize,
+) -> Result<Option<Vec<usize>>> {
+    let numbered = |name: &str| {
+        name.strip_prefix(prefix)
+            .filter(|n| !n.is_empty() && n.bytes().all(|b| b.is_ascii_digit()))
+            .map(|n| n.parse::<usize>().unwrap_or(usize::MAX))
+    };
+    let mut found: Vec<(usize, usize)> = index
+        .iter()
+        .filter_map(|(name, &c)| numbered(name).map(|p| (p, c)))
+        .collect();
+    if found.is_empty() {
+        return Ok(None);
+    }
+    found.sort();
+    if let Some(&(p, c)) = found
+        .iter()
+        .enumerate()
+        .find_map(|(i, pc)| (pc.0 != i).then_some(pc))
+    {
+        let missing = (0..points)
+            .find(|i| !found.iter().any(|f| f.0 == *i))
+            .unwrap_or(points);
+        return Err(Error::parse(
+            path,
+            1,
+            c as u64 + 1,
+            format!("header has '{prefix}{p}' but no '{prefix}{missing}': confidence columns run without gaps from {prefix}0, one per point"),
+        ));
+    }
+    if found.len() != points {
+        let (p, c) = found.last().copied().unwrap_or((0, 0));
+        return Err(Error::parse(
+            path,
+            1,
+            c as u64 + 1,
+            format!("header has confidences {prefix}0..{prefix}{p} for {points} points: one confidence column per point"),
+        ));
+    }
+    Ok(Some(found.into_iter().map(|(_, c)| c).collect()))
 }
 
 /// A csv error at `line` (None: the line the csv crate counted).

@@ -77,6 +77,9 @@ pub struct Frame {
     pub time: f64,
     /// x then y of each of the layout's points (image pixels, y down).
     pub points: Vec<f64>,
+    /// Per point, the tracker's confidence in it, when the source says (OpenSeeFace, a
+    /// take recorded from it).
+    pub confidence: Option<Vec<f64>>,
     /// When it was received (for the latency).
     pub arrived: Instant,
     /// The source saw another face begin with this frame — a tracker restarted (a new
@@ -257,6 +260,7 @@ mod tests {
             number: n,
             time: n as f64,
             points: Vec::new(),
+            confidence: None,
             arrived: Instant::now(),
             new_face: None,
         }

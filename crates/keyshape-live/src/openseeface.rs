@@ -101,6 +101,28 @@ impl Face {
     }
 }
 
+impl Face {
+    /// The tracker's confidence in each of [`Face::ibug70`]'s points: OpenSeeFace's own,
+    /// put in iBUG order; iBUG 48 and 54 take their stand-ins' (60, 64); a pupil
+    /// [`Face::ibug70`] put at its eye's centre has 0 (not seen: the solve leaves it out).
+    pub fn confidence70(&self) -> Vec<f64> {
+        let mut out = vec![0.0; IBUG70_POINTS];
+        for (i, &to) in OPENSEEFACE_TO_IBUG70.iter().enumerate() {
+            out[to] = f64::from(self.confidence.get(i).copied().unwrap_or(0.0));
+        }
+        for (missing, from) in OPENSEEFACE_UNTRACKED {
+            out[missing] = out[from];
+        }
+        let (_, untracked) = self.ibug70();
+        for (side, &u) in untracked.iter().enumerate() {
+            if u {
+                out[68 + side] = 0.0;
+            }
+        }
+        out
+    }
+}
+
 /// Why a datagram was skipped.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Malformed {

@@ -1,23 +1,34 @@
 //! One live session: frames from the queue through the causal solve to the sinks and the
 //! recording, with the calibration and the latency kept.
 
-use super::sink::{Recorder, Sinks};
+use super::sink::{RecordedCalibration, Recorder, Sinks};
 use super::Frame;
 use keyshape_core::error::{Error, Result};
-use keyshape_rig::live::{Calibration, LiveFrame, LiveSolver};
+use keyshape_rig::live::{
+    Calibration, CalibrationDone, CalibrationEvent, LiveFrame, LiveSolver, Observation,
+};
+use std::collections::VecDeque;
 use std::path::PathBuf;
 use std::time::Instant;
 
 /// What a frame did.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Step {
-    /// Collected towards the calibration (frames so far, frames needed).
+    /// Collected towards the calibration (frames so far, frames needed); during a
+    /// recalibration the frame was also solved with the old calibration and sent.
     Collecting(usize, usize),
-    /// The calibration completed: the lead-in's frames were solved and sent.
+    /// A calibration was taken into use; this many frames waited for it and were solved and
+    /// sent (the lead-in and the frames held while it was made, or none: a recalibration
+    /// solves with the old calibration meanwhile).
     Calibrated(usize),
     /// Solved and sent.
     Solved,
 }
+
+/// Frames the solve took and has not yet solved, kept while they wait (the lead-in, the
+/// frames held while the calibration is made) and their numbers a while longer, so a
+/// calibration's lead-in can be named in the take.
+const NUMBERS_KEPT: usize = 4096;
 
 /// The session.
 pub struct Session {
@@ -27,8 +38,16 @@ pub struct Session {
     recorder: Option<Recorder>,
     /// Where a new calibration is saved (JSON), if anywhere.
     pub save_calibration: Option<PathBuf>,
-    /// The lead-in's frames, waiting for the calibration.
-    waiting: Vec<Frame>,
+    /// The frames taken and not yet solved, by the solver's frame index.
+    waiting: VecDeque<(u64, Frame)>,
+    /// The frame numbers of the last frames taken, by index.
+    numbers: VecDeque<(u64, i64)>,
+    /// The next frame's index (the solver's count of frames taken).
+    next_index: u64,
+    /// The calibration being made on another thread.
+    job: Option<std::thread::JoinHandle<CalibrationDone>>,
+    /// Calibrations taken into use whose first frame is not yet recorded.
+    events: Vec<CalibrationEvent>,
     /// Per frame solved on arrival, milliseconds from its arrival to its sending (the
     /// whole session's distribution and the last frames', in bounded memory).
     pub latencies: super::latency::Latencies,
@@ -57,20 +76,26 @@ pub const FACE_JUMP: f64 = 1.6;
 impl Session {
     /// A session solving with `solver` into `sinks`, recording into `recorder`; `select`
     /// names, per rig landmark, the source point it reads (the recording keeps every point
-    /// of the source).
+    /// of the source). Calibrations are made on a thread of their own, so frames keep
+    /// flowing meanwhile.
     pub fn new(
-        solver: LiveSolver,
+        mut solver: LiveSolver,
         sinks: Sinks,
         recorder: Option<Recorder>,
         select: Vec<usize>,
     ) -> Session {
-        Session {
+        solver.set_background(true);
+        let mut s = Session {
             select,
             solver,
             sinks,
             recorder,
             save_calibration: None,
-            waiting: Vec::new(),
+            waiting: VecDeque::new(),
+            numbers: VecDeque::new(),
+            next_index: 0,
+            job: None,
+            events: Vec::new(),
             latencies: super::latency::Latencies::new(),
             solved: 0,
             refused: 0,
@@ -79,7 +104,9 @@ impl Session {
             notices: Vec::new(),
             last_taken: Vec::new(),
             taken: 0,
-        }
+        };
+        s.events = s.solver.take_events();
+        s
     }
 
     /// Per rig landmark, the source point it reads.
@@ -103,21 +130,37 @@ impl Session {
         self.sinks.send_errors
     }
 
-    /// The next frames are the person's neutral again.
+    /// The next frames are the person's neutral again; the calibration in use solves them
+    /// meanwhile (the avatar keeps moving).
     pub fn recalibrate(&mut self) {
-        self.solver.recalibrate();
+        self.restart(true);
+    }
+
+    /// A new calibration: `same_face` keeps solving with the old one meanwhile.
+    fn restart(&mut self, same_face: bool) {
+        self.solver.recalibrate(same_face);
+        self.job = None;
         self.waiting.clear();
     }
 
     /// Uses a saved calibration.
     pub fn set_calibration(&mut self, c: Calibration) -> Result<()> {
         self.solver.set_calibration(c)?;
+        self.job = None;
         self.waiting.clear();
+        self.events.extend(self.solver.take_events());
         Ok(())
     }
 
-    /// Ends the session: a recording that holds no frame is removed (nothing was taken).
+    /// Ends the session: waits for a calibration being made (its frames are sent and
+    /// recorded); a recording that holds no frame is removed (nothing was taken).
     pub fn finish(&mut self) -> Result<()> {
+        if let Some(h) = self.job.take() {
+            let done = h
+                .join()
+                .map_err(|_| Error::invalid("live: the calibration's thread panicked"))?;
+            self.install(done)?;
+        }
         match self.recorder.take() {
             Some(r) if self.solved == 0 => r.remove(),
             _ => Ok(()),
@@ -148,102 +191,191 @@ impl Session {
         })
     }
 
+    /// Collecting (a lead-in, or a recalibration's while the old calibration solves), or
+    /// solved.
+    fn step_now(&self) -> Step {
+        if self.solver.calibrating() {
+            let (have, need) = self.solver.collected();
+            Step::Collecting(have, need)
+        } else {
+            Step::Solved
+        }
+    }
+
+    /// Takes a calibration made on its thread into use, when it is ready: its waiting
+    /// frames solved, sent and recorded. Call it between frames too (a session idle on
+    /// its source). `Some(frames sent)` when one was taken into use.
+    pub fn poll(&mut self) -> Result<Option<usize>> {
+        if let Some(job) = self.solver.take_job() {
+            self.job = Some(std::thread::spawn(move || job.run()));
+        }
+        if !self.job.as_ref().is_some_and(|h| h.is_finished()) {
+            return Ok(None);
+        }
+        let Some(h) = self.job.take() else {
+            return Ok(None);
+        };
+        let done = h
+            .join()
+            .map_err(|_| Error::invalid("live: the calibration's thread panicked"))?;
+        self.install(done)
+    }
+
+    /// Takes a finished calibration into use (see [`Session::poll`]).
+    fn install(&mut self, done: CalibrationDone) -> Result<Option<usize>> {
+        let out = self.solver.install(done);
+        let calibrated = self.solver.take_events();
+        if calibrated.is_empty() {
+            return Ok(None); // the lead-in slid on (or the job was stale)
+        }
+        let n = out.len();
+        self.events.extend(calibrated);
+        self.emit(out)?;
+        if let (Some(p), Some(c)) = (&self.save_calibration, self.solver.calibration()) {
+            let c = c.clone();
+            keyshape_io::write_atomic(p, |w| {
+                serde_json::to_writer_pretty(&mut *w, &c).map_err(std::io::Error::other)?;
+                w.write_all(b"\n")
+            })?;
+        }
+        Ok(Some(n))
+    }
+
     /// Takes one frame. A frame the solve refuses is counted in `refused` and changes
     /// nothing; an error is a sink or the recording that failed (the session ends).
     pub fn take(&mut self, frame: Frame) -> Result<Step> {
+        let done = self.poll()?;
         // A frame too short for the rig's points (the source guarantees its layout, so
         // only a library caller's mistake) is refused like a degenerate one.
         if self.select.iter().any(|&p| 2 * p + 1 >= frame.points.len()) {
             self.refused += 1;
-            return Ok(match self.solver.calibration() {
-                Some(_) => Step::Solved,
-                None => {
-                    let (have, need) = self.solver.collected();
-                    Step::Collecting(have, need)
-                }
-            });
+            return Ok(self.step_now());
         }
         let chosen: Vec<f64> = self
             .select
             .iter()
             .flat_map(|&p| [frame.points[2 * p], frame.points[2 * p + 1]])
             .collect();
+        let confidence = frame.confidence.as_ref().and_then(|c| {
+            self.select
+                .iter()
+                .map(|&p| c.get(p).copied())
+                .collect::<Option<Vec<f64>>>()
+        });
         self.last_taken.clone_from(&chosen);
         self.taken += 1;
         // Another face: the calibration was the last one's.
         let jump = self.face_jump(&chosen);
         if let Some(why) = frame.new_face.clone().or(jump) {
-            let had = self.solver.calibration().is_some() || !self.waiting.is_empty();
-            if had {
-                self.recalibrate();
+            if self.solver.calibration().is_some()
+                || self.solver.calibrating() && self.next_index > 0
+            {
+                self.restart(false);
                 let (_, need) = self.solver.collected();
                 self.notices.push(format!(
                     "{why}: recalibrating on the next {need} frames (look neutral)"
                 ));
             }
         }
-        let was_calibrated = self.solver.calibration().is_some();
-        let solved = match self.solver.push(&chosen) {
+        let obs = Observation {
+            points: chosen,
+            confidence,
+            time: Some(frame.time),
+        };
+        let out = match self.solver.push_observed(obs) {
             Ok(v) => v,
             Err(_) => {
                 // Refused: the solver's state is as it was.
                 self.refused += 1;
-                if was_calibrated {
-                    return Ok(Step::Solved);
-                }
-                let (have, need) = self.solver.collected();
-                return Ok(Step::Collecting(have, need));
+                return Ok(self.step_now());
             }
         };
-        if solved.is_empty() {
-            // Collected; a lead-in the calibration could not use slid on by its oldest
-            // frame, which leaves here too.
-            self.waiting.push(frame);
-            let (have, need) = self.solver.collected();
-            let drop = self.waiting.len().saturating_sub(have);
-            self.waiting.drain(..drop);
-            return Ok(Step::Collecting(have, need));
+        let index = self.next_index;
+        self.next_index += 1;
+        self.numbers.push_back((index, frame.number));
+        if self.numbers.len() > NUMBERS_KEPT {
+            self.numbers.pop_front();
         }
-        let calibrated = !was_calibrated;
-        let mut frames = std::mem::take(&mut self.waiting);
-        frames.push(frame);
-        if frames.len() != solved.len() {
-            return Err(Error::invalid(format!(
-                "live: {} frames solved for {} taken",
-                solved.len(),
-                frames.len()
-            )));
-        }
-        if calibrated {
-            if let (Some(p), Some(c)) = (&self.save_calibration, self.solver.calibration()) {
-                let c = c.clone();
-                keyshape_io::write_atomic(p, |w| {
-                    serde_json::to_writer_pretty(&mut *w, &c).map_err(std::io::Error::other)?;
-                    w.write_all(b"\n")
-                })?;
+        self.waiting.push_back((index, frame));
+        self.events.extend(self.solver.take_events());
+        self.emit(out)?;
+        let later = self.poll()?;
+        Ok(match done.or(later) {
+            Some(k) => Step::Calibrated(k),
+            None => self.step_now(),
+        })
+    }
+
+    /// The frame number of frame index `i`, while it is kept.
+    fn number_of(&self, i: u64) -> Option<i64> {
+        self.numbers.iter().find(|(j, _)| *j == i).map(|(_, n)| *n)
+    }
+
+    /// Records the solved frames `out` (their inputs waiting here), each calibration
+    /// recorded before the first frame it solves, and sends the newest: frames that waited
+    /// for a calibration are recorded, not sent in a burst (a receiver shows the newest).
+    fn emit(&mut self, out: Vec<LiveFrame>) -> Result<()> {
+        let newest = out.len().saturating_sub(1);
+        for (k, s) in out.into_iter().enumerate() {
+            // Frames before it that were never solved (a lead-in that slid on) leave.
+            while self.waiting.front().is_some_and(|(i, _)| *i < s.index) {
+                self.waiting.pop_front();
             }
-        }
-        let n = solved.len();
-        for (f, s) in frames.into_iter().zip(solved) {
+            let Some((_, f)) = self.waiting.pop_front() else {
+                return Err(Error::invalid(format!(
+                    "live: frame index {} solved but not taken",
+                    s.index
+                )));
+            };
+            self.record_events(s.index, f.number)?;
             let head = s.head;
             self.sinks
-                .send(f.number, &s.weights, head, f.arrived)
+                .send(f.number, (&s.weights, head), f.arrived, k == newest)
                 .map_err(|e| Error::io("standard output", e))?;
-            if let Some(r) = &mut self.recorder {
-                r.record(f.number, f.time, &f.points, &s.weights, head)?;
-            }
-            if !calibrated {
+            if k == newest {
                 self.latencies
                     .record(Instant::now().duration_since(f.arrived).as_secs_f64() * 1e3);
+            }
+            if let Some(r) = &mut self.recorder {
+                r.record(
+                    f.number,
+                    f.time,
+                    (&f.points, f.confidence.as_deref()),
+                    &s.weights,
+                    head,
+                )?;
             }
             self.solved += 1;
             self.last = Some((f, s));
         }
-        Ok(if calibrated {
-            Step::Calibrated(n)
-        } else {
-            Step::Solved
-        })
+        Ok(())
+    }
+
+    /// Records the calibrations that take effect by frame index `i` (number `number`).
+    fn record_events(&mut self, i: u64, number: i64) -> Result<()> {
+        let due: Vec<CalibrationEvent> = {
+            let (now, later): (Vec<_>, Vec<_>) = std::mem::take(&mut self.events)
+                .into_iter()
+                .partition(|e| e.from <= i);
+            self.events = later;
+            now
+        };
+        for e in due {
+            let lead_in = e.lead_in.map(|[a, b]| {
+                [
+                    self.number_of(a).unwrap_or(number),
+                    self.number_of(b).unwrap_or(number),
+                ]
+            });
+            if let Some(r) = &mut self.recorder {
+                r.calibration(&RecordedCalibration {
+                    from: number,
+                    lead_in,
+                    calibration: e.calibration,
+                })?;
+            }
+        }
+        Ok(())
     }
 }
 

@@ -228,21 +228,22 @@ impl Sinks {
         &self.device
     }
 
-    /// Sends one solved frame, which arrived at `arrived`, to every sink. Only standard
-    /// output can fail (a reader that went away); the network's refusals are counted in
-    /// `send_errors`.
+    /// Sends one solved frame, which arrived at `arrived`, to every sink; a frame that is
+    /// not the `newest` (one of several that waited for a calibration) goes to standard
+    /// output only, as an avatar shows the newest pose. Only standard output can fail (a
+    /// reader that went away); the network's refusals are counted in `send_errors`.
     pub fn send(
         &mut self,
         number: i64,
-        w: &[f64],
-        head: [f64; 3],
+        (w, head): (&[f64], [f64; 3]),
         arrived: std::time::Instant,
+        newest: bool,
     ) -> std::io::Result<()> {
         if self.arrivals.len() == RATE_WINDOW {
             self.arrivals.pop_front();
         }
         self.arrivals.push_back(arrived);
-        if let Some(udp) = &self.udp {
+        if let Some(udp) = self.udp.as_ref().filter(|_| newest) {
             let mirror = self.options.mirror;
             // The reflection: each shape takes its twin's value, the turn and tilt flip.
             let mirrored: Vec<f64>;
@@ -287,6 +288,19 @@ impl Sinks {
     }
 }
 
+/// A calibration as a take records it: the frame numbers of the first frame solved with
+/// it and of its lead-in (None: a saved calibration), and the calibration.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RecordedCalibration {
+    /// The first frame (its number in the take) solved with it.
+    pub from: i64,
+    /// The first and last frame of its lead-in.
+    pub lead_in: Option<[i64; 2]>,
+    /// The calibration.
+    pub calibration: keyshape_rig::live::Calibration,
+}
+
 /// A take written as it happens: `track.csv` (the input, as solved: `frame,time_s,x0,y0,…`
 /// in image pixels, which the readers read back), `weights.csv` (as `kslab rig` writes it)
 /// and `livelink.csv` (Live Link Face CSV). Each line is flushed as it is written, so the
@@ -303,15 +317,29 @@ pub struct Recorder {
     lengths: [u64; 3],
     /// Whether the folder was made for this take (not an empty one given).
     made_dir: bool,
+    /// `calibrations.jsonl`, made with the first calibration.
+    calibrations: Option<std::fs::File>,
+    /// The track keeps each point's confidence.
+    confidence: bool,
 }
 
 impl Recorder {
     /// The recording's files.
     pub const FILES: [&'static str; 3] = ["track.csv", "weights.csv", "livelink.csv"];
 
+    /// Each calibration taken into use, one JSON object a line
+    /// ([`RecordedCalibration`]): what `kslab rig --live --calibrations` replays.
+    pub const CALIBRATIONS: &'static str = "calibrations.jsonl";
+
     /// Makes `dir` (it must not exist, or be an empty folder: a recording never replaces a
-    /// file) and writes each file's header; `layout` points per frame.
-    pub fn create(dir: &Path, rig: &Rig, layout: usize, fps: f64) -> Result<Recorder> {
+    /// file) and writes each file's header; `layout` points per frame, with the tracker's
+    /// confidence in each (`c0, c1, …` after the points) when `confidence`.
+    pub fn create(
+        dir: &Path,
+        rig: &Rig,
+        (layout, confidence): (usize, bool),
+        fps: f64,
+    ) -> Result<Recorder> {
         let mut made_dir = false;
         match std::fs::read_dir(dir) {
             Ok(mut entries) => {
@@ -343,10 +371,13 @@ impl Recorder {
             t0: None,
             lengths: [0; 3],
             made_dir,
+            calibrations: None,
+            confidence,
         };
         let track_header = ["frame".to_string(), "time_s".to_string()]
             .into_iter()
-            .chain((0..layout).flat_map(|i| [format!("x{i}"), format!("y{i}")]));
+            .chain((0..layout).flat_map(|i| [format!("x{i}"), format!("y{i}")]))
+            .chain((0..if confidence { layout } else { 0 }).map(|i| format!("c{i}")));
         let io = |e| Error::io(dir, e);
         let headers = [
             csv_line(track_header).map_err(io)?,
@@ -360,6 +391,10 @@ impl Recorder {
     /// Removes the take's files (and its folder, when it was made for the take): a session
     /// that ended before its first frame leaves things as they were.
     pub fn remove(self) -> Result<()> {
+        if self.calibrations.is_some() {
+            let p = self.dir.join(Self::CALIBRATIONS);
+            std::fs::remove_file(&p).map_err(|e| Error::io(&p, e))?;
+        }
         for name in Self::FILES {
             let p = self.dir.join(name);
             std::fs::remove_file(&p).map_err(|e| Error::io(&p, e))?;
@@ -402,12 +437,36 @@ impl Recorder {
         Ok(())
     }
 
-    /// Records one solved frame: its input `points`, weights `w` and head angles.
+    /// Records a calibration taken into use (a line of [`Recorder::CALIBRATIONS`]).
+    pub fn calibration(&mut self, c: &RecordedCalibration) -> Result<()> {
+        let p = self.dir.join(Self::CALIBRATIONS);
+        if self.calibrations.is_none() {
+            let f = std::fs::OpenOptions::new()
+                .append(true)
+                .create_new(true)
+                .open(&p)
+                .map_err(|e| Error::io(&p, e))?;
+            self.calibrations = Some(f);
+        }
+        let mut line =
+            serde_json::to_vec(c).map_err(|e| Error::io(&p, std::io::Error::other(e)))?;
+        line.push(b'\n');
+        let f = self
+            .calibrations
+            .as_mut()
+            .ok_or_else(|| Error::invalid("no calibrations file"))?;
+        f.write_all(&line)
+            .and_then(|()| f.flush())
+            .map_err(|e| Error::io(&p, e))
+    }
+
+    /// Records one solved frame: its input `points` (and the tracker's confidence in
+    /// each, when the take keeps them), weights `w` and head angles.
     pub fn record(
         &mut self,
         number: i64,
         time: f64,
-        points: &[f64],
+        (points, confidence): (&[f64], Option<&[f64]>),
         w: &[f64],
         head: [f64; 3],
     ) -> Result<()> {
@@ -415,7 +474,16 @@ impl Recorder {
         let track = csv_line(
             [number.to_string(), format!("{time}")]
                 .into_iter()
-                .chain(points.iter().map(|v| format!("{v}"))),
+                .chain(points.iter().map(|v| format!("{v}")))
+                .chain(
+                    // A frame without confidences in a take that keeps them: every point seen.
+                    (0..if self.confidence { points.len() / 2 } else { 0 }).map(|i| {
+                        format!(
+                            "{}",
+                            confidence.and_then(|c| c.get(i)).copied().unwrap_or(1.0)
+                        )
+                    }),
+                ),
         )
         .map_err(io)?;
         let weights = weights_line(number, w).map_err(io)?;
@@ -470,11 +538,12 @@ mod tests {
         let (_, _, rig) = keyshape_rig::correspondence::read_rig(&shared, 68, None).unwrap();
         let dir = tempfile::tempdir().unwrap();
         let take = dir.path().join("take");
-        let mut r = Recorder::create(&take, &rig, 68, 30.0).unwrap();
+        let mut r = Recorder::create(&take, &rig, (68, false), 30.0).unwrap();
         let points: Vec<f64> = (0..136).map(|i| 100.0 + i as f64).collect();
         let w = vec![0.25; rig.k()];
         for f in 0..3 {
-            r.record(f, f as f64 / 30.0, &points, &w, [0.0; 3]).unwrap();
+            r.record(f, f as f64 / 30.0, (&points, None), &w, [0.0; 3])
+                .unwrap();
         }
         let whole: Vec<Vec<u8>> = Recorder::FILES
             .iter()
@@ -485,7 +554,7 @@ mod tests {
             .write(true)
             .open("/dev/full")
             .unwrap();
-        let e = r.record(3, 0.1, &points, &w, [0.0; 3]).unwrap_err();
+        let e = r.record(3, 0.1, (&points, None), &w, [0.0; 3]).unwrap_err();
         assert!(e.to_string().contains("weights.csv"), "{e}");
         for (f, before) in Recorder::FILES.iter().zip(&whole) {
             assert_eq!(&std::fs::read(take.join(f)).unwrap(), before, "{f}");

@@ -26,7 +26,7 @@ fn vmc_frame(
     recv.set_read_timeout(Some(Duration::from_secs(5))).unwrap();
     let spec = SinkSpec::Vmc(recv.local_addr().unwrap());
     let mut sinks = Sinks::open(&[spec], &rig(), Box::new(std::io::sink()), 30.0, options).unwrap();
-    sinks.send(0, w, head, Instant::now()).unwrap();
+    sinks.send(0, (w, head), Instant::now(), true).unwrap();
     let mut buf = vec![0u8; 65_536];
     let n = recv.recv(&mut buf).unwrap();
     let rosc::OscPacket::Bundle(b) = rosc::decoder::decode_udp(&buf[..n]).unwrap().1 else {

@@ -169,7 +169,7 @@ fn recalibrating_starts_a_new_lead_in() {
         n += live.push(&col).unwrap().len();
     }
     assert_eq!(n, 25);
-    live.recalibrate();
+    live.recalibrate(false);
     assert!(live.calibration().is_none());
     assert_eq!(live.collected(), (0, 10));
     for c in 25..34 {

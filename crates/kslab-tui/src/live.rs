@@ -294,6 +294,16 @@ fn draw_bars(f: &mut Frame, area: Rect, s: &LiveState) {
     f.render_widget(Paragraph::new(lines), inner);
 }
 
+/// The screen told a calibration was taken into use.
+fn calibrated(session: &Session, s: &mut LiveState) {
+    s.collecting = None;
+    let n = session.solver.calibration().map_or(0, |c| c.frames);
+    s.status = match session.calibration_warning() {
+        Some(w) => format!("calibrated on {n} frames, not neutral: {w} (n: again)"),
+        None => format!("calibrated on {n} frames"),
+    };
+}
+
 /// Solves every frame waiting in `queue`, in order (the newest is what is drawn), noting
 /// each arrival in `window` and `last_frame`, and the source's end once in the status.
 fn drain(
@@ -310,15 +320,7 @@ fn drain(
                 *last_frame = Instant::now();
                 match session.take(fr)? {
                     Step::Collecting(have, need) => s.collecting = Some((have, need)),
-                    Step::Calibrated(n) => {
-                        s.collecting = None;
-                        s.status = match session.calibration_warning() {
-                            Some(w) => {
-                                format!("calibrated on {n} frames, not neutral: {w} (n: again)")
-                            }
-                            None => format!("calibrated on {n} frames"),
-                        };
-                    }
+                    Step::Calibrated(_) => calibrated(session, s),
                     Step::Solved => s.collecting = None,
                 }
                 if let Some(n) = session.notices().pop() {
@@ -415,6 +417,10 @@ where
             &mut last_frame,
             &mut ended,
         )?;
+        // A calibration made on its thread while no frame came.
+        if session.poll()?.is_some() {
+            calibrated(session, &mut s);
+        }
         while window
             .front()
             .is_some_and(|t| t.elapsed() > Duration::from_secs(1))

@@ -286,7 +286,12 @@ fn start_session(a: &LiveArgs, s: &Setup) -> Result<(Session, bool)> {
     };
     let sinks = Sinks::open(&s.sinks, &s.rig, Box::new(std::io::stdout()), fps, options)?;
     let recorder = match &a.record {
-        Some(d) => Some(Recorder::create(d, &s.rig, s.opened.layout, fps)?),
+        Some(d) => Some(Recorder::create(
+            d,
+            &s.rig,
+            (s.opened.layout, s.opened.confidence),
+            fps,
+        )?),
         None => None,
     };
     let mut session = Session::new(solver, sinks, recorder, s.select.clone());
@@ -383,6 +388,29 @@ impl Terminal {
     }
 }
 
+/// Says a calibration was taken into use (after `n` frames waited for it), where it was
+/// saved, and what looked wrong with its lead-in.
+fn say_calibrated(a: &LiveArgs, session: &Session, t: &Terminal, n: usize) {
+    let saved = a
+        .neutral_file
+        .as_ref()
+        .filter(|_| session.save_calibration.is_some())
+        .map_or(String::new(), |p| format!(" (saved to {})", p.display()));
+    let lead = session.solver.calibration().map_or(0, |c| c.frames);
+    errln!(
+        "{}calibrated on {lead} frames{saved}{}",
+        t.line(),
+        if n > 1 {
+            format!("; {n} frames waited for it (recorded; the newest sent)")
+        } else {
+            String::new()
+        }
+    );
+    if let Some(w) = session.calibration_warning() {
+        errln!("warning: the lead-in does not look neutral: {w}; the avatar reads the difference as expression: recalibrate looking ahead, relaxed, lips together (n in the lab, kill -USR1 {}, or a line `calibrate` on standard input)", std::process::id());
+    }
+}
+
 /// Takes frames from `queue` through `session` until the source ends or `stop` is set.
 fn serve(
     a: &LiveArgs,
@@ -410,6 +438,9 @@ fn serve(
         match queue.pop(Duration::from_millis(100)) {
             Popped::Closed => return Ok(()),
             Popped::Idle => {
+                if let Some(n) = session.poll()? {
+                    say_calibrated(a, session, &t, n);
+                }
                 if t.last_frame.elapsed() > Duration::from_secs(2) && !t.idle_said {
                     errln!(
                         "{}waiting: no frames for {:.0} s",
@@ -423,17 +454,7 @@ fn serve(
                 t.last_frame = Instant::now();
                 t.idle_said = false;
                 match session.take(f)? {
-                    Step::Calibrated(n) => {
-                        let saved = a
-                            .neutral_file
-                            .as_ref()
-                            .filter(|_| session.save_calibration.is_some())
-                            .map_or(String::new(), |p| format!(" (saved to {})", p.display()));
-                        errln!("{}calibrated on {n} frames{saved}", t.line());
-                        if let Some(w) = session.calibration_warning() {
-                            errln!("warning: the lead-in does not look neutral: {w}; the avatar reads the difference as expression: recalibrate looking ahead, relaxed, lips together (n in the lab, kill -USR1 {}, or a line `calibrate` on standard input)", std::process::id());
-                        }
-                    }
+                    Step::Calibrated(n) => say_calibrated(a, session, &t, n),
                     Step::Collecting(..) => {
                         if let Some(why) = session.lead_in_failure() {
                             if let Some(m) = t.lead_in.say(&format!(

@@ -3,6 +3,7 @@
 
 mod output;
 mod summary;
+mod take;
 mod temporal;
 pub(crate) use temporal::{smooth_of, Temporal};
 
@@ -151,6 +152,12 @@ pub struct RigArgs {
     /// frame pulled towards the last, is on as in `kslab live` (--smooth sets its λ).
     #[arg(long)]
     live: bool,
+    /// With --live: the calibrations a `kslab live --record` take kept
+    /// (TAKE/calibrations.jsonl), each taken into use at the frame it was — a take
+    /// recalibrated during the session replays to the weights it gave live. Without it the
+    /// one calibration is the --neutral lead-in.
+    #[arg(long, value_name = "FILE")]
+    pub(crate) calibrations: Option<PathBuf>,
     /// Temporal prior λ (≥ 0, squared image units per unit weight²; not across clips), in
     /// --smooth-mode: offline, each clip's weights minimise the frames' squared landmark
     /// errors plus λ Σ_t ‖w_t − w_{t−1}‖² (the whole clip at once, zero phase, with each
@@ -221,16 +228,20 @@ pub fn run(a: &RigArgs) -> Result<()> {
     let opts = options_of(a, &seq)?;
     let neutral = opts.neutral;
     let (per_clip, clips) = clips_of(a, &seq, &name, neutral)?;
+    let events = take::events(a, &seq, neutral)?;
     progress.step("rig: solving");
-    let (rig, r, refined) = solve(
-        &rig,
-        (&mesh, &morph),
-        &seq,
-        &clips,
-        &opts,
-        refinement,
-        &progress,
-    )?;
+    let (rig, r, refined) = match events {
+        Some(events) => (rig.clone(), take::replay(&rig, &seq, &opts, &events)?, None),
+        None => solve(
+            &rig,
+            (&mesh, &morph),
+            &seq,
+            &clips,
+            &opts,
+            refinement,
+            &progress,
+        )?,
+    };
     if let (Some(p), Some((pairs, _, _))) = (&a.save_landmarks, &refined) {
         output::save_landmarks(p, pairs)?;
     }

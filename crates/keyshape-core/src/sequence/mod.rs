@@ -110,12 +110,21 @@ pub struct Sequence {
     pub times: Option<Vec<f64>>,
     /// Segment id of each valid frame (py-feat `clip`), when the file has one.
     pub segments: Option<Vec<String>>,
+    /// The tracker's confidence in each point of each valid frame (points × frames), when
+    /// the file has it (a `kslab live` take from OpenSeeFace: columns `c0, c1, …`). A
+    /// confidence is finite and ≥ 0; below [`MIN_CONFIDENCE`] the point is not seen.
+    pub confidence: Option<DMatrix<f64>>,
     /// Frame numbers of the frames the tracker failed on (left out of `coords`).
     pub failed: Vec<i64>,
     /// What the reader has to say about the file that is no error, for the user to read
     /// (a take whose last row was cut short, read up to the frame before it).
     pub notes: Vec<String>,
 }
+
+/// The confidence below which a tracker's point is not seen: left out of the solve (its
+/// weight 0) rather than weighed. OpenSeeFace's own receivers draw a point from 0.20 on
+/// (`facetracker.py`'s pupil rule, the Unity `OpenSeeShowPoints` default).
+pub const MIN_CONFIDENCE: f64 = 0.2;
 
 /// The message for a degenerate frame, the same from every path (see [`degenerate_shape`]):
 /// points that coincide, or points whose spread is lost next to their distance from the
@@ -313,6 +322,30 @@ impl Sequence {
                 "{src}: side tables do not match frames"
             )));
         }
+        if let Some(c) = &self.confidence {
+            if c.nrows() != self.points || c.ncols() != n {
+                return Err(Error::invalid(format!(
+                    "{src}: the confidences are {} × {}, not points × frames {} × {n}",
+                    c.nrows(),
+                    c.ncols(),
+                    self.points
+                )));
+            }
+            if let Some((i, v)) = c
+                .iter()
+                .enumerate()
+                .find(|(_, v)| !(v.is_finite() && **v >= 0.0))
+            {
+                return Err(Error::file(
+                    src,
+                    format!(
+                        "confidence {v} at frame {} point {}: a confidence is finite and ≥ 0",
+                        self.frames[i / self.points],
+                        i % self.points
+                    ),
+                ));
+            }
+        }
         if let Some((i, v)) = self
             .coords
             .iter()
@@ -346,6 +379,7 @@ impl Sequence {
             frames: self.frames.clone(),
             times: self.times.clone(),
             segments: self.segments.clone(),
+            confidence: self.confidence.clone(),
             failed: self.failed.clone(),
             notes: self.notes.clone(),
         }
@@ -410,6 +444,7 @@ impl Sequence {
             frames: self.frames.clone(),
             times: self.times.clone(),
             segments: self.segments.clone(),
+            confidence: self.confidence.as_ref().map(|c| c.select_rows(indices)),
             failed: self.failed.clone(),
             notes: self.notes.clone(),
         })

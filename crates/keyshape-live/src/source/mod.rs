@@ -87,7 +87,7 @@ enum Reader {
     OpenSeeFace(UdpSocket),
     Table(Box<keyshape_io::table::TableRows<Box<dyn Read + Send>>>),
     JsonLines(Box<dyn BufRead + Send>, String),
-    File(keyshape_core::sequence::Sequence, f64),
+    File(Box<keyshape_core::sequence::Sequence>, f64),
 }
 
 /// An opened source.
@@ -103,6 +103,9 @@ pub struct Opened {
     pub note: Option<String>,
     /// The source's own frame rate, when it has one (a file with time stamps).
     pub fps: Option<f64>,
+    /// Its frames carry the tracker's confidence in each point (OpenSeeFace, a take
+    /// recorded from it).
+    pub confidence: bool,
     options: SourceOptions,
 }
 
@@ -149,6 +152,7 @@ pub fn open(
                 blocking: false,
                 note: None,
                 fps: None,
+                confidence: true,
                 options,
             })
         }
@@ -178,8 +182,9 @@ fn open_file(path: &Path, options: SourceOptions) -> Result<Opened> {
     let rate = options.rate.or(seq.fps()).unwrap_or(30.0);
     Ok(Opened {
         fps: seq.fps(),
+        confidence: seq.confidence.is_some(),
         layout: seq.points,
-        reader: Reader::File(seq, rate),
+        reader: Reader::File(Box::new(seq), rate),
         name: path.display().to_string(),
         blocking: true,
         note,
@@ -253,6 +258,7 @@ fn open_stdin(mut stdin: Box<dyn BufRead + Send>, options: SourceOptions) -> Res
             blocking: false,
             note,
             fps: None,
+            confidence: false,
             options,
         });
     }
@@ -290,6 +296,7 @@ fn open_stdin(mut stdin: Box<dyn BufRead + Send>, options: SourceOptions) -> Res
         Box::new(std::io::Cursor::new(format!("{first}{row}").into_bytes()).chain(stdin));
     let rows = keyshape_io::table::TableRows::new(at, head, format, 2)?;
     Ok(Opened {
+        confidence: rows.has_confidence(),
         layout: rows.points(),
         reader: Reader::Table(Box::new(rows)),
         name: "stdin".into(),
@@ -346,6 +353,18 @@ impl Opened {
     }
 }
 
+/// What is wrong with a frame's per-point confidences, if anything: one per point, each
+/// finite and ≥ 0.
+fn confidence_problem(c: &[f64], points: usize) -> Option<String> {
+    if c.len() != points {
+        return Some(format!("{} confidences for {points} points", c.len()));
+    }
+    c.iter()
+        .enumerate()
+        .find(|(_, v)| !(v.is_finite() && **v >= 0.0))
+        .map(|(i, v)| format!("point {i}'s confidence is {v}: a confidence is finite and ≥ 0"))
+}
+
 struct Run<'a> {
     queue: &'a Queue,
     counters: &'a Counters,
@@ -383,7 +402,13 @@ impl Run<'_> {
     /// value is out of range: every source's frames pass this one check, the bound the
     /// file readers keep ([`keyshape_core::sequence::coord_problem`]) and a time that a
     /// clock can show ([`frame_problem`]). Whether the frame was queued.
-    fn deliver(&mut self, number: i64, time: f64, mut points: Vec<f64>, arrived: Instant) -> bool {
+    fn deliver(
+        &mut self,
+        number: i64,
+        time: f64,
+        (mut points, confidence): (Vec<f64>, Option<Vec<f64>>),
+        arrived: Instant,
+    ) -> bool {
         let new_face = self.new_face.take();
         if let Some((w, h)) = self.options.image_size {
             for p in points.chunks_mut(2) {
@@ -391,7 +416,11 @@ impl Run<'_> {
                 p[1] *= h;
             }
         }
-        if let Some(why) = frame_problem(time, &points) {
+        if let Some(why) = frame_problem(time, &points).or_else(|| {
+            confidence
+                .as_deref()
+                .and_then(|c| confidence_problem(c, points.len() / 2))
+        }) {
             self.malformed(&format!("frame {number}: {why}"));
             return false;
         }
@@ -401,6 +430,7 @@ impl Run<'_> {
                 number,
                 time,
                 points,
+                confidence,
                 arrived,
                 new_face,
             },
@@ -467,9 +497,10 @@ impl Run<'_> {
                         let (points, pupils) = f.ibug70();
                         if pupils.iter().any(|&u| u) && !said_pupils {
                             said_pupils = true;
-                            (self.warn)("openseeface: a pupil was not tracked (confidence below 0.2 or the eye nearly closed; all frames with --gaze-tracking 0): it is put at its eye's centre, looking ahead".into());
+                            (self.warn)("openseeface: a pupil was not tracked (confidence below 0.2 or the eye nearly closed; all frames with --gaze-tracking 0): it is left out of the solve (the eyes look ahead) and drawn at its eye's centre".into());
                         }
-                        if self.deliver(n, f.time, points, arrived) {
+                        let confidence = Some(f.confidence70());
+                        if self.deliver(n, f.time, (points, confidence), arrived) {
                             n += 1;
                         }
                     }
@@ -496,7 +527,8 @@ impl Run<'_> {
                     }
                     let (number, time, coords) = (r.frame, r.time, r.coords.to_vec());
                     let time = time.unwrap_or(self.start.elapsed().as_secs_f64());
-                    self.deliver(number, time, coords, arrived);
+                    let confidence = (!r.confidence.is_empty()).then(|| r.confidence.to_vec());
+                    self.deliver(number, time, (coords, confidence), arrived);
                 }
                 Err(e) => {
                     self.malformed(&format!("skipped a line: {e}"));
@@ -525,7 +557,7 @@ impl Run<'_> {
                 Ok(text) => match json_points(text) {
                     Ok((t, pts)) if pts.len() == 2 * self.layout => {
                         let t = t.unwrap_or(self.start.elapsed().as_secs_f64());
-                        if self.deliver(n, t, pts, arrived) {
+                        if self.deliver(n, t, (pts, None), arrived) {
                             n += 1;
                         }
                     }
@@ -583,6 +615,10 @@ impl Run<'_> {
                     number: seq.frames[c],
                     time,
                     points,
+                    confidence: seq
+                        .confidence
+                        .as_ref()
+                        .map(|m| m.column(c).iter().copied().collect()),
                     arrived: Instant::now(),
                     new_face: None,
                 },

@@ -188,6 +188,7 @@ fn clip_of(seq: &Sequence, clip: &str) -> Sequence {
             .as_ref()
             .map(|t| cols.iter().map(|&c| t[c]).collect()),
         segments: Some(vec![clip.to_string(); cols.len()]),
+        confidence: seq.confidence.as_ref().map(|c| c.select_columns(&cols)),
         failed: Vec::new(),
         notes: Vec::new(),
     }
