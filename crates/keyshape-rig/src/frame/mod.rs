@@ -2,27 +2,18 @@
 //! solver state carried from frame to frame (camera and weights by Gauss–Newton with the camera's
 //! Schur complement, the weights under their bounds and priors).
 
-use super::camera::{fit_camera, Camera};
+use super::camera::Camera;
 use super::{Rig, TAPER_STEPS, TAPER_TOLERANCE};
 use keyshape_core::error::Result;
 use keyshape_core::solve::active_set::{self, Bound, Gram, Workspace};
 use keyshape_core::solve::chol::solve_spd;
 use keyshape_core::solve::Solver;
 mod blocks;
+mod seen;
 mod step;
 use step::{camera_rows, pull_back, schur_complement};
 
 pub(super) use blocks::{frame_depth, frame_points, Blocks};
-
-/// A landmark's weight for the tracker's confidence `c` in it: `c`, or 0 below
-/// [`MIN_CONFIDENCE`](keyshape_core::sequence::MIN_CONFIDENCE) (not seen).
-pub(crate) fn confidence_weight(c: f64) -> f64 {
-    if c >= keyshape_core::sequence::MIN_CONFIDENCE {
-        c
-    } else {
-        0.0
-    }
-}
 
 /// One frame's solver state, reused from frame to frame (the warm start).
 pub(super) struct FrameSolver<'a> {
@@ -101,60 +92,6 @@ impl<'a> FrameSolver<'a> {
             posed_at: std::cell::RefCell::new(None),
             taper: vec![false; m],
         }
-    }
-
-    /// Weighs the next frames' landmarks by the tracker's confidence in them (`None`: every
-    /// landmark at its own weight): each landmark's weight times its confidence over the
-    /// frame's mean confidence, a landmark
-    /// below [`MIN_CONFIDENCE`](keyshape_core::sequence::MIN_CONFIDENCE) left out (weight
-    /// 0). The Gram blocks are made anew only when the weights change.
-    pub(super) fn set_confidence(&mut self, conf: Option<&[f64]>) {
-        let lw: Vec<f64> = match conf {
-            None => self.base_lw.clone(),
-            Some(c) => {
-                // Relative to the frame's mean over the landmarks seen: the confidences
-                // weigh the landmarks against each other, not the landmarks against the
-                // priors (a tracker that is 0.8 sure of every point is no vaguer a face).
-                let seen: Vec<f64> = c.iter().map(|&c| confidence_weight(c)).collect();
-                let k = seen.iter().filter(|&&v| v > 0.0).count();
-                let mean = seen.iter().sum::<f64>() / k.max(1) as f64;
-                self.base_lw
-                    .iter()
-                    .zip(&seen)
-                    .map(|(w, &v)| if v > 0.0 { w * (v / mean) } else { 0.0 })
-                    .collect()
-            }
-        };
-        let same = lw.len() == self.blocks.lw.len()
-            && lw
-                .iter()
-                .zip(&self.blocks.lw)
-                .all(|(a, b)| a.to_bits() == b.to_bits());
-        if !same {
-            let sub: Vec<Vec<[f64; 3]>> = self
-                .free
-                .iter()
-                .map(|&s| self.rig.deltas[s].clone())
-                .collect();
-            self.blocks = Blocks::new(&sub, &lw);
-        }
-    }
-
-    /// Drops the warm start: the next frame is solved as the first of a clip (weights from
-    /// 0, the camera fitted anew, no last weights for the temporal prior).
-    pub(super) fn restart(&mut self) {
-        let m = self.free.len();
-        self.w = vec![0.0; m];
-        self.state = vec![Bound::Lower; m];
-        self.ws = Workspace::new(m);
-        self.cam = None;
-        self.prev = None;
-    }
-
-    /// The landmarks the solve sees (weight above 0): all of them unless a frame's
-    /// confidences left some out.
-    pub(super) fn seen(&self) -> usize {
-        self.blocks.lw.iter().filter(|&&w| w > 0.0).count()
     }
 
     /// The depth rows' weight: `depth_weight` with depth, 0 without.
@@ -462,19 +399,6 @@ impl<'a> FrameSolver<'a> {
         }
         self.cam = Some(cam);
         Ok((it, ok, self.sq_error(&cam, u)))
-    }
-
-    /// The camera the steps start from: the posed rig fitted to the landmarks the solve
-    /// sees (all of them, unless a frame's confidences left some out).
-    fn first_camera(&self, u: &[[f64; 2]]) -> Result<Camera> {
-        let posed = self.posed_now();
-        if self.blocks.lw.iter().all(|&w| w > 0.0) {
-            return fit_camera(&posed, u);
-        }
-        let seen = |i: &usize| self.blocks.lw[*i] > 0.0;
-        let x: Vec<[f64; 3]> = (0..posed.len()).filter(seen).map(|i| posed[i]).collect();
-        let v: Vec<[f64; 2]> = (0..u.len()).filter(seen).map(|i| u[i]).collect();
-        fit_camera(&x, &v)
     }
 
     /// [`FrameSolver::solve`]'s Gauss–Newton steps, under the plain magnitude prior:
