@@ -37,8 +37,8 @@ pub struct LiveState {
     /// The face's contours through the tracked landmarks (indices into `tracked`): the
     /// layout's polylines, as the rig reads them.
     pub contours: Vec<Vec<usize>>,
-    /// Frames taken when the screen's frame was last made (to make it only anew).
-    pub shown: u64,
+    /// Frames taken and solved when the screen's frame was last made (to make it only anew).
+    pub shown: (u64, u64),
     /// Frames solved in the last second.
     pub fps: usize,
     /// Latency p50 and p99 over the recent frames (ms).
@@ -346,10 +346,11 @@ fn drain(
 /// weights and the posed rig.
 fn show_last(session: &Session, s: &mut LiveState) {
     let (taken, count) = session.last_taken();
-    if count == s.shown {
+    // A frame taken, or frames solved since (a calibration made between frames).
+    if (count, session.solved) == s.shown {
         return;
     }
-    s.shown = count;
+    s.shown = (count, session.solved);
     if session.solver.calibration().is_none() {
         s.tracked = taken.chunks_exact(2).map(|p| [p[0], p[1]]).collect();
         s.posed.clear();
