@@ -489,6 +489,11 @@ impl Running {
         }
     }
 
+    /// Sends `sig` and goes on running (SIGUSR1: recalibrate).
+    pub(crate) fn signal(&self, sig: i32) {
+        unsafe_free_kill(self.child.id(), sig);
+    }
+
     /// Sends `sig`, waits for the end: (exit code, standard output, standard error).
     pub(crate) fn stop(mut self, sig: i32) -> (Option<i32>, String, String) {
         unsafe_free_kill(self.child.id(), sig);

@@ -158,6 +158,76 @@ fn a_restarted_tracker_is_a_new_calibration() {
     );
 }
 
+/// A take recalibrated twice during the session — on request (SIGUSR1: the old calibration
+/// solves meanwhile, the avatar keeps moving) and on a restarted tracker (another face: its
+/// frames wait) — keeps each calibration (`calibrations.jsonl`), and replays through them
+/// to what was sent live, byte for byte.
+#[test]
+fn a_recalibrated_take_replays_through_its_calibrations() {
+    let bytes = std::fs::read(shared("openseeface_captures/liveportrait_d11.osfcap")).unwrap();
+    let records = capture_records(&bytes).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let take = dir.path().join("take");
+    let port = free_udp_port();
+    let live = Running::start(
+        Command::new(env!("CARGO_BIN_EXE_kslab"))
+            .args(["live", "--from", &format!("openseeface:127.0.0.1:{port}")])
+            .args([
+                "--to",
+                "stdout",
+                "--queue",
+                "1024",
+                "--calibrate",
+                "10",
+                "--record",
+            ])
+            .arg(&take)
+            .stdin(Stdio::null()),
+        true,
+    );
+    let (a, b) = (
+        UdpSocket::bind("127.0.0.1:0").unwrap(),
+        UdpSocket::bind("127.0.0.1:0").unwrap(),
+    );
+    for (k, (_, d)) in records.iter().take(150).enumerate() {
+        if k == 50 {
+            live.signal(libc::SIGUSR1);
+        }
+        let from = if k < 100 { &a } else { &b };
+        from.send_to(d, ("127.0.0.1", port)).unwrap();
+        std::thread::sleep(Duration::from_millis(15));
+    }
+    std::thread::sleep(Duration::from_millis(500));
+    let (code, out, err) = live.stop(libc::SIGINT);
+    assert_eq!(code, Some(0), "{err}");
+    assert_eq!(err.matches("calibrated on 10 frames").count(), 3, "{err}");
+    let cals = std::fs::read_to_string(take.join("calibrations.jsonl")).unwrap();
+    assert_eq!(cals.lines().count(), 3, "{cals}");
+    let track = take.join("track.csv");
+    let header = std::fs::read_to_string(&track).unwrap();
+    assert!(
+        header.lines().next().unwrap().ends_with(",c68,c69"),
+        "the take keeps the tracker's confidences"
+    );
+    let replay = kslab(&[
+        "rig",
+        track.to_str().unwrap(),
+        "--live",
+        "--calibrations",
+        take.join("calibrations.jsonl").to_str().unwrap(),
+    ]);
+    assert_eq!(replay.code, 0, "{}", replay.stderr);
+    assert_eq!(
+        replay.stdout, out,
+        "the replay through the take's calibrations"
+    );
+    // Without them the take is one calibration's, and the frames after the first
+    // recalibration differ.
+    let once = kslab(&["rig", track.to_str().unwrap(), "--live", "--neutral", "0-9"]);
+    assert_eq!(once.code, 0, "{}", once.stderr);
+    assert_ne!(once.stdout, out);
+}
+
 /// A session stopped before its first frame leaves no take behind (the folder it made is
 /// removed), and exits 0; a second Ctrl-C would end one that does not stop (exit 130).
 #[test]

@@ -362,3 +362,58 @@ fn a_byte_order_mark_is_read_past_by_every_reader() {
         assert_eq!((seq.points, seq.coords[(3, 0)]), (2, 4.0), "{name}");
     }
 }
+
+/// A plain CSV's per-point confidences (`c0, c1, …`, as a `kslab live` take from
+/// OpenSeeFace keeps them) are read per frame and follow a point selection; a partial set
+/// or a confidence that is no confidence is refused at its line and column.
+#[test]
+fn confidence_columns_are_read_whole_or_refused_where_they_break() {
+    let d = tempfile::tempdir().unwrap();
+    let opts = ReadOptions {
+        format: None,
+        dims: 2,
+    };
+    let p = d.path().join("take.csv");
+    std::fs::write(
+        &p,
+        "frame,time_s,x0,y0,x1,y1,x2,y2,c0,c1,c2\n0,0,0,0,10,0,0,10,0.9,0.5,0\n1,0.04,0,0,10,0,0,11,1,0.25,0.75\n",
+    )
+    .unwrap();
+    let s = read_sequence(&p, &opts).unwrap();
+    let c = s.confidence.as_ref().unwrap();
+    assert_eq!((c.nrows(), c.ncols()), (3, 2));
+    assert_eq!(c.column(1).as_slice(), [1.0, 0.25, 0.75]);
+    let picked = s.select_points(&[2, 0]).unwrap();
+    assert_eq!(picked.confidence.unwrap().column(0).as_slice(), [0.0, 0.9]);
+    for (name, text, want) in [
+        (
+            "gap.csv",
+            "frame,x0,y0,x1,y1,c0,c2\n0,0,0,10,10,1,1\n",
+            "gap.csv:1:7: header has 'c2' but no 'c1'",
+        ),
+        (
+            "short.csv",
+            "frame,x0,y0,x1,y1,x2,y2,c0,c1\n0,0,0,10,0,0,10,1,1\n",
+            "short.csv:1:9: header has confidences c0..c1 for 3 points",
+        ),
+        (
+            "negative.csv",
+            "frame,x0,y0,x1,y1,c0,c1\n0,0,0,10,10,1,1\n1,0,0,10,10,1,-0.5\n",
+            "negative.csv:3:7: 'c1' is -0.5: a confidence is finite and ≥ 0",
+        ),
+        (
+            "nan.csv",
+            "frame,x0,y0,x1,y1,c0,c1\n0,0,0,10,10,NaN,1\n",
+            "nan.csv:2:6",
+        ),
+    ] {
+        let p = d.path().join(name);
+        std::fs::write(&p, text).unwrap();
+        let e = read_sequence(&p, &opts).unwrap_err().to_string();
+        assert!(e.contains(want), "{e} (want {want})");
+    }
+    // A file without them has none.
+    assert!(read("mediapipe_face_tracks/liveportrait_d18.csv", 2)
+        .confidence
+        .is_none());
+}
