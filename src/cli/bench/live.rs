@@ -200,8 +200,8 @@ pub fn run(a: &LiveBenchArgs) -> Result<()> {
         wall
     );
     // From the sender's side: each frame's sending to its Live Link packet's arrival, the
-    // whole session — the calibration (its lead-in solved at once) and a recalibration
-    // halfway included.
+    // whole session — the calibration (made on its own thread, the frames that waited for
+    // it recorded and only the newest sent) and a recalibration halfway included.
     let got = ll.lock().map(|g| g.clone()).unwrap_or_default();
     let whole = from_sender(&got, &sent);
     let q = |p: f64| keyshape_live::session::quantile(&whole, p).unwrap_or(f64::NAN);
