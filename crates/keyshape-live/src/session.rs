@@ -25,6 +25,20 @@ pub enum Step {
     Solved,
 }
 
+/// What [`Session::serve`] did.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Served {
+    /// A frame was taken.
+    Took(Step),
+    /// No frame came, but a calibration made meanwhile was taken into use (this many
+    /// frames had waited for it).
+    Calibrated(usize),
+    /// No frame came within the wait.
+    Idle,
+    /// The source has ended and every frame was taken.
+    Closed,
+}
+
 /// Frames the solve took and has not yet solved, kept while they wait (the lead-in, the
 /// frames held while the calibration is made) and their numbers a while longer, so a
 /// calibration's lead-in can be named in the take.
@@ -33,11 +47,11 @@ const NUMBERS_KEPT: usize = 4096;
 /// The session.
 pub struct Session {
     /// The solve.
-    pub solver: LiveSolver,
+    solver: LiveSolver,
     sinks: Sinks,
     recorder: Option<Recorder>,
     /// Where a new calibration is saved (JSON), if anywhere.
-    pub save_calibration: Option<PathBuf>,
+    save_calibration: Option<PathBuf>,
     /// The frames taken and not yet solved, by the solver's frame index.
     waiting: VecDeque<(u64, Frame)>,
     /// The frame numbers of the last frames taken, by index.
@@ -48,15 +62,17 @@ pub struct Session {
     job: Option<std::thread::JoinHandle<CalibrationDone>>,
     /// Calibrations taken into use whose first frame is not yet recorded.
     events: Vec<CalibrationEvent>,
-    /// Per frame solved on arrival, milliseconds from its arrival to its sending (the
+    /// Per frame sent, milliseconds from its arrival to its hand-off to the sinks (the
     /// whole session's distribution and the last frames', in bounded memory).
-    pub latencies: super::latency::Latencies,
+    latencies: super::latency::Latencies,
     /// Frames solved and sent.
-    pub solved: u64,
+    solved: u64,
     /// Frames the solve refused (a degenerate frame).
-    pub refused: u64,
+    refused: u64,
     /// The last frame solved, with its input.
-    pub last: Option<(Frame, LiveFrame)>,
+    last: Option<(Frame, LiveFrame)>,
+    /// When the frames of the last second were taken (the rate), and the last one.
+    window: VecDeque<Instant>,
     /// Per rig landmark, the source point it reads.
     select: Vec<usize>,
     /// The last frame's eye-corner distance (source units), to see another face begin.
@@ -100,6 +116,7 @@ impl Session {
             solved: 0,
             refused: 0,
             last: None,
+            window: VecDeque::new(),
             last_iod: None,
             notices: Vec::new(),
             last_taken: Vec::new(),
@@ -112,6 +129,82 @@ impl Session {
     /// Per rig landmark, the source point it reads.
     pub fn selection(&self) -> &[usize] {
         &self.select
+    }
+
+    /// The solve (its rig, calibration, λ).
+    pub fn solver(&self) -> &LiveSolver {
+        &self.solver
+    }
+
+    /// The causal temporal prior's λ from now on (see [`LiveSolver::set_smooth`]).
+    pub fn set_smooth(&mut self, lambda: f64) -> Result<()> {
+        self.solver.set_smooth(lambda)
+    }
+
+    /// Saves each calibration made from now on to `path` (JSON, written whole).
+    pub fn save_calibrations_to(&mut self, path: Option<PathBuf>) {
+        self.save_calibration = path;
+    }
+
+    /// Where calibrations are saved, if anywhere.
+    pub fn saves_calibrations_to(&self) -> Option<&std::path::Path> {
+        self.save_calibration.as_deref()
+    }
+
+    /// The latencies from arrival to the sinks' hand-off (milliseconds).
+    pub fn latencies(&self) -> &super::latency::Latencies {
+        &self.latencies
+    }
+
+    /// The last frames' latency (milliseconds, arrival to the sinks): p50 and p99.
+    pub fn recent_latency(&self) -> (Option<f64>, Option<f64>) {
+        let recent: Vec<f64> = self.latencies.recent().iter().copied().collect();
+        (quantile(&recent, 0.5), quantile(&recent, 0.99))
+    }
+
+    /// Frames solved and sent.
+    pub fn solved(&self) -> u64 {
+        self.solved
+    }
+
+    /// Frames the solve refused.
+    pub fn refused(&self) -> u64 {
+        self.refused
+    }
+
+    /// The last frame solved, with its input.
+    pub fn last(&self) -> Option<&(Frame, LiveFrame)> {
+        self.last.as_ref()
+    }
+
+    /// Frames taken in the last second.
+    pub fn rate(&mut self) -> usize {
+        while self
+            .window
+            .front()
+            .is_some_and(|t| t.elapsed() > std::time::Duration::from_secs(1))
+        {
+            self.window.pop_front();
+        }
+        self.window.len()
+    }
+
+    /// Takes the next frame from `queue` (waiting up to `wait` for one) through the
+    /// session; while none comes, a calibration made meanwhile is taken into use. What the
+    /// command line and the lab both run, a call at a time.
+    pub fn serve(&mut self, queue: &super::Queue, wait: std::time::Duration) -> Result<Served> {
+        Ok(match queue.pop(wait) {
+            super::Popped::Closed => Served::Closed,
+            super::Popped::Idle => match self.poll()? {
+                Some(n) => Served::Calibrated(n),
+                None => Served::Idle,
+            },
+            super::Popped::Frame(f) => {
+                let step = self.take(f)?;
+                self.window.push_back(Instant::now());
+                Served::Took(step)
+            }
+        })
     }
 
     /// What looked wrong with the lead-in of the calibration in use (the head turned, the
@@ -127,7 +220,12 @@ impl Session {
 
     /// Datagrams the network would not take.
     pub fn send_errors(&self) -> u64 {
-        self.sinks.send_errors
+        self.sinks.refused()
+    }
+
+    /// Frames a sink missed because it was behind (its hand-off full).
+    pub fn sinks_behind(&self) -> u64 {
+        self.sinks.behind()
     }
 
     /// The next frames are the person's neutral again; the calibration in use solves them
@@ -161,6 +259,8 @@ impl Session {
                 .map_err(|_| Error::invalid("live: the calibration's thread panicked"))?;
             self.install(done)?;
         }
+        // Every sink sends what it holds (standard output whole) before the session ends.
+        self.sinks.close()?;
         match self.recorder.take() {
             Some(r) if self.solved == 0 => r.remove(),
             _ => Ok(()),
@@ -330,8 +430,7 @@ impl Session {
             self.record_events(s.index, f.number)?;
             let head = s.head;
             self.sinks
-                .send(f.number, (&s.weights, head), f.arrived, k == newest)
-                .map_err(|e| Error::io("standard output", e))?;
+                .send(f.number, (&s.weights, head), f.arrived, k == newest)?;
             if k == newest {
                 self.latencies
                     .record(Instant::now().duration_since(f.arrived).as_secs_f64() * 1e3);

@@ -93,6 +93,7 @@ fn the_avatar_turns_and_smiles_on_the_persons_side_unless_mirrored() {
     let mirrored = SinkOptions {
         mirror: true,
         head_position: Some([0.0, 0.07, 0.01]),
+        ..SinkOptions::default()
     };
     let (vals, bone) = vmc_frame(mirrored, &w, [yaw, 0.0, 0.0]);
     let (pos, rot) = bone.unwrap();
@@ -111,6 +112,7 @@ fn the_avatar_turns_and_smiles_on_the_persons_side_unless_mirrored() {
         let o = SinkOptions {
             mirror,
             head_position: None,
+            ..SinkOptions::default()
         };
         let (_, bone) = vmc_frame(o, &w, [0.0, 0.3, 0.0]);
         assert!(bone.is_none());
@@ -125,4 +127,109 @@ fn the_avatar_turns_and_smiles_on_the_persons_side_unless_mirrored() {
         let f = facing(bone.unwrap().1);
         assert!((f[1] + 0.3f64.sin()).abs() < 1e-6, "{f:?}");
     }
+}
+
+/// A writer that takes a line every `pause` (a reader that has stalled), or fails (one that
+/// went away), keeping what it took.
+struct Slow {
+    pause: Duration,
+    fail: bool,
+    took: std::sync::Arc<std::sync::Mutex<Vec<u8>>>,
+}
+
+impl std::io::Write for Slow {
+    fn write(&mut self, b: &[u8]) -> std::io::Result<usize> {
+        if self.fail {
+            return Err(std::io::Error::new(
+                std::io::ErrorKind::BrokenPipe,
+                "reader gone",
+            ));
+        }
+        std::thread::sleep(self.pause);
+        self.took.lock().unwrap().extend_from_slice(b);
+        Ok(b.len())
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
+fn slow(pause_ms: u64, fail: bool) -> (Box<Slow>, std::sync::Arc<std::sync::Mutex<Vec<u8>>>) {
+    let took = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
+    let w = Slow {
+        pause: Duration::from_millis(pause_ms),
+        fail,
+        took: took.clone(),
+    };
+    (Box::new(w), took)
+}
+
+/// A stalled standard-output reader does not stall the solve: a live source's frames are
+/// handed off at once and the ones the table could not take counted; a file replayed waits
+/// and loses nothing; a reader that went away ends the session, named.
+#[test]
+fn a_stalled_reader_never_stalls_the_solve() {
+    let rig = rig();
+    let w = vec![0.1; rig.k()];
+    let (out, took) = slow(20, false);
+    let mut live =
+        Sinks::open(&[SinkSpec::Stdout], &rig, out, 30.0, SinkOptions::default()).unwrap();
+    let t0 = Instant::now();
+    for f in 0..200 {
+        live.send(f, (&w, [0.0; 3]), Instant::now(), true).unwrap();
+    }
+    let handing = t0.elapsed();
+    // 200 lines at 20 ms each would take 4 s on the solve's thread.
+    assert!(handing < Duration::from_millis(500), "{handing:?}");
+    assert!(
+        live.behind() > 0,
+        "the lines the table could not take are counted"
+    );
+    live.close().unwrap();
+    let lines = String::from_utf8(took.lock().unwrap().clone()).unwrap();
+    assert_eq!(
+        lines.lines().count() as u64,
+        1 + 200 - live.behind(),
+        "the header and each line handed off, whole"
+    );
+
+    let (out, took) = slow(1, false);
+    let wait = SinkOptions {
+        wait: true,
+        ..SinkOptions::default()
+    };
+    let mut file = Sinks::open(&[SinkSpec::Stdout], &rig, out, 30.0, wait).unwrap();
+    for f in 0..150 {
+        file.send(f, (&w, [0.0; 3]), Instant::now(), f % 2 == 0)
+            .unwrap();
+    }
+    file.close().unwrap();
+    assert_eq!(file.behind(), 0);
+    let lines = String::from_utf8(took.lock().unwrap().clone()).unwrap();
+    let frames: Vec<&str> = lines
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').next().unwrap())
+        .collect();
+    let want: Vec<String> = (0..150).map(|f| f.to_string()).collect();
+    assert_eq!(
+        frames, want,
+        "every frame, in order, the table takes every frame"
+    );
+
+    let (out, _) = slow(0, true);
+    let mut gone =
+        Sinks::open(&[SinkSpec::Stdout], &rig, out, 30.0, SinkOptions::default()).unwrap();
+    let mut err = None;
+    for f in 0..50 {
+        if let Err(e) = gone.send(f, (&w, [0.0; 3]), Instant::now(), true) {
+            err = Some(e);
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    let e = err
+        .or_else(|| gone.close().err())
+        .expect("the failure is reported");
+    assert!(e.to_string().contains("standard output"), "{e}");
 }

@@ -6,8 +6,8 @@
 
 use super::Events;
 use crossterm::event::{Event, KeyCode, KeyEventKind, KeyModifiers};
-use keyshape_live::session::{quantile, Session, Step};
-use keyshape_live::{Counters, Popped, Queue};
+use keyshape_live::session::{Served, Session, Step};
+use keyshape_live::{Counters, Queue};
 use ratatui::backend::Backend;
 use ratatui::layout::{Constraint, Layout, Rect};
 use ratatui::style::{Color, Style};
@@ -15,7 +15,6 @@ use ratatui::text::Line;
 use ratatui::widgets::canvas::{Canvas, Line as CanvasLine, Points};
 use ratatui::widgets::{Block, Paragraph};
 use ratatui::{Frame, Terminal};
-use std::collections::VecDeque;
 use std::time::{Duration, Instant};
 
 /// The λ steps `l` and `L` move through (the causal prior, squared pixels per unit weight²).
@@ -297,28 +296,28 @@ fn draw_bars(f: &mut Frame, area: Rect, s: &LiveState) {
 /// The screen told a calibration was taken into use.
 fn calibrated(session: &Session, s: &mut LiveState) {
     s.collecting = None;
-    let n = session.solver.calibration().map_or(0, |c| c.frames);
+    let n = session.solver().calibration().map_or(0, |c| c.frames);
     s.status = match session.calibration_warning() {
         Some(w) => format!("calibrated on {n} frames, not neutral: {w} (n: again)"),
         None => format!("calibrated on {n} frames"),
     };
 }
 
-/// Solves every frame waiting in `queue`, in order (the newest is what is drawn), noting
-/// each arrival in `window` and `last_frame`, and the source's end once in the status.
+/// Solves every frame waiting in `queue`, in order (the newest is what is drawn) — the
+/// session's own serving step, as `kslab live` runs it — noting the last arrival, and the
+/// source's end once in the status.
 fn drain(
     queue: &Queue,
     session: &mut Session,
     s: &mut LiveState,
-    window: &mut VecDeque<Instant>,
     last_frame: &mut Instant,
     ended: &mut bool,
 ) -> anyhow::Result<()> {
     loop {
-        match queue.pop(Duration::ZERO) {
-            Popped::Frame(fr) => {
+        match session.serve(queue, Duration::ZERO)? {
+            Served::Took(step) => {
                 *last_frame = Instant::now();
-                match session.take(fr)? {
+                match step {
                     Step::Collecting(have, need) => s.collecting = Some((have, need)),
                     Step::Calibrated(_) => calibrated(session, s),
                     Step::Solved => s.collecting = None,
@@ -326,10 +325,13 @@ fn drain(
                 if let Some(n) = session.notices().pop() {
                     s.status = n;
                 }
-                window.push_back(Instant::now());
             }
-            Popped::Idle => break,
-            Popped::Closed => {
+            Served::Calibrated(_) => {
+                calibrated(session, s);
+                break;
+            }
+            Served::Idle => break,
+            Served::Closed => {
                 if !*ended {
                     s.status = "the source has ended".into();
                     *ended = true;
@@ -347,24 +349,24 @@ fn drain(
 fn show_last(session: &Session, s: &mut LiveState) {
     let (taken, count) = session.last_taken();
     // A frame taken, or frames solved since (a calibration made between frames).
-    if (count, session.solved) == s.shown {
+    if (count, session.solved()) == s.shown {
         return;
     }
-    s.shown = (count, session.solved);
-    if session.solver.calibration().is_none() {
+    s.shown = (count, session.solved());
+    if session.solver().calibration().is_none() {
         s.tracked = taken.chunks_exact(2).map(|p| [p[0], p[1]]).collect();
         s.posed.clear();
         return;
     }
-    if let Some((fr, solved)) = &session.last {
+    if let Some((fr, solved)) = session.last() {
         s.weights.clone_from(&solved.weights);
-        let rig = session.solver.rig();
+        let rig = session.solver().rig();
         let sel = session.selection();
         s.tracked = sel
             .iter()
             .filter_map(|&p| Some([*fr.points.get(2 * p)?, *fr.points.get(2 * p + 1)?]))
             .collect();
-        if let Some(c) = session.solver.calibration() {
+        if let Some(c) = session.solver().calibration() {
             let person = keyshape_rig::Rig {
                 neutral: c.neutral.clone(),
                 ..rig.clone()
@@ -396,44 +398,25 @@ where
 {
     let mut s = LiveState {
         source: source.to_string(),
-        names: session.solver.rig().names.clone(),
-        collecting: match session.solver.calibration() {
+        names: session.solver().rig().names.clone(),
+        collecting: match session.solver().calibration() {
             Some(_) => None,
-            None => Some(session.solver.collected()),
+            None => Some(session.solver().collected()),
         },
         status: "look neutral".into(),
-        contours: session.solver.rig().polylines(),
+        contours: session.solver().rig().polylines(),
         ..LiveState::default()
     };
-    let mut window: VecDeque<Instant> = VecDeque::new();
     let mut last_frame = Instant::now();
     let mut last_draw: Option<Instant> = None;
     let mut ended = false;
     while !s.quit {
-        drain(
-            queue,
-            session,
-            &mut s,
-            &mut window,
-            &mut last_frame,
-            &mut ended,
-        )?;
-        // A calibration made on its thread while no frame came.
-        if session.poll()?.is_some() {
-            calibrated(session, &mut s);
-        }
-        while window
-            .front()
-            .is_some_and(|t| t.elapsed() > Duration::from_secs(1))
-        {
-            window.pop_front();
-        }
-        s.fps = window.len();
+        drain(queue, session, &mut s, &mut last_frame, &mut ended)?;
+        s.fps = session.rate();
         s.idle = last_frame.elapsed().as_secs_f64();
         s.counts = counters.get();
-        let recent: Vec<f64> = session.latencies.recent().iter().copied().collect();
-        s.latency = (quantile(&recent, 0.5), quantile(&recent, 0.99));
-        s.smooth = session.solver.smooth();
+        s.latency = session.recent_latency();
+        s.smooth = session.solver().smooth();
         show_last(session, &mut s);
         if last_draw.is_none_or(|t| t.elapsed() >= Duration::from_millis(33)) {
             terminal.draw(|f| draw(f, &s))?;
@@ -445,9 +428,9 @@ where
                     match e {
                         LiveEffect::Recalibrate => {
                             session.recalibrate();
-                            s.collecting = Some(session.solver.collected());
+                            s.collecting = Some(session.solver().collected());
                         }
-                        LiveEffect::SetSmooth(l) => session.solver.set_smooth(l)?,
+                        LiveEffect::SetSmooth(l) => session.set_smooth(l)?,
                     }
                 }
             }

@@ -3,10 +3,10 @@
 
 use anyhow::{Context, Result};
 use clap::Args;
-use keyshape_live::session::{quantile, Session, Step};
+use keyshape_live::session::{Served, Session, Step};
 use keyshape_live::sink::{Recorder, SinkSpec, Sinks};
 use keyshape_live::source::{self, SourceOptions, SourceSpec};
-use keyshape_live::{Counters, Popped, Queue};
+use keyshape_live::{Counters, Queue};
 use keyshape_rig::live::LiveSolver;
 use keyshape_rig::RigOptions;
 use std::io::IsTerminal;
@@ -283,6 +283,8 @@ fn start_session(a: &LiveArgs, s: &Setup) -> Result<(Session, bool)> {
             Some(super::input::HeadPosition::At(p)) => Some(p),
             Some(super::input::HeadPosition::None) => None,
         },
+        // A file replayed waits for a slow sink (nothing lost); a live source does not.
+        wait: s.opened.blocking,
     };
     let sinks = Sinks::open(&s.sinks, &s.rig, Box::new(std::io::stdout()), fps, options)?;
     let recorder = match &a.record {
@@ -296,7 +298,7 @@ fn start_session(a: &LiveArgs, s: &Setup) -> Result<(Session, bool)> {
     };
     let mut session = Session::new(solver, sinks, recorder, s.select.clone());
     if !loaded {
-        session.save_calibration = a.neutral_file.clone();
+        session.save_calibrations_to(a.neutral_file.clone());
     }
     Ok((session, loaded))
 }
@@ -348,7 +350,6 @@ struct Terminal {
     last_status: Instant,
     last_frame: Instant,
     idle_said: bool,
-    window: std::collections::VecDeque<Instant>,
     /// Why the lead-in slides on, said at most once a second.
     lead_in: keyshape_live::RateLimited,
 }
@@ -364,26 +365,19 @@ impl Terminal {
     }
 
     /// Redraws the status line twice a second (on a terminal).
-    fn status(&mut self, session: &Session, counters: &Counters) {
-        while self
-            .window
-            .front()
-            .is_some_and(|t| t.elapsed() > Duration::from_secs(1))
-        {
-            self.window.pop_front();
-        }
+    fn status(&mut self, session: &mut Session, counters: &Counters) {
         if !self.tty || self.last_status.elapsed() < Duration::from_millis(500) {
             return;
         }
         self.last_status = Instant::now();
         let (_, malformed, dropped) = counters.get();
-        let recent: Vec<f64> = session.latencies.recent().iter().copied().collect();
+        let (p50, p99) = session.recent_latency();
         err!(
             "\r\x1b[K{} fps · latency p50 {} p99 {} · solved {} · dropped {dropped} · malformed {malformed}",
-            self.window.len(),
-            ms(quantile(&recent, 0.5)),
-            ms(quantile(&recent, 0.99)),
-            session.solved
+            session.rate(),
+            ms(p50),
+            ms(p99),
+            session.solved()
         );
     }
 }
@@ -394,9 +388,9 @@ fn say_calibrated(a: &LiveArgs, session: &Session, t: &Terminal, n: usize) {
     let saved = a
         .neutral_file
         .as_ref()
-        .filter(|_| session.save_calibration.is_some())
+        .filter(|_| session.saves_calibrations_to().is_some())
         .map_or(String::new(), |p| format!(" (saved to {})", p.display()));
-    let lead = session.solver.calibration().map_or(0, |c| c.frames);
+    let lead = session.solver().calibration().map_or(0, |c| c.frames);
     errln!(
         "{}calibrated on {lead} frames{saved}{}",
         t.line(),
@@ -423,7 +417,6 @@ fn serve(
         last_status: Instant::now(),
         last_frame: Instant::now(),
         idle_said: false,
-        window: Default::default(),
         lead_in: keyshape_live::RateLimited::new(),
     };
     while !stop.load(Ordering::Relaxed) {
@@ -435,12 +428,9 @@ fn serve(
                 a.calibrate
             );
         }
-        match queue.pop(Duration::from_millis(100)) {
-            Popped::Closed => return Ok(()),
-            Popped::Idle => {
-                if let Some(n) = session.poll()? {
-                    say_calibrated(a, session, &t, n);
-                }
+        match session.serve(queue, Duration::from_millis(100))? {
+            Served::Closed => return Ok(()),
+            Served::Idle => {
                 if t.last_frame.elapsed() > Duration::from_secs(2) && !t.idle_said {
                     errln!(
                         "{}waiting: no frames for {:.0} s",
@@ -450,10 +440,11 @@ fn serve(
                     t.idle_said = true;
                 }
             }
-            Popped::Frame(f) => {
+            Served::Calibrated(n) => say_calibrated(a, session, &t, n),
+            Served::Took(step) => {
                 t.last_frame = Instant::now();
                 t.idle_said = false;
-                match session.take(f)? {
+                match step {
                     Step::Calibrated(n) => say_calibrated(a, session, &t, n),
                     Step::Collecting(..) => {
                         if let Some(why) = session.lead_in_failure() {
@@ -466,11 +457,10 @@ fn serve(
                     }
                     Step::Solved => {}
                 }
-                for n in session.notices() {
-                    errln!("{}{n}", t.line());
-                }
-                t.window.push_back(Instant::now());
             }
+        }
+        for n in session.notices() {
+            errln!("{}{n}", t.line());
         }
         t.status(session, counters);
     }

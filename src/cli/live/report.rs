@@ -21,13 +21,17 @@ pub(super) fn report(
     let others = counters
         .other_faces
         .load(std::sync::atomic::Ordering::Relaxed);
-    let lat = |q| session.latencies.quantile(q);
+    let lat = |q| session.latencies().quantile(q);
     errln!(
-        "{}kslab live: {} frames solved in {seconds:.1} s ({received} received, {dropped} dropped, {malformed} malformed, {untracked} untracked, {others} of other faces, {} refused, {} not sent); latency p50 {} p99 {}",
+        "{}kslab live: {} frames solved in {seconds:.1} s ({received} received, {dropped} dropped, {malformed} malformed, {untracked} untracked, {others} of other faces, {} refused, {} not sent{}); latency p50 {} p99 {}",
         if std::io::stderr().is_terminal() { "\r\x1b[K" } else { "" },
-        session.solved,
-        session.refused,
+        session.solved(),
+        session.refused(),
         session.send_errors(),
+        match session.sinks_behind() {
+            0 => String::new(),
+            n => format!(", {n} missed by a sink that fell behind"),
+        },
         ms(lat(0.5)),
         ms(lat(0.99)),
     );
@@ -37,14 +41,15 @@ pub(super) fn report(
             "landmarks": rig.landmarks(),
             "shapes": rig.k(),
             "seconds": seconds,
-            "solved": session.solved,
+            "solved": session.solved(),
             "received": received,
             "dropped": dropped,
             "malformed": malformed,
             "untracked": untracked,
             "other_faces": others,
-            "refused": session.refused,
+            "refused": session.refused(),
             "not_sent": session.send_errors(),
+            "sinks_behind": session.sinks_behind(),
             "latency_ms": { "p50": lat(0.5), "p99": lat(0.99), "worst": lat(1.0) },
         });
         keyshape_io::write_atomic(p, |w| {
