@@ -24,9 +24,9 @@ pub struct Calibration {
     pub free: Vec<usize>,
     /// Frames averaged into the neutral.
     pub frames: usize,
-    /// The neutral head pose (yaw, pitch, roll in radians, as [`Camera::yaw_pitch_roll`]):
+    /// The neutral head pose (yaw, pitch, roll in radians, as [`Camera::yaw_pitch_roll`](crate::camera::Camera::yaw_pitch_roll)):
     /// the lead-in's mean rotation, which the head's rotation is sent relative to
-    /// ([`LiveFrame::head`]). A calibration saved before it was kept reads as 0 (the pose
+    /// ([`LiveFrame::head`](super::LiveFrame::head)). A calibration saved before it was kept reads as 0 (the pose
     /// as fitted).
     #[serde(default)]
     pub head: [f64; 3],
