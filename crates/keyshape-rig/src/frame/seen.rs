@@ -85,3 +85,45 @@ impl FrameSolver<'_> {
         fit_camera(&x, &v)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    /// Each landmark's weight is its own times its confidence over the mean of the
+    /// confidences seen: a point not seen counts in neither, so a frame that is equally
+    /// sure of every point it sees keeps the landmarks' own weights exactly.
+    #[test]
+    fn confidences_weigh_each_landmark_against_the_mean_of_those_seen() {
+        let n = 5;
+        let rig = crate::Rig {
+            names: vec!["s0".into()],
+            neutral: (0..n).map(|i| [i as f64, (i * i) as f64, 0.0]).collect(),
+            deltas: vec![(0..n).map(|i| [0.1, 0.2 * i as f64, 0.0]).collect()],
+            points: (0..n).collect(),
+            layout: n,
+        };
+        let base = [1.0, 2.0, 0.5, 1.0, 3.0];
+        let mut fs = super::FrameSolver::new(
+            &rig,
+            vec![0],
+            keyshape_core::solve::Solver::Bounded,
+            5,
+            &base,
+        );
+        // Equally sure of the four it sees, the fifth not seen.
+        fs.set_confidence(Some(&[0.7, 0.7, 0.7, 0.05, 0.7]));
+        assert_eq!(fs.blocks.lw, [1.0, 2.0, 0.5, 0.0, 3.0]);
+        assert_eq!(fs.seen(), 4);
+        // Unequally: 0.9 and 0.3 over their mean 0.6.
+        fs.set_confidence(Some(&[0.9, 0.3, 0.9, 0.3, 0.0]));
+        let mean = (0.9 + 0.3 + 0.9 + 0.3) / 4.0;
+        let want: Vec<f64> = [0.9, 0.3, 0.9, 0.3]
+            .iter()
+            .zip(&base)
+            .map(|(c, w)| w * (c / mean))
+            .chain([0.0])
+            .collect();
+        assert_eq!(fs.blocks.lw, want);
+        fs.set_confidence(None);
+        assert_eq!(fs.blocks.lw, base);
+    }
+}
